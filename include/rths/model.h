@@ -1,0 +1,116 @@
+/* rths model: the true assembly (M, C, K), its split into physical and numerical substructures,
+ * modal analysis, analytic FRF, and discretisation of linear state-space models.
+ *
+ * Conventions: DoF indices are 0-based in the API (storey 1 is DoF 0); matrices are column-major
+ * double arrays (see core.h); SI units throughout (kg, N s/m, N/m, m, s, rad/s). */
+#ifndef RTHS_MODEL_H
+#define RTHS_MODEL_H
+
+#include "rths/core.h"
+
+#include <complex.h>
+
+typedef struct rths_assembly {
+    int n;             /* DoFs of the true assembly */
+    double *mass;      /* n x n, kg */
+    double *damping;   /* n x n, N s/m */
+    double *stiffness; /* n x n, N/m */
+} rths_assembly;
+
+/* Storey chain from the ground up: storey i has mass masses[i] and the leg below it has
+ * damping dampings[i] and stiffness stiffnesses[i] (leg 0 connects storey 0 to the ground). */
+int rths_assembly_from_chain(int n, const double *masses, const double *dampings,
+                             const double *stiffnesses, rths_assembly *out, rths_error *err);
+/* Copies the matrices; checks symmetry, positive definite M, finite entries. */
+int rths_assembly_from_matrices(int n, const double *mass, const double *damping,
+                                const double *stiffness, rths_assembly *out, rths_error *err);
+void rths_assembly_free(rths_assembly *a);
+
+/* ---- split into substructures ---- */
+
+typedef enum { RTHS_DOF_PHYSICAL = 0, RTHS_DOF_INTERFACE = 1, RTHS_DOF_NUMERICAL = 2 } rths_dof_role;
+
+typedef struct rths_split {
+    int n;                       /* DoFs of the assembly */
+    int n_phys, n_int, n_num;    /* internal physical, interface, internal numerical */
+    int *phys_dofs;              /* assembly indices of the internal physical DoFs */
+    int *int_dofs;               /* assembly indices of the interface DoFs */
+    int *num_dofs;               /* assembly indices of the internal numerical DoFs */
+    double mass_ratio;           /* p = numerical share of the interface mass (SPEC 3.1) */
+    int np;                      /* n_phys + n_int: physical substructure size, order (phys, int) */
+    int nn;                      /* n_int + n_num: numerical substructure size, order (int, num) */
+    double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
+    double *mass_num, *damping_num, *stiffness_num;    /* nn x nn */
+} rths_split;
+
+/* Splits assembly a. role[i] gives each DoF's side. The interface mass block is divided as
+ * M22_num = p M22, M22_phys = (1 - p) M22 with p = mass_ratio in (0, 1).
+ * The interface damping and stiffness blocks are divided by the coupling rule unless given:
+ * the physical share of diagonal entry (i, i) is minus the sum of row i's couplings to internal
+ * physical DoFs (for a storey chain: exactly the leg below the interface); interface-interface
+ * off-diagonal couplings go to the physical side. damping_int_phys / stiffness_int_phys, when not
+ * NULL, give the physical shares of the n_int x n_int blocks explicitly. */
+int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double mass_ratio,
+                      const double *damping_int_phys, const double *stiffness_int_phys,
+                      rths_split *out, rths_error *err);
+void rths_split_free(rths_split *s);
+/* Scatter-adds both substructures back into n x n matrices (must equal the assembly). */
+void rths_split_recombine(const rths_split *s, double *mass, double *damping, double *stiffness);
+
+/* ---- modal analysis ---- */
+
+typedef struct rths_modes {
+    int n;
+    double *omega_rad_s;   /* undamped natural circular frequencies, ascending */
+    double *frequency_hz;  /* omega / 2 pi */
+    double *damping_ratio; /* phi^T C phi / (2 omega phi^T M phi): proportional approximation */
+    double *shapes;        /* n x n, column r = mode r, mass-normalised (phi^T M phi = 1) */
+} rths_modes;
+
+int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err);
+void rths_modes_free(rths_modes *m);
+
+/* ---- analytic frequency response ---- */
+
+/* Steady state of M q'' + C q' + K q = f cos(omega t): q = Re(X e^{i omega t}) with
+ * X = (K - omega^2 M + i omega C)^{-1} f. Amplitude |X_i|, phase arg X_i; the Fourier
+ * coefficients of q_i = A cos + B sin are A = Re X_i, B = -Im X_i. */
+int rths_frf(int n, const double *mass, const double *damping, const double *stiffness,
+             const double *force, double omega_rad_s, double complex *x_out, rths_error *err);
+
+/* ---- state space and discretisation ---- */
+
+/* x = (q, q'), x' = A x + B u with u the amplitudes of the inputs whose force directions are the
+ * columns of input (n x n_inputs). A is 2n x 2n, B is 2n x n_inputs; both malloc'ed. */
+int rths_state_space(int n, const double *mass, const double *damping, const double *stiffness,
+                     int n_inputs, const double *input, double **a_out, double **b_out,
+                     rths_error *err);
+
+typedef enum {
+    RTHS_SCHEME_IMPLICIT_EULER = 0, /* the seed's: (I - hA)^{-1}(x_k + h B u_{k+1}) */
+    RTHS_SCHEME_TRAPEZOIDAL,        /* Tustin, input averaged over the step */
+    RTHS_SCHEME_EXACT_ZOH,          /* exact for u held at u_k over the step */
+    RTHS_SCHEME_EXACT_FOH,          /* exact for u linear from u_k to u_{k+1} (triangle hold) */
+    RTHS_SCHEME_COUNT
+} rths_scheme;
+
+#define RTHS_SCHEME_DEFAULT RTHS_SCHEME_EXACT_FOH
+
+const char *rths_scheme_name(rths_scheme s); /* "implicit_euler", "trapezoidal", ... */
+int rths_scheme_parse(const char *name, rths_scheme *out); /* 0 on success, -1 unknown */
+
+/* x_{k+1} = ad x_k + b_prev u_k + b_curr u_{k+1}; every scheme has this form. */
+typedef struct rths_discrete {
+    int nx, nu;
+    double h;
+    rths_scheme scheme;
+    double *ad;     /* nx x nx */
+    double *b_prev; /* nx x nu, multiplies the input at the start of the step */
+    double *b_curr; /* nx x nu, multiplies the input at the end of the step */
+} rths_discrete;
+
+int rths_discretise(int nx, int nu, const double *a, const double *b, double h, rths_scheme scheme,
+                    rths_discrete *out, rths_error *err);
+void rths_discrete_free(rths_discrete *d);
+
+#endif

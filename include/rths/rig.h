@@ -1,0 +1,92 @@
+/* rths rig: what a real hybrid-test rig offers the host, and nothing more.
+ *
+ * The host (iterate/, continuation/, cli/) sees a rig only through this interface. A rig runs the
+ * real-time controller (numerical substructure, PD control of the physical interface to a periodic
+ * target, grounding control, inertial compensation, forcing, running Fourier sums) and reports,
+ * for every whole forcing period it runs, the Fourier coefficients of the physical and numerical
+ * interface displacements over that period. Steady-state detection and averaging are the host's
+ * job (iterate/), from that per-period stream.
+ *
+ * Backends: the in-process virtual rig (rths_virtual_rig_create, in rig_virtual.h) and the remote
+ * client of the controller process. Units: Hz, N, m, s. */
+#ifndef RTHS_RIG_H
+#define RTHS_RIG_H
+
+#include "rths/core.h"
+
+#define RTHS_MAX_HARMONICS 5
+
+/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
+ * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
+ * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
+ * numerical sides, target and forcing are all referred to the same phase. */
+typedef struct rths_fourier {
+    double a[RTHS_MAX_HARMONICS + 1];
+    double b[RTHS_MAX_HARMONICS + 1];
+} rths_fourier;
+
+typedef struct rths_period {
+    double frequency_hz;  /* forcing frequency during this period */
+    double end_time_s;    /* rig time at the end of the period */
+    rths_fourier phys;    /* physical interface displacement, m */
+    rths_fourier num;     /* numerical interface displacement, m */
+    rths_fourier force;   /* measured interface force (load cell), N */
+} rths_period;
+
+typedef enum {
+    RTHS_RIG_OK = 0,
+    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
+    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
+    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
+    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
+    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
+    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
+} rths_rig_fault;
+
+const char *rths_rig_fault_name(rths_rig_fault f);
+
+/* One decimated time trace sample. */
+typedef struct rths_trace_sample {
+    double time_s;
+    double x_phys_m;   /* physical interface displacement (laser) */
+    double x_num_m;    /* numerical interface displacement */
+    double target_m;   /* control target x*(t) */
+    double force_n;    /* load cell */
+    double demand;     /* actuator demand (V) */
+} rths_trace_sample;
+
+typedef struct rths_rig rths_rig;
+
+/* Backend operations; every call returns RTHS_OK or an error code with err filled. */
+typedef struct rths_rig_ops {
+    int (*set_forcing)(void *self, double frequency_hz, double amplitude_n, rths_error *err);
+    /* Target x*(t) = sum_{k=1..harmonics} a[k-1] cos(k w t) + b[k-1] sin(k w t), metres. */
+    int (*set_target)(void *self, int harmonics, const double *a, const double *b, rths_error *err);
+    /* Runs `count` whole periods and fills out[0..count-1]. */
+    int (*run_periods)(void *self, int count, rths_period *out, rths_error *err);
+    /* Runs for duration_s recording a trace decimated to at most max_samples samples. */
+    int (*record_trace)(void *self, double duration_s, int max_samples, rths_trace_sample *out,
+                        int *n_out, rths_error *err);
+    double (*time_s)(void *self);         /* rig time since creation: simulated s or wall s */
+    rths_rig_fault (*fault)(void *self);  /* latched fault, RTHS_RIG_OK if none */
+    int (*reset_fault)(void *self, rths_error *err);
+    double (*noise_level_m)(void *self);  /* displacement noise standard deviation, m (0: none) */
+    void (*destroy)(void *self);
+} rths_rig_ops;
+
+rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description);
+void rths_rig_destroy(rths_rig *rig);
+const char *rths_rig_description(const rths_rig *rig);
+
+int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n, rths_error *err);
+int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const double *b,
+                        rths_error *err);
+int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err);
+int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples,
+                          rths_trace_sample *out, int *n_out, rths_error *err);
+double rths_rig_time_s(rths_rig *rig);
+rths_rig_fault rths_rig_get_fault(rths_rig *rig);
+int rths_rig_reset_fault(rths_rig *rig, rths_error *err);
+double rths_rig_noise_level_m(rths_rig *rig);
+
+#endif
