@@ -45,11 +45,12 @@ typedef struct rths_split {
 
 /* Splits assembly a. role[i] gives each DoF's side. The interface mass block is divided as
  * M22_num = p M22, M22_phys = (1 - p) M22 with p = mass_ratio in (0, 1).
- * The interface damping and stiffness blocks are divided by the coupling rule unless given:
- * the physical share of diagonal entry (i, i) is minus the sum of row i's couplings to internal
- * physical DoFs (for a storey chain: exactly the leg below the interface); interface-interface
- * off-diagonal couplings go to the physical side. damping_int_phys / stiffness_int_phys, when not
- * NULL, give the physical shares of the n_int x n_int blocks explicitly. */
+ * The interface damping and stiffness blocks are divided by the coupling rule unless given: the
+ * numerical side gets exactly the elements joining each interface DoF to internal numerical DoFs
+ * (diagonal entry (i, i) = minus the sum of row i's couplings to numerical DoFs); everything else
+ * (ground, physical and interface-interface couplings) stays physical. For a storey chain this is
+ * "the leg below the interface is physical, the leg above numerical". damping_int_phys /
+ * stiffness_int_phys, when not NULL, give the physical shares of the n_int x n_int blocks. */
 int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double mass_ratio,
                       const double *damping_int_phys, const double *stiffness_int_phys,
                       rths_split *out, rths_error *err);

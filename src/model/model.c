@@ -1,0 +1,341 @@
+/* True assembly, substructure split, modal analysis and analytic FRF. */
+#include "rths/model.h"
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int all_finite(const double *a, size_t count) {
+    for (size_t i = 0; i < count; i++)
+        if (!isfinite(a[i])) return 0;
+    return 1;
+}
+
+static int assembly_alloc(int n, rths_assembly *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    out->n = n;
+    out->mass = rths_mat_new(n, n);
+    out->damping = rths_mat_new(n, n);
+    out->stiffness = rths_mat_new(n, n);
+    if (!out->mass || !out->damping || !out->stiffness) {
+        rths_assembly_free(out);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory building a %d-DoF assembly", n);
+    }
+    return RTHS_OK;
+}
+
+void rths_assembly_free(rths_assembly *a) {
+    if (!a) return;
+    rths_mat_free(a->mass);
+    rths_mat_free(a->damping);
+    rths_mat_free(a->stiffness);
+    memset(a, 0, sizeof *a);
+}
+
+int rths_assembly_from_chain(int n, const double *masses, const double *dampings,
+                             const double *stiffnesses, rths_assembly *out, rths_error *err) {
+    if (n < 1) return rths_error_set(err, RTHS_EINPUT, "a storey chain needs at least one storey");
+    for (int i = 0; i < n; i++) {
+        if (!(isfinite(masses[i]) && masses[i] > 0))
+            return rths_error_set(err, RTHS_EINPUT, "storey %d: mass must be positive, got %g kg",
+                                  i + 1, masses[i]);
+        if (!(isfinite(dampings[i]) && dampings[i] >= 0))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "storey %d: leg damping must be >= 0, got %g N s/m", i + 1,
+                                  dampings[i]);
+        if (!(isfinite(stiffnesses[i]) && stiffnesses[i] > 0))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "storey %d: leg stiffness must be positive, got %g N/m", i + 1,
+                                  stiffnesses[i]);
+    }
+    int rc = assembly_alloc(n, out, err);
+    if (rc) return rc;
+    for (int i = 0; i < n; i++) {
+        RTHS_AT(out->mass, n, i, i) = masses[i];
+        /* leg i joins storey i-1 (or the ground) to storey i */
+        RTHS_AT(out->damping, n, i, i) += dampings[i];
+        RTHS_AT(out->stiffness, n, i, i) += stiffnesses[i];
+        if (i > 0) {
+            RTHS_AT(out->damping, n, i - 1, i - 1) += dampings[i];
+            RTHS_AT(out->damping, n, i - 1, i) -= dampings[i];
+            RTHS_AT(out->damping, n, i, i - 1) -= dampings[i];
+            RTHS_AT(out->stiffness, n, i - 1, i - 1) += stiffnesses[i];
+            RTHS_AT(out->stiffness, n, i - 1, i) -= stiffnesses[i];
+            RTHS_AT(out->stiffness, n, i, i - 1) -= stiffnesses[i];
+        }
+    }
+    return RTHS_OK;
+}
+
+int rths_assembly_from_matrices(int n, const double *mass, const double *damping,
+                                const double *stiffness, rths_assembly *out, rths_error *err) {
+    if (n < 1) return rths_error_set(err, RTHS_EINPUT, "an assembly needs at least one DoF");
+    const double *mats[3] = {mass, damping, stiffness};
+    const char *names[3] = {"mass", "damping", "stiffness"};
+    for (int m = 0; m < 3; m++) {
+        if (!all_finite(mats[m], (size_t)n * (size_t)n))
+            return rths_error_set(err, RTHS_EINPUT, "%s matrix has a non-finite entry", names[m]);
+        if (!rths_mat_is_symmetric(mats[m], n, 1e-12))
+            return rths_error_set(err, RTHS_EINPUT, "%s matrix is not symmetric", names[m]);
+    }
+    if (!rths_mat_is_spd(mass, n))
+        return rths_error_set(err, RTHS_EINPUT, "mass matrix is not positive definite");
+    int rc = assembly_alloc(n, out, err);
+    if (rc) return rc;
+    size_t bytes = (size_t)n * (size_t)n * sizeof(double);
+    memcpy(out->mass, mass, bytes);
+    memcpy(out->damping, damping, bytes);
+    memcpy(out->stiffness, stiffness, bytes);
+    return RTHS_OK;
+}
+
+/* ---- split ---- */
+
+void rths_split_free(rths_split *s) {
+    if (!s) return;
+    free(s->phys_dofs);
+    free(s->int_dofs);
+    free(s->num_dofs);
+    rths_mat_free(s->mass_phys);
+    rths_mat_free(s->damping_phys);
+    rths_mat_free(s->stiffness_phys);
+    rths_mat_free(s->mass_num);
+    rths_mat_free(s->damping_num);
+    rths_mat_free(s->stiffness_num);
+    memset(s, 0, sizeof *s);
+}
+
+/* Numerical share of the interface block of a (damping or stiffness): the elements joining each
+ * interface DoF to internal numerical DoFs; the ground, physical and interface-interface couplings
+ * stay physical, which for a storey chain is exactly "leg below the interface is physical". */
+static void coupling_rule_num_share(const rths_split *s, const double *a, double *num_block) {
+    int n = s->n, ni = s->n_int;
+    memset(num_block, 0, (size_t)ni * (size_t)ni * sizeof(double));
+    for (int i = 0; i < ni; i++) {
+        double sum = 0.0;
+        for (int j = 0; j < s->n_num; j++) sum += RTHS_AT(a, n, s->int_dofs[i], s->num_dofs[j]);
+        RTHS_AT(num_block, ni, i, i) = -sum;
+    }
+}
+
+static void fill_substructure(const rths_split *s, const double *a, const double *int_phys,
+                              const double *int_num, double *phys, double *num) {
+    int n = s->n, np = s->np, nn = s->nn, ni = s->n_int;
+    /* physical ordering (phys..., int...), numerical ordering (int..., num...) */
+    for (int i = 0; i < s->n_phys; i++) {
+        for (int j = 0; j < s->n_phys; j++)
+            RTHS_AT(phys, np, i, j) = RTHS_AT(a, n, s->phys_dofs[i], s->phys_dofs[j]);
+        for (int j = 0; j < ni; j++) {
+            RTHS_AT(phys, np, i, s->n_phys + j) = RTHS_AT(a, n, s->phys_dofs[i], s->int_dofs[j]);
+            RTHS_AT(phys, np, s->n_phys + j, i) = RTHS_AT(a, n, s->int_dofs[j], s->phys_dofs[i]);
+        }
+    }
+    for (int i = 0; i < ni; i++)
+        for (int j = 0; j < ni; j++) {
+            RTHS_AT(phys, np, s->n_phys + i, s->n_phys + j) = RTHS_AT(int_phys, ni, i, j);
+            RTHS_AT(num, nn, i, j) = RTHS_AT(int_num, ni, i, j);
+        }
+    for (int i = 0; i < s->n_num; i++) {
+        for (int j = 0; j < s->n_num; j++)
+            RTHS_AT(num, nn, ni + i, ni + j) = RTHS_AT(a, n, s->num_dofs[i], s->num_dofs[j]);
+        for (int j = 0; j < ni; j++) {
+            RTHS_AT(num, nn, ni + i, j) = RTHS_AT(a, n, s->num_dofs[i], s->int_dofs[j]);
+            RTHS_AT(num, nn, j, ni + i) = RTHS_AT(a, n, s->int_dofs[j], s->num_dofs[i]);
+        }
+    }
+}
+
+int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double mass_ratio,
+                      const double *damping_int_phys, const double *stiffness_int_phys,
+                      rths_split *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    int n = a->n;
+    if (!(isfinite(mass_ratio) && mass_ratio > 0.0 && mass_ratio < 1.0))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "mass ratio p must lie in the open interval (0, 1), got %g",
+                              mass_ratio);
+    out->n = n;
+    out->mass_ratio = mass_ratio;
+    out->phys_dofs = calloc((size_t)n, sizeof(int));
+    out->int_dofs = calloc((size_t)n, sizeof(int));
+    out->num_dofs = calloc((size_t)n, sizeof(int));
+    if (!out->phys_dofs || !out->int_dofs || !out->num_dofs) goto oom;
+    for (int i = 0; i < n; i++) {
+        switch (role[i]) {
+        case RTHS_DOF_PHYSICAL: out->phys_dofs[out->n_phys++] = i; break;
+        case RTHS_DOF_INTERFACE: out->int_dofs[out->n_int++] = i; break;
+        case RTHS_DOF_NUMERICAL: out->num_dofs[out->n_num++] = i; break;
+        default:
+            rths_split_free(out);
+            return rths_error_set(err, RTHS_EINPUT, "DoF %d has no valid role", i + 1);
+        }
+    }
+    if (out->n_int == 0) {
+        rths_split_free(out);
+        return rths_error_set(err, RTHS_EINPUT, "the split needs at least one interface DoF");
+    }
+    /* Separability: internal physical and internal numerical DoFs may meet only through the
+     * interface, otherwise no force exchange at the interface can represent the assembly. */
+    const double *mats[3] = {a->mass, a->damping, a->stiffness};
+    const char *names[3] = {"mass", "damping", "stiffness"};
+    for (int m = 0; m < 3; m++)
+        for (int i = 0; i < out->n_phys; i++)
+            for (int j = 0; j < out->n_num; j++)
+                if (RTHS_AT(mats[m], n, out->phys_dofs[i], out->num_dofs[j]) != 0.0) {
+                    int pi = out->phys_dofs[i] + 1, nj = out->num_dofs[j] + 1;
+                    rths_split_free(out);
+                    return rths_error_set(err, RTHS_EINPUT,
+                                          "%s couples physical DoF %d directly to numerical DoF "
+                                          "%d: substructures must meet only at the interface",
+                                          names[m], pi, nj);
+                }
+    out->np = out->n_phys + out->n_int;
+    out->nn = out->n_int + out->n_num;
+    int ni = out->n_int;
+    out->mass_phys = rths_mat_new(out->np, out->np);
+    out->damping_phys = rths_mat_new(out->np, out->np);
+    out->stiffness_phys = rths_mat_new(out->np, out->np);
+    out->mass_num = rths_mat_new(out->nn, out->nn);
+    out->damping_num = rths_mat_new(out->nn, out->nn);
+    out->stiffness_num = rths_mat_new(out->nn, out->nn);
+    double *blk = rths_mat_new(4 * ni, ni);
+    if (!out->mass_phys || !out->damping_phys || !out->stiffness_phys || !out->mass_num ||
+        !out->damping_num || !out->stiffness_num || !blk) {
+        rths_mat_free(blk);
+        goto oom;
+    }
+    double *full = blk, *phys = blk + ni * ni, *num = blk + 2 * ni * ni;
+    const double *explicit_phys[3] = {NULL, damping_int_phys, stiffness_int_phys};
+    double *outs_phys[3] = {out->mass_phys, out->damping_phys, out->stiffness_phys};
+    double *outs_num[3] = {out->mass_num, out->damping_num, out->stiffness_num};
+    for (int m = 0; m < 3; m++) {
+        for (int i = 0; i < ni; i++)
+            for (int j = 0; j < ni; j++)
+                RTHS_AT(full, ni, i, j) = RTHS_AT(mats[m], n, out->int_dofs[i], out->int_dofs[j]);
+        if (m == 0) {
+            for (int k = 0; k < ni * ni; k++) {
+                num[k] = mass_ratio * full[k];
+                phys[k] = full[k] - num[k];
+            }
+        } else if (explicit_phys[m]) {
+            for (int k = 0; k < ni * ni; k++) {
+                phys[k] = explicit_phys[m][k];
+                num[k] = full[k] - phys[k];
+            }
+        } else {
+            coupling_rule_num_share(out, mats[m], num);
+            for (int k = 0; k < ni * ni; k++) phys[k] = full[k] - num[k];
+        }
+        fill_substructure(out, mats[m], phys, num, outs_phys[m], outs_num[m]);
+    }
+    rths_mat_free(blk);
+    return RTHS_OK;
+oom:
+    rths_split_free(out);
+    return rths_error_set(err, RTHS_EFAIL, "out of memory splitting the assembly");
+}
+
+void rths_split_recombine(const rths_split *s, double *mass, double *damping, double *stiffness) {
+    int n = s->n, np = s->np, nn = s->nn;
+    double *outs[3] = {mass, damping, stiffness};
+    const double *phys[3] = {s->mass_phys, s->damping_phys, s->stiffness_phys};
+    const double *num[3] = {s->mass_num, s->damping_num, s->stiffness_num};
+    for (int m = 0; m < 3; m++) {
+        memset(outs[m], 0, (size_t)n * (size_t)n * sizeof(double));
+        for (int i = 0; i < np; i++) {
+            int gi = i < s->n_phys ? s->phys_dofs[i] : s->int_dofs[i - s->n_phys];
+            for (int j = 0; j < np; j++) {
+                int gj = j < s->n_phys ? s->phys_dofs[j] : s->int_dofs[j - s->n_phys];
+                RTHS_AT(outs[m], n, gi, gj) += RTHS_AT(phys[m], np, i, j);
+            }
+        }
+        for (int i = 0; i < nn; i++) {
+            int gi = i < s->n_int ? s->int_dofs[i] : s->num_dofs[i - s->n_int];
+            for (int j = 0; j < nn; j++) {
+                int gj = j < s->n_int ? s->int_dofs[j] : s->num_dofs[j - s->n_int];
+                RTHS_AT(outs[m], n, gi, gj) += RTHS_AT(num[m], nn, i, j);
+            }
+        }
+    }
+}
+
+/* ---- modal analysis ---- */
+
+void rths_modes_free(rths_modes *m) {
+    if (!m) return;
+    free(m->omega_rad_s);
+    free(m->frequency_hz);
+    free(m->damping_ratio);
+    rths_mat_free(m->shapes);
+    memset(m, 0, sizeof *m);
+}
+
+int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err) {
+    int n = a->n;
+    memset(out, 0, sizeof *out);
+    out->n = n;
+    out->omega_rad_s = calloc((size_t)n, sizeof(double));
+    out->frequency_hz = calloc((size_t)n, sizeof(double));
+    out->damping_ratio = calloc((size_t)n, sizeof(double));
+    out->shapes = rths_mat_dup(a->stiffness, n, n);
+    double *mass = rths_mat_dup(a->mass, n, n);
+    double *cphi = rths_mat_new(n, 1);
+    if (!out->omega_rad_s || !out->frequency_hz || !out->damping_ratio || !out->shapes || !mass ||
+        !cphi) {
+        rths_mat_free(mass);
+        rths_mat_free(cphi);
+        rths_modes_free(out);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory in modal analysis");
+    }
+    /* K phi = w^2 M phi; dsygv returns M-orthonormal eigenvectors with ascending eigenvalues. */
+    lapack_int info =
+        LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes, n, mass, n, out->omega_rad_s);
+    rths_mat_free(mass);
+    if (info != 0) {
+        rths_mat_free(cphi);
+        rths_modes_free(out);
+        return rths_error_set(err, RTHS_EFAIL,
+                              "modal analysis failed (LAPACK dsygv info %d): is M positive "
+                              "definite and K symmetric?",
+                              (int)info);
+    }
+    for (int r = 0; r < n; r++) {
+        double w2 = out->omega_rad_s[r];
+        double w = w2 > 0 ? sqrt(w2) : 0.0;
+        out->omega_rad_s[r] = w;
+        out->frequency_hz[r] = w / (2.0 * M_PI);
+        const double *phi = out->shapes + (size_t)r * (size_t)n;
+        /* Sign convention: largest-magnitude component positive, so shapes are reproducible. */
+        int imax = 0;
+        for (int i = 1; i < n; i++)
+            if (fabs(phi[i]) > fabs(phi[imax])) imax = i;
+        if (phi[imax] < 0)
+            for (int i = 0; i < n; i++) out->shapes[(size_t)r * (size_t)n + (size_t)i] *= -1.0;
+        rths_mat_mul(n, 1, n, 1.0, a->damping, 0, phi, 0, 0.0, cphi);
+        double modal_c = 0.0;
+        for (int i = 0; i < n; i++) modal_c += phi[i] * cphi[i];
+        out->damping_ratio[r] = w > 0 ? modal_c / (2.0 * w) : 0.0;
+    }
+    rths_mat_free(cphi);
+    return RTHS_OK;
+}
+
+/* ---- analytic FRF ---- */
+
+int rths_frf(int n, const double *mass, const double *damping, const double *stiffness,
+             const double *force, double omega_rad_s, double complex *x_out, rths_error *err) {
+    double complex *dyn = malloc((size_t)n * (size_t)n * sizeof *dyn);
+    if (!dyn) return rths_error_set(err, RTHS_EFAIL, "out of memory in FRF");
+    double w = omega_rad_s;
+    for (size_t k = 0; k < (size_t)n * (size_t)n; k++)
+        dyn[k] = stiffness[k] - w * w * mass[k] + I * w * damping[k];
+    for (int i = 0; i < n; i++) x_out[i] = force[i];
+    int info = rths_cmat_solve(n, 1, dyn, x_out);
+    free(dyn);
+    if (info != 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "dynamic stiffness is singular at %g rad/s (zgesv info %d)",
+                              omega_rad_s, info);
+    return RTHS_OK;
+}

@@ -1,0 +1,344 @@
+/* Model library against independent truths: SPEC §2 seed facts, closed-form 1- and 2-DoF results,
+ * matrix exponentials with known closed forms, z-domain transfer functions of each scheme. */
+#include "testlib.h"
+
+#include "rths/model.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const double seed_m[4] = {5.37, 5.37, 5.37, 10.74};
+static const double seed_c[4] = {4.4062, 3.7979, 3.7421, 3.7421};
+static const double seed_k[4] = {53048, 45724, 45052, 45052};
+
+static void seed_assembly(rths_assembly *a) {
+    rths_error err;
+    assert_int_equal(rths_assembly_from_chain(4, seed_m, seed_c, seed_k, a, &err), RTHS_OK);
+}
+
+/* SPEC §2: 4.339, 13.473, 21.819, 27.367 Hz (given to 3 decimals, so 1e-3 Hz covers rounding). */
+static void test_seed_natural_frequencies(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_modes m;
+    rths_error err;
+    seed_assembly(&a);
+    assert_int_equal(rths_modal_analysis(&a, &m, &err), RTHS_OK);
+    const double expect_hz[4] = {4.339, 13.473, 21.819, 27.367};
+    const double expect_zeta[4] = {0.0011, 0.0035, 0.0057, 0.0071};
+    for (int r = 0; r < 4; r++) {
+        assert_close(m.frequency_hz[r], expect_hz[r], 1e-3);
+        /* SPEC gives "about" two significant digits: half a unit in the last digit */
+        assert_close(m.damping_ratio[r], expect_zeta[r], 0.00005 + 0.05 * expect_zeta[r]);
+        /* mass normalisation phi^T M phi = 1 */
+        double mm = 0;
+        for (int i = 0; i < 4; i++) mm += seed_m[i] * pow(m.shapes[r * 4 + i], 2);
+        assert_close(mm, 1.0, 1e-12);
+    }
+    rths_modes_free(&m);
+    rths_assembly_free(&a);
+}
+
+/* SPEC §2: with 1 N on storey 4 the storey-3 amplitude peaks near 13.47 Hz at about 3.42e-4 m. */
+static void test_seed_storey3_peak(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_error err;
+    seed_assembly(&a);
+    double f[4] = {0, 0, 0, 1.0};
+    double complex x[4];
+    double best = 0, best_hz = 0;
+    for (double hz = 13.3; hz <= 13.6; hz += 1e-5) {
+        assert_int_equal(rths_frf(4, a.mass, a.damping, a.stiffness, f, 2 * M_PI * hz, x, &err),
+                         RTHS_OK);
+        if (cabs(x[2]) > best) best = cabs(x[2]), best_hz = hz;
+    }
+    assert_close(best_hz, 13.47, 0.005);
+    assert_close(best, 3.42e-4, 0.005e-4);
+    rths_assembly_free(&a);
+}
+
+/* 1 DoF: X = F / (k - m w^2 + i c w). */
+static void test_one_dof_frf(void **state) {
+    (void)state;
+    double m = 2.0, c = 3.0, k = 5000.0, f = 7.0;
+    rths_error err;
+    for (double w = 1.0; w < 200.0; w *= 1.7) {
+        double complex x;
+        assert_int_equal(rths_frf(1, &m, &c, &k, &f, w, &x, &err), RTHS_OK);
+        double complex expect = f / (k - m * w * w + I * c * w);
+        assert_close(creal(x), creal(expect), 1e-14 * cabs(expect) + 1e-300);
+        assert_close(cimag(x), cimag(expect), 1e-14 * cabs(expect) + 1e-300);
+    }
+}
+
+/* 2-DoF chain with equal m and k: w^2 = (k/m)(3 -+ sqrt 5)/2, shapes (1, (1+-sqrt5)/2)... and
+ * the FRF by the explicit 2x2 inverse. */
+static void test_two_dof_modes_and_frf(void **state) {
+    (void)state;
+    double ms[2] = {3.0, 3.0}, cs[2] = {0.0, 0.0}, ks[2] = {900.0, 900.0};
+    rths_assembly a;
+    rths_modes modes;
+    rths_error err;
+    assert_int_equal(rths_assembly_from_chain(2, ms, cs, ks, &a, &err), RTHS_OK);
+    assert_int_equal(rths_modal_analysis(&a, &modes, &err), RTHS_OK);
+    double base = ks[0] / ms[0];
+    assert_close(modes.omega_rad_s[0], sqrt(base * (3 - sqrt(5)) / 2), 1e-12);
+    assert_close(modes.omega_rad_s[1], sqrt(base * (3 + sqrt(5)) / 2), 1e-12);
+    /* first mode: x2/x1 = (1 + sqrt5)/2 (golden ratio) */
+    assert_close(modes.shapes[1] / modes.shapes[0], (1 + sqrt(5)) / 2, 1e-12);
+    rths_modes_free(&modes);
+    rths_assembly_free(&a);
+
+    double cs2[2] = {1.5, 0.7};
+    assert_int_equal(rths_assembly_from_chain(2, ms, cs2, ks, &a, &err), RTHS_OK);
+    double f[2] = {0.0, 2.0};
+    double complex x[2];
+    for (double w = 3.0; w < 60.0; w *= 1.3) {
+        assert_int_equal(rths_frf(2, a.mass, a.damping, a.stiffness, f, w, x, &err), RTHS_OK);
+        double complex d11 = ks[0] + ks[1] - ms[0] * w * w + I * w * (cs2[0] + cs2[1]);
+        double complex d12 = -ks[1] - I * w * cs2[1];
+        double complex d22 = ks[1] - ms[1] * w * w + I * w * cs2[1];
+        double complex det = d11 * d22 - d12 * d12;
+        double complex x1 = -d12 * f[1] / det, x2 = d11 * f[1] / det;
+        assert_close(cabs(x[0] - x1), 0.0, 1e-12 * cabs(x1));
+        assert_close(cabs(x[1] - x2), 0.0, 1e-12 * cabs(x2));
+    }
+    rths_assembly_free(&a);
+}
+
+static void test_assembly_validation(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_error err;
+    double bad_m[2] = {1.0, -1.0}, c[2] = {0, 0}, k[2] = {1, 1};
+    assert_int_equal(rths_assembly_from_chain(2, bad_m, c, k, &a, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "storey 2"));
+    double m[4] = {1, 0, 0, 1}, ns[4] = {2, 1, 0, 2}, z[4] = {0};
+    assert_int_equal(rths_assembly_from_matrices(2, m, z, ns, &a, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "stiffness matrix is not symmetric"));
+    double indef[4] = {1, 2, 2, 1};
+    assert_int_equal(rths_assembly_from_matrices(2, indef, z, z, &a, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "positive definite"));
+    double nan_m[4] = {1, 0, 0, NAN};
+    assert_int_equal(rths_assembly_from_matrices(2, nan_m, z, z, &a, &err), RTHS_EINPUT);
+}
+
+/* Random chains, random interface position and p: recombination must return the assembly, the
+ * interface mass must divide as (1-p, p), and for a chain the leg below the interface is physical. */
+static void test_split_recombine_random(void **state) {
+    (void)state;
+    rths_rng rng;
+    rths_rng_seed(&rng, 12345);
+    for (int trial = 0; trial < 200; trial++) {
+        int n = 2 + (int)(rths_rng_uniform(&rng) * 7);
+        double m[9], c[9], k[9];
+        for (int i = 0; i < n; i++) {
+            m[i] = 0.5 + 10 * rths_rng_uniform(&rng);
+            c[i] = 10 * rths_rng_uniform(&rng);
+            k[i] = 1e3 + 1e5 * rths_rng_uniform(&rng);
+        }
+        int s = (int)(rths_rng_uniform(&rng) * n); /* interface storey index */
+        double p = 0.01 + 0.98 * rths_rng_uniform(&rng);
+        rths_dof_role role[9];
+        for (int i = 0; i < n; i++)
+            role[i] = i < s ? RTHS_DOF_PHYSICAL : (i == s ? RTHS_DOF_INTERFACE : RTHS_DOF_NUMERICAL);
+        rths_assembly a;
+        rths_split sp;
+        rths_error err;
+        assert_int_equal(rths_assembly_from_chain(n, m, c, k, &a, &err), RTHS_OK);
+        assert_int_equal(rths_split_create(&a, role, p, NULL, NULL, &sp, &err), RTHS_OK);
+        assert_int_equal(sp.np, s + 1);
+        assert_int_equal(sp.nn, n - s);
+        double *rm = rths_mat_new(n, n), *rc = rths_mat_new(n, n), *rk = rths_mat_new(n, n);
+        rths_split_recombine(&sp, rm, rc, rk);
+        for (int i = 0; i < n * n; i++) {
+            assert_close(rm[i], a.mass[i], 1e-12 * m[0] + 1e-12 * fabs(a.mass[i]));
+            assert_close(rc[i], a.damping[i], 1e-12 * fabs(a.damping[i]) + 1e-15);
+            assert_close(rk[i], a.stiffness[i], 1e-12 * fabs(a.stiffness[i]));
+        }
+        int ip = sp.np - 1; /* interface is last in the physical ordering, first in numerical */
+        assert_close(RTHS_AT(sp.mass_num, sp.nn, 0, 0), p * m[s], 1e-12 * m[s]);
+        assert_close(RTHS_AT(sp.mass_phys, sp.np, ip, ip), (1 - p) * m[s], 1e-12 * m[s]);
+        assert_close(RTHS_AT(sp.stiffness_phys, sp.np, ip, ip), k[s], 1e-9 * k[s]);
+        assert_close(RTHS_AT(sp.damping_phys, sp.np, ip, ip), c[s], 1e-9 * (c[s] + 1));
+        if (s + 1 < n) assert_close(RTHS_AT(sp.stiffness_num, sp.nn, 0, 0), k[s + 1], 1e-9 * k[s + 1]);
+        free(rm), free(rc), free(rk);
+        rths_split_free(&sp);
+        rths_assembly_free(&a);
+    }
+}
+
+static void test_split_refuses_direct_coupling(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_split sp;
+    rths_error err;
+    seed_assembly(&a);
+    rths_dof_role role[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_NUMERICAL, RTHS_DOF_INTERFACE,
+                             RTHS_DOF_NUMERICAL};
+    assert_int_equal(rths_split_create(&a, role, 0.5, NULL, NULL, &sp, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "physical DoF 1 directly to numerical DoF 2"));
+    rths_dof_role ok[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_PHYSICAL, RTHS_DOF_INTERFACE,
+                           RTHS_DOF_NUMERICAL};
+    assert_int_equal(rths_split_create(&a, ok, 1.0, NULL, NULL, &sp, &err), RTHS_EINPUT);
+    assert_int_equal(rths_split_create(&a, ok, NAN, NULL, NULL, &sp, &err), RTHS_EINPUT);
+    rths_assembly_free(&a);
+}
+
+/* e^{A} for a rotation generator [[0,-t],[t,0]] is [[cos t, -sin t],[sin t, cos t]]; large t
+ * exercises scaling and squaring. */
+static void test_expm_rotation(void **state) {
+    (void)state;
+    const double thetas[] = {1e-6, 0.3, 2.0, 17.0, 100.0};
+    for (size_t q = 0; q < sizeof thetas / sizeof thetas[0]; q++) {
+        double t = thetas[q];
+        double a[4] = {0, t, -t, 0}, e[4];
+        assert_int_equal(rths_expm(2, a, e), 0);
+        /* error bound grows with the number of squarings ~ t * eps */
+        double tol = 1e-14 * (1 + t);
+        assert_close(e[0], cos(t), tol);
+        assert_close(e[1], sin(t), tol);
+        assert_close(e[2], -sin(t), tol);
+        assert_close(e[3], cos(t), tol);
+    }
+    double nil[4] = {0, 0, 1, 0}, e[4];
+    assert_int_equal(rths_expm(2, nil, e), 0);
+    assert_close(e[0], 1, 1e-15);
+    assert_close(e[1], 0, 1e-15);
+    assert_close(e[2], 1, 1e-15);
+    assert_close(e[3], 1, 1e-15);
+}
+
+/* Underdamped oscillator x'' + 2 z w x' + w^2 x = 0, state (x, v): closed-form e^{At}. */
+static void oscillator_expm_closed_form(double w, double z, double t, double out[4]) {
+    double wd = w * sqrt(1 - z * z), s = z * w, ex = exp(-s * t);
+    double cw = cos(wd * t), sw = sin(wd * t);
+    out[0] = ex * (cw + s / wd * sw);       /* x from x0 */
+    out[1] = ex * (-w * w / wd * sw);       /* v from x0 */
+    out[2] = ex * (sw / wd);                /* x from v0 */
+    out[3] = ex * (cw - s / wd * sw);       /* v from v0 */
+}
+
+static void test_expm_damped_oscillator(void **state) {
+    (void)state;
+    double w = 2 * M_PI * 13.47, z = 0.02;
+    const double ts[] = {1e-4, 1e-2, 0.5, 3.0};
+    for (size_t q = 0; q < 4; q++) {
+        double t = ts[q];
+        double a[4] = {0, -w * w * t, t, -2 * z * w * t}, e[4], ref[4];
+        assert_int_equal(rths_expm(2, a, e), 0);
+        oscillator_expm_closed_form(w, z, t, ref);
+        /* relative to the largest entry, with a factor for the squarings (||A t|| up to ~1e4) */
+        double scale = fabs(ref[1]) + 1;
+        for (int i = 0; i < 4; i++) assert_close(e[i], ref[i], 1e-11 * scale * (1 + w * t));
+    }
+}
+
+/* H(z) = (zI - Ad)^{-1}(b_prev + z b_curr) for the scalar x' = -a x + u. */
+static double complex discrete_tf_scalar(const rths_discrete *d, double complex zz) {
+    return (d->b_prev[0] + zz * d->b_curr[0]) / (zz - d->ad[0]);
+}
+
+static void test_discretisation_scalar_transfer_functions(void **state) {
+    (void)state;
+    double a = 37.0, h = 1e-3;
+    double am = -a, bm = 1.0;
+    rths_error err;
+    for (int s = 0; s < RTHS_SCHEME_COUNT; s++) {
+        rths_discrete d;
+        assert_int_equal(rths_discretise(1, 1, &am, &bm, h, (rths_scheme)s, &d, &err), RTHS_OK);
+        for (double w = 1.0; w < 3000.0; w *= 2.1) {
+            double complex zz = cexp(I * w * h), expect;
+            switch (s) {
+            case RTHS_SCHEME_IMPLICIT_EULER: expect = 1.0 / ((zz - 1) / (h * zz) + a); break;
+            case RTHS_SCHEME_TRAPEZOIDAL: expect = 1.0 / (2.0 / h * (zz - 1) / (zz + 1) + a); break;
+            case RTHS_SCHEME_EXACT_ZOH: expect = (1 - exp(-a * h)) / a / (zz - exp(-a * h)); break;
+            default: /* triangle hold: (z-1)^2/(z h) Z[G(s)/s^2] */
+                expect = 1.0 / a - (zz - 1) / (a * a * h) +
+                         (zz - 1) * (zz - 1) / (a * a * h * (zz - exp(-a * h)));
+            }
+            double complex got = discrete_tf_scalar(&d, zz);
+            assert_close(cabs(got - expect), 0.0, 1e-10 * cabs(expect));
+        }
+        rths_discrete_free(&d);
+    }
+}
+
+/* Oscillator: implicit Euler and trapezoid against their s-substitutions of the continuous
+ * transfer function; exact ZOH against the closed-form Phi. */
+static void test_discretisation_oscillator(void **state) {
+    (void)state;
+    double m = 5.37, c = 3.7, k = 45052, h = 1e-4;
+    double *A, *B;
+    rths_error err;
+    double in = 1.0;
+    assert_int_equal(rths_state_space(1, &m, &c, &k, 1, &in, &A, &B, &err), RTHS_OK);
+    assert_close(A[1], -k / m, 1e-9);
+    assert_close(B[1], 1 / m, 1e-15);
+    double w0 = sqrt(k / m), z = c / (2 * sqrt(k * m));
+    for (int s = 0; s < RTHS_SCHEME_COUNT; s++) {
+        rths_discrete d;
+        assert_int_equal(rths_discretise(2, 1, A, B, h, (rths_scheme)s, &d, &err), RTHS_OK);
+        if (s == RTHS_SCHEME_EXACT_ZOH || s == RTHS_SCHEME_EXACT_FOH) {
+            double ref[4];
+            oscillator_expm_closed_form(w0, z, h, ref);
+            for (int i = 0; i < 4; i++) assert_close(d.ad[i], ref[i], 1e-12 * (1 + fabs(ref[i])));
+        }
+        for (double w = 10; w < 3000; w *= 1.9) {
+            double complex zz = cexp(I * w * h), sv;
+            /* position output: H(z) = e1^T (zI - Ad)^{-1} (b_prev + z b_curr) via 2x2 inverse */
+            double complex r0 = d.b_prev[0] + zz * d.b_curr[0], r1 = d.b_prev[1] + zz * d.b_curr[1];
+            double complex m00 = zz - d.ad[0], m10 = -d.ad[1], m01 = -d.ad[2], m11 = zz - d.ad[3];
+            double complex det = m00 * m11 - m01 * m10;
+            double complex got = (m11 * r0 - m01 * r1) / det;
+            if (s == RTHS_SCHEME_IMPLICIT_EULER) sv = (zz - 1) / (h * zz);
+            else if (s == RTHS_SCHEME_TRAPEZOIDAL) sv = 2 / h * (zz - 1) / (zz + 1);
+            else {
+                /* Well below resonance the exact schemes' only error is the hold's: the ZOH lags
+                 * by half a sample (|e^{-iwh/2} - 1| ~ wh/2); the triangle hold's gain is
+                 * sinc^2(wh/2) ~ 1 - (wh)^2/12. Both leading terms checked to 10 %. */
+                double complex cont = 1.0 / (k - m * w * w + I * c * w);
+                double expect_err = s == RTHS_SCHEME_EXACT_ZOH ? w * h / 2 : pow(w * h, 2) / 12;
+                if (w < 2 * M_PI * 10)
+                    assert_close(cabs(got / cont - 1), expect_err, 0.1 * expect_err);
+                continue;
+            }
+            double complex expect = 1.0 / (m * sv * sv + c * sv + k);
+            assert_close(cabs(got - expect), 0.0, 1e-9 * cabs(expect));
+        }
+        rths_discrete_free(&d);
+    }
+    free(A), free(B);
+}
+
+static void test_scheme_names(void **state) {
+    (void)state;
+    rths_scheme s;
+    for (int i = 0; i < RTHS_SCHEME_COUNT; i++) {
+        assert_int_equal(rths_scheme_parse(rths_scheme_name((rths_scheme)i), &s), 0);
+        assert_int_equal(s, i);
+    }
+    assert_int_equal(rths_scheme_parse("euler", &s), -1);
+    assert_int_equal(RTHS_SCHEME_DEFAULT, RTHS_SCHEME_EXACT_FOH);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_seed_natural_frequencies),
+        cmocka_unit_test(test_seed_storey3_peak),
+        cmocka_unit_test(test_one_dof_frf),
+        cmocka_unit_test(test_two_dof_modes_and_frf),
+        cmocka_unit_test(test_assembly_validation),
+        cmocka_unit_test(test_split_recombine_random),
+        cmocka_unit_test(test_split_refuses_direct_coupling),
+        cmocka_unit_test(test_expm_rotation),
+        cmocka_unit_test(test_expm_damped_oscillator),
+        cmocka_unit_test(test_discretisation_scalar_transfer_functions),
+        cmocka_unit_test(test_discretisation_oscillator),
+        cmocka_unit_test(test_scheme_names),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
