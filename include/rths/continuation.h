@@ -1,0 +1,82 @@
+/* rths continuation: trace the hybrid test's solution in forcing frequency.
+ *
+ * Natural-parameter sweep or pseudo-arclength continuation (frequency as an unknown) with the
+ * seed's step policy (secant predictor u_pred = u_-1 + ds * (u_-1 - u_-2), ds = 1.1 after a
+ * success, x0.5 and retry after a failure, erratum 4), bounded step lengths, fold detection and
+ * location (sign change of the frequency component of the secant), branch segments between folds. */
+#ifndef RTHS_CONTINUATION_H
+#define RTHS_CONTINUATION_H
+
+#include "rths/iterate.h"
+
+typedef enum { RTHS_CONT_NATURAL = 0, RTHS_CONT_ARCLENGTH = 1 } rths_cont_method;
+
+typedef struct rths_continuation_options {
+    double start_hz, end_hz;
+    rths_cont_method method;
+    double initial_step_hz;   /* first frequency step (both methods seed with it) */
+    double max_step_hz;       /* natural: largest frequency step */
+    double min_step;          /* arclength: smallest step in scaled units before giving up */
+    double max_step;          /* arclength: largest step in scaled units */
+    double grow, shrink;      /* step multipliers after success / failure (1.1, 0.5) */
+    int max_points;
+    int max_failures;         /* consecutive failed corrections before the run ends */
+    double amplitude_scale_m; /* scaling of target coefficients; 0: from the first point */
+} rths_continuation_options;
+
+typedef struct rths_point {
+    int index;                  /* 0-based, in acceptance order */
+    rths_solution sol;          /* targets, omega, measurement, residual */
+    int evaluations, iterations;
+    double rig_time_s;          /* rig time spent on this point, including failed attempts */
+    int fold;                   /* 1 if a fold was located between this point and the next */
+    int segment;                /* branch segment (0, 1, ...): increments after each fold */
+    double step;                /* arclength: scaled step length used to reach this point */
+    double secant_omega;        /* frequency component of the secant that arrived here */
+    rths_corrector_state corrector; /* carried Jacobian after this point (for --resume) */
+} rths_point;
+
+typedef struct rths_fold {
+    double frequency_hz;
+    double amplitude_m; /* physical interface fundamental amplitude at the fold */
+    int after_point;    /* the fold lies between this point and the next */
+} rths_fold;
+
+/* Called for every accepted point (index increasing) and, with pt->fold set, re-called for a
+ * point once a fold is located after it: a journal must treat the second call as an update.
+ * A non-zero return stops the run (returned as the run's status). */
+typedef int (*rths_point_fn)(void *user, const rths_point *pt, int is_update);
+/* Progress after every correction attempt (accepted or not), for a terminal display. */
+typedef void (*rths_progress_fn)(void *user, int points, double frequency_hz, double residual_m,
+                                 int evaluations, int accepted);
+
+typedef struct rths_continuation_result {
+    int points;
+    int converged_points;
+    int failures;        /* failed corrections (each retried with a smaller step) */
+    int evaluations;     /* all evaluations, failed attempts included */
+    double rig_time_s;
+    int n_folds;
+    rths_fold folds[32];
+    int reached_end;     /* 1 if the end frequency was reached */
+    char stop_reason[RTHS_ERROR_MSG_LEN + 256];
+} rths_continuation_result;
+
+void rths_continuation_defaults(rths_continuation_options *opt);
+int rths_continuation_config_read(rths_config *cfg, rths_continuation_options *opt,
+                                  rths_error *err);
+
+/* Runs from start_hz (or after the resume points, the last two of which seed the secant) until
+ * end_hz is passed, max_points are accepted, or max_failures corrections fail in a row. Every
+ * accepted point goes to on_point before the next is attempted. Returns RTHS_OK when the run ended
+ * normally (result->stop_reason says why), RTHS_EFAIL on a rig fault or callback failure. */
+int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
+                          const rths_settle_options *settle, const rths_newton_options *newton,
+                          int harmonics, double amplitude_n, const rths_point *resume,
+                          int n_resume, rths_point_fn on_point, rths_progress_fn on_progress,
+                          void *user, rths_continuation_result *result, rths_error *err);
+
+/* Physical interface fundamental amplitude of a point, m. */
+double rths_point_amplitude_m(const rths_point *pt);
+
+#endif

@@ -1,0 +1,106 @@
+/* rths iterate: the zero problem over a rig and its Newton-Broyden corrector.
+ *
+ * Unknowns u = (A*_1..A*_N, B*_1..B*_N) — the control target's Fourier coefficients, metres — and,
+ * for pseudo-arclength continuation, the forcing frequency. The residual is the interface mismatch
+ * Phi = (A_k - alpha_k, B_k - beta_k), k = 1..N, of the physical (A, B) and numerical (alpha, beta)
+ * interface displacements' coefficients measured in steady state. Static terms are discarded. */
+#ifndef RTHS_ITERATE_H
+#define RTHS_ITERATE_H
+
+#include "rths/config.h"
+#include "rths/rig.h"
+
+#define RTHS_MAX_UNKNOWNS (2 * RTHS_MAX_HARMONICS + 1)
+
+/* How one evaluation waits for steady state and averages (SPEC §6). */
+typedef struct rths_settle_options {
+    int fixed_wait_periods; /* > 0: wait exactly this many periods (the seed's fixed wait) */
+    int min_wait_periods;   /* adaptive: never judge steady before this many periods */
+    int max_wait_periods;   /* adaptive: give up waiting (evaluation flagged not steady) */
+    int average_periods;    /* whole periods averaged once steady */
+    /* Adaptive steady state: the change of every coefficient between consecutive periods is below
+     * max(abs_tolerance_m, rel_tolerance * coefficient scale, noise_factor * per-period noise). */
+    double abs_tolerance_m;
+    double rel_tolerance;
+    double noise_factor;
+} rths_settle_options;
+
+typedef struct rths_evaluation {
+    int harmonics;
+    double frequency_hz;
+    rths_fourier phys, num;       /* period-averaged coefficients, m */
+    rths_fourier phys_se, num_se; /* standard errors of those means, m */
+    double rig_time_s;            /* rig time this evaluation used (wait + average) */
+    int wait_periods, average_periods;
+    int steady; /* 1 when the steady-state test passed (or the fixed wait elapsed) */
+} rths_evaluation;
+
+/* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */
+int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
+                  double frequency_hz, double amplitude_n, const double *target_a,
+                  const double *target_b, rths_evaluation *out, rths_error *err);
+
+/* Residual Phi (length 2N: cos terms then sin terms) and its standard error per entry. */
+void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se);
+
+typedef struct rths_newton_options {
+    int max_iterations;    /* corrector iterations (each: one evaluation + line search) */
+    double rel_tolerance;  /* ||Phi|| < max(rel * ||numerical coefficients||, abs, noise floor) */
+    double abs_tolerance_m;
+    double noise_factor;   /* tolerance floor = noise_factor * ||standard error of Phi|| */
+    double fd_step_rel;    /* finite-difference step, relative to the coefficient scale */
+    double fd_step_min_m;  /* ... but never below this (above the noise) */
+    double fd_step_omega_rel; /* FD step of the frequency (pseudo-arclength), relative */
+    double min_damping;    /* line search halves the step down to this factor */
+    int fresh_jacobian;    /* 1: FD Jacobian at every corrector start (the seed's flowchart) */
+} rths_newton_options;
+
+/* The state the corrector carries between continuation points. */
+typedef struct rths_corrector_state {
+    int harmonics;
+    int n;                       /* 2N unknown target coefficients */
+    int have_jacobian;
+    /* dPhi/d(target, omega): 2N rows, 2N + 1 columns (last column: d/d omega, rad/s) */
+    double jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
+    int evaluations;             /* counters for the current point */
+    int iterations;
+    double rig_time_s;
+} rths_corrector_state;
+
+/* Optional pseudo-arclength constraint: tangent . (scaled(u) - scaled(u_pred)) = 0 with
+ * scaled(u) = (targets / amplitude_scale_m, omega / omega_scale_rad_s). */
+typedef struct rths_arclength {
+    int active;
+    double tangent[RTHS_MAX_UNKNOWNS]; /* 2N + 1, in scaled variables */
+    double predicted[RTHS_MAX_UNKNOWNS];
+    double amplitude_scale_m;
+    double omega_scale_rad_s;
+} rths_arclength;
+
+typedef struct rths_solution {
+    int harmonics;
+    double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS]; /* m */
+    double omega_rad_s;
+    rths_evaluation eval; /* the measurement at the solution */
+    double residual_norm_m;
+    double tolerance_m;
+    int converged;
+} rths_solution;
+
+/* Solves Phi = 0 (with the arclength row when arc->active, else at fixed omega) from the initial
+ * guess in *sol (targets and omega). On success sol holds the solution; state keeps the Jacobian
+ * and the per-point counters (reset at entry). Returns RTHS_OK when converged, RTHS_EFAIL when not
+ * (sol->converged = 0) or on a rig fault (err says which). */
+int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
+                 double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
+                 rths_solution *sol, rths_error *err);
+
+/* Defaults: the project's best ("default") and the seed's flowchart ("paper"). */
+void rths_settle_defaults(rths_settle_options *opt, int paper);
+void rths_newton_defaults(rths_newton_options *opt, int paper);
+
+/* Reads `iteration.*` keys over the defaults already in the structs. */
+int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
+                             rths_newton_options *newton, int *harmonics, rths_error *err);
+
+#endif

@@ -1,0 +1,392 @@
+/* Steady-state evaluation over a rig and the Newton-Broyden corrector with line search. */
+#include "rths/iterate.h"
+
+#include <math.h>
+#include <string.h>
+
+void rths_settle_defaults(rths_settle_options *opt, int paper) {
+    memset(opt, 0, sizeof *opt);
+    opt->average_periods = paper ? 10 : 4;
+    /* The seed waits a fixed time; 40 periods is ~3 s at 13.5 Hz, several decay times of the
+     * PD-damped rig. The adaptive wait stops as soon as the transient is predicted to be gone. */
+    opt->fixed_wait_periods = paper ? 40 : 0;
+    opt->min_wait_periods = 3;
+    opt->max_wait_periods = 400;
+    opt->abs_tolerance_m = 1e-10;
+    opt->rel_tolerance = 1e-4;
+    opt->noise_factor = 3.0;
+}
+
+void rths_newton_defaults(rths_newton_options *opt, int paper) {
+    memset(opt, 0, sizeof *opt);
+    opt->max_iterations = 12;
+    opt->rel_tolerance = 1e-3;
+    opt->abs_tolerance_m = 1e-9;
+    opt->noise_factor = 3.0;
+    opt->fd_step_rel = 0.05;
+    opt->fd_step_min_m = 1e-7;
+    opt->fd_step_omega_rel = 2e-3;
+    opt->min_damping = 1.0 / 16.0;
+    opt->fresh_jacobian = paper ? 1 : 0;
+}
+
+/* ---- one evaluation ---- */
+
+static int coefficient_vector(const rths_period *p, int harmonics, double *v) {
+    int m = 0;
+    for (int k = 1; k <= harmonics; k++) {
+        v[m++] = p->phys.a[k];
+        v[m++] = p->phys.b[k];
+        v[m++] = p->num.a[k];
+        v[m++] = p->num.b[k];
+    }
+    return m;
+}
+
+static double vec_norm(const double *v, int n) {
+    double s = 0;
+    for (int i = 0; i < n; i++) s += v[i] * v[i];
+    return sqrt(s);
+}
+
+int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
+                  double frequency_hz, double amplitude_n, const double *target_a,
+                  const double *target_b, rths_evaluation *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    out->harmonics = harmonics;
+    out->frequency_hz = frequency_hz;
+    if (!(isfinite(frequency_hz) && frequency_hz > 0))
+        return rths_error_set(err, RTHS_EFAIL, "corrector asked for a non-physical frequency %g Hz",
+                              frequency_hz);
+    for (int k = 0; k < harmonics; k++)
+        if (!isfinite(target_a[k]) || !isfinite(target_b[k]))
+            return rths_error_set(err, RTHS_EFAIL, "corrector produced a non-finite target");
+    double t0 = rths_rig_time_s(rig);
+    int rc = rths_rig_set_forcing(rig, frequency_hz, amplitude_n, err);
+    if (!rc) rc = rths_rig_set_target(rig, harmonics, target_a, target_b, err);
+    if (rc) return rc;
+
+    enum { NC = 4 * RTHS_MAX_HARMONICS };
+    double prev[NC], cur[NC], change_prev = -1;
+    rths_period p;
+    int waited = 0, steady = 0, m = 0;
+    if (opt->fixed_wait_periods > 0) {
+        for (; waited < opt->fixed_wait_periods; waited++)
+            if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+        steady = 1;
+    } else {
+        double noise_m = rths_rig_noise_level_m(rig);
+        while (waited < opt->max_wait_periods) {
+            if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+            waited++;
+            m = coefficient_vector(&p, harmonics, cur);
+            if (waited > 1) {
+                double d[NC];
+                for (int i = 0; i < m; i++) d[i] = cur[i] - prev[i];
+                double change = vec_norm(d, m);
+                /* White noise of std s on S samples gives each per-period coefficient a std of
+                 * s sqrt(2/S); the change of m of them between periods, sqrt(2 m) times that. */
+                double noise_change =
+                    p.samples > 0 ? noise_m * sqrt(2.0 / p.samples) * sqrt(2.0 * m) : 0.0;
+                double threshold =
+                    fmax(opt->abs_tolerance_m, opt->rel_tolerance * vec_norm(cur, m));
+                /* A geometric transient with ratio r per period still owes change * r / (1 - r);
+                 * r is estimated from the last two changes (clamped so a noisy estimate near 1
+                 * keeps us waiting rather than accepting). */
+                double remaining = change;
+                if (change_prev > 0) {
+                    double r = fmin(change / change_prev, 0.98);
+                    remaining = change * (1.0 + r / (1.0 - r));
+                } else {
+                    remaining = INFINITY;
+                }
+                if (waited >= opt->min_wait_periods &&
+                    (remaining < threshold || change < opt->noise_factor * noise_change)) {
+                    steady = 1;
+                    break;
+                }
+                change_prev = change;
+            }
+            memcpy(prev, cur, sizeof cur);
+        }
+    }
+    /* Average whole periods: mean and standard error of the mean of each coefficient. */
+    int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
+    double sum[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}}, sum2[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}};
+    for (int q = 0; q < n_avg; q++) {
+        if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+        const rths_fourier *side[2] = {&p.phys, &p.num};
+        for (int s = 0; s < 2; s++)
+            for (int k = 0; k <= harmonics; k++) {
+                sum[s][0][k] += side[s]->a[k];
+                sum[s][1][k] += side[s]->b[k];
+                sum2[s][0][k] += side[s]->a[k] * side[s]->a[k];
+                sum2[s][1][k] += side[s]->b[k] * side[s]->b[k];
+            }
+    }
+    rths_fourier *mean[2] = {&out->phys, &out->num}, *se[2] = {&out->phys_se, &out->num_se};
+    for (int s = 0; s < 2; s++)
+        for (int k = 0; k <= harmonics; k++)
+            for (int c = 0; c < 2; c++) {
+                double mu = sum[s][c][k] / n_avg;
+                double var = n_avg > 1 ? (sum2[s][c][k] - n_avg * mu * mu) / (n_avg - 1) : 0.0;
+                double e = sqrt(fmax(var, 0.0) / n_avg);
+                if (c == 0) mean[s]->a[k] = mu, se[s]->a[k] = e;
+                else mean[s]->b[k] = mu, se[s]->b[k] = e;
+            }
+    out->wait_periods = waited;
+    out->average_periods = n_avg;
+    out->steady = steady;
+    out->rig_time_s = rths_rig_time_s(rig) - t0;
+    if (rths_rig_get_fault(rig) != RTHS_RIG_OK)
+        return rths_error_set(err, RTHS_EFAIL, "rig fault during evaluation at %.6g Hz: %s",
+                              frequency_hz, rths_rig_fault_name(rths_rig_get_fault(rig)));
+    return RTHS_OK;
+}
+
+void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se) {
+    int n = ev->harmonics;
+    for (int k = 1; k <= n; k++) {
+        phi[k - 1] = ev->phys.a[k] - ev->num.a[k];
+        phi[n + k - 1] = ev->phys.b[k] - ev->num.b[k];
+        if (phi_se) {
+            phi_se[k - 1] = hypot(ev->phys_se.a[k], ev->num_se.a[k]);
+            phi_se[n + k - 1] = hypot(ev->phys_se.b[k], ev->num_se.b[k]);
+        }
+    }
+}
+
+/* ---- corrector ---- */
+
+typedef struct {
+    rths_rig *rig;
+    const rths_settle_options *settle;
+    const rths_newton_options *opt;
+    const rths_arclength *arc;
+    rths_corrector_state *st;
+    double amplitude_n;
+    int n;       /* 2N */
+    int m;       /* unknowns: n, or n + 1 with the arclength row */
+    double scale[RTHS_MAX_UNKNOWNS];
+} corrector;
+
+/* Unknown vector (scaled): targets / amplitude scale, then omega / omega scale. */
+static void pack(const corrector *c, const rths_solution *s, double *u) {
+    int N = s->harmonics;
+    for (int k = 0; k < N; k++) {
+        u[k] = s->target_a[k] / c->scale[k];
+        u[N + k] = s->target_b[k] / c->scale[N + k];
+    }
+    u[c->n] = s->omega_rad_s / c->scale[c->n];
+}
+
+static void unpack(const corrector *c, const double *u, rths_solution *s) {
+    int N = s->harmonics;
+    for (int k = 0; k < N; k++) {
+        s->target_a[k] = u[k] * c->scale[k];
+        s->target_b[k] = u[N + k] * c->scale[N + k];
+    }
+    s->omega_rad_s = u[c->n] * c->scale[c->n];
+}
+
+/* Evaluates at scaled u: fills the physical residual (scaled by the amplitude scale), the
+ * extended residual norm and the measurement. */
+static int eval_at(corrector *c, const double *u, rths_solution *s, double *phi_scaled,
+                   double *ext_norm, rths_error *err) {
+    unpack(c, u, s);
+    int rc = rths_evaluate(c->rig, c->settle, s->harmonics, s->omega_rad_s / (2 * M_PI),
+                           c->amplitude_n, s->target_a, s->target_b, &s->eval, err);
+    c->st->evaluations++;
+    c->st->rig_time_s += s->eval.rig_time_s;
+    if (rc) return rc;
+    double phi[RTHS_MAX_UNKNOWNS], se[RTHS_MAX_UNKNOWNS];
+    rths_evaluation_residual(&s->eval, phi, se);
+    double sq = 0, num_sq = 0, se_sq = 0;
+    for (int i = 0; i < c->n; i++) {
+        phi_scaled[i] = phi[i] / c->scale[0];
+        sq += phi[i] * phi[i];
+        se_sq += se[i] * se[i];
+    }
+    for (int k = 1; k <= s->harmonics; k++)
+        num_sq += s->eval.num.a[k] * s->eval.num.a[k] + s->eval.num.b[k] * s->eval.num.b[k];
+    s->residual_norm_m = sqrt(sq);
+    s->tolerance_m = fmax(fmax(c->opt->rel_tolerance * sqrt(num_sq), c->opt->abs_tolerance_m),
+                          c->opt->noise_factor * sqrt(se_sq));
+    double ext = sq / (c->scale[0] * c->scale[0]);
+    if (c->m > c->n) {
+        double g = 0;
+        for (int j = 0; j < c->m; j++) g += c->arc->tangent[j] * (u[j] - c->arc->predicted[j]);
+        phi_scaled[c->n] = g;
+        ext += g * g;
+    }
+    *ext_norm = sqrt(ext);
+    return RTHS_OK;
+}
+
+static int arc_satisfied(const corrector *c, const double *phi_scaled) {
+    /* the arclength row is linear: after a full step it holds to rounding; 1e-6 of a scaled unit
+     * is far below any physical resolution */
+    return c->m == c->n || fabs(phi_scaled[c->n]) < 1e-6;
+}
+
+/* Finite-difference Jacobian columns 0..m-1 around u (Phi rows only, scaled variables). */
+static int fd_jacobian(corrector *c, const double *u, const double *phi0, rths_solution *s,
+                       rths_error *err) {
+    int n = c->n;
+    double up[RTHS_MAX_UNKNOWNS], phi[RTHS_MAX_UNKNOWNS], ext;
+    rths_solution tmp = *s;
+    for (int j = 0; j < c->m; j++) {
+        memcpy(up, u, sizeof up);
+        double h;
+        if (j < n) {
+            /* relative to the coefficient scale, but above the noise floor */
+            h = fmax(c->opt->fd_step_rel * fmax(fabs(u[j]), 1.0),
+                     c->opt->fd_step_min_m / c->scale[j]);
+        } else {
+            h = c->opt->fd_step_omega_rel * fabs(u[j]);
+        }
+        up[j] += h;
+        int rc = eval_at(c, up, &tmp, phi, &ext, err);
+        if (rc) return rc;
+        for (int i = 0; i < n; i++)
+            c->st->jacobian[i + j * RTHS_MAX_UNKNOWNS] = (phi[i] - phi0[i]) / h;
+    }
+    c->st->have_jacobian = 1;
+    return RTHS_OK;
+}
+
+/* Solves the m x m extended system J du = -phi by Gaussian elimination with partial pivoting:
+ * m <= 11, so LAPACK's call overhead buys nothing here. Returns 0, or -1 if singular. */
+static int solve_small(int m, double *a, int lda, double *b) {
+    for (int k = 0; k < m; k++) {
+        int p = k;
+        for (int i = k + 1; i < m; i++)
+            if (fabs(a[i + k * lda]) > fabs(a[p + k * lda])) p = i;
+        if (!(fabs(a[p + k * lda]) > 0)) return -1;
+        if (p != k) {
+            for (int j = 0; j < m; j++) {
+                double t = a[k + j * lda];
+                a[k + j * lda] = a[p + j * lda];
+                a[p + j * lda] = t;
+            }
+            double t = b[k];
+            b[k] = b[p];
+            b[p] = t;
+        }
+        for (int i = k + 1; i < m; i++) {
+            double f = a[i + k * lda] / a[k + k * lda];
+            for (int j = k; j < m; j++) a[i + j * lda] -= f * a[k + j * lda];
+            b[i] -= f * b[k];
+        }
+    }
+    for (int k = m - 1; k >= 0; k--) {
+        for (int j = k + 1; j < m; j++) b[k] -= a[k + j * lda] * b[j];
+        b[k] /= a[k + k * lda];
+    }
+    return 0;
+}
+
+int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
+                 double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
+                 rths_solution *sol, rths_error *err) {
+    corrector c = {.rig = rig, .settle = settle, .opt = opt, .arc = arc, .st = state,
+                   .amplitude_n = amplitude_n};
+    int N = sol->harmonics;
+    c.n = 2 * N;
+    c.m = (arc && arc->active) ? c.n + 1 : c.n;
+    double amp_scale = (arc && arc->amplitude_scale_m > 0) ? arc->amplitude_scale_m : 1e-4;
+    double om_scale = (arc && arc->omega_scale_rad_s > 0) ? arc->omega_scale_rad_s : 1.0;
+    for (int j = 0; j < c.n; j++) c.scale[j] = amp_scale;
+    c.scale[c.n] = om_scale;
+    if (state->harmonics != N) {
+        memset(state, 0, sizeof *state);
+        state->harmonics = N;
+        state->n = c.n;
+    }
+    state->evaluations = 0;
+    state->iterations = 0;
+    state->rig_time_s = 0;
+    sol->converged = 0;
+
+    double u[RTHS_MAX_UNKNOWNS] = {0}, phi[RTHS_MAX_UNKNOWNS] = {0}, ext;
+    pack(&c, sol, u);
+    int rc = eval_at(&c, u, sol, phi, &ext, err);
+    if (rc) return rc;
+    if (sol->residual_norm_m < sol->tolerance_m && arc_satisfied(&c, phi)) {
+        sol->converged = 1;
+        return RTHS_OK;
+    }
+    int fresh = 0;
+    if (!state->have_jacobian || opt->fresh_jacobian) {
+        if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+        fresh = 1;
+    } else if (c.m > c.n && fabs(state->jacobian[c.n * RTHS_MAX_UNKNOWNS]) == 0.0) {
+        /* carried Jacobian lacks the frequency column (natural sweep before): measure it once */
+        if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+        fresh = 1;
+    }
+    while (state->iterations < opt->max_iterations) {
+        state->iterations++;
+        double a[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS], du[RTHS_MAX_UNKNOWNS];
+        for (int j = 0; j < c.m; j++) {
+            for (int i = 0; i < c.n; i++)
+                a[i + j * RTHS_MAX_UNKNOWNS] = state->jacobian[i + j * RTHS_MAX_UNKNOWNS];
+            if (c.m > c.n) a[c.n + j * RTHS_MAX_UNKNOWNS] = arc->tangent[j];
+        }
+        for (int i = 0; i < c.m; i++) du[i] = -phi[i];
+        if (solve_small(c.m, a, RTHS_MAX_UNKNOWNS, du) != 0) {
+            if (fresh) return rths_error_set(err, RTHS_EFAIL, "singular Jacobian");
+            if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+            fresh = 1;
+            continue;
+        }
+        /* Backtracking line search on the residual norm (erratum 5). */
+        double lambda = 1.0, ut[RTHS_MAX_UNKNOWNS] = {0}, phit[RTHS_MAX_UNKNOWNS] = {0}, extt = 0;
+        int accepted = 0;
+        rths_solution trial = *sol;
+        while (lambda >= opt->min_damping) {
+            for (int i = 0; i < c.m; i++) ut[i] = u[i] + lambda * du[i];
+            for (int i = c.m; i < RTHS_MAX_UNKNOWNS; i++) ut[i] = u[i];
+            if ((rc = eval_at(&c, ut, &trial, phit, &extt, err))) return rc;
+            if (extt < ext) {
+                accepted = 1;
+                break;
+            }
+            lambda *= 0.5;
+        }
+        if (!accepted) {
+            if (fresh) break; /* a fresh Jacobian could not reduce the residual: give up */
+            if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+            fresh = 1;
+            continue;
+        }
+        /* Broyden update of the Phi rows (erratum 6: denominator ||s||^2), scaled variables. */
+        double s[RTHS_MAX_UNKNOWNS], y[RTHS_MAX_UNKNOWNS], ss = 0;
+        for (int j = 0; j < c.m; j++) {
+            s[j] = ut[j] - u[j];
+            ss += s[j] * s[j];
+        }
+        for (int i = 0; i < c.n; i++) y[i] = phit[i] - phi[i];
+        if (ss > 0)
+            for (int i = 0; i < c.n; i++) {
+                double js = 0;
+                for (int j = 0; j < c.m; j++) js += state->jacobian[i + j * RTHS_MAX_UNKNOWNS] * s[j];
+                double f = (y[i] - js) / ss;
+                for (int j = 0; j < c.m; j++) state->jacobian[i + j * RTHS_MAX_UNKNOWNS] += f * s[j];
+            }
+        fresh = 0;
+        memcpy(u, ut, sizeof u);
+        memcpy(phi, phit, sizeof phi);
+        ext = extt;
+        *sol = trial;
+        if (sol->residual_norm_m < sol->tolerance_m && arc_satisfied(&c, phi)) {
+            sol->converged = 1;
+            return RTHS_OK;
+        }
+    }
+    return rths_error_set(err, RTHS_EFAIL,
+                          "corrector did not converge at %.6g Hz: residual %.3g m > tolerance "
+                          "%.3g m after %d iterations",
+                          sol->omega_rad_s / (2 * M_PI), sol->residual_norm_m, sol->tolerance_m,
+                          state->iterations);
+}

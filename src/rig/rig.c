@@ -1,0 +1,80 @@
+/* The rig interface: a thin dispatcher over a backend's operations. */
+#include "rths/rig.h"
+
+#include <stdlib.h>
+#include <string.h>
+
+struct rths_rig {
+    const rths_rig_ops *ops;
+    void *self;
+    char description[256];
+};
+
+const char *rths_rig_fault_name(rths_rig_fault f) {
+    switch (f) {
+    case RTHS_RIG_OK: return "none";
+    case RTHS_RIG_FAULT_DISPLACEMENT: return "displacement limit";
+    case RTHS_RIG_FAULT_FORCE: return "force limit";
+    case RTHS_RIG_FAULT_DEMAND: return "demand limit";
+    case RTHS_RIG_FAULT_NONFINITE: return "non-finite signal";
+    case RTHS_RIG_FAULT_LINK: return "link lost";
+    case RTHS_RIG_FAULT_WATCHDOG: return "watchdog";
+    }
+    return "unknown fault";
+}
+
+rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description) {
+    rths_rig *rig = calloc(1, sizeof *rig);
+    if (!rig) return NULL;
+    rig->ops = ops;
+    rig->self = self;
+    strncpy(rig->description, description ? description : "", sizeof rig->description - 1);
+    return rig;
+}
+
+void rths_rig_destroy(rths_rig *rig) {
+    if (!rig) return;
+    if (rig->ops->destroy) rig->ops->destroy(rig->self);
+    free(rig);
+}
+
+const char *rths_rig_description(const rths_rig *rig) { return rig->description; }
+
+int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n, rths_error *err) {
+    return rig->ops->set_forcing(rig->self, frequency_hz, amplitude_n, err);
+}
+
+int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const double *b,
+                        rths_error *err) {
+    if (harmonics < 0 || harmonics > RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT, "target has %d harmonics; at most %d supported",
+                              harmonics, RTHS_MAX_HARMONICS);
+    return rig->ops->set_target(rig->self, harmonics, a, b, err);
+}
+
+int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err) {
+    return rig->ops->run_periods(rig->self, count, out, err);
+}
+
+int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples,
+                          rths_trace_sample *out, int *n_out, rths_error *err) {
+    if (!rig->ops->record_trace)
+        return rths_error_set(err, RTHS_EFAIL, "rig '%s' cannot record time traces",
+                              rig->description);
+    return rig->ops->record_trace(rig->self, duration_s, max_samples, out, n_out, err);
+}
+
+double rths_rig_time_s(rths_rig *rig) { return rig->ops->time_s(rig->self); }
+
+rths_rig_fault rths_rig_get_fault(rths_rig *rig) {
+    return rig->ops->fault ? rig->ops->fault(rig->self) : RTHS_RIG_OK;
+}
+
+int rths_rig_reset_fault(rths_rig *rig, rths_error *err) {
+    if (!rig->ops->reset_fault) return RTHS_OK;
+    return rig->ops->reset_fault(rig->self, err);
+}
+
+double rths_rig_noise_level_m(rths_rig *rig) {
+    return rig->ops->noise_level_m ? rig->ops->noise_level_m(rig->self) : 0.0;
+}

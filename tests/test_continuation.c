@@ -1,0 +1,292 @@
+/* Corrector and continuation on analytic mock rigs whose solutions are known in closed form:
+ * a linear map per harmonic (solution h / (1 - H)), and a Duffing-type residual whose zero set is
+ * the harmonic-balance curve of a hardening oscillator with two folds. Each mock has a geometric
+ * transient per period and optional coefficient noise, so steady-state detection is exercised. */
+#include "testlib.h"
+
+#include "rths/continuation.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    int duffing;
+    double omega, amp;
+    double complex target[RTHS_MAX_HARMONICS + 1];
+    double complex phys[RTHS_MAX_HARMONICS + 1], num[RTHS_MAX_HARMONICS + 1];
+    double ratio;   /* transient decay per period */
+    double noise_m; /* per-sample displacement noise the mock declares */
+    int samples;
+    double time;
+    rths_rng rng;
+} mock;
+
+/* Linear mock: phys = G x* + g, num = H phys + h, with mild frequency dependence. */
+static double complex lin_G(int k, double w) { return (0.9 + 0.02 * k) * cexp(-I * 0.1 * k) * (1 + 0.001 * w); }
+static double complex lin_g(int k, double w) { return 1e-5 * k * cexp(I * 0.01 * w); }
+static double complex lin_H(int k, double w) { return (0.3 + 0.05 * k) * cexp(I * (0.5 + 0.002 * w)); }
+static double complex lin_h(int k, double w) { return 2e-4 / k * cexp(-I * 0.003 * w); }
+
+static double complex lin_solution_phys(int k, double w) { return lin_h(k, w) / (1.0 - lin_H(k, w)); }
+
+/* Duffing mock (N = 1): phys = x*, num = phys + (F - D(w, |phys|) phys) / (c w0). Dividing by the
+ * damping force scale makes a relative tolerance on the mismatch a relative tolerance on x at the
+ * peak, as in a real hybrid test where the mismatch is a displacement. */
+static const double duf_m = 1.0, duf_k = 3947.8417604357433, duf_k3 = 3.3e6, duf_cw0 = 78.956835,
+                    duf_F = 1.0;
+static double complex duf_D(double w, double a) {
+    return duf_k + 0.75 * duf_k3 * a * a - duf_m * w * w + I * duf_cw0;
+}
+
+static void steady(const mock *mk, double complex *phys, double complex *num, int k) {
+    if (mk->duffing) {
+        phys[k] = k == 1 ? mk->target[1] : mk->target[k];
+        num[k] = k == 1 ? phys[k] + (mk->amp - duf_D(mk->omega, cabs(phys[k])) * phys[k]) / duf_cw0
+                        : 0.5 * phys[k];
+    } else {
+        phys[k] = lin_G(k, mk->omega) * mk->target[k] + lin_g(k, mk->omega);
+        num[k] = lin_H(k, mk->omega) * phys[k] + lin_h(k, mk->omega);
+    }
+}
+
+static int m_set_forcing(void *self, double f, double a, rths_error *err) {
+    (void)err;
+    mock *mk = self;
+    mk->omega = 2 * M_PI * f;
+    mk->amp = a;
+    return 0;
+}
+static int m_set_target(void *self, int n, const double *a, const double *b, rths_error *err) {
+    (void)err;
+    mock *mk = self;
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
+        mk->target[k] = k <= n ? a[k - 1] - I * b[k - 1] : 0; /* x = Re(X e^{iwt}): A - iB */
+    return 0;
+}
+static int m_run(void *self, int count, rths_period *out, rths_error *err) {
+    (void)err;
+    mock *mk = self;
+    for (int q = 0; q < count; q++) {
+        memset(&out[q], 0, sizeof out[q]);
+        double se = mk->noise_m * sqrt(2.0 / mk->samples);
+        for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
+            double complex ps[RTHS_MAX_HARMONICS + 1], ns[RTHS_MAX_HARMONICS + 1];
+            steady(mk, ps, ns, k);
+            mk->phys[k] = ps[k] + (mk->phys[k] - ps[k]) * mk->ratio;
+            mk->num[k] = ns[k] + (mk->num[k] - ns[k]) * mk->ratio;
+            out[q].phys.a[k] = creal(mk->phys[k]) + se * rths_rng_normal(&mk->rng);
+            out[q].phys.b[k] = -cimag(mk->phys[k]) + se * rths_rng_normal(&mk->rng);
+            out[q].num.a[k] = creal(mk->num[k]) + se * rths_rng_normal(&mk->rng);
+            out[q].num.b[k] = -cimag(mk->num[k]) + se * rths_rng_normal(&mk->rng);
+        }
+        mk->time += 2 * M_PI / mk->omega;
+        out[q].frequency_hz = mk->omega / (2 * M_PI);
+        out[q].end_time_s = mk->time;
+        out[q].samples = mk->samples;
+    }
+    return 0;
+}
+static double m_time(void *self) { return ((mock *)self)->time; }
+static rths_rig_fault m_fault(void *self) { (void)self; return RTHS_RIG_OK; }
+static double m_noise(void *self) { return ((mock *)self)->noise_m; }
+static void m_destroy(void *self) { free(self); }
+
+static const rths_rig_ops mock_ops = {.set_forcing = m_set_forcing, .set_target = m_set_target,
+                                      .run_periods = m_run, .time_s = m_time, .fault = m_fault,
+                                      .noise_level_m = m_noise, .destroy = m_destroy};
+
+static rths_rig *mock_rig(int duffing, double ratio, double noise_m) {
+    mock *mk = calloc(1, sizeof *mk);
+    mk->duffing = duffing;
+    mk->ratio = ratio;
+    mk->noise_m = noise_m;
+    mk->samples = 1000;
+    mk->omega = 1;
+    rths_rng_seed(&mk->rng, 7);
+    return rths_rig_create(&mock_ops, mk, "mock");
+}
+
+/* The steady-state test must wait out a slow transient: with r = 0.9 per period, a fixed stop after
+ * a few periods would leave ~e-1 of the initial offset; the adaptive wait leaves < rel tolerance. */
+static void test_evaluate_waits_for_steady_state(void **state) {
+    (void)state;
+    rths_rig *rig = mock_rig(0, 0.9, 0.0);
+    rths_settle_options st;
+    rths_settle_defaults(&st, 0);
+    rths_evaluation ev;
+    rths_error err;
+    double a[1] = {1e-4}, b[1] = {-2e-4};
+    assert_int_equal(rths_evaluate(rig, &st, 1, 13.0, 1.0, a, b, &ev, &err), RTHS_OK);
+    assert_true(ev.steady);
+    mock probe = {.omega = 2 * M_PI * 13.0, .target = {0, a[0] - I * b[0]}};
+    double complex ps[RTHS_MAX_HARMONICS + 1], ns[RTHS_MAX_HARMONICS + 1];
+    steady(&probe, ps, ns, 1);
+    double scale = cabs(ps[1]);
+    /* the transient tail after detection is bounded by the settle threshold (1e-4 relative)
+     * times a few (ratio estimate, averaging window) */
+    assert_close(ev.phys.a[1], creal(ps[1]), 1e-3 * scale);
+    assert_close(ev.phys.b[1], -cimag(ps[1]), 1e-3 * scale);
+    assert_true(ev.wait_periods > 20); /* r^20 = 0.12: an early stop would show */
+    rths_rig_destroy(rig);
+}
+
+static void check_linear_solution(const rths_solution *sol, int N, double tol_rel) {
+    for (int k = 1; k <= N; k++) {
+        double complex x = lin_solution_phys(k, sol->omega_rad_s);
+        double complex target = (x - lin_g(k, sol->omega_rad_s)) / lin_G(k, sol->omega_rad_s);
+        assert_close(sol->target_a[k - 1], creal(target), tol_rel * cabs(target));
+        assert_close(sol->target_b[k - 1], -cimag(target), tol_rel * cabs(target));
+    }
+}
+
+static void test_corrector_linear_harmonics(void **state) {
+    (void)state;
+    for (int N = 1; N <= 3; N++) {
+        rths_rig *rig = mock_rig(0, 0.5, 0.0);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_settle_defaults(&st, 0);
+        rths_newton_defaults(&nw, 0);
+        rths_corrector_state cs;
+        memset(&cs, 0, sizeof cs);
+        rths_solution sol;
+        memset(&sol, 0, sizeof sol);
+        sol.harmonics = N;
+        sol.omega_rad_s = 2 * M_PI * 13.0;
+        rths_arclength arc = {.amplitude_scale_m = 3e-4, .omega_scale_rad_s = 2 * M_PI * 2};
+        rths_error err;
+        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, &arc, &cs, &sol, &err), RTHS_OK);
+        assert_true(sol.converged);
+        /* tolerance is 1e-3 relative on the residual; the map's gain (1 - H) G is O(1) */
+        check_linear_solution(&sol, N, 3e-3);
+        int first = cs.evaluations;
+        /* affine problem: FD Jacobian (2N) + initial + one Newton step (+ possibly one more) */
+        assert_true(first <= 2 * N + 3);
+        /* a nearby frequency with the carried Jacobian costs fewer evaluations than fresh */
+        sol.omega_rad_s = 2 * M_PI * 13.05;
+        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, &arc, &cs, &sol, &err), RTHS_OK);
+        check_linear_solution(&sol, N, 3e-3);
+        assert_true(cs.evaluations < first);
+        rths_rig_destroy(rig);
+    }
+}
+
+typedef struct {
+    int calls, updates;
+    rths_point last;
+} collector;
+
+static int collect(void *user, const rths_point *pt, int is_update) {
+    collector *c = user;
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr, "pt %d upd %d f %.5f amp %.6g evals %d it %d fold %d seg %d step %.3g\n", pt->index, is_update,
+                pt->sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(pt), pt->evaluations,
+                pt->iterations, pt->fold, pt->segment, pt->step);
+    if (is_update) c->updates++;
+    else {
+        assert_int_equal(pt->index, c->calls);
+        c->calls++;
+    }
+    c->last = *pt;
+    return 0;
+}
+
+static void test_continuation_linear_both_methods(void **state) {
+    (void)state;
+    for (int method = 0; method < 2; method++) {
+        rths_rig *rig = mock_rig(0, 0.4, 1e-7);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_continuation_options co;
+        rths_settle_defaults(&st, 0);
+        rths_newton_defaults(&nw, 0);
+        rths_continuation_defaults(&co);
+        co.method = (rths_cont_method)method;
+        collector col = {0};
+        rths_continuation_result res;
+        rths_error err;
+        assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, 1.0, NULL, 0, collect, NULL,
+                                               &col, &res, &err),
+                         RTHS_OK);
+        assert_true(res.reached_end);
+        assert_int_equal(res.n_folds, 0);
+        assert_int_equal(col.calls, res.points);
+        assert_true(res.points >= 10);
+        assert_close(col.last.sol.omega_rad_s / (2 * M_PI), 14.0, 0.5);
+        /* noise 1e-7 m per sample -> per-period coefficient SE ~4.5e-9 m: solutions within a
+         * relative 1 % of the closed form (amplitudes ~1e-4 m) */
+        check_linear_solution(&col.last.sol, 1, 1e-2);
+        rths_rig_destroy(rig);
+    }
+}
+
+/* Fold frequencies of the Duffing curve by a dense scan of the amplitude along both branches. */
+static int duffing_folds(double *fold_w, int max) {
+    int nf = 0;
+    double amax = duf_F / duf_cw0;
+    int steps = 20000; /* finer scans only add rounding jitter near the top */
+    double prev_w = NAN, prev_dw = 0;
+    for (int br = 0; br < 2; br++)
+        for (int i = 1; i <= steps; i++) {
+            double a = br == 0 ? amax * i / steps : amax * (steps - i + 1) / steps;
+            double S2 = duf_F * duf_F / (a * a) - duf_cw0 * duf_cw0;
+            if (S2 < 0) S2 = 0;
+            double w2 = (duf_k + 0.75 * duf_k3 * a * a + (br == 0 ? -1 : 1) * sqrt(S2)) / duf_m;
+            if (w2 <= 0) continue;
+            double w = sqrt(w2);
+            if (!isnan(prev_w)) {
+                double dw = w - prev_w;
+                if (prev_dw != 0 && dw * prev_dw < 0 && nf < max && a > 1e-3) fold_w[nf++] = prev_w;
+                if (dw != 0) prev_dw = dw;
+            }
+            prev_w = w;
+        }
+    return nf;
+}
+
+static void test_continuation_duffing_two_folds(void **state) {
+    (void)state;
+    double truth[4];
+    int nt = duffing_folds(truth, 4);
+    assert_int_equal(nt, 2);
+    rths_rig *rig = mock_rig(1, 0.3, 0.0);
+    rths_settle_options st;
+    rths_newton_options nw;
+    rths_continuation_options co;
+    rths_settle_defaults(&st, 0);
+    rths_newton_defaults(&nw, 0);
+    rths_continuation_defaults(&co);
+    co.start_hz = 8.0;
+    co.end_hz = 13.0;
+    co.max_step = 0.02;
+    co.amplitude_scale_m = 0.01;
+    collector col = {0};
+    rths_continuation_result res;
+    rths_error err;
+    assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL,
+                                           &col, &res, &err),
+                     RTHS_OK);
+    assert_true(res.reached_end);
+    assert_int_equal(res.n_folds, 2);
+    assert_int_equal(col.updates >= 2, 1);
+    double f_lo = fmin(truth[0], truth[1]) / (2 * M_PI), f_hi = fmax(truth[0], truth[1]) / (2 * M_PI);
+    double got_hi = fmax(res.folds[0].frequency_hz, res.folds[1].frequency_hz);
+    double got_lo = fmin(res.folds[0].frequency_hz, res.folds[1].frequency_hz);
+    /* parabolic location over steps of <= 0.02 scaled units (0.1 Hz): 0.02 Hz is generous */
+    assert_close(got_hi, f_hi, 0.02);
+    assert_close(got_lo, f_lo, 0.02);
+    rths_rig_destroy(rig);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_evaluate_waits_for_steady_state),
+        cmocka_unit_test(test_corrector_linear_harmonics),
+        cmocka_unit_test(test_continuation_linear_both_methods),
+        cmocka_unit_test(test_continuation_duffing_two_folds),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
