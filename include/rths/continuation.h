@@ -79,4 +79,20 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
 /* Physical interface fundamental amplitude of a point, m. */
 double rths_point_amplitude_m(const rths_point *pt);
 
+/* ---- journal: one JSON line per accepted point, flushed and synced per record ---- */
+
+typedef struct rths_journal rths_journal;
+
+/* Opens path for appending (creating it with a header line naming the strategy). */
+int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err);
+/* Appends a point (is_update: a later line for the same index replaces the earlier one). */
+int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err);
+void rths_journal_close(rths_journal *j);
+
+/* Reads a journal: the points in index order, updates applied. A torn last line (the process was
+ * killed mid-write) is ignored; any other malformed line is an error naming the line. *strategy
+ * receives the header's strategy (caller frees). Indices must run 0..n-1 without gaps. */
+int rths_journal_read(const char *path, rths_point **points, int *n_points, char **strategy,
+                      rths_error *err);
+
 #endif

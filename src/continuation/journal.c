@@ -1,0 +1,273 @@
+/* journal.jsonl: the durable record of a continuation run, from which --resume continues.
+ * Each accepted point is one line, written with a single write(2) and fsync'ed, so a SIGKILL at any
+ * moment leaves at worst a torn final line, which the reader ignores. */
+#include "rths/continuation.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <json-c/json.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+struct rths_journal {
+    int fd;
+    char path[4096];
+};
+
+static void set_exact_doubles(void) {
+    /* %.17g round-trips every double, so a resumed run continues from bit-identical state */
+    json_c_set_serialization_double_format("%.17g", JSON_C_OPTION_GLOBAL);
+}
+
+static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
+    const char *text = json_object_to_json_string_ext(obj, JSON_C_TO_STRING_PLAIN);
+    size_t len = strlen(text);
+    char *line = malloc(len + 2);
+    if (!line) return rths_error_set(err, RTHS_EFAIL, "out of memory writing the journal");
+    memcpy(line, text, len);
+    line[len] = '\n';
+    ssize_t w = write(j->fd, line, len + 1);
+    free(line);
+    if (w != (ssize_t)(len + 1) || fsync(j->fd) != 0)
+        return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path,
+                              strerror(errno));
+    return RTHS_OK;
+}
+
+int rths_journal_open(const char *path, const char *strategy, rths_journal **out,
+                      rths_error *err) {
+    set_exact_doubles();
+    rths_journal *j = calloc(1, sizeof *j);
+    if (!j) return rths_error_set(err, RTHS_EFAIL, "out of memory opening the journal");
+    snprintf(j->path, sizeof j->path, "%s", path);
+    int existed = access(path, F_OK) == 0;
+    j->fd = open(path, O_WRONLY | O_CREAT | O_APPEND | O_CLOEXEC, 0644);
+    if (j->fd < 0) {
+        int e = errno;
+        free(j);
+        return rths_error_set(err, RTHS_EFAIL, "cannot open journal %s: %s", path, strerror(e));
+    }
+    if (!existed) {
+        json_object *h = json_object_new_object();
+        json_object_object_add(h, "type", json_object_new_string("header"));
+        json_object_object_add(h, "format", json_object_new_int(1));
+        json_object_object_add(h, "strategy", json_object_new_string(strategy));
+        json_object_object_add(h, "version", json_object_new_string(RTHS_VERSION));
+        int rc = write_line(j, h, err);
+        json_object_put(h);
+        if (rc) {
+            rths_journal_close(j);
+            return rc;
+        }
+    }
+    *out = j;
+    return RTHS_OK;
+}
+
+void rths_journal_close(rths_journal *j) {
+    if (!j) return;
+    if (j->fd >= 0) close(j->fd);
+    free(j);
+}
+
+static json_object *dbl_array(const double *v, int n) {
+    json_object *a = json_object_new_array();
+    for (int i = 0; i < n; i++) json_object_array_add(a, json_object_new_double(v[i]));
+    return a;
+}
+
+static void add_fourier(json_object *o, const char *name, const rths_fourier *f, int harmonics) {
+    char key[64];
+    snprintf(key, sizeof key, "%s_a", name);
+    json_object_object_add(o, key, dbl_array(f->a, harmonics + 1));
+    snprintf(key, sizeof key, "%s_b", name);
+    json_object_object_add(o, key, dbl_array(f->b, harmonics + 1));
+}
+
+int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err) {
+    const rths_solution *s = &pt->sol;
+    const rths_evaluation *e = &s->eval;
+    int N = s->harmonics;
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "type", json_object_new_string(is_update ? "update" : "point"));
+    json_object_object_add(o, "index", json_object_new_int(pt->index));
+    json_object_object_add(o, "harmonics", json_object_new_int(N));
+    json_object_object_add(o, "omega_rad_s", json_object_new_double(s->omega_rad_s));
+    json_object_object_add(o, "frequency_hz", json_object_new_double(e->frequency_hz));
+    json_object_object_add(o, "target_a_m", dbl_array(s->target_a, N));
+    json_object_object_add(o, "target_b_m", dbl_array(s->target_b, N));
+    add_fourier(o, "phys", &e->phys, N);
+    add_fourier(o, "num", &e->num, N);
+    add_fourier(o, "phys_se", &e->phys_se, N);
+    add_fourier(o, "num_se", &e->num_se, N);
+    json_object_object_add(o, "eval_rig_time_s", json_object_new_double(e->rig_time_s));
+    json_object_object_add(o, "wait_periods", json_object_new_int(e->wait_periods));
+    json_object_object_add(o, "average_periods", json_object_new_int(e->average_periods));
+    json_object_object_add(o, "steady", json_object_new_int(e->steady));
+    json_object_object_add(o, "residual_norm_m", json_object_new_double(s->residual_norm_m));
+    json_object_object_add(o, "tolerance_m", json_object_new_double(s->tolerance_m));
+    json_object_object_add(o, "converged", json_object_new_int(s->converged));
+    json_object_object_add(o, "evaluations", json_object_new_int(pt->evaluations));
+    json_object_object_add(o, "iterations", json_object_new_int(pt->iterations));
+    json_object_object_add(o, "rig_time_s", json_object_new_double(pt->rig_time_s));
+    json_object_object_add(o, "fold", json_object_new_int(pt->fold));
+    json_object_object_add(o, "segment", json_object_new_int(pt->segment));
+    json_object_object_add(o, "step", json_object_new_double(pt->step));
+    json_object_object_add(o, "secant_omega", json_object_new_double(pt->secant_omega));
+    json_object_object_add(o, "have_jacobian", json_object_new_int(pt->corrector.have_jacobian));
+    json_object_object_add(o, "jacobian",
+                           dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
+    int rc = write_line(j, o, err);
+    json_object_put(o);
+    return rc;
+}
+
+/* ---- reading ---- */
+
+static int get_dbl(json_object *o, const char *key, double *out) {
+    json_object *v;
+    if (!json_object_object_get_ex(o, key, &v)) return -1;
+    if (!json_object_is_type(v, json_type_double) && !json_object_is_type(v, json_type_int))
+        return -1;
+    *out = json_object_get_double(v);
+    return 0;
+}
+
+static int get_int(json_object *o, const char *key, int *out) {
+    json_object *v;
+    if (!json_object_object_get_ex(o, key, &v) || !json_object_is_type(v, json_type_int)) return -1;
+    *out = json_object_get_int(v);
+    return 0;
+}
+
+static int get_arr(json_object *o, const char *key, double *out, int n) {
+    json_object *v;
+    if (!json_object_object_get_ex(o, key, &v) || !json_object_is_type(v, json_type_array) ||
+        (int)json_object_array_length(v) != n)
+        return -1;
+    for (int i = 0; i < n; i++) {
+        json_object *x = json_object_array_get_idx(v, (size_t)i);
+        if (!json_object_is_type(x, json_type_double) && !json_object_is_type(x, json_type_int))
+            return -1;
+        out[i] = json_object_get_double(x);
+    }
+    return 0;
+}
+
+static int get_fourier(json_object *o, const char *name, rths_fourier *f, int harmonics) {
+    char key[64];
+    snprintf(key, sizeof key, "%s_a", name);
+    if (get_arr(o, key, f->a, harmonics + 1)) return -1;
+    snprintf(key, sizeof key, "%s_b", name);
+    return get_arr(o, key, f->b, harmonics + 1);
+}
+
+static int parse_point(json_object *o, rths_point *pt) {
+    memset(pt, 0, sizeof *pt);
+    rths_solution *s = &pt->sol;
+    rths_evaluation *e = &s->eval;
+    int N;
+    if (get_int(o, "index", &pt->index) || get_int(o, "harmonics", &N) || N < 1 ||
+        N > RTHS_MAX_HARMONICS)
+        return -1;
+    s->harmonics = e->harmonics = N;
+    pt->corrector.harmonics = N;
+    pt->corrector.n = 2 * N;
+    if (get_dbl(o, "omega_rad_s", &s->omega_rad_s) || get_dbl(o, "frequency_hz", &e->frequency_hz) ||
+        get_arr(o, "target_a_m", s->target_a, N) || get_arr(o, "target_b_m", s->target_b, N) ||
+        get_fourier(o, "phys", &e->phys, N) || get_fourier(o, "num", &e->num, N) ||
+        get_fourier(o, "phys_se", &e->phys_se, N) || get_fourier(o, "num_se", &e->num_se, N) ||
+        get_dbl(o, "eval_rig_time_s", &e->rig_time_s) ||
+        get_int(o, "wait_periods", &e->wait_periods) ||
+        get_int(o, "average_periods", &e->average_periods) || get_int(o, "steady", &e->steady) ||
+        get_dbl(o, "residual_norm_m", &s->residual_norm_m) ||
+        get_dbl(o, "tolerance_m", &s->tolerance_m) || get_int(o, "converged", &s->converged) ||
+        get_int(o, "evaluations", &pt->evaluations) || get_int(o, "iterations", &pt->iterations) ||
+        get_dbl(o, "rig_time_s", &pt->rig_time_s) || get_int(o, "fold", &pt->fold) ||
+        get_int(o, "segment", &pt->segment) || get_dbl(o, "step", &pt->step) ||
+        get_dbl(o, "secant_omega", &pt->secant_omega) ||
+        get_int(o, "have_jacobian", &pt->corrector.have_jacobian) ||
+        get_arr(o, "jacobian", pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS))
+        return -1;
+    return 0;
+}
+
+int rths_journal_read(const char *path, rths_point **points, int *n_points, char **strategy,
+                      rths_error *err) {
+    *points = NULL;
+    *n_points = 0;
+    if (strategy) *strategy = NULL;
+    FILE *f = fopen(path, "r");
+    if (!f) return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path, strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    ssize_t len;
+    int lineno = 0, n = 0, alloc = 0, rc = RTHS_OK;
+    rths_point *pts = NULL;
+    while ((len = getline(&line, &cap, f)) > 0) {
+        lineno++;
+        int complete = line[len - 1] == '\n';
+        json_object *o = json_tokener_parse(line);
+        const char *type = NULL;
+        json_object *t;
+        if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
+        if (!o || !type) {
+            if (o) json_object_put(o);
+            if (!complete) break; /* torn final record: the kill came mid-write */
+            rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", path, lineno);
+            break;
+        }
+        if (!strcmp(type, "header")) {
+            json_object *s;
+            if (strategy && json_object_object_get_ex(o, "strategy", &s)) {
+                free(*strategy);
+                *strategy = strdup(json_object_get_string(s));
+            }
+        } else if (!strcmp(type, "point") || !strcmp(type, "update")) {
+            rths_point pt;
+            if (parse_point(o, &pt)) {
+                json_object_put(o);
+                if (!complete) break;
+                rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", path, lineno);
+                break;
+            }
+            int is_update = !strcmp(type, "update");
+            if ((!is_update && pt.index != n) || (is_update && (pt.index < 0 || pt.index >= n))) {
+                json_object_put(o);
+                rc = rths_error_set(err, RTHS_EINPUT,
+                                    "%s:%d: point %d out of sequence (expected %d): the journal "
+                                    "has gaps or duplicates",
+                                    path, lineno, pt.index, n);
+                break;
+            }
+            if (is_update) {
+                pts[pt.index] = pt;
+            } else {
+                if (n == alloc) {
+                    alloc = alloc ? 2 * alloc : 64;
+                    rths_point *grown = realloc(pts, (size_t)alloc * sizeof *pts);
+                    if (!grown) {
+                        json_object_put(o);
+                        rc = rths_error_set(err, RTHS_EFAIL, "out of memory reading the journal");
+                        break;
+                    }
+                    pts = grown;
+                }
+                pts[n++] = pt;
+            }
+        }
+        json_object_put(o);
+    }
+    free(line);
+    fclose(f);
+    if (rc) {
+        free(pts);
+        if (strategy) free(*strategy), *strategy = NULL;
+        return rc;
+    }
+    *points = pts;
+    *n_points = n;
+    return RTHS_OK;
+}
