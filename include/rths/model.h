@@ -114,4 +114,46 @@ int rths_discretise(int nx, int nu, const double *a, const double *b, double h, 
                     rths_discrete *out, rths_error *err);
 void rths_discrete_free(rths_discrete *d);
 
+/* ---- periodic response of the true assembly with a bilinear leg (shooting) ---- */
+
+/* A leg whose stiffness is `stiffness_n_per_m` for extension (x_upper - x_lower >= 0) and
+ * ratio * stiffness_n_per_m for compression; the assembly's K must contain the leg's extension
+ * stiffness, the extra compression stiffness is added here. lower_dof = -1 means the ground. */
+typedef struct rths_bilinear_leg {
+    int lower_dof, upper_dof;
+    double stiffness_n_per_m;
+    double ratio;
+} rths_bilinear_leg;
+
+#define RTHS_PERIODIC_HARMONICS 3
+
+/* One periodic solution: Fourier coefficients (k = 0..3, relative to the forcing cos(w t)) of
+ * every DoF, and its stability from the Floquet multipliers. */
+typedef struct rths_periodic_point {
+    double omega_rad_s;
+    double *cos_m;   /* n x (RTHS_PERIODIC_HARMONICS + 1): cos_m[i + k n] */
+    double *sin_m;   /* same layout */
+    double max_floquet; /* largest Floquet multiplier modulus: > 1 unstable */
+    int stable;
+} rths_periodic_point;
+
+typedef struct rths_shooting_options {
+    double start_hz, end_hz;
+    int steps_per_period; /* RK4 steps per forcing period */
+    double max_step;      /* pseudo-arclength step, scaled units */
+    int max_points;
+} rths_shooting_options;
+
+/* Traces the periodic response of M q'' + C q' + K q + g(q) = static_force + force cos(w t) from
+ * start_hz to end_hz by shooting with pseudo-arclength continuation, through folds. *out is
+ * malloc'ed (free with rths_periodic_points_free). */
+int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
+                      const double *static_force, const double *force,
+                      const rths_shooting_options *opt, rths_periodic_point **out, int *n_out,
+                      rths_error *err);
+void rths_periodic_points_free(rths_periodic_point *pts, int n);
+/* Static equilibrium under static_force (Newton on the piecewise-linear restoring force). */
+int rths_bilinear_static(const rths_assembly *a, const rths_bilinear_leg *leg,
+                         const double *static_force, double *q_out, rths_error *err);
+
 #endif

@@ -1,0 +1,379 @@
+/* Periodic response of the true assembly with a bilinear leg: shooting on the full model with
+ * pseudo-arclength continuation in frequency. This is the independent truth the hybrid test of the
+ * bilinear rig is judged against: it never touches the hybrid loop, only (M, C, K) and the leg. */
+#include "rths/model.h"
+
+#include <lapacke.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+typedef struct {
+    int n, nx;
+    const rths_assembly *a;
+    const rths_bilinear_leg *leg;
+    double *minv;        /* M^{-1} */
+    double *minv_k;      /* M^{-1} K */
+    double *minv_c;      /* M^{-1} C */
+    double *minv_fs;     /* M^{-1} static force */
+    double *minv_f;      /* M^{-1} harmonic force amplitude */
+    double *minv_b;      /* M^{-1} (e_upper - e_lower) */
+    double extra_k;      /* (ratio - 1) k: added stiffness in compression */
+    int steps;
+} shooter;
+
+static double leg_extension(const shooter *s, const double *q) {
+    double lower = s->leg->lower_dof >= 0 ? q[s->leg->lower_dof] : 0.0;
+    return q[s->leg->upper_dof] - lower;
+}
+
+/* x' = f(t, x): x = (q, v). */
+static void rhs(const shooter *s, double wt, const double *x, double *dx) {
+    int n = s->n;
+    const double *q = x, *v = x + n;
+    double d = leg_extension(s, q);
+    double g = d < 0 ? s->extra_k * d : 0.0;
+    double c = cos(wt);
+    for (int i = 0; i < n; i++) {
+        double acc = s->minv_fs[i] + s->minv_f[i] * c - g * s->minv_b[i];
+        for (int j = 0; j < n; j++)
+            acc -= RTHS_AT(s->minv_k, n, i, j) * q[j] + RTHS_AT(s->minv_c, n, i, j) * v[j];
+        dx[i] = v[i];
+        dx[n + i] = acc;
+    }
+}
+
+/* dPhi = J(x) Phi, J = [[0, I], [-M^{-1}(K + K_g), -M^{-1} C]]. */
+static void rhs_var(const shooter *s, const double *x, const double *phi, double *dphi) {
+    int n = s->n, nx = s->nx;
+    double d = leg_extension(s, x);
+    int compressed = d < 0;
+    int lo = s->leg->lower_dof, up = s->leg->upper_dof;
+    for (int col = 0; col < nx; col++) {
+        const double *p = phi + (size_t)col * nx;
+        double *dp = dphi + (size_t)col * nx;
+        double dd = p[up] - (lo >= 0 ? p[lo] : 0.0);
+        for (int i = 0; i < n; i++) {
+            double acc = compressed ? -s->extra_k * dd * s->minv_b[i] : 0.0;
+            for (int j = 0; j < n; j++)
+                acc -= RTHS_AT(s->minv_k, n, i, j) * p[j] + RTHS_AT(s->minv_c, n, i, j) * p[n + j];
+            dp[i] = p[n + i];
+            dp[n + i] = acc;
+        }
+    }
+}
+
+/* One forcing period from x0 with RK4; optionally the monodromy matrix and Fourier coefficients
+ * of q (rectangle rule over the period: exact for trigonometric polynomials up to steps/2). */
+static void integrate(const shooter *s, const double *x0, double omega, double *xT, double *phi,
+                      double *cos_m, double *sin_m) {
+    int n = s->n, nx = s->nx, N = s->steps;
+    double T = 2 * M_PI / omega, h = T / N;
+    double x[16], k1[16], k2[16], k3[16], k4[16], tmp[16];
+    double *P = NULL, *pk = NULL;
+    size_t pp = (size_t)nx * nx;
+    memcpy(x, x0, (size_t)nx * sizeof(double));
+    if (phi) {
+        P = phi;
+        rths_mat_identity(P, nx);
+        pk = malloc(5 * pp * sizeof(double));
+    }
+    int H = RTHS_PERIODIC_HARMONICS;
+    if (cos_m) {
+        memset(cos_m, 0, (size_t)n * (H + 1) * sizeof(double));
+        memset(sin_m, 0, (size_t)n * (H + 1) * sizeof(double));
+    }
+    for (int step = 0; step < N; step++) {
+        double wt = omega * h * step;
+        if (cos_m)
+            for (int k = 0; k <= H; k++) {
+                double ck = cos(k * wt), sk = sin(k * wt), w = (k == 0 ? 1.0 : 2.0) / N;
+                for (int i = 0; i < n; i++) {
+                    cos_m[i + k * n] += w * ck * x[i];
+                    sin_m[i + k * n] += w * sk * x[i];
+                }
+            }
+        double *K1 = pk, *K2 = pk ? pk + pp : NULL, *K3 = pk ? pk + 2 * pp : NULL,
+               *K4 = pk ? pk + 3 * pp : NULL, *PT = pk ? pk + 4 * pp : NULL;
+        /* stage 1 */
+        rhs(s, wt, x, k1);
+        if (P) rhs_var(s, x, P, K1);
+        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k1[i];
+        if (P)
+            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K1[i];
+        /* stage 2 */
+        rhs(s, wt + 0.5 * omega * h, tmp, k2);
+        if (P) rhs_var(s, tmp, PT, K2);
+        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k2[i];
+        if (P)
+            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K2[i];
+        /* stage 3 */
+        rhs(s, wt + 0.5 * omega * h, tmp, k3);
+        if (P) rhs_var(s, tmp, PT, K3);
+        for (int i = 0; i < nx; i++) tmp[i] = x[i] + h * k3[i];
+        if (P)
+            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + h * K3[i];
+        /* stage 4 */
+        rhs(s, wt + omega * h, tmp, k4);
+        if (P) rhs_var(s, tmp, PT, K4);
+        for (int i = 0; i < nx; i++) x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+        if (P)
+            for (size_t i = 0; i < pp; i++) P[i] += h / 6 * (K1[i] + 2 * K2[i] + 2 * K3[i] + K4[i]);
+    }
+    memcpy(xT, x, (size_t)nx * sizeof(double));
+    free(pk);
+}
+
+int rths_bilinear_static(const rths_assembly *a, const rths_bilinear_leg *leg,
+                         const double *static_force, double *q_out, rths_error *err) {
+    int n = a->n;
+    double *k = rths_mat_new(n, n);
+    if (!k) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    /* The restoring force is piecewise linear: try each side and keep the consistent one. */
+    for (int side = 0; side < 2; side++) {
+        memcpy(k, a->stiffness, (size_t)n * n * sizeof(double));
+        double extra = side == 0 ? (leg->ratio - 1) * leg->stiffness_n_per_m : 0.0;
+        int lo = leg->lower_dof, up = leg->upper_dof;
+        RTHS_AT(k, n, up, up) += extra;
+        if (lo >= 0) {
+            RTHS_AT(k, n, lo, lo) += extra;
+            RTHS_AT(k, n, lo, up) -= extra;
+            RTHS_AT(k, n, up, lo) -= extra;
+        }
+        memcpy(q_out, static_force, (size_t)n * sizeof(double));
+        if (rths_mat_solve(n, 1, k, q_out) != 0) continue;
+        double d = q_out[up] - (lo >= 0 ? q_out[lo] : 0.0);
+        if ((side == 0 && d <= 0) || (side == 1 && d >= 0)) {
+            free(k);
+            return RTHS_OK;
+        }
+    }
+    free(k);
+    return rths_error_set(err, RTHS_EFAIL, "no static equilibrium found for the bilinear leg");
+}
+
+void rths_periodic_points_free(rths_periodic_point *pts, int n) {
+    if (!pts) return;
+    for (int i = 0; i < n; i++) {
+        free(pts[i].cos_m);
+        free(pts[i].sin_m);
+    }
+    free(pts);
+}
+
+typedef struct {
+    shooter *s;
+    double sx[16]; /* scale of each state entry */
+    double sw;     /* scale of omega */
+    int m;         /* unknowns: nx + 1 */
+} shoot_problem;
+
+/* Residual in scaled unknowns y = (x0 / sx, omega / sw): G = (x(T) - x0) / sx, plus the arclength
+ * row when tangent != NULL. Jacobian (m x m) when jac != NULL. */
+static void shoot_residual(const shoot_problem *p, const double *y, const double *tangent,
+                           const double *ypred, double *g, double *jac, double *phi_out) {
+    shooter *s = p->s;
+    int nx = s->nx, m = p->m;
+    double x0[16], xT[16], x1[16];
+    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    double w = y[nx] * p->sw;
+    double *phi = jac ? malloc((size_t)nx * nx * sizeof(double)) : NULL;
+    integrate(s, x0, w, xT, phi, NULL, NULL);
+    for (int i = 0; i < nx; i++) g[i] = (xT[i] - x0[i]) / p->sx[i];
+    if (tangent) {
+        double r = 0;
+        for (int j = 0; j < m; j++) r += tangent[j] * (y[j] - ypred[j]);
+        g[nx] = r;
+    }
+    if (jac) {
+        for (int j = 0; j < nx; j++)
+            for (int i = 0; i < nx; i++)
+                jac[i + j * m] = (RTHS_AT(phi, nx, i, j) - (i == j)) * p->sx[j] / p->sx[i];
+        /* d/d omega by a central difference: the period itself depends on omega */
+        double hw = 1e-6 * w, xp[16];
+        integrate(s, x0, w + hw, xp, NULL, NULL, NULL);
+        integrate(s, x0, w - hw, x1, NULL, NULL, NULL);
+        for (int i = 0; i < nx; i++) jac[i + nx * m] = (xp[i] - x1[i]) / (2 * hw) * p->sw / p->sx[i];
+        if (tangent)
+            for (int j = 0; j < m; j++) jac[nx + j * m] = tangent[j];
+        if (phi_out) memcpy(phi_out, phi, (size_t)nx * nx * sizeof(double));
+    }
+    free(phi);
+}
+
+/* Newton on the shooting residual; fixed omega when tangent == NULL. Returns iterations or -1. */
+static int shoot_newton(const shoot_problem *p, double *y, const double *tangent,
+                        const double *ypred, double *phi_out) {
+    int nx = p->s->nx, m = p->m, neq = tangent ? m : nx;
+    double g[17], jac[17 * 17], a[17 * 17];
+    for (int it = 0; it < 15; it++) {
+        shoot_residual(p, y, tangent, ypred, g, jac, phi_out);
+        double norm = 0;
+        for (int i = 0; i < neq; i++) norm += g[i] * g[i];
+        if (sqrt(norm) < 1e-10) return it;
+        for (int j = 0; j < neq; j++)
+            for (int i = 0; i < neq; i++) a[i + j * neq] = jac[i + j * m];
+        lapack_int ipiv[17];
+        for (int i = 0; i < neq; i++) g[i] = -g[i];
+        if (LAPACKE_dgesv(LAPACK_COL_MAJOR, neq, 1, a, neq, ipiv, g, neq) != 0) return -1;
+        double step = 0;
+        for (int i = 0; i < neq; i++) {
+            y[i] += g[i];
+            step += g[i] * g[i];
+        }
+        if (!isfinite(step)) return -1;
+    }
+    return -1;
+}
+
+static int store_point(shoot_problem *p, const double *y, const double *phi,
+                       rths_periodic_point *pt) {
+    shooter *s = p->s;
+    int n = s->n, nx = s->nx, H = RTHS_PERIODIC_HARMONICS;
+    double x0[16], xT[16];
+    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    pt->omega_rad_s = y[nx] * p->sw;
+    pt->cos_m = calloc((size_t)n * (H + 1), sizeof(double));
+    pt->sin_m = calloc((size_t)n * (H + 1), sizeof(double));
+    if (!pt->cos_m || !pt->sin_m) return -1;
+    integrate(s, x0, pt->omega_rad_s, xT, NULL, pt->cos_m, pt->sin_m);
+    double wr[16], wi[16], a[256], vl[1], vr[1];
+    memcpy(a, phi, (size_t)nx * nx * sizeof(double));
+    if (LAPACKE_dgeev(LAPACK_COL_MAJOR, 'N', 'N', nx, a, nx, wr, wi, vl, 1, vr, 1) != 0) return -1;
+    double mx = 0;
+    for (int i = 0; i < nx; i++) mx = fmax(mx, hypot(wr[i], wi[i]));
+    pt->max_floquet = mx;
+    pt->stable = mx < 1.0 + 1e-6;
+    return 0;
+}
+
+int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
+                      const double *static_force, const double *force,
+                      const rths_shooting_options *opt, rths_periodic_point **out, int *n_out,
+                      rths_error *err) {
+    int n = a->n, nx = 2 * n, rc = RTHS_OK;
+    *out = NULL;
+    *n_out = 0;
+    if (n > 8) return rths_error_set(err, RTHS_EINPUT, "shooting supports up to 8 DoFs");
+    shooter s = {.n = n, .nx = nx, .a = a, .leg = leg, .steps = opt->steps_per_period,
+                 .extra_k = (leg->ratio - 1) * leg->stiffness_n_per_m};
+    double *rhsm = rths_mat_new(n, 2 * n + 3);
+    double *mm = rths_mat_dup(a->mass, n, n);
+    size_t nn = (size_t)n * n;
+    memcpy(rhsm, a->stiffness, nn * sizeof(double));
+    memcpy(rhsm + nn, a->damping, nn * sizeof(double));
+    memcpy(rhsm + 2 * nn, static_force, (size_t)n * sizeof(double));
+    memcpy(rhsm + 2 * nn + n, force, (size_t)n * sizeof(double));
+    double *b = rhsm + 2 * nn + 2 * n;
+    b[leg->upper_dof] = 1.0;
+    if (leg->lower_dof >= 0) b[leg->lower_dof] = -1.0;
+    if (rths_mat_solve(n, 2 * n + 3, mm, rhsm) != 0) {
+        free(rhsm), free(mm);
+        return rths_error_set(err, RTHS_EINPUT, "mass matrix is singular");
+    }
+    free(mm);
+    s.minv_k = rhsm;
+    s.minv_c = rhsm + nn;
+    s.minv_fs = rhsm + 2 * nn;
+    s.minv_f = rhsm + 2 * nn + n;
+    s.minv_b = rhsm + 2 * nn + 2 * n;
+
+    /* first guess: linearisation about the static point */
+    double qs[8], klin[64], xlin[16];
+    double complex X[8];
+    if ((rc = rths_bilinear_static(a, leg, static_force, qs, err))) goto done;
+    memcpy(klin, a->stiffness, nn * sizeof(double));
+    {
+        double d = qs[leg->upper_dof] - (leg->lower_dof >= 0 ? qs[leg->lower_dof] : 0.0);
+        double extra = d < 0 ? s.extra_k : 0.0;
+        int lo = leg->lower_dof, up = leg->upper_dof;
+        RTHS_AT(klin, n, up, up) += extra;
+        if (lo >= 0) {
+            RTHS_AT(klin, n, lo, lo) += extra;
+            RTHS_AT(klin, n, lo, up) -= extra;
+            RTHS_AT(klin, n, up, lo) -= extra;
+        }
+    }
+    double w0 = 2 * M_PI * opt->start_hz;
+    if ((rc = rths_frf(n, a->mass, a->damping, klin, force, w0, X, err))) goto done;
+    double amp = 0;
+    for (int i = 0; i < n; i++) {
+        xlin[i] = qs[i] + creal(X[i]);
+        xlin[n + i] = -w0 * cimag(X[i]);
+        amp = fmax(amp, cabs(X[i]));
+        amp = fmax(amp, fabs(qs[i]));
+    }
+    shoot_problem p = {.s = &s, .m = nx + 1,
+                       .sw = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
+    for (int i = 0; i < n; i++) {
+        p.sx[i] = amp;
+        p.sx[n + i] = amp * w0;
+    }
+    int cap = opt->max_points, np = 0;
+    rths_periodic_point *pts = calloc((size_t)cap, sizeof *pts);
+    double *ys = calloc((size_t)cap * 17, sizeof(double));
+    double phi[256];
+    if (!pts || !ys) {
+        free(pts), free(ys);
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    double y[17];
+    for (int i = 0; i < nx; i++) y[i] = xlin[i] / p.sx[i];
+    y[nx] = w0 / p.sw;
+    if (shoot_newton(&p, y, NULL, NULL, phi) < 0) {
+        free(pts), free(ys);
+        rc = rths_error_set(err, RTHS_EFAIL, "shooting did not converge at %g Hz", opt->start_hz);
+        goto done;
+    }
+    double dir = opt->end_hz >= opt->start_hz ? 1 : -1;
+    double ds = fmin(opt->max_step, 0.01);
+    while (np < cap) {
+        if (store_point(&p, y, phi, &pts[np]) != 0) break;
+        memcpy(ys + (size_t)np * 17, y, sizeof y);
+        np++;
+        if (dir * (y[nx] * p.sw / (2 * M_PI) - opt->end_hz) >= 0) break;
+        double ynew[17], tangent[17], pred[17];
+        int it = -1;
+        while (ds > 1e-7) {
+            if (np == 1) { /* natural first step */
+                memcpy(ynew, y, sizeof y);
+                ynew[nx] += dir * ds;
+                it = shoot_newton(&p, ynew, NULL, NULL, phi);
+            } else {
+                const double *y0 = ys + (size_t)(np - 2) * 17;
+                double len = 0;
+                for (int i = 0; i <= nx; i++) {
+                    tangent[i] = y[i] - y0[i];
+                    len += tangent[i] * tangent[i];
+                }
+                len = sqrt(len);
+                for (int i = 0; i <= nx; i++) {
+                    tangent[i] /= len;
+                    pred[i] = y[i] + ds * tangent[i];
+                    ynew[i] = pred[i];
+                }
+                it = shoot_newton(&p, ynew, tangent, pred, phi);
+            }
+            if (it >= 0) break;
+            ds *= 0.5;
+        }
+        if (it < 0) {
+            rc = rths_error_set(err, RTHS_EFAIL, "shooting continuation stalled near %g Hz",
+                                y[nx] * p.sw / (2 * M_PI));
+            break;
+        }
+        memcpy(y, ynew, sizeof y);
+        if (it <= 3) ds = fmin(ds * 1.3, opt->max_step);
+    }
+    free(ys);
+    if (rc) {
+        rths_periodic_points_free(pts, np);
+        goto done;
+    }
+    *out = pts;
+    *n_out = np;
+done:
+    free(rhsm);
+    return rc;
+}
