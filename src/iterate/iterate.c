@@ -93,8 +93,10 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
                 /* A geometric transient with ratio r per period still owes change * r / (1 - r);
                  * r is estimated from the last two changes (clamped so a noisy estimate near 1
                  * keeps us waiting rather than accepting). */
-                double remaining = change;
-                if (change_prev > 0) {
+                double remaining;
+                if (change == 0.0) {
+                    remaining = 0.0; /* bit-identical periods: nothing left to settle */
+                } else if (change_prev > 0) {
                     double r = fmin(change / change_prev, 0.98);
                     remaining = change * (1.0 + r / (1.0 - r));
                 } else {
