@@ -1,0 +1,74 @@
+/* rths report: the output folder of a run. CSV (C locale, full precision, SI units in the header),
+ * JSON summary (json-c), figures (gnuplot scripts saved beside the data, PNG + SVG), run.log.
+ *
+ * Every file is written to a temporary name in the same folder and renamed into place when complete,
+ * so a crash never leaves a half-written result. The folder is created (with parents) on open. */
+#ifndef RTHS_REPORT_H
+#define RTHS_REPORT_H
+
+#include "rths/core.h"
+
+#include <stdio.h>
+
+struct json_object;
+
+/* ---- the run folder ---- */
+
+typedef struct rths_report rths_report;
+
+/* Creates dir (mkdir -p) and opens run.log (appended, so a resumed run keeps its history).
+ * command/argc/argv are logged as the first line. */
+int rths_report_open(const char *dir, const char *command, int argc, char **argv,
+                     rths_report **out, rths_error *err);
+void rths_report_close(rths_report *rep);
+const char *rths_report_dir(const rths_report *rep);
+/* dir/name, malloc'ed (caller frees). */
+char *rths_report_path(const rths_report *rep, const char *name);
+/* One timestamped line in run.log, flushed. */
+void rths_report_log(rths_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+
+/* ---- atomic files ---- */
+
+/* Writes data to path via path.tmp.<pid> + fsync + rename. */
+int rths_write_file_atomic(const char *path, const char *data, size_t len, rths_error *err);
+
+/* A stream whose content appears at path only on rths_atomic_commit. */
+typedef struct rths_atomic_file rths_atomic_file;
+int rths_atomic_open(const char *path, rths_atomic_file **out, FILE **stream, rths_error *err);
+int rths_atomic_commit(rths_atomic_file *f, rths_error *err); /* flush, fsync, rename, free */
+void rths_atomic_abort(rths_atomic_file *f);                  /* remove the temp file, free */
+
+/* ---- CSV ---- */
+
+/* Numbers are written with %.17g in the C locale (round-trip exact); NaN as "nan". */
+typedef struct rths_csv rths_csv;
+int rths_csv_open(const char *path, int n_columns, const char *const *header, rths_csv **out,
+                  rths_error *err);
+int rths_csv_row(rths_csv *csv, const double *values);
+int rths_csv_close(rths_csv *csv, rths_error *err); /* commit (rename into place) */
+void rths_csv_abort(rths_csv *csv);
+
+/* ---- JSON ---- */
+
+/* Pretty-printed, atomic. Adds nothing to obj. */
+int rths_json_write(const char *path, struct json_object *obj, rths_error *err);
+/* A new object with "rths_version", "command", "created_utc" filled: the start of a summary. */
+struct json_object *rths_json_summary_new(const char *command);
+
+/* ---- figures ---- */
+
+/* Writes dir/basename.gp and runs gnuplot on it in dir, producing basename.png and basename.svg.
+ * body is the plot itself (labels, ranges, plot commands referring to data files by their names
+ * relative to dir); the terminal lines are added here and the body is emitted twice (PNG, SVG).
+ * width_px x height_px is the PNG size (SVG the same). If gnuplot is not installed, or fails, a
+ * warning goes to stderr (and run.log when rep is given) and the call still returns RTHS_OK: data
+ * matter more than pictures. */
+int rths_plot(rths_report *rep, const char *dir, const char *basename, int width_px, int height_px,
+              const char *body, rths_error *err);
+
+/* ---- progress on stderr ---- */
+
+/* True when stderr is a terminal and quiet is 0: the caller may print \r progress lines. */
+int rths_progress_enabled(int quiet);
+
+#endif

@@ -1,0 +1,41 @@
+/* rths setup: the structural part of a test configuration (model module), read from YAML.
+ *
+ *   structure:   storeys {mass_kg, damping_n_s_per_m, stiffness_n_per_m} (lists, ground up)
+ *                or matrices {mass_kg, damping_n_s_per_m, stiffness_n_per_m} (n x n rows);
+ *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
+ *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (SPEC erratum 1),
+ *                physical / numerical (1-based lists; for a chain default: below / above)
+ *   forcing:     dof (1-based), amplitude_n
+ *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
+ *
+ * Other sections (rig, controller, iteration, continuation, stability, output) are read by their
+ * own modules from the same rths_config. */
+#ifndef RTHS_SETUP_H
+#define RTHS_SETUP_H
+
+#include "rths/config.h"
+#include "rths/model.h"
+
+typedef struct rths_setup {
+    rths_assembly assembly;
+    rths_dof_role *roles;        /* per DoF */
+    rths_split split;
+    int forcing_dof;             /* 0-based */
+    double forcing_amplitude_n;
+    double *force;               /* n: amplitude at forcing_dof, zero elsewhere, N */
+    int chain;                   /* 1 when the structure was given as a storey chain */
+    /* Bilinear leg below `leg.upper_dof` (physical side), extension stiffness from the chain. */
+    int has_bilinear;
+    rths_bilinear_leg leg;
+    double preload_n;            /* static force on the interface DoF (shaker preload), N */
+    double *static_force;        /* n: preload_n at the (first) interface DoF, N */
+    double frf_start_hz, frf_end_hz;
+    int frf_points;
+} rths_setup;
+
+/* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
+ * location. Does not call rths_config_check_unknown (the command does, after all sections). */
+int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err);
+void rths_setup_free(rths_setup *s);
+
+#endif
