@@ -79,6 +79,13 @@ void rths_modes_free(rths_modes *m);
 int rths_frf(int n, const double *mass, const double *damping, const double *stiffness,
              const double *force, double omega_rad_s, double complex *x_out, rths_error *err);
 
+/* Frequencies (Hz, ascending, malloc'ed) for an FRF. With points > 1: uniform over [start, end].
+ * With points == 0: a uniform background of 400 points plus 81 points across +-8 half-power
+ * bandwidths of every mode inside the range, so each peak is resolved to well under 1 % of its
+ * height. end_hz <= 0 means 1.25 x the highest natural frequency. */
+int rths_frf_grid(const rths_modes *modes, double start_hz, double end_hz, int points,
+                  double **freqs_hz, int *count, rths_error *err);
+
 /* ---- state space and discretisation ---- */
 
 /* x = (q, q'), x' = A x + B u with u the amplitudes of the inputs whose force directions are the

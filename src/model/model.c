@@ -339,3 +339,41 @@ int rths_frf(int n, const double *mass, const double *damping, const double *sti
                               omega_rad_s, info);
     return RTHS_OK;
 }
+
+static int compare_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+int rths_frf_grid(const rths_modes *modes, double start_hz, double end_hz, int points,
+                  double **freqs_hz, int *count, rths_error *err) {
+    *freqs_hz = NULL;
+    *count = 0;
+    if (end_hz <= 0) end_hz = 1.25 * modes->frequency_hz[modes->n - 1];
+    if (!(end_hz > start_hz) || start_hz < 0)
+        return rths_error_set(err, RTHS_EINPUT, "FRF range [%g, %g] Hz is empty", start_hz,
+                              end_hz);
+    enum { BACKGROUND = 400, PER_MODE = 81 };
+    int cap = points > 1 ? points : BACKGROUND + PER_MODE * modes->n;
+    double *f = malloc((size_t)cap * sizeof *f);
+    if (!f) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int m = 0;
+    int uniform = points > 1 ? points : BACKGROUND;
+    for (int i = 0; i < uniform; i++)
+        f[m++] = start_hz + (end_hz - start_hz) * i / (uniform - 1);
+    if (points <= 1) {
+        for (int r = 0; r < modes->n; r++) {
+            double fr = modes->frequency_hz[r];
+            /* half-power bandwidth 2 zeta f; zero damping still gets a narrow cluster */
+            double half_bw = fmax(modes->damping_ratio[r], 1e-4) * fr;
+            for (int i = 0; i < PER_MODE; i++) {
+                double x = fr + 8.0 * half_bw * (2.0 * i / (PER_MODE - 1) - 1.0);
+                if (x > start_hz && x < end_hz) f[m++] = x;
+            }
+        }
+        qsort(f, (size_t)m, sizeof *f, compare_double);
+    }
+    *freqs_hz = f;
+    *count = m;
+    return RTHS_OK;
+}

@@ -1,0 +1,281 @@
+/* The structural part of a test configuration: structure, split, forcing, model.frf.
+ * Every value is checked here, against the key it came from, so a user sees FILE:LINE:COL and the
+ * key for each mistake before any work starts. */
+#include "rths/setup.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define K_STOREYS "structure.storeys"
+#define K_MATRICES "structure.matrices"
+
+static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const keys[3] = {K_STOREYS ".mass_kg", K_STOREYS ".damping_n_s_per_m",
+                                        K_STOREYS ".stiffness_n_per_m"};
+    /* damping may be zero (an undamped leg); mass and stiffness must be positive */
+    static const int must_be_positive[3] = {1, 0, 1};
+    double *v[3] = {NULL, NULL, NULL};
+    int count[3] = {0, 0, 0};
+    int rc = RTHS_OK;
+    for (int k = 0; k < 3 && !rc; k++)
+        rc = rths_config_get_double_list(cfg, keys[k], 1, &v[k], &count[k], err);
+    for (int k = 0; k < 3 && !rc; k++) {
+        if (count[k] != count[0])
+            rc = rths_config_error_at(cfg, keys[k],
+                                      err, "has %d entries but %s has %d: one per storey",
+                                      count[k], keys[0], count[0]);
+        else if (count[k] < 1)
+            rc = rths_config_error_at(cfg, keys[k], err, "needs at least one storey");
+        for (int i = 0; i < count[k] && !rc; i++) {
+            if (must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0))
+                rc = rths_config_error_at(cfg, keys[k], err,
+                                          "storey %d: must be %s (got %g)", i + 1,
+                                          must_be_positive[k] ? "> 0" : ">= 0", v[k][i]);
+        }
+    }
+    if (!rc) rc = rths_assembly_from_chain(count[0], v[0], v[1], v[2], &s->assembly, err);
+    for (int k = 0; k < 3; k++) free(v[k]);
+    s->chain = 1;
+    return rc;
+}
+
+static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const keys[3] = {K_MATRICES ".mass_kg", K_MATRICES ".damping_n_s_per_m",
+                                        K_MATRICES ".stiffness_n_per_m"};
+    double *m[3] = {NULL, NULL, NULL};
+    int rows[3] = {0, 0, 0}, cols[3] = {0, 0, 0};
+    int rc = RTHS_OK;
+    for (int k = 0; k < 3 && !rc; k++) {
+        rc = rths_config_get_matrix(cfg, keys[k], 1, &m[k], &rows[k], &cols[k], err);
+        if (rc) break;
+        if (rows[k] != cols[k] || rows[k] < 1)
+            rc = rths_config_error_at(cfg, keys[k], err, "must be square (got %d x %d)", rows[k],
+                                      cols[k]);
+        else if (rows[k] != rows[0])
+            rc = rths_config_error_at(cfg, keys[k], err, "is %d x %d but %s is %d x %d", rows[k],
+                                      cols[k], keys[0], rows[0], cols[0]);
+        else if (!rths_mat_is_symmetric(m[k], rows[k], 1e-12))
+            rc = rths_config_error_at(cfg, keys[k], err, "must be symmetric");
+    }
+    if (!rc && !rths_mat_is_spd(m[0], rows[0]))
+        rc = rths_config_error_at(cfg, keys[0], err,
+                                  "must be positive definite (a mass matrix with a zero or "
+                                  "negative mode has no dynamics)");
+    if (!rc) rc = rths_assembly_from_matrices(rows[0], m[0], m[1], m[2], &s->assembly, err);
+    for (int k = 0; k < 3; k++) free(m[k]);
+    s->chain = 0;
+    return rc;
+}
+
+/* 1-based DoF list -> roles; refuses out-of-range and repeated DoFs. */
+static int assign_roles(rths_config *cfg, const char *key, const int *dofs, int count,
+                        rths_dof_role role, int *assigned, rths_setup *s, rths_error *err) {
+    int n = s->assembly.n;
+    for (int i = 0; i < count; i++) {
+        if (dofs[i] < 1 || dofs[i] > n)
+            return rths_config_error_at(cfg, key, err, "DoF %d is outside 1..%d", dofs[i], n);
+        if (assigned[dofs[i] - 1])
+            return rths_config_error_at(cfg, key, err,
+                                        "DoF %d is listed twice (each DoF has exactly one side)",
+                                        dofs[i]);
+        assigned[dofs[i] - 1] = 1;
+        s->roles[dofs[i] - 1] = role;
+    }
+    return RTHS_OK;
+}
+
+static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
+    int n = s->assembly.n;
+    int *iface = NULL, *phys = NULL, *num = NULL, n_iface = 0, n_phys = 0, n_num = 0;
+    int *assigned = calloc((size_t)n, sizeof *assigned);
+    s->roles = calloc((size_t)n, sizeof *s->roles);
+    double p = 0, *c_int = NULL, *k_int = NULL;
+    int rc = (assigned && s->roles) ? RTHS_OK
+                                    : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_config_get_int_list(cfg, "split.interface", 1, &iface, &n_iface, err);
+    if (!rc && n_iface < 1)
+        rc = rths_config_error_at(cfg, "split.interface", err, "needs at least one DoF");
+    if (!rc) rc = assign_roles(cfg, "split.interface", iface, n_iface, RTHS_DOF_INTERFACE,
+                               assigned, s, err);
+    if (!rc) rc = rths_config_get_double(cfg, "split.mass_ratio", 1, 0.5, 0, 1, &p, err);
+    if (!rc && !(p > 0 && p < 1))
+        rc = rths_config_error_at(cfg, "split.mass_ratio", err,
+                                  "p (numerical share of the interface mass) must be strictly "
+                                  "between 0 and 1 (got %g)",
+                                  p);
+    if (!rc) rc = rths_config_get_int_list(cfg, "split.physical", 0, &phys, &n_phys, err);
+    if (!rc) rc = rths_config_get_int_list(cfg, "split.numerical", 0, &num, &n_num, err);
+    if (!rc) rc = assign_roles(cfg, "split.physical", phys, n_phys, RTHS_DOF_PHYSICAL, assigned,
+                               s, err);
+    if (!rc) rc = assign_roles(cfg, "split.numerical", num, n_num, RTHS_DOF_NUMERICAL, assigned,
+                               s, err);
+    if (!rc && (n_phys == 0 || n_num == 0)) {
+        /* For a chain the natural split is: below the interface physical, above it numerical. */
+        if (!s->chain && n_phys + n_num + n_iface < n)
+            rc = rths_config_error_at(
+                cfg, "split", err,
+                "with structure.matrices, list the physical and numerical DoFs "
+                "(split.physical, split.numerical)");
+        int lowest = n, highest = -1;
+        for (int i = 0; i < n_iface; i++) {
+            if (iface[i] - 1 < lowest) lowest = iface[i] - 1;
+            if (iface[i] - 1 > highest) highest = iface[i] - 1;
+        }
+        for (int i = 0; i < n && !rc; i++) {
+            if (assigned[i]) continue;
+            if (i < lowest && n_phys == 0)
+                s->roles[i] = RTHS_DOF_PHYSICAL;
+            else if (i > highest && n_num == 0)
+                s->roles[i] = RTHS_DOF_NUMERICAL;
+            else
+                continue;
+            assigned[i] = 1;
+        }
+    }
+    for (int i = 0; i < n && !rc; i++)
+        if (!assigned[i])
+            rc = rths_config_error_at(cfg, "split", err,
+                                      "DoF %d is on no side: list it in split.physical or "
+                                      "split.numerical",
+                                      i + 1);
+    int r = 0, c = 0;
+    if (!rc && rths_config_has(cfg, "split.interface_damping_physical_n_s_per_m")) {
+        rc = rths_config_get_matrix(cfg, "split.interface_damping_physical_n_s_per_m", 1, &c_int,
+                                    &r, &c, err);
+        if (!rc && (r != n_iface || c != n_iface))
+            rc = rths_config_error_at(cfg, "split.interface_damping_physical_n_s_per_m", err,
+                                      "must be %d x %d (one row per interface DoF)", n_iface,
+                                      n_iface);
+    }
+    if (!rc && rths_config_has(cfg, "split.interface_stiffness_physical_n_per_m")) {
+        rc = rths_config_get_matrix(cfg, "split.interface_stiffness_physical_n_per_m", 1, &k_int,
+                                    &r, &c, err);
+        if (!rc && (r != n_iface || c != n_iface))
+            rc = rths_config_error_at(cfg, "split.interface_stiffness_physical_n_per_m", err,
+                                      "must be %d x %d (one row per interface DoF)", n_iface,
+                                      n_iface);
+    }
+    if (!rc) {
+        rths_error local;
+        rc = rths_split_create(&s->assembly, s->roles, p, c_int, k_int, &s->split, &local);
+        if (rc) rc = rths_config_error_at(cfg, "split", err, "%s", local.msg);
+    }
+    free(assigned);
+    free(iface);
+    free(phys);
+    free(num);
+    free(c_int);
+    free(k_int);
+    return rc;
+}
+
+static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
+    long dof = 0;
+    int n = s->assembly.n;
+    int rc = rths_config_get_int(cfg, "forcing.dof", 1, 0, 1, n, &dof, err);
+    if (!rc) rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, INFINITY,
+                                         &s->forcing_amplitude_n, err);
+    if (!rc && !(s->forcing_amplitude_n > 0))
+        rc = rths_config_error_at(cfg, "forcing.amplitude_n", err, "must be > 0 (got %g)",
+                                  s->forcing_amplitude_n);
+    if (rc) return rc;
+    s->forcing_dof = (int)dof - 1;
+    s->force = calloc((size_t)n, sizeof *s->force);
+    if (!s->force) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    s->force[s->forcing_dof] = s->forcing_amplitude_n;
+    return RTHS_OK;
+}
+
+static int read_bilinear(rths_config *cfg, rths_setup *s, rths_error *err) {
+    int n = s->assembly.n;
+    s->static_force = calloc((size_t)n, sizeof *s->static_force);
+    if (!s->static_force) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int enabled = 0;
+    int rc = rths_config_get_bool(cfg, "structure.bilinear.enabled", 0, 0, &enabled, err);
+    long storey = 0;
+    double ratio = 2.0, preload = 26.68;
+    /* defaults are the seed's: the leg below the (first) interface storey, twice as stiff in
+     * compression, preloaded by 26.68 N so the static point sits on the stiff side */
+    long def_storey = s->split.n_int > 0 ? s->split.int_dofs[0] + 1 : 1;
+    if (!rc) rc = rths_config_get_int(cfg, "structure.bilinear.storey", 0, def_storey, 1, n,
+                                      &storey, err);
+    if (!rc) rc = rths_config_get_double(cfg, "structure.bilinear.compression_ratio", 0, 2.0,
+                                         1e-3, 1e3, &ratio, err);
+    if (!rc) rc = rths_config_get_double(cfg, "structure.bilinear.preload_n", 0, 26.68, 0,
+                                         1e6, &preload, err);
+    if (rc || !enabled) return rc;
+    if (!s->chain)
+        return rths_config_error_at(cfg, "structure.bilinear", err,
+                                    "a bilinear leg needs the structure as a storey chain");
+    int upper = (int)storey - 1;
+    if (s->roles[upper] == RTHS_DOF_NUMERICAL)
+        return rths_config_error_at(cfg, "structure.bilinear.storey", err,
+                                    "the leg below storey %ld must be on the physical side "
+                                    "(the rig carries the nonlinearity)",
+                                    storey);
+    s->has_bilinear = 1;
+    s->leg.lower_dof = upper - 1;
+    s->leg.upper_dof = upper;
+    /* the chain's leg stiffness: minus the coupling term, or the ground term for storey 1 */
+    s->leg.stiffness_n_per_m = upper > 0 ? -RTHS_AT(s->assembly.stiffness, n, upper - 1, upper)
+                                         : RTHS_AT(s->assembly.stiffness, n, 0, 0) -
+                                               (n > 1 ? -RTHS_AT(s->assembly.stiffness, n, 0, 1)
+                                                      : 0.0);
+    s->leg.ratio = ratio;
+    s->preload_n = preload;
+    /* The preload pushes the leg's upper storey down, compressing the leg when ratio > 1 (stiff
+     * side), stretching it when ratio < 1: either way toward the stiffer slope. */
+    s->static_force[s->split.int_dofs[0]] = ratio >= 1 ? -preload : preload;
+    return RTHS_OK;
+}
+
+static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
+    long points = 0;
+    int rc = rths_config_get_double(cfg, "model.frf.start_hz", 0, 0, 0, 1e6, &s->frf_start_hz,
+                                    err);
+    if (!rc) rc = rths_config_get_double(cfg, "model.frf.end_hz", 0, 0, 0, 1e6, &s->frf_end_hz,
+                                         err);
+    if (!rc) rc = rths_config_get_int(cfg, "model.frf.points", 0, 0, 0, 10000000, &points, err);
+    if (!rc && rths_config_has(cfg, "model.frf.points") && points < 2)
+        rc = rths_config_error_at(cfg, "model.frf.points", err, "must be at least 2 (got %ld)",
+                                  points);
+    if (!rc && s->frf_end_hz > 0 && s->frf_end_hz <= s->frf_start_hz)
+        rc = rths_config_error_at(cfg, "model.frf.end_hz", err,
+                                  "must be above model.frf.start_hz (%g Hz), got %g Hz",
+                                  s->frf_start_hz, s->frf_end_hz);
+    s->frf_points = (int)points;
+    return rc;
+}
+
+int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    int has_chain = rths_config_has(cfg, K_STOREYS), has_matrices = rths_config_has(cfg, K_MATRICES);
+    int rc;
+    if (has_chain && has_matrices)
+        rc = rths_config_error_at(cfg, K_MATRICES, err,
+                                  "give the structure either as structure.storeys or as "
+                                  "structure.matrices, not both");
+    else if (!has_chain && !has_matrices)
+        rc = rths_config_error_at(cfg, "structure", err,
+                                  "missing: give structure.storeys (mass_kg, damping_n_s_per_m, "
+                                  "stiffness_n_per_m lists) or structure.matrices");
+    else
+        rc = has_chain ? read_chain(cfg, out, err) : read_matrices(cfg, out, err);
+    if (!rc) rc = read_split(cfg, out, err);
+    if (!rc) rc = read_forcing(cfg, out, err);
+    if (!rc) rc = read_bilinear(cfg, out, err);
+    if (!rc) rc = read_frf_range(cfg, out, err);
+    if (rc) rths_setup_free(out);
+    return rc;
+}
+
+void rths_setup_free(rths_setup *s) {
+    if (!s) return;
+    rths_assembly_free(&s->assembly);
+    rths_split_free(&s->split);
+    free(s->roles);
+    free(s->force);
+    free(s->static_force);
+    memset(s, 0, sizeof *s);
+}
