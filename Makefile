@@ -4,7 +4,7 @@ JOBS       ?= $(shell nproc 2>/dev/null || echo 2)
 PACKAGES   := $(shell grep -v '^\#' tools/debian-packages.txt)
 SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
-.PHONY: all deps build demo test bench format clean
+.PHONY: all deps build demo test bench fuzz format clean
 
 all: build
 
@@ -39,8 +39,17 @@ bench: build
 	cmake --build $(BUILD) -j $(JOBS) --target rths_bench
 	$(BUILD)/rths_bench
 
+# libFuzzer on the controller link's frame decoder (clang), bounded in time; new inputs it finds
+# go to build-fuzz/corpus, the checked-in seeds in fuzz/corpus are only read.
+FUZZ_SECONDS ?= 60
+fuzz: deps
+	mkdir -p build-fuzz/corpus
+	clang -std=c11 -D_GNU_SOURCE -g -O1 -Iinclude -fsanitize=fuzzer,address,undefined \
+	  -fno-sanitize-recover=all fuzz/fuzz_frame.c src/controller/protocol.c -lm -o build-fuzz/fuzz_frame
+	build-fuzz/fuzz_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 build-fuzz/corpus fuzz/corpus
+
 format:
 	clang-format -i $$(git ls-files '*.c' '*.h')
 
 clean:
-	rm -rf build build-test build-asan out
+	rm -rf build build-test build-asan build-fuzz out

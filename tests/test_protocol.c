@@ -1,0 +1,398 @@
+/* Frame codec of the controller link: known-answer vectors (computed independently with Python's
+ * struct + zlib.crc32, reproduced in docs/protocol.md), round trips of every message type, and
+ * the documented answer to every kind of malformed input. */
+#include "testlib.h"
+
+#include "rths/protocol.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+static void test_crc32_known_answer(void **state) {
+    (void)state;
+    /* The standard check value of CRC-32/ISO-HDLC. */
+    assert_int_equal(rths_crc32((const uint8_t *)"123456789", 9), 0xCBF43926u);
+    assert_int_equal(rths_crc32(NULL, 0), 0x00000000u);
+}
+
+/* Known-answer frames: {bytes, length}. */
+static const uint8_t kat_ping[] = {0x52, 0x54, 0x01, 0x0a, 0x02, 0x01, 0x00, 0x00,
+                                   0xce, 0x8f, 0x9c, 0x8f};
+static const uint8_t kat_forcing[] = {0x52, 0x54, 0x01, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
+                                      0x0a, 0xd7, 0xa3, 0xf0, 0x2a, 0x40, 0x00, 0x00, 0x00, 0x00,
+                                      0x00, 0x00, 0xf0, 0x3f, 0x52, 0x45, 0x00, 0x08};
+static const uint8_t kat_target[] = {0x52, 0x54, 0x01, 0x05, 0x03, 0x00, 0x11, 0x00, 0x01, 0x2d,
+                                     0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x1a, 0x3f, 0x2d, 0x43, 0x1c,
+                                     0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x1c, 0xf9, 0xf4, 0x73};
+static const uint8_t kat_hello[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
+                                    0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
+static const uint8_t kat_error[] = {0x52, 0x54, 0x01, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
+                                    0x00, 0x42, 0x02, 0x6e, 0x6f, 0xbd, 0x4b, 0xba, 0xa7};
+
+static void check_encodes_to(const rths_msg *m, const uint8_t *want, size_t n) {
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    size_t len = rths_proto_encode(m, buf, sizeof buf);
+    assert_int_equal(len, n);
+    assert_memory_equal(buf, want, n);
+}
+
+static void test_known_answer_frames(void **state) {
+    (void)state;
+    rths_msg m;
+    rths_msg_init(&m, RTHS_MSG_PING, 0x0102);
+    check_encodes_to(&m, kat_ping, sizeof kat_ping);
+
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 7);
+    m.u.forcing.frequency_hz = 13.47;
+    m.u.forcing.amplitude_n = 1.0;
+    check_encodes_to(&m, kat_forcing, sizeof kat_forcing);
+
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 3);
+    m.u.target.harmonics = 1;
+    m.u.target.a[0] = 1e-4;
+    m.u.target.b[0] = -2e-4;
+    check_encodes_to(&m, kat_target, sizeof kat_target);
+
+    rths_msg_init(&m, RTHS_MSG_HELLO, 1);
+    m.u.hello.version = 1;
+    strcpy(m.u.hello.name, "host");
+    check_encodes_to(&m, kat_hello, sizeof kat_hello);
+
+    rths_msg_error(&m, 9, RTHS_PROTO_ETYPE, 0x42, "%s", "no");
+    check_encodes_to(&m, kat_error, sizeof kat_error);
+
+    /* And the decoder reads the vectors back to the same values. */
+    size_t used;
+    assert_int_equal(rths_proto_decode(kat_forcing, sizeof kat_forcing, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(used, sizeof kat_forcing);
+    assert_int_equal(m.type, RTHS_MSG_SET_FORCING);
+    assert_int_equal(m.seq, 7);
+    assert_true(m.u.forcing.frequency_hz == 13.47 && m.u.forcing.amplitude_n == 1.0);
+    assert_int_equal(rths_proto_decode(kat_target, sizeof kat_target, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(m.u.target.harmonics, 1);
+    assert_true(m.u.target.a[0] == 1e-4 && m.u.target.b[0] == -2e-4);
+    assert_int_equal(rths_proto_decode(kat_hello, sizeof kat_hello, &m, &used), RTHS_PROTO_OK);
+    assert_string_equal(m.u.hello.name, "host");
+    assert_int_equal(rths_proto_decode(kat_error, sizeof kat_error, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(m.u.error.code, RTHS_PROTO_ETYPE);
+    assert_int_equal(m.u.error.request_type, 0x42);
+    assert_string_equal(m.u.error.message, "no");
+}
+
+static void fill_fourier(rths_proto_fourier *f, double base) {
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) {
+        f->a[k] = base * (k + 1) - 0.125 * k;
+        f->b[k] = k ? -base / (k + 3) : 0.0;
+    }
+}
+
+/* One instance of every message type, with values that exercise sign, fractions and extremes. */
+static int sample_messages(rths_msg *out) {
+    int n = 0;
+    rths_msg *m;
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_HELLO, 1);
+    m->u.hello.version = RTHS_PROTO_VERSION;
+    strcpy(m->u.hello.name, "rths host 0.1");
+    static const int empty[] = {RTHS_MSG_ARM, RTHS_MSG_DISARM, RTHS_MSG_GET_STATUS,
+                                RTHS_MSG_GET_COEFFS, RTHS_MSG_RESET_FAULT, RTHS_MSG_PING};
+    for (size_t i = 0; i < sizeof empty / sizeof empty[0]; i++)
+        rths_msg_init(&out[n++], empty[i], (uint16_t)(100 + i));
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_SET_FORCING, 65535);
+    m->u.forcing.frequency_hz = 4.339;
+    m->u.forcing.amplitude_n = 2.5e-3;
+    for (int h = 0; h <= RTHS_PROTO_HARMONICS; h++) {
+        m = &out[n++];
+        rths_msg_init(m, RTHS_MSG_SET_TARGET, (uint16_t)(200 + h));
+        m->u.target.harmonics = h;
+        for (int k = 0; k < h; k++) {
+            m->u.target.a[k] = 1e-4 / (k + 1);
+            m->u.target.b[k] = -DBL_MIN * (k + 1);
+        }
+    }
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_SUBSCRIBE, 5);
+    m->u.subscribe.flags = RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES;
+    m->u.subscribe.trace_decimation = 0xFFFFFFFFu;
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_HELLO_REPLY, 1);
+    m->u.hello_reply.version = RTHS_PROTO_VERSION;
+    m->u.hello_reply.max_harmonics = RTHS_PROTO_HARMONICS;
+    m->u.hello_reply.sample_period_s = 1e-4;
+    m->u.hello_reply.watchdog_s = 2.0;
+    m->u.hello_reply.noise_level_m = 1e-7;
+    memset(m->u.hello_reply.name, 'x', RTHS_PROTO_MAX_TEXT); /* the longest text allowed */
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_ACK, 2);
+    m->u.ack.acked_type = RTHS_MSG_SET_TARGET;
+    m->u.ack.time_s = 123.4567;
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_STATUS, 3);
+    m->u.status.time_s = 1e5;
+    m->u.status.flags = RTHS_STATUS_ARMED | RTHS_STATUS_RT_PINNED;
+    m->u.status.fault = 6;
+    m->u.status.last_disarm = RTHS_DISARM_WATCHDOG;
+    m->u.status.frequency_hz = 13.47;
+    m->u.status.amplitude_n = 1.0;
+    m->u.status.samples = UINT64_MAX;
+    m->u.status.overruns = 17;
+    m->u.status.worst_lateness_s = 3.2e-3;
+    m->u.status.periods_dropped = 2;
+    for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
+        m->u.status.latency_hist[i] = (uint64_t)1 << (3 * i);
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_PERIOD, 0);
+    m->u.period.index = 4000000000u;
+    m->u.period.frequency_hz = 21.819;
+    m->u.period.start_time_s = 10.0;
+    m->u.period.end_time_s = 10.0458;
+    m->u.period.samples = 458;
+    fill_fourier(&m->u.period.phys, 3.42e-4);
+    fill_fourier(&m->u.period.num, -3.40e-4);
+    fill_fourier(&m->u.period.force, 0.75);
+    m = &out[n++];
+    rths_msg_init(m, RTHS_MSG_TRACE, 0);
+    m->u.trace.count = RTHS_PROTO_MAX_TRACE_BATCH;
+    for (int i = 0; i < RTHS_PROTO_MAX_TRACE_BATCH; i++) {
+        m->u.trace.s[i] = (rths_proto_trace_sample){i * 1e-3, 1e-4 * i, -2e-4 * i, 3e-4,
+                                                    -0.5 * i, 0.01 * i};
+    }
+    m = &out[n++];
+    rths_msg_error(m, 77, RTHS_PROTO_EBUSY, RTHS_MSG_ARM, "controller armed by %s", "10.0.0.1");
+    return n;
+}
+
+static void test_round_trip_every_type(void **state) {
+    (void)state;
+    rths_msg msgs[32];
+    int n = sample_messages(msgs);
+    int seen[256] = {0};
+    for (int i = 0; i < n; i++) {
+        uint8_t buf[RTHS_PROTO_MAX_FRAME];
+        size_t len = rths_proto_encode(&msgs[i], buf, sizeof buf);
+        assert_true(len >= RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_CRC_SIZE);
+        assert_true(len <= RTHS_PROTO_MAX_FRAME);
+        rths_msg back;
+        size_t used = 0;
+        assert_int_equal(rths_proto_decode(buf, len, &back, &used), RTHS_PROTO_OK);
+        assert_int_equal(used, len);
+        assert_memory_equal(&back, &msgs[i], sizeof back);
+        seen[msgs[i].type] = 1;
+        /* Encoding exactly into a buffer of the frame's size works; one byte less does not. */
+        uint8_t tight[RTHS_PROTO_MAX_FRAME];
+        assert_int_equal(rths_proto_encode(&msgs[i], tight, len), len);
+        assert_int_equal(rths_proto_encode(&msgs[i], tight, len - 1), 0);
+    }
+    static const int all[] = {RTHS_MSG_HELLO, RTHS_MSG_ARM, RTHS_MSG_DISARM, RTHS_MSG_SET_FORCING,
+                              RTHS_MSG_SET_TARGET, RTHS_MSG_GET_STATUS, RTHS_MSG_GET_COEFFS,
+                              RTHS_MSG_SUBSCRIBE, RTHS_MSG_RESET_FAULT, RTHS_MSG_PING,
+                              RTHS_MSG_HELLO_REPLY, RTHS_MSG_ACK, RTHS_MSG_STATUS, RTHS_MSG_PERIOD,
+                              RTHS_MSG_TRACE, RTHS_MSG_ERROR};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) assert_true(seen[all[i]]);
+}
+
+static void test_truncated_frames_are_incomplete(void **state) {
+    (void)state;
+    rths_msg msgs[32];
+    int n = sample_messages(msgs);
+    for (int i = 0; i < n; i++) {
+        uint8_t buf[RTHS_PROTO_MAX_FRAME];
+        size_t len = rths_proto_encode(&msgs[i], buf, sizeof buf);
+        for (size_t cut = 0; cut < len; cut++) {
+            rths_msg back;
+            size_t used = 99;
+            assert_int_equal(rths_proto_decode(buf, cut, &back, &used), RTHS_PROTO_INCOMPLETE);
+            assert_int_equal(used, 0);
+        }
+    }
+}
+
+static void test_back_to_back_frames(void **state) {
+    (void)state;
+    uint8_t buf[2 * RTHS_PROTO_MAX_FRAME];
+    memcpy(buf, kat_forcing, sizeof kat_forcing);
+    memcpy(buf + sizeof kat_forcing, kat_ping, sizeof kat_ping);
+    rths_msg m;
+    size_t used;
+    assert_int_equal(rths_proto_decode(buf, sizeof kat_forcing + sizeof kat_ping, &m, &used),
+                     RTHS_PROTO_OK);
+    assert_int_equal(used, sizeof kat_forcing);
+    assert_int_equal(m.type, RTHS_MSG_SET_FORCING);
+    assert_int_equal(rths_proto_decode(buf + used, sizeof kat_ping, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(m.type, RTHS_MSG_PING);
+    assert_int_equal(m.seq, 0x0102);
+}
+
+/* Writes a well-framed frame (good CRC) of arbitrary type and payload. */
+static size_t raw_frame(uint8_t *buf, int type, uint16_t seq, const uint8_t *payload, size_t n) {
+    buf[0] = RTHS_PROTO_MAGIC0;
+    buf[1] = RTHS_PROTO_MAGIC1;
+    buf[2] = RTHS_PROTO_VERSION;
+    buf[3] = (uint8_t)type;
+    buf[4] = (uint8_t)seq;
+    buf[5] = (uint8_t)(seq >> 8);
+    buf[6] = (uint8_t)n;
+    buf[7] = (uint8_t)(n >> 8);
+    if (n) memcpy(buf + 8, payload, n);
+    uint32_t c = rths_crc32(buf, 8 + n);
+    for (int i = 0; i < 4; i++) buf[8 + n + (size_t)i] = (uint8_t)(c >> (8 * i));
+    return 8 + n + 4;
+}
+
+static void test_header_errors_detected_early(void **state) {
+    (void)state;
+    rths_msg m;
+    size_t used = 99;
+    const uint8_t garbage[] = {'G', 'E', 'T', ' ', '/'};
+    assert_int_equal(rths_proto_decode(garbage, 1, &m, &used), RTHS_PROTO_EMAGIC);
+    assert_int_equal(used, 0);
+    const uint8_t half_magic[] = {0x52, 0x00};
+    assert_int_equal(rths_proto_decode(half_magic, 2, &m, &used), RTHS_PROTO_EMAGIC);
+    const uint8_t v2[] = {0x52, 0x54, 0x02};
+    assert_int_equal(rths_proto_decode(v2, 3, &m, &used), RTHS_PROTO_EVERSION);
+    const uint8_t v0[] = {0x52, 0x54, 0x00, 0x0a, 0, 0, 0, 0};
+    assert_int_equal(rths_proto_decode(v0, sizeof v0, &m, &used), RTHS_PROTO_EVERSION);
+    /* Payload length 1025: refused from the header alone, before any payload arrives. */
+    const uint8_t big[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0x01, 0x04};
+    assert_int_equal(rths_proto_decode(big, sizeof big, &m, &used), RTHS_PROTO_EOVERSIZE);
+    const uint8_t huge[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0xff, 0xff};
+    assert_int_equal(rths_proto_decode(huge, sizeof huge, &m, &used), RTHS_PROTO_EOVERSIZE);
+    assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EMAGIC));
+    assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EVERSION));
+    assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EOVERSIZE));
+    assert_true(rths_proto_status_is_fatal(RTHS_PROTO_ECRC));
+    assert_false(rths_proto_status_is_fatal(RTHS_PROTO_ETYPE));
+    assert_false(rths_proto_status_is_fatal(RTHS_PROTO_EPAYLOAD));
+}
+
+static void test_maximum_payload_is_accepted_by_framing(void **state) {
+    (void)state;
+    static uint8_t payload[RTHS_PROTO_MAX_PAYLOAD];
+    static uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    size_t len = raw_frame(buf, 0x7E, 11, payload, sizeof payload);
+    rths_msg m;
+    size_t used;
+    /* Framing accepts the full 1024 bytes; the (unknown) type is what gets refused. */
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_ETYPE);
+    assert_int_equal(used, len);
+    assert_int_equal(m.seq, 11);
+    assert_int_equal(m.type, 0x7E);
+}
+
+static void test_every_bit_flip_is_caught(void **state) {
+    (void)state;
+    uint8_t buf[64];
+    memcpy(buf, kat_forcing, sizeof kat_forcing);
+    for (size_t byte = 0; byte < sizeof kat_forcing; byte++) {
+        for (int bit = 0; bit < 8; bit++) {
+            buf[byte] ^= (uint8_t)(1u << bit);
+            rths_msg m;
+            size_t used;
+            int st = rths_proto_decode(buf, sizeof kat_forcing, &m, &used);
+            buf[byte] ^= (uint8_t)(1u << bit);
+            assert_int_not_equal(st, RTHS_PROTO_OK);
+            if (byte >= RTHS_PROTO_HEADER_SIZE || byte == 3 || byte == 4 || byte == 5)
+                assert_int_equal(st, RTHS_PROTO_ECRC); /* type, seq, payload, CRC bytes */
+            if (byte >= 6 && byte < 8 && st != RTHS_PROTO_ECRC)
+                /* a corrupted length either outruns the buffer or the limit */
+                assert_true(st == RTHS_PROTO_INCOMPLETE || st == RTHS_PROTO_EOVERSIZE);
+        }
+    }
+}
+
+static void test_malformed_payloads(void **state) {
+    (void)state;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    rths_msg m;
+    size_t used, len;
+    /* A command that takes no payload, given one byte. */
+    const uint8_t one[] = {0};
+    len = raw_frame(buf, RTHS_MSG_ARM, 5, one, 1);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    assert_int_equal(used, len); /* well-framed: the receiver skips it and stays in sync */
+    assert_int_equal(m.type, RTHS_MSG_ARM);
+    assert_int_equal(m.seq, 5);
+    /* SET_FORCING one byte short. */
+    memcpy(buf, kat_forcing, sizeof kat_forcing);
+    len = raw_frame(buf, RTHS_MSG_SET_FORCING, 7, kat_forcing + 8, 15);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* SET_TARGET with 6 harmonics (above the maximum of 5). */
+    uint8_t tgt[1 + 12 * 8] = {6};
+    len = raw_frame(buf, RTHS_MSG_SET_TARGET, 1, tgt, sizeof tgt);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* SET_TARGET declaring 2 harmonics but carrying 1. */
+    uint8_t tgt2[1 + 2 * 8] = {2};
+    len = raw_frame(buf, RTHS_MSG_SET_TARGET, 1, tgt2, sizeof tgt2);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* A NaN frequency (quiet NaN, little-endian) and an infinite amplitude. */
+    uint8_t nanf[16] = {0, 0, 0, 0, 0, 0, 0xf8, 0x7f, 0, 0, 0, 0, 0, 0, 0xf0, 0x3f};
+    len = raw_frame(buf, RTHS_MSG_SET_FORCING, 1, nanf, sizeof nanf);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    uint8_t inff[16] = {0, 0, 0, 0, 0, 0, 0xf0, 0x3f, 0, 0, 0, 0, 0, 0, 0xf0, 0x7f};
+    len = raw_frame(buf, RTHS_MSG_SET_FORCING, 1, inff, sizeof inff);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* Text length running past the payload, and text with an embedded NUL. */
+    const uint8_t longname[] = {1, 0, 9, 'a', 'b'};
+    len = raw_frame(buf, RTHS_MSG_HELLO, 1, longname, sizeof longname);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    const uint8_t nulname[] = {1, 0, 3, 'a', 0, 'b'};
+    len = raw_frame(buf, RTHS_MSG_HELLO, 1, nulname, sizeof nulname);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* SUBSCRIBE with decimation 0 and with an undefined flag bit. */
+    const uint8_t dec0[] = {1, 0, 0, 0, 0};
+    len = raw_frame(buf, RTHS_MSG_SUBSCRIBE, 1, dec0, sizeof dec0);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    const uint8_t badflag[] = {4, 1, 0, 0, 0};
+    len = raw_frame(buf, RTHS_MSG_SUBSCRIBE, 1, badflag, sizeof badflag);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* TRACE with zero samples. */
+    const uint8_t tr0[] = {0};
+    len = raw_frame(buf, RTHS_MSG_TRACE, 1, tr0, sizeof tr0);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    /* Unknown types. */
+    len = raw_frame(buf, 0x00, 1, NULL, 0);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_ETYPE);
+    len = raw_frame(buf, 0x80, 1, NULL, 0);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_ETYPE);
+}
+
+static void test_encoder_refuses_invalid_messages(void **state) {
+    (void)state;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    rths_msg m;
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 1);
+    m.u.forcing.frequency_hz = NAN;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 1);
+    m.u.target.harmonics = RTHS_PROTO_HARMONICS + 1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    m.u.target.harmonics = -1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_HELLO, 1);
+    memset(m.u.hello.name, 'y', sizeof m.u.hello.name); /* no terminator within the limit */
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, 0x33, 1);
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_TRACE, 1);
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0); /* count 0 */
+    rths_msg_init(&m, RTHS_MSG_PING, 1);
+    assert_int_equal(rths_proto_encode(&m, buf, 11), 0); /* a 12-byte frame */
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_crc32_known_answer),
+        cmocka_unit_test(test_known_answer_frames),
+        cmocka_unit_test(test_round_trip_every_type),
+        cmocka_unit_test(test_truncated_frames_are_incomplete),
+        cmocka_unit_test(test_back_to_back_frames),
+        cmocka_unit_test(test_header_errors_detected_early),
+        cmocka_unit_test(test_maximum_payload_is_accepted_by_framing),
+        cmocka_unit_test(test_every_bit_flip_is_caught),
+        cmocka_unit_test(test_malformed_payloads),
+        cmocka_unit_test(test_encoder_refuses_invalid_messages),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
