@@ -1,0 +1,643 @@
+/* Remote rig: the rig interface over a TCP connection to `rths controller` (docs/protocol.md).
+ *
+ * One blocking request/reply at a time; frames the controller pushes unasked (PERIOD, TRACE,
+ * STATUS) are taken in whenever the client reads, periods into a queue that run_periods drains.
+ * This is host-side code: it may allocate and block, unlike the controller's loop. */
+#include "rths/rig_remote.h"
+
+#include "rths/protocol.h"
+
+#include <errno.h>
+#include <math.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+_Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
+               "PERIOD frames carry exactly the rig's harmonics");
+
+#define RX_CAP (64 * 1024)
+
+typedef struct remote {
+    char uri[300];
+    char host[256];
+    int port;
+    rths_remote_options opt;
+    char client_name[RTHS_PROTO_MAX_TEXT + 1];
+    int fd;
+    uint16_t seq;
+    uint8_t rx[RX_CAP];
+    size_t rx_len;
+    /* controller facts from HELLO_REPLY */
+    double h, watchdog_s, noise_m;
+    char controller_name[RTHS_PROTO_MAX_TEXT + 1];
+    /* periods received and not yet handed out (ring, grows) */
+    rths_proto_period *q;
+    size_t q_cap, q_head, q_len;
+    double valid_from_s; /* periods starting before this ran under an older setting */
+    double last_time_s;
+    int armed;
+    rths_rig_fault fault;
+    char fault_msg[512];
+    /* the last settings, replayed after a reconnect */
+    int have_forcing;
+    double frequency_hz, amplitude_n;
+    int harmonics;
+    double ta[RTHS_MAX_HARMONICS], tb[RTHS_MAX_HARMONICS];
+    /* trace collection in progress */
+    int tracing;
+    rths_trace_sample *trace_out;
+    int trace_max, trace_n;
+    double trace_t0, trace_t1;
+} remote;
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+void rths_remote_options_defaults(rths_remote_options *opt) {
+    opt->connect_timeout_s = 5.0;
+    opt->reply_timeout_s = 5.0;
+    opt->stall_timeout_s = 10.0;
+    opt->client_name = "rths host";
+}
+
+int rths_rig_uri_is_remote(const char *uri) { return uri && !strncmp(uri, "tcp://", 6); }
+
+int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *port,
+                          rths_error *err) {
+    if (!rths_rig_uri_is_remote(uri))
+        return rths_error_set(err, RTHS_EINPUT, "rig '%s': expected tcp://HOST:PORT",
+                              uri ? uri : "(null)");
+    const char *p = uri + 6, *colon;
+    size_t hl;
+    if (*p == '[') {
+        const char *close = strchr(p, ']');
+        if (!close || close[1] != ':')
+            return rths_error_set(err, RTHS_EINPUT, "rig '%s': expected tcp://[IPV6]:PORT", uri);
+        p++;
+        hl = (size_t)(close - p);
+        colon = close + 1;
+    } else {
+        colon = strrchr(p, ':');
+        if (!colon)
+            return rths_error_set(err, RTHS_EINPUT, "rig '%s': missing :PORT", uri);
+        hl = (size_t)(colon - p);
+        if (memchr(p, ':', hl))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "rig '%s': an IPv6 address must be in brackets", uri);
+    }
+    if (hl == 0 || hl >= host_cap)
+        return rths_error_set(err, RTHS_EINPUT, "rig '%s': missing or overlong host", uri);
+    char *end;
+    errno = 0;
+    long v = strtol(colon + 1, &end, 10);
+    if (errno || end == colon + 1 || *end || v < 1 || v > 65535)
+        return rths_error_set(err, RTHS_EINPUT, "rig '%s': port must be 1..65535", uri);
+    memcpy(host, p, hl);
+    host[hl] = '\0';
+    *port = (int)v;
+    return RTHS_OK;
+}
+
+/* ---- link ---- */
+
+static int link_fail(remote *r, rths_error *err, const char *fmt, ...)
+    __attribute__((format(printf, 3, 4)));
+
+static int link_fail(remote *r, rths_error *err, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(r->fault_msg, sizeof r->fault_msg, fmt, ap);
+    va_end(ap);
+    if (r->fd >= 0) close(r->fd);
+    r->fd = -1;
+    r->rx_len = 0;
+    r->armed = 0;
+    r->fault = RTHS_RIG_FAULT_LINK;
+    return rths_error_set(err, RTHS_EFAIL, "controller %s: link lost: %s", r->uri, r->fault_msg);
+}
+
+static int send_msg(remote *r, rths_msg *m, rths_error *err) {
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    size_t n = rths_proto_encode(m, buf, sizeof buf);
+    if (!n)
+        return rths_error_set(err, RTHS_EINPUT, "cannot encode %s (values not finite?)",
+                              rths_msg_type_name(m->type));
+    size_t off = 0;
+    while (off < n) {
+        ssize_t k = send(r->fd, buf + off, n - off, MSG_NOSIGNAL);
+        if (k < 0 && errno == EINTR) continue;
+        if (k <= 0) return link_fail(r, err, "send: %s", strerror(errno));
+        off += (size_t)k;
+    }
+    return RTHS_OK;
+}
+
+static void queue_period(remote *r, const rths_proto_period *p) {
+    /* Half a sample of slack: start and ACK times are both sample counts times h. */
+    if (p->start_time_s < r->valid_from_s - 0.5 * r->h) return;
+    if (r->q_len == r->q_cap) {
+        size_t cap = r->q_cap ? 2 * r->q_cap : 64;
+        rths_proto_period *nq = malloc(cap * sizeof *nq);
+        if (!nq) return; /* dropped; run_periods will wait for the next one */
+        for (size_t i = 0; i < r->q_len; i++) nq[i] = r->q[(r->q_head + i) % r->q_cap];
+        free(r->q);
+        r->q = nq;
+        r->q_cap = cap;
+        r->q_head = 0;
+    }
+    r->q[(r->q_head + r->q_len) % r->q_cap] = *p;
+    r->q_len++;
+}
+
+/* Takes in an unsolicited frame. */
+static void absorb(remote *r, const rths_msg *m) {
+    switch (m->type) {
+    case RTHS_MSG_PERIOD:
+        if (m->u.period.end_time_s > r->last_time_s) r->last_time_s = m->u.period.end_time_s;
+        queue_period(r, &m->u.period);
+        break;
+    case RTHS_MSG_TRACE:
+        for (int i = 0; i < m->u.trace.count; i++) {
+            const rths_proto_trace_sample *s = &m->u.trace.s[i];
+            if (s->time_s > r->last_time_s) r->last_time_s = s->time_s;
+            if (!r->tracing || s->time_s < r->trace_t0 - 0.5 * r->h ||
+                r->trace_n >= r->trace_max || s->time_s > r->trace_t1 + 0.5 * r->h)
+                continue;
+            r->trace_out[r->trace_n++] = (rths_trace_sample){
+                s->time_s, s->x_phys_m, s->x_num_m, s->target_m, s->force_n, s->demand};
+        }
+        break;
+    case RTHS_MSG_STATUS:
+        r->last_time_s = m->u.status.time_s;
+        r->armed = (m->u.status.flags & RTHS_STATUS_ARMED) != 0;
+        if (m->u.status.fault && r->fault == RTHS_RIG_OK) {
+            r->fault = (rths_rig_fault)m->u.status.fault;
+            snprintf(r->fault_msg, sizeof r->fault_msg, "controller latched a %s fault",
+                     rths_rig_fault_name(r->fault));
+        }
+        break;
+    default:
+        break;
+    }
+}
+
+/* Reads one frame, waiting at most timeout_s. RTHS_OK with *got = 1 (frame in m) or 0 (timeout). */
+static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_error *err) {
+    double deadline = now_s() + timeout_s;
+    *got = 0;
+    for (;;) {
+        size_t used = 0;
+        int st = rths_proto_decode(r->rx, r->rx_len, m, &used);
+        if (st == RTHS_PROTO_OK) {
+            memmove(r->rx, r->rx + used, r->rx_len - used);
+            r->rx_len -= used;
+            *got = 1;
+            return RTHS_OK;
+        }
+        if (st != RTHS_PROTO_INCOMPLETE)
+            return link_fail(r, err, "bad frame from the controller: %s",
+                             rths_proto_status_name(st));
+        double left = deadline - now_s();
+        if (left <= 0) return RTHS_OK;
+        struct pollfd pfd = {r->fd, POLLIN, 0};
+        int pr = poll(&pfd, 1, (int)ceil(left * 1000.0));
+        if (pr < 0 && errno == EINTR) continue;
+        if (pr < 0) return link_fail(r, err, "poll: %s", strerror(errno));
+        if (pr == 0) continue;
+        ssize_t k = recv(r->fd, r->rx + r->rx_len, RX_CAP - r->rx_len, 0);
+        if (k < 0 && (errno == EINTR || errno == EAGAIN)) continue;
+        if (k == 0) return link_fail(r, err, "the controller closed the connection");
+        if (k < 0) return link_fail(r, err, "recv: %s", strerror(errno));
+        r->rx_len += (size_t)k;
+    }
+}
+
+/* Sends a request and waits for its reply (frames pushed meanwhile are absorbed). An ERROR reply
+ * returns RTHS_EFAIL with the controller's message (the link stays up). */
+static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rths_error *err) {
+    if (r->fd < 0)
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: not connected (%s)", r->uri,
+                              r->fault_msg);
+    if (++r->seq == 0) r->seq = 1;
+    req->seq = r->seq;
+    int rc = send_msg(r, req, err);
+    if (rc) return rc;
+    double deadline = now_s() + r->opt.reply_timeout_s;
+    for (;;) {
+        int got;
+        double left = deadline - now_s();
+        if (left <= 0)
+            return link_fail(r, err, "no reply to %s within %.3g s", rths_msg_type_name(req->type),
+                             r->opt.reply_timeout_s);
+        if ((rc = read_frame(r, left, reply, &got, err))) return rc;
+        if (!got) continue;
+        if (reply->seq != req->seq || (reply->type != want_type && reply->type != RTHS_MSG_ERROR)) {
+            if (reply->seq == 0) {
+                absorb(r, reply);
+                continue;
+            }
+            return link_fail(r, err, "unexpected %s (seq %u) in reply to %s",
+                             rths_msg_type_name(reply->type), reply->seq,
+                             rths_msg_type_name(req->type));
+        }
+        if (reply->type == RTHS_MSG_ERROR)
+            return rths_error_set(err, RTHS_EFAIL, "controller %s refused %s: %s (%s)", r->uri,
+                                  rths_msg_type_name(req->type), reply->u.error.message,
+                                  rths_proto_status_name(reply->u.error.code));
+        if (reply->type == RTHS_MSG_ACK && reply->u.ack.time_s > r->last_time_s)
+            r->last_time_s = reply->u.ack.time_s;
+        if (reply->type == RTHS_MSG_STATUS) absorb(r, reply);
+        return RTHS_OK;
+    }
+}
+
+static int simple(remote *r, int type, rths_msg *reply, rths_error *err) {
+    rths_msg m;
+    rths_msg_init(&m, type, 0);
+    return request(r, &m, RTHS_MSG_ACK, reply, err);
+}
+
+static int subscribe(remote *r, unsigned flags, uint32_t decimation, rths_msg *reply,
+                     rths_error *err) {
+    rths_msg m;
+    rths_msg_init(&m, RTHS_MSG_SUBSCRIBE, 0);
+    m.u.subscribe.flags = (uint8_t)flags;
+    m.u.subscribe.trace_decimation = decimation;
+    return request(r, &m, RTHS_MSG_ACK, reply, err);
+}
+
+static int send_forcing(remote *r, rths_error *err) {
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
+    m.u.forcing.frequency_hz = r->frequency_hz;
+    m.u.forcing.amplitude_n = r->amplitude_n;
+    int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
+    if (rc) return rc;
+    r->valid_from_s = reply.u.ack.time_s;
+    r->q_len = 0; /* everything queued ran under the old setting */
+    return RTHS_OK;
+}
+
+static int send_target(remote *r, rths_error *err) {
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
+    m.u.target.harmonics = r->harmonics;
+    for (int k = 0; k < r->harmonics; k++) {
+        m.u.target.a[k] = r->ta[k];
+        m.u.target.b[k] = r->tb[k];
+    }
+    int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
+    if (rc) return rc;
+    r->valid_from_s = reply.u.ack.time_s;
+    r->q_len = 0;
+    return RTHS_OK;
+}
+
+static int connect_and_hello(remote *r, rths_error *err) {
+    char port[16];
+    snprintf(port, sizeof port, "%d", r->port);
+    struct addrinfo hints = {0}, *res = NULL;
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    int gai = getaddrinfo(r->host, port, &hints, &res);
+    if (gai)
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: cannot resolve '%s': %s", r->uri,
+                              r->host, gai_strerror(gai));
+    int fd = -1;
+    char why[256] = "no address";
+    for (struct addrinfo *ai = res; ai && fd < 0; ai = ai->ai_next) {
+        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC,
+                    ai->ai_protocol);
+        if (fd < 0) continue;
+        int ok = connect(fd, ai->ai_addr, ai->ai_addrlen) == 0;
+        if (!ok && errno == EINPROGRESS) {
+            struct pollfd pfd = {fd, POLLOUT, 0};
+            int pr = poll(&pfd, 1, (int)(r->opt.connect_timeout_s * 1000.0));
+            int soerr = 0;
+            socklen_t sl = sizeof soerr;
+            if (pr == 1 && !getsockopt(fd, SOL_SOCKET, SO_ERROR, &soerr, &sl) && !soerr)
+                ok = 1;
+            else
+                snprintf(why, sizeof why, "%s", pr == 0 ? "connect timed out" : strerror(soerr));
+        } else if (!ok) {
+            snprintf(why, sizeof why, "%s", strerror(errno));
+        }
+        if (!ok) {
+            close(fd);
+            fd = -1;
+        }
+    }
+    freeaddrinfo(res);
+    if (fd < 0)
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: cannot connect: %s", r->uri, why);
+    int one = 1;
+    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    /* Back to blocking sends (bounded by a timeout); reads always go through poll. */
+    struct timeval tv = {(time_t)r->opt.reply_timeout_s, 0};
+    setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
+    r->fd = fd;
+    r->rx_len = 0;
+    r->q_len = 0;
+    r->armed = 0;
+    r->valid_from_s = 0.0;
+    r->last_time_s = 0.0;
+
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_HELLO, 0);
+    m.u.hello.version = RTHS_PROTO_VERSION;
+    snprintf(m.u.hello.name, sizeof m.u.hello.name, "%s", r->client_name);
+    int rc = request(r, &m, RTHS_MSG_HELLO_REPLY, &reply, err);
+    if (rc) {
+        if (r->fd >= 0) close(r->fd);
+        r->fd = -1;
+        return rc;
+    }
+    if (reply.u.hello_reply.version != RTHS_PROTO_VERSION ||
+        !(reply.u.hello_reply.sample_period_s > 0)) {
+        close(r->fd);
+        r->fd = -1;
+        return rths_error_set(err, RTHS_EFAIL,
+                              "controller %s speaks protocol %u with sample period %g s; this host "
+                              "needs protocol %d",
+                              r->uri, reply.u.hello_reply.version,
+                              reply.u.hello_reply.sample_period_s, RTHS_PROTO_VERSION);
+    }
+    r->h = reply.u.hello_reply.sample_period_s;
+    r->watchdog_s = reply.u.hello_reply.watchdog_s;
+    r->noise_m = reply.u.hello_reply.noise_level_m;
+    snprintf(r->controller_name, sizeof r->controller_name, "%s", reply.u.hello_reply.name);
+    if ((rc = subscribe(r, RTHS_SUBSCRIBE_PERIODS, 1, &reply, err))) return rc;
+    rths_msg_init(&m, RTHS_MSG_GET_STATUS, 0);
+    if ((rc = request(r, &m, RTHS_MSG_STATUS, &reply, err))) return rc;
+    return RTHS_OK;
+}
+
+/* ---- rig operations ---- */
+
+static int check_usable(remote *r, rths_error *err) {
+    if (r->fault != RTHS_RIG_OK)
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: rig fault '%s' latched: %s",
+                              r->uri, rths_rig_fault_name(r->fault), r->fault_msg);
+    return RTHS_OK;
+}
+
+static int ensure_armed(remote *r, rths_error *err) {
+    if (r->armed) return RTHS_OK;
+    rths_msg reply;
+    int rc = simple(r, RTHS_MSG_ARM, &reply, err);
+    if (rc) return rc;
+    r->armed = 1;
+    if (reply.u.ack.time_s > r->valid_from_s) r->valid_from_s = reply.u.ack.time_s;
+    r->q_len = 0;
+    return RTHS_OK;
+}
+
+static double ping_interval(const remote *r) {
+    double p = 0.25 * r->watchdog_s;
+    return p > 0 && p < 0.5 ? p : 0.5;
+}
+
+/* Waits for frames for up to `wait` seconds, pinging to keep the watchdog fed. */
+static int pump(remote *r, double wait, double *last_ping, rths_error *err) {
+    rths_msg m;
+    int got, rc;
+    if (now_s() - *last_ping >= ping_interval(r)) {
+        rths_msg reply;
+        if ((rc = simple(r, RTHS_MSG_PING, &reply, err))) return rc;
+        *last_ping = now_s();
+    }
+    if ((rc = read_frame(r, wait, &m, &got, err))) return rc;
+    if (got) {
+        if (m.seq != 0)
+            return link_fail(r, err, "unexpected %s (seq %u) with no request outstanding",
+                             rths_msg_type_name(m.type), m.seq);
+        absorb(r, &m);
+    }
+    return check_usable(r, err);
+}
+
+static void to_fourier(const rths_proto_fourier *in, rths_fourier *out) {
+    for (int k = 0; k <= RTHS_MAX_HARMONICS; k++) {
+        out->a[k] = in->a[k];
+        out->b[k] = in->b[k];
+    }
+}
+
+static int r_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {
+    remote *r = self;
+    int rc = check_usable(r, err);
+    if (rc) return rc;
+    if (!(frequency_hz > 0) || !isfinite(frequency_hz) || !isfinite(amplitude_n))
+        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N: frequency must be > 0",
+                              frequency_hz, amplitude_n);
+    double of = r->frequency_hz, oa = r->amplitude_n;
+    int oh = r->have_forcing;
+    r->frequency_hz = frequency_hz;
+    r->amplitude_n = amplitude_n;
+    r->have_forcing = 1;
+    if ((rc = send_forcing(r, err))) {
+        r->frequency_hz = of;
+        r->amplitude_n = oa;
+        r->have_forcing = oh;
+    }
+    return rc;
+}
+
+static int r_set_target(void *self, int harmonics, const double *a, const double *b,
+                        rths_error *err) {
+    remote *r = self;
+    int rc = check_usable(r, err);
+    if (rc) return rc;
+    r->harmonics = harmonics;
+    for (int k = 0; k < harmonics; k++) {
+        r->ta[k] = a[k];
+        r->tb[k] = b[k];
+    }
+    return send_target(r, err);
+}
+
+static int r_run_periods(void *self, int count, rths_period *out, rths_error *err) {
+    remote *r = self;
+    int rc = check_usable(r, err);
+    if (rc) return rc;
+    if (!r->have_forcing)
+        return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
+    if ((rc = ensure_armed(r, err))) return rc;
+    double last_ping = now_s(), last_progress = now_s();
+    double stall = r->opt.stall_timeout_s + 2.0 / r->frequency_hz;
+    int n = 0;
+    while (n < count) {
+        if (r->q_len) {
+            const rths_proto_period *p = &r->q[r->q_head];
+            rths_period *o = &out[n++];
+            o->frequency_hz = p->frequency_hz;
+            o->end_time_s = p->end_time_s;
+            o->samples = (int)p->samples;
+            to_fourier(&p->phys, &o->phys);
+            to_fourier(&p->num, &o->num);
+            to_fourier(&p->force, &o->force);
+            r->q_head = (r->q_head + 1) % r->q_cap;
+            r->q_len--;
+            last_progress = now_s();
+            continue;
+        }
+        if (now_s() - last_progress > stall)
+            return link_fail(r, err, "no whole period from the controller for %.3g s", stall);
+        if ((rc = pump(r, ping_interval(r), &last_ping, err))) return rc;
+    }
+    return RTHS_OK;
+}
+
+static int r_record_trace(void *self, double duration_s, int max_samples, rths_trace_sample *out,
+                          int *n_out, rths_error *err) {
+    remote *r = self;
+    *n_out = 0;
+    int rc = check_usable(r, err);
+    if (rc) return rc;
+    if (!(duration_s > 0) || max_samples < 1)
+        return rths_error_set(err, RTHS_EINPUT, "trace of %g s with %d samples", duration_s,
+                              max_samples);
+    if ((rc = ensure_armed(r, err))) return rc;
+    double dec = ceil(duration_s / r->h / max_samples);
+    if (dec < 1) dec = 1;
+    if (dec > 4294967295.0) dec = 4294967295.0;
+    rths_msg reply;
+    r->tracing = 0;
+    if ((rc = subscribe(r, RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES, (uint32_t)dec, &reply,
+                        err)))
+        return rc;
+    r->tracing = 1;
+    r->trace_out = out;
+    r->trace_max = max_samples;
+    r->trace_n = 0;
+    r->trace_t0 = reply.u.ack.time_s;
+    r->trace_t1 = reply.u.ack.time_s + duration_s;
+    double last_ping = now_s(), start = now_s();
+    while (r->trace_n < max_samples && r->last_time_s < r->trace_t1) {
+        if (now_s() - start > duration_s + r->opt.stall_timeout_s) {
+            r->tracing = 0;
+            return link_fail(r, err, "trace did not arrive within %.3g s",
+                             duration_s + r->opt.stall_timeout_s);
+        }
+        if ((rc = pump(r, ping_interval(r), &last_ping, err))) {
+            r->tracing = 0;
+            *n_out = r->trace_n;
+            return rc;
+        }
+    }
+    r->tracing = 0;
+    *n_out = r->trace_n;
+    return subscribe(r, RTHS_SUBSCRIBE_PERIODS, 1, &reply, err);
+}
+
+static int refresh(remote *r) {
+    if (r->fd < 0) return RTHS_EFAIL;
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_GET_STATUS, 0);
+    return request(r, &m, RTHS_MSG_STATUS, &reply, NULL);
+}
+
+static double r_time_s(void *self) {
+    remote *r = self;
+    refresh(r);
+    return r->last_time_s;
+}
+
+static rths_rig_fault r_fault(void *self) {
+    remote *r = self;
+    if (r->fault == RTHS_RIG_OK) refresh(r);
+    return r->fault;
+}
+
+static int r_reset_fault(void *self, rths_error *err) {
+    remote *r = self;
+    int rc;
+    if (r->fd < 0) {
+        if ((rc = connect_and_hello(r, err))) return rc;
+        r->fault = RTHS_RIG_OK;
+        r->fault_msg[0] = '\0';
+    }
+    rths_msg reply;
+    if ((rc = simple(r, RTHS_MSG_RESET_FAULT, &reply, err))) return rc;
+    r->fault = RTHS_RIG_OK;
+    r->fault_msg[0] = '\0';
+    r->armed = 0;
+    if (r->have_forcing && (rc = send_forcing(r, err))) return rc;
+    return send_target(r, err);
+}
+
+static double r_noise_level_m(void *self) { return ((remote *)self)->noise_m; }
+
+static void r_destroy(void *self) {
+    remote *r = self;
+    if (r->fd >= 0) {
+        rths_msg reply;
+        r->opt.reply_timeout_s = 1.0;
+        simple(r, RTHS_MSG_DISARM, &reply, NULL);
+        if (r->fd >= 0) close(r->fd);
+    }
+    free(r->q);
+    free(r);
+}
+
+static const rths_rig_ops remote_ops = {
+    .set_forcing = r_set_forcing,
+    .set_target = r_set_target,
+    .run_periods = r_run_periods,
+    .record_trace = r_record_trace,
+    .time_s = r_time_s,
+    .fault = r_fault,
+    .reset_fault = r_reset_fault,
+    .noise_level_m = r_noise_level_m,
+    .destroy = r_destroy,
+};
+
+int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths_rig **out,
+                           rths_error *err) {
+    *out = NULL;
+    remote *r = calloc(1, sizeof *r);
+    if (!r) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    r->fd = -1;
+    int rc = rths_remote_parse_uri(uri, r->host, sizeof r->host, &r->port, err);
+    if (rc) {
+        free(r);
+        return rc;
+    }
+    snprintf(r->uri, sizeof r->uri, "%s", uri);
+    if (opt)
+        r->opt = *opt;
+    else
+        rths_remote_options_defaults(&r->opt);
+    if (!(r->opt.connect_timeout_s > 0)) r->opt.connect_timeout_s = 5.0;
+    if (!(r->opt.reply_timeout_s > 0)) r->opt.reply_timeout_s = 5.0;
+    if (!(r->opt.stall_timeout_s > 0)) r->opt.stall_timeout_s = 10.0;
+    snprintf(r->client_name, sizeof r->client_name, "%s",
+             r->opt.client_name ? r->opt.client_name : "rths host");
+    r->opt.client_name = NULL;
+    if ((rc = connect_and_hello(r, err))) {
+        if (r->fd >= 0) close(r->fd);
+        free(r->q);
+        free(r);
+        return rc;
+    }
+    char desc[600];
+    snprintf(desc, sizeof desc, "remote controller %.300s (%.200s)", r->uri, r->controller_name);
+    *out = rths_rig_create(&remote_ops, r, desc);
+    if (!*out) {
+        r_destroy(r);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    return RTHS_OK;
+}
