@@ -1,0 +1,240 @@
+/* Hybrid steady state at a perfect interface match, per integration scheme (SPEC §8); see
+ * include/rths/fidelity.h for the model. */
+#include "rths/fidelity.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+struct rths_fidelity {
+    int n, np, nn, n_int, n_phys, nu;
+    int *phys_map; /* np: assembly index of physical-side row (phys..., int...) */
+    int *num_map;  /* nn: assembly index of numerical-side row (int..., num...) */
+    double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
+    double *mass, *damping, *stiffness;                /* n x n, the recombined assembly */
+    double *force;                                     /* n */
+    double *force_phys;                                /* np: internal physical DoFs only */
+    double h;
+    rths_discrete disc[RTHS_SCHEME_COUNT];
+};
+
+void rths_fidelity_free(rths_fidelity *f) {
+    if (!f) return;
+    free(f->phys_map);
+    free(f->num_map);
+    free(f->mass_phys);
+    free(f->damping_phys);
+    free(f->stiffness_phys);
+    free(f->mass);
+    free(f->damping);
+    free(f->stiffness);
+    free(f->force);
+    free(f->force_phys);
+    for (int s = 0; s < RTHS_SCHEME_COUNT; s++) rths_discrete_free(&f->disc[s]);
+    free(f);
+}
+
+int rths_fidelity_dofs(const rths_fidelity *f) { return f->n; }
+
+int rths_fidelity_create(const rths_split *s, const double *force, double h_s,
+                         rths_fidelity **out, rths_error *err) {
+    *out = NULL;
+    if (!(isfinite(h_s) && h_s > 0))
+        return rths_error_set(err, RTHS_EINPUT, "sample step must be positive, got %g s", h_s);
+    for (int i = 0; i < s->n; i++)
+        if (!isfinite(force[i]))
+            return rths_error_set(err, RTHS_EINPUT, "forcing amplitude on DoF %d is not finite",
+                                  i + 1);
+    rths_fidelity *f = calloc(1, sizeof *f);
+    if (!f) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int n = s->n, np = s->np, nn = s->nn, n_int = s->n_int;
+    f->n = n, f->np = np, f->nn = nn, f->n_int = n_int, f->n_phys = s->n_phys;
+    f->nu = n_int + 1; /* the interface forces, then the (sampled) forcing */
+    f->h = h_s;
+    f->phys_map = malloc((size_t)np * sizeof *f->phys_map);
+    f->num_map = malloc((size_t)nn * sizeof *f->num_map);
+    f->mass_phys = rths_mat_dup(s->mass_phys, np, np);
+    f->damping_phys = rths_mat_dup(s->damping_phys, np, np);
+    f->stiffness_phys = rths_mat_dup(s->stiffness_phys, np, np);
+    f->mass = rths_mat_new(n, n);
+    f->damping = rths_mat_new(n, n);
+    f->stiffness = rths_mat_new(n, n);
+    f->force = rths_mat_dup(force, n, 1);
+    f->force_phys = rths_mat_new(np, 1);
+    double *input = rths_mat_new(nn, f->nu), *a = NULL, *b = NULL;
+    int rc = RTHS_OK;
+    if (!f->phys_map || !f->num_map || !f->mass_phys || !f->damping_phys || !f->stiffness_phys ||
+        !f->mass || !f->damping || !f->stiffness || !f->force || !f->force_phys || !input) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    for (int i = 0; i < s->n_phys; i++) f->phys_map[i] = s->phys_dofs[i];
+    for (int j = 0; j < n_int; j++) {
+        f->phys_map[s->n_phys + j] = s->int_dofs[j];
+        f->num_map[j] = s->int_dofs[j];
+    }
+    for (int i = 0; i < s->n_num; i++) f->num_map[n_int + i] = s->num_dofs[i];
+    rths_split_recombine(s, f->mass, f->damping, f->stiffness);
+    /* Only internal physical DoFs are forced in continuous time; the controller applies forcing on
+     * the interface and numerical DoFs to the numerical model, at the samples. */
+    for (int i = 0; i < s->n_phys; i++) f->force_phys[i] = force[s->phys_dofs[i]];
+    for (int j = 0; j < n_int; j++) RTHS_AT(input, nn, j, j) = 1.0;
+    for (int i = 0; i < nn; i++) RTHS_AT(input, nn, i, n_int) = force[f->num_map[i]];
+    rc = rths_state_space(nn, s->mass_num, s->damping_num, s->stiffness_num, f->nu, input, &a, &b,
+                          err);
+    for (int sc = 0; sc < RTHS_SCHEME_COUNT && !rc; sc++)
+        rc = rths_discretise(2 * nn, f->nu, a, b, h_s, (rths_scheme)sc, &f->disc[sc], err);
+done:
+    free(input);
+    free(a);
+    free(b);
+    if (rc) {
+        rths_fidelity_free(f);
+        return rc;
+    }
+    *out = f;
+    return RTHS_OK;
+}
+
+/* G = C (zI - Ad)^{-1} (b_prev + z b_curr): nn x nu displacement response of the discretised
+ * numerical substructure to sampled harmonic inputs. */
+static int numerical_transfer(const rths_fidelity *f, const rths_discrete *d, double omega,
+                              double complex *g) {
+    int nx = d->nx, nu = d->nu;
+    double complex z = cexp(I * omega * d->h);
+    double complex *m = malloc((size_t)nx * (size_t)nx * sizeof *m);
+    double complex *y = malloc((size_t)nx * (size_t)nu * sizeof *y);
+    if (!m || !y) {
+        free(m), free(y);
+        return -1;
+    }
+    for (int j = 0; j < nx; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(m, nx, i, j) = (i == j ? z : 0.0) - RTHS_AT(d->ad, nx, i, j);
+    for (int j = 0; j < nu; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(y, nx, i, j) = RTHS_AT(d->b_prev, nx, i, j) + z * RTHS_AT(d->b_curr, nx, i, j);
+    int info = rths_cmat_solve(nx, nu, m, y);
+    if (!info)
+        for (int j = 0; j < nu; j++)
+            for (int i = 0; i < f->nn; i++) RTHS_AT(g, f->nn, i, j) = RTHS_AT(y, nx, i, j);
+    free(m), free(y);
+    return info;
+}
+
+static int hybrid_response(const rths_fidelity *f, const rths_discrete *d, double omega,
+                           double complex *x_out, rths_error *err) {
+    int np = f->np, nn = f->nn, n_int = f->n_int, n_phys = f->n_phys, nu = f->nu;
+    int ms = np + n_int;
+    double complex *g = malloc((size_t)nn * (size_t)nu * sizeof *g);
+    double complex *sys = calloc((size_t)ms * (size_t)ms, sizeof *sys);
+    double complex *v = calloc((size_t)ms, sizeof *v);
+    int rc = RTHS_OK;
+    if (!g || !sys || !v) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    int info = numerical_transfer(f, d, omega, g);
+    if (info) {
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "numerical substructure (%s) has a pole on the unit circle at "
+                            "%g rad/s (info %d)",
+                            rths_scheme_name(d->scheme), omega, info);
+        goto done;
+    }
+    /* unknowns v = (Q_p, lambda); rows: physical equations of motion, interface compatibility */
+    for (int j = 0; j < np; j++)
+        for (int i = 0; i < np; i++)
+            RTHS_AT(sys, ms, i, j) = RTHS_AT(f->stiffness_phys, np, i, j) -
+                                     omega * omega * RTHS_AT(f->mass_phys, np, i, j) +
+                                     I * omega * RTHS_AT(f->damping_phys, np, i, j);
+    for (int k = 0; k < n_int; k++) {
+        RTHS_AT(sys, ms, n_phys + k, np + k) = -1.0;
+        RTHS_AT(sys, ms, np + k, n_phys + k) = 1.0;
+        for (int l = 0; l < n_int; l++) RTHS_AT(sys, ms, np + k, np + l) = RTHS_AT(g, nn, k, l);
+        v[np + k] = RTHS_AT(g, nn, k, n_int);
+    }
+    for (int i = 0; i < np; i++) v[i] = f->force_phys[i];
+    info = rths_cmat_solve(ms, 1, sys, v);
+    if (info) {
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "hybrid system (%s) is singular at %g rad/s (zgesv info %d)",
+                            rths_scheme_name(d->scheme), omega, info);
+        goto done;
+    }
+    for (int i = 0; i < np; i++) x_out[f->phys_map[i]] = v[i];
+    for (int i = n_int; i < nn; i++) {
+        double complex q = RTHS_AT(g, nn, i, n_int);
+        for (int l = 0; l < n_int; l++) q -= RTHS_AT(g, nn, i, l) * v[np + l];
+        x_out[f->num_map[i]] = q;
+    }
+done:
+    free(g), free(sys), free(v);
+    return rc;
+}
+
+int rths_fidelity_response(const rths_fidelity *f, int curve, double omega_rad_s,
+                           double complex *x_out, rths_error *err) {
+    if (!(isfinite(omega_rad_s) && omega_rad_s > 0))
+        return rths_error_set(err, RTHS_EINPUT, "frequency must be positive, got %g rad/s",
+                              omega_rad_s);
+    if (curve == RTHS_FIDELITY_TRUE)
+        return rths_frf(f->n, f->mass, f->damping, f->stiffness, f->force, omega_rad_s, x_out, err);
+    if (curve < 0 || curve >= RTHS_SCHEME_COUNT)
+        return rths_error_set(err, RTHS_EINPUT, "unknown fidelity curve %d", curve);
+    return hybrid_response(f, &f->disc[curve], omega_rad_s, x_out, err);
+}
+
+static int amplitude(const rths_fidelity *f, int curve, int dof, double hz, double complex *work,
+                     double *amp, rths_error *err) {
+    int rc = rths_fidelity_response(f, curve, 2 * M_PI * hz, work, err);
+    if (!rc) *amp = cabs(work[dof]);
+    return rc;
+}
+
+int rths_fidelity_peak(const rths_fidelity *f, int curve, int dof, double lo_hz, double hi_hz,
+                       int points, double *peak_hz, double *peak_amplitude_m, rths_error *err) {
+    if (dof < 0 || dof >= f->n)
+        return rths_error_set(err, RTHS_EINPUT, "DoF %d is outside 1..%d", dof + 1, f->n);
+    if (!(lo_hz > 0 && hi_hz > lo_hz && isfinite(hi_hz)) || points < 3)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "peak search needs 0 < lo < hi and >= 3 points (got %g..%g Hz, %d)",
+                              lo_hz, hi_hz, points);
+    double complex *work = malloc((size_t)f->n * sizeof *work);
+    if (!work) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = RTHS_OK, best = 0;
+    double best_amp = -1, step = (hi_hz - lo_hz) / (points - 1);
+    for (int i = 0; i < points && !rc; i++) {
+        double a;
+        rc = amplitude(f, curve, dof, lo_hz + i * step, work, &a, err);
+        if (!rc && a > best_amp) best_amp = a, best = i;
+    }
+    /* golden section inside the scan cell pair around the best point (unimodal there when the
+     * scan resolves the peak) */
+    double a = lo_hz + (best > 0 ? best - 1 : 0) * step;
+    double b = lo_hz + (best < points - 1 ? best + 1 : points - 1) * step;
+    const double r = (sqrt(5.0) - 1) / 2;
+    double x1 = b - r * (b - a), x2 = a + r * (b - a), f1 = 0, f2 = 0;
+    if (!rc) rc = amplitude(f, curve, dof, x1, work, &f1, err);
+    if (!rc) rc = amplitude(f, curve, dof, x2, work, &f2, err);
+    while (!rc && b - a > 1e-10 * b) {
+        if (f1 > f2) {
+            b = x2, x2 = x1, f2 = f1;
+            x1 = b - r * (b - a);
+            rc = amplitude(f, curve, dof, x1, work, &f1, err);
+        } else {
+            a = x1, x1 = x2, f1 = f2;
+            x2 = a + r * (b - a);
+            rc = amplitude(f, curve, dof, x2, work, &f2, err);
+        }
+    }
+    if (!rc) {
+        double hz = 0.5 * (a + b), amp;
+        rc = amplitude(f, curve, dof, hz, work, &amp, err);
+        /* the scan point wins if refinement could not beat it (peak on the range's edge) */
+        if (!rc && amp < best_amp) hz = lo_hz + best * step, amp = best_amp;
+        if (!rc) *peak_hz = hz, *peak_amplitude_m = amp;
+    }
+    free(work);
+    return rc;
+}
