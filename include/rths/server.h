@@ -1,0 +1,64 @@
+/* rths server: the real-time controller process (`rths controller`), controller module.
+ *
+ * Two threads. The loop thread runs the per-sample step (controller + plant behind the per-sample
+ * I/O seam) paced by the wall clock with absolute deadlines (clock_nanosleep TIMER_ABSTIME on
+ * CLOCK_MONOTONIC), under SCHED_FIFO, with locked memory and pinned to a CPU when permitted; it
+ * never allocates, blocks, locks or does I/O. The network thread serves one host over TCP
+ * (docs/protocol.md) and talks to the loop only through preallocated single-producer
+ * single-consumer rings and atomics. Safety (explicit arm, latched limits with a ramp to zero,
+ * the host watchdog, disarm on loss of the controlling connection) is enforced on the loop side. */
+#ifndef RTHS_SERVER_H
+#define RTHS_SERVER_H
+
+#include "rths/config.h"
+
+#include <stdint.h>
+
+typedef struct rths_server_options {
+    char host[256];           /* listen address; default "127.0.0.1" (loopback only) */
+    int port;                 /* 0: an ephemeral port, see rths_server_port() */
+    double watchdog_s;        /* server.watchdog_s: host silence that trips the watchdog */
+    int realtime;             /* server.realtime: try SCHED_FIFO, mlockall, CPU pinning */
+    int priority;             /* server.priority: SCHED_FIFO priority 1..99 */
+    int cpu;                  /* server.cpu: CPU for the loop thread, -1: the last one */
+    double max_frequency_hz;  /* server.max_frequency_hz: SET_FORCING above is refused */
+    double max_amplitude_n;   /* server.max_amplitude_n: |amplitude| above is refused */
+    int quiet;                /* no notices on stderr (tests, bench) */
+} rths_server_options;
+
+void rths_server_options_defaults(rths_server_options *opt);
+
+/* Reads the `server` section over the defaults already in opt. */
+int rths_server_config_read(rths_config *cfg, rths_server_options *opt, rths_error *err);
+
+typedef struct rths_server rths_server;
+
+/* Builds the step and the plant from the configuration (every section they read) and binds the
+ * listening socket. Nothing runs until rths_server_start. */
+int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_server **out,
+                       rths_error *err);
+int rths_server_port(const rths_server *s);   /* the bound port (useful after port 0) */
+double rths_server_sample_period_s(const rths_server *s);
+
+/* Starts the loop and network threads. */
+int rths_server_start(rths_server *s, rths_error *err);
+/* Disarms (ramp to zero), stops and joins both threads. Safe to call twice. */
+void rths_server_stop(rths_server *s);
+void rths_server_destroy(rths_server *s);
+
+typedef struct rths_server_stats {
+    uint64_t samples;          /* loop cycles run */
+    uint64_t overruns;         /* cycles woken after the next deadline had already passed */
+    uint64_t resyncs;          /* times the loop gave up catching up and restarted its clock */
+    double worst_lateness_s;
+    double lateness_p50_s, lateness_p90_s, lateness_p99_s, lateness_p999_s; /* 1 us bins */
+    double step_mean_s, step_p50_s, step_p99_s, step_max_s;                 /* 0.1 us bins */
+    int rt_fifo, rt_mlock, rt_pinned;
+    int armed;
+    int fault;                 /* rths_rig_fault numbering */
+    int last_disarm;           /* rths_disarm_reason (protocol.h) */
+} rths_server_stats;
+
+void rths_server_get_stats(rths_server *s, rths_server_stats *out);
+
+#endif

@@ -1,0 +1,915 @@
+/* The controller process: wall-clock paced loop thread + network thread (see server.h).
+ *
+ * Everything the loop touches is allocated before it starts: the command ring (network -> loop),
+ * the trace ring (loop -> network), the lateness and step-cost histograms, and the published
+ * state, all atomics. The step's own period ring (loop -> network) lives in the engine. The
+ * network thread owns the socket and the protocol; it never blocks on a client (non-blocking
+ * sends from a bounded transmit buffer; stream frames are dropped, never waited for). */
+#include "rths/server.h"
+
+#include "controller/server_engine.h"
+#include "rths/protocol.h"
+
+#include <errno.h>
+#include <math.h>
+#include <netdb.h>
+#include <netinet/in.h>
+#include <netinet/tcp.h>
+#include <poll.h>
+#include <pthread.h>
+#include <sched.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/mman.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#if defined(__SANITIZE_ADDRESS__)
+#define RTHS_ASAN 1
+#elif defined(__has_feature)
+#if __has_feature(address_sanitizer)
+#define RTHS_ASAN 1
+#endif
+#endif
+
+#define CMD_RING 64            /* commands in flight; the network waits for each, so few */
+#define TRACE_RING 16384       /* trace samples between network-thread wake-ups */
+#define LAT_BINS 50000         /* lateness histogram: 1 us bins up to 50 ms, then overflow */
+#define STEP_BINS 10000        /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
+#define RX_CAP 8192
+#define TX_CAP (256 * 1024)
+#define TX_RESERVE (32 * 1024) /* room kept for replies: stream frames never take it */
+
+/* ---- single-producer single-consumer ring of fixed-size items ---- */
+
+typedef struct spsc {
+    _Atomic size_t head; /* written by the producer */
+    _Atomic size_t tail; /* written by the consumer */
+    size_t mask, item;
+    unsigned char *buf;
+} spsc;
+
+static int spsc_init(spsc *q, size_t count_pow2, size_t item) {
+    atomic_init(&q->head, 0);
+    atomic_init(&q->tail, 0);
+    q->mask = count_pow2 - 1;
+    q->item = item;
+    q->buf = calloc(count_pow2, item);
+    return q->buf != NULL;
+}
+
+static int spsc_push(spsc *q, const void *item) {
+    size_t h = atomic_load_explicit(&q->head, memory_order_relaxed);
+    size_t t = atomic_load_explicit(&q->tail, memory_order_acquire);
+    if (h - t > q->mask) return 0;
+    memcpy(q->buf + (h & q->mask) * q->item, item, q->item);
+    atomic_store_explicit(&q->head, h + 1, memory_order_release);
+    return 1;
+}
+
+static int spsc_pop(spsc *q, void *item) {
+    size_t t = atomic_load_explicit(&q->tail, memory_order_relaxed);
+    size_t h = atomic_load_explicit(&q->head, memory_order_acquire);
+    if (t == h) return 0;
+    memcpy(item, q->buf + (t & q->mask) * q->item, q->item);
+    atomic_store_explicit(&q->tail, t + 1, memory_order_release);
+    return 1;
+}
+
+/* ---- state ---- */
+
+enum { CMD_ARM = 1, CMD_DISARM, CMD_FORCING, CMD_TARGET, CMD_RESET };
+
+typedef struct loop_cmd {
+    uint32_t id;
+    int type;
+    int reason; /* CMD_DISARM: rths_disarm_reason */
+    double frequency_hz, amplitude_n;
+    int harmonics;
+    double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
+} loop_cmd;
+
+typedef struct client {
+    int fd;
+    int hello;
+    char peer[80];
+    uint8_t rx[RX_CAP];
+    size_t rx_len;
+    uint8_t *tx;
+    size_t tx_len;
+    int sub_periods, sub_traces;
+    rths_proto_trace_sample batch[RTHS_PROTO_MAX_TRACE_BATCH];
+    int batch_n;
+    int last_armed, last_fault; /* state last reported, for pushed STATUS frames */
+} client;
+
+struct rths_server {
+    rths_server_options opt;
+    rths_engine *engine;
+    rths_engine_info info;
+    int listen_fd;
+    int port;
+    int64_t period_ns;
+    pthread_t loop_thread, net_thread;
+    int loop_started, net_started;
+    atomic_int stop;
+    atomic_int loop_ready;
+
+    spsc cmds, traces;
+    uint32_t next_cmd_id; /* network thread */
+    _Atomic uint32_t applied_id;
+    atomic_int applied_result;
+    _Atomic uint64_t applied_sample;
+
+    /* published by the loop */
+    _Atomic uint64_t samples, overruns, resyncs, worst_late_ns, worst_step_ns, step_sum_ns;
+    atomic_int armed, fault, last_disarm, rt_flags;
+    _Atomic uint64_t freq_bits, amp_bits;
+    _Atomic uint32_t *lat_hist;  /* LAT_BINS + 1 */
+    _Atomic uint32_t *step_hist; /* STEP_BINS + 1 */
+
+    /* written by the network thread, read by the loop */
+    _Atomic int64_t last_rx_ns;
+    atomic_int trace_on;
+    _Atomic uint32_t trace_decimation;
+
+    /* network thread only */
+    client c;
+    rths_proto_period latest;
+    int have_latest;
+    _Atomic uint64_t periods_dropped;
+};
+
+static int64_t mono_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+static uint64_t dbits(double x) {
+    uint64_t u;
+    memcpy(&u, &x, sizeof u);
+    return u;
+}
+
+static double bitsd(uint64_t u) {
+    double x;
+    memcpy(&x, &u, sizeof x);
+    return x;
+}
+
+/* Loop-thread-only counters: a plain load + store (no locked instruction) is enough because
+ * there is one writer; readers on other threads see a consistent value of each word. */
+static inline void bump32(_Atomic uint32_t *p) {
+    atomic_store_explicit(p, atomic_load_explicit(p, memory_order_relaxed) + 1,
+                          memory_order_relaxed);
+}
+
+static inline void add64(_Atomic uint64_t *p, uint64_t v) {
+    atomic_store_explicit(p, atomic_load_explicit(p, memory_order_relaxed) + v,
+                          memory_order_relaxed);
+}
+
+static inline void max64(_Atomic uint64_t *p, uint64_t v) {
+    if (v > atomic_load_explicit(p, memory_order_relaxed))
+        atomic_store_explicit(p, v, memory_order_relaxed);
+}
+
+/* ---- options and configuration ---- */
+
+void rths_server_options_defaults(rths_server_options *opt) {
+    memset(opt, 0, sizeof *opt);
+    snprintf(opt->host, sizeof opt->host, "127.0.0.1");
+    opt->port = 7400;
+    opt->watchdog_s = 1.0;
+    opt->realtime = 1;
+    opt->priority = 80;
+    opt->cpu = -1;
+    opt->max_frequency_hz = 100.0;
+    opt->max_amplitude_n = 20.0;
+}
+
+/* ---- the loop thread ---- */
+
+static void apply_cmd(rths_server *s, const loop_cmd *c) {
+    int result = 0;
+    rths_engine *e = s->engine;
+    switch (c->type) {
+    case CMD_ARM:
+        result = rths_engine_arm(e);
+        break;
+    case CMD_DISARM:
+        if (rths_engine_armed(e)) atomic_store(&s->last_disarm, c->reason);
+        rths_engine_disarm(e);
+        break;
+    case CMD_FORCING:
+        rths_engine_set_forcing(e, c->frequency_hz, c->amplitude_n);
+        atomic_store_explicit(&s->freq_bits, dbits(c->frequency_hz), memory_order_relaxed);
+        atomic_store_explicit(&s->amp_bits, dbits(c->amplitude_n), memory_order_relaxed);
+        break;
+    case CMD_TARGET:
+        rths_engine_set_target(e, c->harmonics, c->a, c->b);
+        break;
+    case CMD_RESET:
+        rths_engine_reset_fault(e);
+        break;
+    }
+    atomic_store_explicit(&s->applied_result, result, memory_order_relaxed);
+    atomic_store_explicit(&s->applied_sample, atomic_load(&s->samples), memory_order_relaxed);
+    atomic_store_explicit(&s->applied_id, c->id, memory_order_release);
+}
+
+static void rt_setup(rths_server *s) {
+    int flags = 0;
+    if (s->opt.realtime) {
+        long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
+        int cpu = s->opt.cpu >= 0 ? s->opt.cpu : (int)(ncpu > 0 ? ncpu - 1 : 0);
+        cpu_set_t set;
+        CPU_ZERO(&set);
+        CPU_SET(cpu, &set);
+        if (!pthread_setaffinity_np(pthread_self(), sizeof set, &set))
+            flags |= RTHS_STATUS_RT_PINNED;
+        struct sched_param sp = {.sched_priority = s->opt.priority};
+        if (!pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp)) flags |= RTHS_STATUS_RT_FIFO;
+        /* Pre-fault a stack reserve so the first deep call does not page-fault mid-loop. */
+        volatile unsigned char stack[64 * 1024];
+        for (size_t i = 0; i < sizeof stack; i += 4096) stack[i] = 0;
+    }
+    atomic_fetch_or(&s->rt_flags, flags);
+}
+
+static void *loop_main(void *arg) {
+    rths_server *s = arg;
+    rt_setup(s);
+    atomic_store(&s->loop_ready, 1);
+    const int64_t period = s->period_ns;
+    const int64_t watchdog_ns = (int64_t)(s->opt.watchdog_s * 1e9);
+    /* After a stop request the loop keeps stepping, disarmed, long enough for the step's ramp to
+     * bring the demand to zero: a real rig must not be left with a held demand. */
+    int64_t shutdown_left = -1;
+    uint32_t decim_count = 0;
+    int prev_armed = 0;
+    struct timespec next;
+    clock_gettime(CLOCK_MONOTONIC, &next);
+    for (;;) {
+        next.tv_nsec += period;
+        while (next.tv_nsec >= 1000000000) {
+            next.tv_nsec -= 1000000000;
+            next.tv_sec++;
+        }
+        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL) == EINTR) {
+        }
+        int64_t now = mono_ns();
+        int64_t deadline = (int64_t)next.tv_sec * 1000000000 + next.tv_nsec;
+        int64_t late = now - deadline;
+        if (late < 0) late = 0;
+        uint64_t bin = (uint64_t)late / 1000u;
+        bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
+        max64(&s->worst_late_ns, (uint64_t)late);
+        if (late >= period) add64(&s->overruns, 1);
+        if (late > 1000 * period) { /* 0.1 s behind at 10 kHz: catching up would only burst */
+            next.tv_sec = now / 1000000000;
+            next.tv_nsec = now % 1000000000;
+            add64(&s->resyncs, 1);
+        }
+
+        if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
+            if (rths_engine_armed(s->engine))
+                atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
+            rths_engine_disarm(s->engine);
+            shutdown_left = (int64_t)(0.5e9 / (double)period) + 1;
+        }
+        if (shutdown_left < 0) {
+            loop_cmd c;
+            while (spsc_pop(&s->cmds, &c)) apply_cmd(s, &c);
+            if (rths_engine_armed(s->engine) &&
+                now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
+                atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
+                rths_engine_trip_watchdog(s->engine);
+            }
+        } else if (shutdown_left-- == 0) {
+            break;
+        }
+
+        rths_proto_trace_sample sig;
+        int64_t t0 = mono_ns();
+        rths_engine_step(s->engine, &sig);
+        int64_t cost = mono_ns() - t0;
+        uint64_t sb = (uint64_t)(cost > 0 ? cost : 0) / 100u;
+        bump32(&s->step_hist[sb < STEP_BINS ? sb : STEP_BINS]);
+        add64(&s->step_sum_ns, (uint64_t)(cost > 0 ? cost : 0));
+        max64(&s->worst_step_ns, (uint64_t)(cost > 0 ? cost : 0));
+
+        if (atomic_load_explicit(&s->trace_on, memory_order_relaxed)) {
+            uint32_t d = atomic_load_explicit(&s->trace_decimation, memory_order_relaxed);
+            if (++decim_count >= d) {
+                decim_count = 0;
+                spsc_push(&s->traces, &sig); /* full: the sample is lost, never waited for */
+            }
+        } else {
+            decim_count = 0;
+        }
+        int armed = rths_engine_armed(s->engine);
+        int fault = rths_engine_fault(s->engine);
+        if (prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
+            atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
+        prev_armed = armed;
+        atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
+        atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
+        add64(&s->samples, 1);
+    }
+    atomic_store(&s->armed, 0);
+    return NULL;
+}
+
+/* ---- the network thread ---- */
+
+static double ctl_time(rths_server *s) {
+    return (double)atomic_load_explicit(&s->samples, memory_order_relaxed) * (double)s->period_ns *
+           1e-9;
+}
+
+/* Queues a frame; stream frames (replies == 0) only when the reply reserve stays free. */
+static int queue_frame(rths_server *s, rths_msg *m, int reply) {
+    client *c = &s->c;
+    if (c->fd < 0) return 0;
+    size_t room = TX_CAP - c->tx_len;
+    if (!reply) room = room > TX_RESERVE ? room - TX_RESERVE : 0;
+    size_t n = rths_proto_encode(m, c->tx + c->tx_len, room);
+    if (!n) return 0;
+    c->tx_len += n;
+    return 1;
+}
+
+static void send_error(rths_server *s, uint16_t seq, int code, int req_type, const char *msg) {
+    rths_msg m;
+    rths_msg_error(&m, seq, code, req_type, "%s", msg);
+    queue_frame(s, &m, 1);
+}
+
+static int flush_tx(rths_server *s);
+
+static void drop_client(rths_server *s, const char *why) {
+    client *c = &s->c;
+    if (c->fd < 0) return;
+    (void)flush_tx(s); /* best effort: a final ERROR frame may still get out */
+    close(c->fd);
+    c->fd = -1;
+    atomic_store(&s->trace_on, 0);
+    if (!s->opt.quiet) fprintf(stderr, "rths controller: client %s disconnected (%s)\n", c->peer, why);
+    if (atomic_load(&s->armed)) {
+        /* Loss of the controlling connection disarms: excitation and target ramp to zero. */
+        loop_cmd cmd = {.id = ++s->next_cmd_id, .type = CMD_DISARM, .reason = RTHS_DISARM_LINK};
+        spsc_push(&s->cmds, &cmd);
+    }
+}
+
+/* Sends what the socket takes now; -1 when the connection is broken. */
+static int flush_tx(rths_server *s) {
+    client *c = &s->c;
+    while (c->fd >= 0 && c->tx_len) {
+        ssize_t k = send(c->fd, c->tx, c->tx_len, MSG_DONTWAIT | MSG_NOSIGNAL);
+        if (k < 0 && errno == EINTR) continue;
+        if (k < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return 0;
+        if (k <= 0) {
+            c->tx_len = 0;
+            return -1;
+        }
+        memmove(c->tx, c->tx + k, c->tx_len - (size_t)k);
+        c->tx_len -= (size_t)k;
+    }
+    return 0;
+}
+
+/* Posts a command and waits (a few samples) for the loop to apply it. */
+static int run_cmd(rths_server *s, loop_cmd *cmd, double *applied_time) {
+    cmd->id = ++s->next_cmd_id;
+    int64_t give_up = mono_ns() + 2000000000;
+    while (!spsc_push(&s->cmds, cmd)) {
+        if (mono_ns() > give_up) return RTHS_PROTO_ESTATE;
+        struct timespec ts = {0, 50000};
+        nanosleep(&ts, NULL);
+    }
+    while ((int32_t)(atomic_load_explicit(&s->applied_id, memory_order_acquire) - cmd->id) < 0) {
+        if (mono_ns() > give_up || atomic_load(&s->stop)) return RTHS_PROTO_ESTATE;
+        struct timespec ts = {0, 50000};
+        nanosleep(&ts, NULL);
+    }
+    *applied_time = (double)atomic_load_explicit(&s->applied_sample, memory_order_relaxed) *
+                    (double)s->period_ns * 1e-9;
+    return atomic_load_explicit(&s->applied_result, memory_order_relaxed);
+}
+
+static void fill_status(rths_server *s, rths_proto_status_msg *st) {
+    memset(st, 0, sizeof *st);
+    st->time_s = ctl_time(s);
+    int flags = atomic_load(&s->rt_flags);
+    if (atomic_load(&s->armed)) flags |= RTHS_STATUS_ARMED;
+    if (s->c.fd >= 0) flags |= RTHS_STATUS_CLIENT_OWNS;
+    st->flags = (uint8_t)flags;
+    st->fault = (uint8_t)atomic_load(&s->fault);
+    st->last_disarm = (uint8_t)atomic_load(&s->last_disarm);
+    st->frequency_hz = bitsd(atomic_load(&s->freq_bits));
+    st->amplitude_n = bitsd(atomic_load(&s->amp_bits));
+    st->samples = atomic_load(&s->samples);
+    st->overruns = atomic_load(&s->overruns);
+    st->worst_lateness_s = (double)atomic_load(&s->worst_late_ns) * 1e-9;
+    st->periods_dropped = atomic_load(&s->periods_dropped);
+    int bin = 0;
+    for (int i = 0; i <= LAT_BINS; i++) {
+        /* fine bin i covers [i, i+1) us; coarse edges are whole microseconds */
+        while (bin < RTHS_PROTO_LATENCY_BINS - 1 && i >= (int)(rths_proto_latency_edges_s[bin] * 1e6 + 0.5))
+            bin++;
+        st->latency_hist[bin] += atomic_load_explicit(&s->lat_hist[i], memory_order_relaxed);
+    }
+}
+
+/* The rths_rig_fault numbering (rig.h is above this module, so the names are repeated). */
+static const char *fault_name(int f) {
+    switch (f) {
+    case 0: return "no";
+    case 1: return "displacement limit";
+    case 2: return "force limit";
+    case 3: return "demand limit";
+    case 4: return "non-finite signal";
+    case 6: return "watchdog";
+    }
+    return "unknown";
+}
+
+static void reply_ack(rths_server *s, const rths_msg *req, double t) {
+    rths_msg m;
+    rths_msg_init(&m, RTHS_MSG_ACK, req->seq);
+    m.u.ack.acked_type = req->type;
+    m.u.ack.time_s = t;
+    queue_frame(s, &m, 1);
+}
+
+static void handle(rths_server *s, const rths_msg *m) {
+    client *c = &s->c;
+    char msg[RTHS_PROTO_MAX_TEXT + 1];
+    if (!c->hello && m->type != RTHS_MSG_HELLO) {
+        send_error(s, m->seq, RTHS_PROTO_ESTATE, m->type, "send HELLO first");
+        return;
+    }
+    loop_cmd cmd;
+    memset(&cmd, 0, sizeof cmd);
+    double t = ctl_time(s);
+    int rc;
+    switch (m->type) {
+    case RTHS_MSG_HELLO: {
+        if (m->u.hello.version != RTHS_PROTO_VERSION) {
+            snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u",
+                     RTHS_PROTO_VERSION, m->u.hello.version);
+            send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
+            drop_client(s, "protocol version mismatch");
+            return;
+        }
+        c->hello = 1;
+        rths_msg r;
+        rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
+        r.u.hello_reply.version = RTHS_PROTO_VERSION;
+        r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
+        r.u.hello_reply.sample_period_s = s->info.sample_period_s;
+        r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
+        r.u.hello_reply.noise_level_m = s->info.noise_level_m;
+        snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
+        queue_frame(s, &r, 1);
+        if (!s->opt.quiet)
+            fprintf(stderr, "rths controller: client %s says hello (%s)\n", c->peer,
+                    m->u.hello.name);
+        return;
+    }
+    case RTHS_MSG_ARM:
+        cmd.type = CMD_ARM;
+        if ((rc = run_cmd(s, &cmd, &t))) {
+            snprintf(msg, sizeof msg, "cannot arm: %s fault latched; send RESET_FAULT first",
+                     fault_name(atomic_load(&s->fault)));
+            send_error(s, m->seq, rc, m->type, msg);
+            return;
+        }
+        reply_ack(s, m, t);
+        return;
+    case RTHS_MSG_DISARM:
+        cmd.type = CMD_DISARM;
+        cmd.reason = RTHS_DISARM_COMMAND;
+        run_cmd(s, &cmd, &t);
+        reply_ack(s, m, t);
+        return;
+    case RTHS_MSG_SET_FORCING:
+        if (!(m->u.forcing.frequency_hz > 0) ||
+            m->u.forcing.frequency_hz > s->opt.max_frequency_hz ||
+            fabs(m->u.forcing.amplitude_n) > s->opt.max_amplitude_n) {
+            snprintf(msg, sizeof msg,
+                     "forcing %g Hz, %g N outside (0, %g] Hz, |amplitude| <= %g N "
+                     "(server.max_frequency_hz, server.max_amplitude_n)",
+                     m->u.forcing.frequency_hz, m->u.forcing.amplitude_n, s->opt.max_frequency_hz,
+                     s->opt.max_amplitude_n);
+            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+            return;
+        }
+        cmd.type = CMD_FORCING;
+        cmd.frequency_hz = m->u.forcing.frequency_hz;
+        cmd.amplitude_n = m->u.forcing.amplitude_n;
+        run_cmd(s, &cmd, &t);
+        reply_ack(s, m, t);
+        return;
+    case RTHS_MSG_SET_TARGET:
+        if (m->u.target.harmonics > s->info.max_harmonics) {
+            snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
+                     m->u.target.harmonics, s->info.max_harmonics);
+            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+            return;
+        }
+        cmd.type = CMD_TARGET;
+        cmd.harmonics = m->u.target.harmonics;
+        memcpy(cmd.a, m->u.target.a, sizeof cmd.a);
+        memcpy(cmd.b, m->u.target.b, sizeof cmd.b);
+        run_cmd(s, &cmd, &t);
+        reply_ack(s, m, t);
+        return;
+    case RTHS_MSG_GET_STATUS: {
+        rths_msg r;
+        rths_msg_init(&r, RTHS_MSG_STATUS, m->seq);
+        fill_status(s, &r.u.status);
+        queue_frame(s, &r, 1);
+        c->last_armed = r.u.status.flags & RTHS_STATUS_ARMED ? 1 : 0;
+        c->last_fault = r.u.status.fault;
+        return;
+    }
+    case RTHS_MSG_GET_COEFFS: {
+        if (!s->have_latest) {
+            send_error(s, m->seq, RTHS_PROTO_ENODATA, m->type, "no whole period yet");
+            return;
+        }
+        rths_msg r;
+        rths_msg_init(&r, RTHS_MSG_PERIOD, m->seq);
+        r.u.period = s->latest;
+        queue_frame(s, &r, 1);
+        return;
+    }
+    case RTHS_MSG_SUBSCRIBE:
+        c->sub_periods = (m->u.subscribe.flags & RTHS_SUBSCRIBE_PERIODS) != 0;
+        c->sub_traces = (m->u.subscribe.flags & RTHS_SUBSCRIBE_TRACES) != 0;
+        /* Samples queued under the old subscription must not be mistaken for new ones. */
+        atomic_store(&s->trace_on, 0);
+        {
+            rths_proto_trace_sample junk;
+            while (spsc_pop(&s->traces, &junk)) {
+            }
+        }
+        c->batch_n = 0;
+        atomic_store(&s->trace_decimation, m->u.subscribe.trace_decimation);
+        atomic_store(&s->trace_on, c->sub_traces);
+        reply_ack(s, m, ctl_time(s));
+        return;
+    case RTHS_MSG_RESET_FAULT:
+        cmd.type = CMD_RESET;
+        run_cmd(s, &cmd, &t);
+        reply_ack(s, m, t);
+        return;
+    case RTHS_MSG_PING:
+        reply_ack(s, m, t);
+        return;
+    default:
+        /* Replies-only types sent to the controller. */
+        snprintf(msg, sizeof msg, "%s is not a request", rths_msg_type_name(m->type));
+        send_error(s, m->seq, RTHS_PROTO_ETYPE, m->type, msg);
+        return;
+    }
+}
+
+static void read_client(rths_server *s) {
+    client *c = &s->c;
+    ssize_t k = recv(c->fd, c->rx + c->rx_len, RX_CAP - c->rx_len, MSG_DONTWAIT);
+    if (k < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return;
+    if (k <= 0) {
+        drop_client(s, k == 0 ? "closed by the host" : strerror(errno));
+        return;
+    }
+    c->rx_len += (size_t)k;
+    size_t off = 0;
+    while (c->fd >= 0) {
+        rths_msg m;
+        size_t used = 0;
+        int st = rths_proto_decode(c->rx + off, c->rx_len - off, &m, &used);
+        if (st == RTHS_PROTO_INCOMPLETE) break;
+        if (rths_proto_status_is_fatal(st)) {
+            char why[160];
+            snprintf(why, sizeof why, "%s; closing the connection", rths_proto_status_name(st));
+            send_error(s, 0, st, 0, why);
+            drop_client(s, rths_proto_status_name(st));
+            return;
+        }
+        off += used;
+        atomic_store_explicit(&s->last_rx_ns, mono_ns(), memory_order_relaxed);
+        if (st != RTHS_PROTO_OK) {
+            char why[160];
+            snprintf(why, sizeof why, "%s %s (type 0x%02x)", rths_msg_type_name(m.type),
+                     rths_proto_status_name(st), m.type);
+            send_error(s, m.seq, st, m.type, why);
+            continue;
+        }
+        handle(s, &m);
+    }
+    if (c->fd >= 0) {
+        memmove(c->rx, c->rx + off, c->rx_len - off);
+        c->rx_len -= off;
+    }
+}
+
+static void accept_client(rths_server *s) {
+    struct sockaddr_storage sa;
+    socklen_t sl = sizeof sa;
+    int fd = accept4(s->listen_fd, (struct sockaddr *)&sa, &sl, SOCK_NONBLOCK | SOCK_CLOEXEC);
+    if (fd < 0) return;
+    char host[64] = "?", serv[16] = "?";
+    getnameinfo((struct sockaddr *)&sa, sl, host, sizeof host, serv, sizeof serv,
+                NI_NUMERICHOST | NI_NUMERICSERV);
+    if (s->c.fd >= 0 && atomic_load(&s->armed)) {
+        /* One controlling client: the armed session is never disturbed by a newcomer. */
+        uint8_t buf[RTHS_PROTO_MAX_FRAME];
+        rths_msg m;
+        rths_msg_error(&m, 0, RTHS_PROTO_EBUSY, 0, "controller armed by %s; try later", s->c.peer);
+        size_t n = rths_proto_encode(&m, buf, sizeof buf);
+        ssize_t sent = send(fd, buf, n, MSG_DONTWAIT | MSG_NOSIGNAL);
+        (void)sent;
+        close(fd);
+        if (!s->opt.quiet)
+            fprintf(stderr, "rths controller: refused %s:%s (busy, armed by %s)\n", host, serv,
+                    s->c.peer);
+        return;
+    }
+    if (s->c.fd >= 0) drop_client(s, "replaced by a new connection");
+    client *c = &s->c;
+    c->fd = fd;
+    c->hello = 0;
+    c->rx_len = 0;
+    c->tx_len = 0;
+    c->sub_periods = c->sub_traces = 0;
+    c->batch_n = 0;
+    c->last_armed = atomic_load(&s->armed);
+    c->last_fault = atomic_load(&s->fault);
+    snprintf(c->peer, sizeof c->peer, "%s:%s", host, serv);
+    int one = 1;
+    setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
+    atomic_store(&s->last_rx_ns, mono_ns());
+}
+
+static void pump_streams(rths_server *s) {
+    client *c = &s->c;
+    rths_msg m;
+    rths_proto_period p;
+    while (rths_engine_pop_period(s->engine, &p)) {
+        s->latest = p;
+        s->have_latest = 1;
+        if (c->fd >= 0 && c->hello && c->sub_periods) {
+            rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
+            m.u.period = p;
+            if (!queue_frame(s, &m, 0)) atomic_fetch_add(&s->periods_dropped, 1);
+        }
+    }
+    rths_proto_trace_sample ts;
+    while (spsc_pop(&s->traces, &ts)) {
+        if (c->fd < 0 || !c->sub_traces) continue;
+        c->batch[c->batch_n++] = ts;
+        if (c->batch_n == RTHS_PROTO_MAX_TRACE_BATCH) {
+            rths_msg_init(&m, RTHS_MSG_TRACE, 0);
+            m.u.trace.count = c->batch_n;
+            memcpy(m.u.trace.s, c->batch, sizeof c->batch);
+            queue_frame(s, &m, 0);
+            c->batch_n = 0;
+        }
+    }
+    /* A partial batch goes out at once: the host may be waiting for its last samples. */
+    if (c->fd >= 0 && c->batch_n) {
+        rths_msg_init(&m, RTHS_MSG_TRACE, 0);
+        m.u.trace.count = c->batch_n;
+        memcpy(m.u.trace.s, c->batch, sizeof c->batch[0] * (size_t)c->batch_n);
+        queue_frame(s, &m, 0);
+        c->batch_n = 0;
+    }
+    if (c->fd >= 0 && c->hello) {
+        int armed = atomic_load(&s->armed), fault = atomic_load(&s->fault);
+        if (armed != c->last_armed || fault != c->last_fault) {
+            rths_msg_init(&m, RTHS_MSG_STATUS, 0);
+            fill_status(s, &m.u.status);
+            queue_frame(s, &m, 1);
+            c->last_armed = armed;
+            c->last_fault = fault;
+        }
+    }
+}
+
+static void *net_main(void *arg) {
+    rths_server *s = arg;
+    while (!atomic_load(&s->stop)) {
+        struct pollfd pfd[2] = {{s->listen_fd, POLLIN, 0}, {s->c.fd, POLLIN, 0}};
+        if (s->c.fd >= 0 && s->c.tx_len) pfd[1].events |= POLLOUT;
+        int n = poll(pfd, s->c.fd >= 0 ? 2 : 1, 1);
+        if (n > 0 && (pfd[0].revents & POLLIN)) accept_client(s);
+        if (n > 0 && s->c.fd >= 0 && pfd[1].fd == s->c.fd &&
+            (pfd[1].revents & (POLLIN | POLLERR | POLLHUP)))
+            read_client(s);
+        pump_streams(s);
+        if (flush_tx(s)) drop_client(s, "send failed");
+    }
+    drop_client(s, "controller stopping");
+    return NULL;
+}
+
+/* ---- lifetime ---- */
+
+static int bind_listen(rths_server *s, rths_error *err) {
+    char port[16];
+    snprintf(port, sizeof port, "%d", s->opt.port);
+    struct addrinfo hints = {0}, *res = NULL;
+    hints.ai_family = AF_UNSPEC;
+    hints.ai_socktype = SOCK_STREAM;
+    hints.ai_flags = AI_PASSIVE | AI_NUMERICSERV;
+    int gai = getaddrinfo(s->opt.host, port, &hints, &res);
+    if (gai)
+        return rths_error_set(err, RTHS_EINPUT, "listen address '%s': %s", s->opt.host,
+                              gai_strerror(gai));
+    int fd = -1;
+    char why[200] = "no usable address";
+    for (struct addrinfo *ai = res; ai; ai = ai->ai_next) {
+        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK,
+                    ai->ai_protocol);
+        if (fd < 0) continue;
+        int one = 1;
+        /* A restarted controller must get its port back while old connections sit in TIME_WAIT. */
+        setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
+        if (!bind(fd, ai->ai_addr, ai->ai_addrlen) && !listen(fd, 4)) {
+            struct sockaddr_storage sa;
+            socklen_t sl = sizeof sa;
+            getsockname(fd, (struct sockaddr *)&sa, &sl);
+            char serv[16];
+            getnameinfo((struct sockaddr *)&sa, sl, NULL, 0, serv, sizeof serv, NI_NUMERICSERV);
+            s->port = atoi(serv);
+            break;
+        }
+        snprintf(why, sizeof why, "%s", strerror(errno));
+        close(fd);
+        fd = -1;
+    }
+    freeaddrinfo(res);
+    if (fd < 0)
+        return rths_error_set(err, RTHS_EFAIL, "cannot listen on %s:%d: %s", s->opt.host,
+                              s->opt.port, why);
+    s->listen_fd = fd;
+    return RTHS_OK;
+}
+
+int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_server **out,
+                       rths_error *err) {
+    *out = NULL;
+    rths_server *s = calloc(1, sizeof *s);
+    if (!s) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    s->opt = *opt;
+    s->listen_fd = -1;
+    s->c.fd = -1;
+    int rc = rths_engine_create(cfg, &s->engine, &s->info, err);
+    if (rc) {
+        free(s);
+        return rc;
+    }
+    s->period_ns = (int64_t)llround(s->info.sample_period_s * 1e9);
+    s->c.tx = malloc(TX_CAP);
+    s->lat_hist = calloc(LAT_BINS + 1, sizeof *s->lat_hist);
+    s->step_hist = calloc(STEP_BINS + 1, sizeof *s->step_hist);
+    if (!s->c.tx || !s->lat_hist || !s->step_hist ||
+        !spsc_init(&s->cmds, CMD_RING, sizeof(loop_cmd)) ||
+        !spsc_init(&s->traces, TRACE_RING, sizeof(rths_proto_trace_sample))) {
+        rths_server_destroy(s);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    if (s->period_ns < 1000) {
+        rths_server_destroy(s);
+        return rths_error_set(err, RTHS_EINPUT, "sample period %g s is below 1 us",
+                              s->info.sample_period_s);
+    }
+    atomic_store(&s->freq_bits, dbits(0.0));
+    atomic_store(&s->amp_bits, dbits(0.0));
+    atomic_store(&s->trace_decimation, 1);
+    if ((rc = bind_listen(s, err))) {
+        rths_server_destroy(s);
+        return rc;
+    }
+    *out = s;
+    return RTHS_OK;
+}
+
+int rths_server_port(const rths_server *s) { return s->port; }
+double rths_server_sample_period_s(const rths_server *s) { return s->info.sample_period_s; }
+
+int rths_server_start(rths_server *s, rths_error *err) {
+    if (s->loop_started) return RTHS_OK;
+    int mlocked = 0;
+    char mlock_why[160] = "";
+    if (s->opt.realtime) {
+#ifdef RTHS_ASAN
+        snprintf(mlock_why, sizeof mlock_why, "not with AddressSanitizer (its shadow memory)");
+#else
+        if (!mlockall(MCL_CURRENT | MCL_FUTURE))
+            mlocked = 1;
+        else
+            snprintf(mlock_why, sizeof mlock_why, "%s", strerror(errno));
+#endif
+    }
+    if (mlocked) atomic_fetch_or(&s->rt_flags, RTHS_STATUS_RT_MLOCK);
+    atomic_store(&s->last_rx_ns, mono_ns());
+    int e = pthread_create(&s->loop_thread, NULL, loop_main, s);
+    if (e) return rths_error_set(err, RTHS_EFAIL, "cannot start the loop thread: %s", strerror(e));
+    s->loop_started = 1;
+    while (!atomic_load(&s->loop_ready)) {
+        struct timespec ts = {0, 100000};
+        nanosleep(&ts, NULL);
+    }
+    if ((e = pthread_create(&s->net_thread, NULL, net_main, s))) {
+        rths_server_stop(s);
+        return rths_error_set(err, RTHS_EFAIL, "cannot start the network thread: %s",
+                              strerror(e));
+    }
+    s->net_started = 1;
+    if (!s->opt.quiet) {
+        int f = atomic_load(&s->rt_flags);
+        if (!s->opt.realtime)
+            fprintf(stderr, "rths controller: notice: real-time features off (server.realtime: "
+                            "false); loop timing is best effort\n");
+        else {
+            if (!(f & RTHS_STATUS_RT_FIFO))
+                fprintf(stderr, "rths controller: notice: SCHED_FIFO priority %d not permitted; "
+                                "the loop runs at normal priority (timing best effort)\n",
+                        s->opt.priority);
+            if (!mlocked)
+                fprintf(stderr, "rths controller: notice: memory not locked (%s); page faults "
+                                "may delay the loop\n", mlock_why);
+            if (!(f & RTHS_STATUS_RT_PINNED))
+                fprintf(stderr, "rths controller: notice: loop thread not pinned to a CPU\n");
+        }
+    }
+    return RTHS_OK;
+}
+
+void rths_server_stop(rths_server *s) {
+    if (!s) return;
+    atomic_store(&s->stop, 1);
+    if (s->net_started) pthread_join(s->net_thread, NULL);
+    if (s->loop_started) pthread_join(s->loop_thread, NULL);
+    s->net_started = s->loop_started = 0;
+    if (atomic_load(&s->rt_flags) & RTHS_STATUS_RT_MLOCK) munlockall();
+}
+
+void rths_server_destroy(rths_server *s) {
+    if (!s) return;
+    rths_server_stop(s);
+    if (s->c.fd >= 0) close(s->c.fd);
+    if (s->listen_fd >= 0) close(s->listen_fd);
+    rths_engine_destroy(s->engine);
+    free(s->c.tx);
+    free(s->lat_hist);
+    free(s->step_hist);
+    free(s->cmds.buf);
+    free(s->traces.buf);
+    free(s);
+}
+
+static double hist_quantile(_Atomic uint32_t *h, int bins, double width_s, double q) {
+    uint64_t total = 0;
+    for (int i = 0; i <= bins; i++) total += atomic_load_explicit(&h[i], memory_order_relaxed);
+    if (!total) return 0.0;
+    uint64_t want = (uint64_t)ceil(q * (double)total), acc = 0;
+    for (int i = 0; i <= bins; i++) {
+        acc += atomic_load_explicit(&h[i], memory_order_relaxed);
+        if (acc >= want) return (i + 1) * width_s; /* upper edge of the bin: conservative */
+    }
+    return (bins + 1) * width_s;
+}
+
+void rths_server_get_stats(rths_server *s, rths_server_stats *o) {
+    memset(o, 0, sizeof *o);
+    o->samples = atomic_load(&s->samples);
+    o->overruns = atomic_load(&s->overruns);
+    o->resyncs = atomic_load(&s->resyncs);
+    o->worst_lateness_s = (double)atomic_load(&s->worst_late_ns) * 1e-9;
+    o->lateness_p50_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.50);
+    o->lateness_p90_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.90);
+    o->lateness_p99_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.99);
+    o->lateness_p999_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.999);
+    o->step_mean_s = o->samples ? (double)atomic_load(&s->step_sum_ns) * 1e-9 / (double)o->samples
+                                : 0.0;
+    o->step_p50_s = hist_quantile(s->step_hist, STEP_BINS, 1e-7, 0.50);
+    o->step_p99_s = hist_quantile(s->step_hist, STEP_BINS, 1e-7, 0.99);
+    o->step_max_s = (double)atomic_load(&s->worst_step_ns) * 1e-9;
+    int f = atomic_load(&s->rt_flags);
+    o->rt_fifo = (f & RTHS_STATUS_RT_FIFO) != 0;
+    o->rt_mlock = (f & RTHS_STATUS_RT_MLOCK) != 0;
+    o->rt_pinned = (f & RTHS_STATUS_RT_PINNED) != 0;
+    o->armed = atomic_load(&s->armed);
+    o->fault = atomic_load(&s->fault);
+    o->last_disarm = atomic_load(&s->last_disarm);
+}

@@ -1,0 +1,42 @@
+/* The controller process's view of the per-sample machinery (controller step + plant seam).
+ * server.c does pacing, threads and the network; server_engine.c adapts the step and plant.
+ * Private to src/controller. Functions marked "loop" run only on the loop thread and must not
+ * allocate, block or print; "network" ones only on the network thread. */
+#ifndef RTHS_SERVER_ENGINE_H
+#define RTHS_SERVER_ENGINE_H
+
+#include "rths/config.h"
+#include "rths/protocol.h"
+
+typedef struct rths_engine rths_engine;
+
+typedef struct rths_engine_info {
+    double sample_period_s;
+    double noise_level_m;       /* displacement noise std of the plant's sensors, m */
+    int max_harmonics;
+    char description[RTHS_PROTO_MAX_TEXT + 1];
+} rths_engine_info;
+
+/* Builds step and plant from the configuration (setup, rig/plant and controller sections). */
+int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *info,
+                       rths_error *err);
+void rths_engine_destroy(rths_engine *e);
+
+/* loop: one controller sample (sensors in, step, demand out, plant advances one sample);
+ * fills the signals of this sample for traces. */
+void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig);
+/* loop: 0 when armed, RTHS_PROTO_ESTATE when a latched fault forbids it. */
+int rths_engine_arm(rths_engine *e);
+void rths_engine_disarm(rths_engine *e);            /* loop: ramp excitation and target to zero */
+void rths_engine_trip_watchdog(rths_engine *e);     /* loop: latch the watchdog fault + disarm */
+void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
+void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b);
+void rths_engine_reset_fault(rths_engine *e);       /* loop */
+int rths_engine_armed(const rths_engine *e);        /* loop */
+int rths_engine_fault(const rths_engine *e);        /* loop; rths_rig_fault numbering */
+double rths_engine_time_s(const rths_engine *e);    /* loop */
+
+/* network: next whole period from the step's ring; 1 when one was popped. */
+int rths_engine_pop_period(rths_engine *e, rths_proto_period *out);
+
+#endif

