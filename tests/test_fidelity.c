@@ -31,8 +31,9 @@ static void build(fixture *fx, int n, const double *m, const double *c, const do
     rths_error err;
     rths_dof_role r[8];
     for (int i = 0; i < n; i++)
-        r[i] = roles[i] == 'p' ? RTHS_DOF_PHYSICAL
-                               : roles[i] == 'i' ? RTHS_DOF_INTERFACE : RTHS_DOF_NUMERICAL;
+        r[i] = roles[i] == 'p'   ? RTHS_DOF_PHYSICAL
+               : roles[i] == 'i' ? RTHS_DOF_INTERFACE
+                                 : RTHS_DOF_NUMERICAL;
     assert_int_equal(rths_assembly_from_chain(n, m, c, k, &fx->a, &err), RTHS_OK);
     assert_int_equal(rths_split_create(&fx->a, r, p, NULL, NULL, &fx->s, &err), RTHS_OK);
     int rc = rths_fidelity_create(&fx->s, force, h, &fx->f, &err);
@@ -130,7 +131,8 @@ static void delayed_continuous(const rths_split *s, const double *force, double 
     int np = s->np, nn = s->nn, ni = s->n_int, n = s->n, ms = np + nn;
     /* unknowns (Q_p, Q_n, lambda); rows: physical EoM, numerical EoM, compatibility */
     int mt = ms + ni;
-    double complex *a = calloc((size_t)mt * (size_t)mt, sizeof *a), *b = calloc((size_t)mt, sizeof *b);
+    double complex *a = calloc((size_t)mt * (size_t)mt, sizeof *a),
+                   *b = calloc((size_t)mt, sizeof *b);
     double complex d = cexp(-I * w * tau);
     for (int i = 0; i < np; i++)
         for (int j = 0; j < np; j++)
@@ -142,18 +144,24 @@ static void delayed_continuous(const rths_split *s, const double *force, double 
                                           w * w * s->mass_num[i + j * nn] +
                                           I * w * s->damping_num[i + j * nn];
     for (int l = 0; l < ni; l++) {
-        a[(s->n_phys + l) + (ms + l) * mt] = -1.0;  /* physical gets +lambda */
-        a[(np + l) + (ms + l) * mt] = d;            /* numerical gets -lambda, delayed */
-        a[(ms + l) + (s->n_phys + l) * mt] = 1.0;   /* Q_p(int) - Q_n(int) = 0 */
+        a[(s->n_phys + l) + (ms + l) * mt] = -1.0; /* physical gets +lambda */
+        a[(np + l) + (ms + l) * mt] = d;           /* numerical gets -lambda, delayed */
+        a[(ms + l) + (s->n_phys + l) * mt] = 1.0;  /* Q_p(int) - Q_n(int) = 0 */
         a[(ms + l) + (np + l) * mt] = -1.0;
     }
-    for (int i = 0; i < s->n_phys; i++) b[i] = force[s->phys_dofs[i]];
-    for (int l = 0; l < ni; l++) b[np + l] = d * force[s->int_dofs[l]];
-    for (int i = 0; i < s->n_num; i++) b[np + ni + i] = d * force[s->num_dofs[i]];
+    for (int i = 0; i < s->n_phys; i++)
+        b[i] = force[s->phys_dofs[i]];
+    for (int l = 0; l < ni; l++)
+        b[np + l] = d * force[s->int_dofs[l]];
+    for (int i = 0; i < s->n_num; i++)
+        b[np + ni + i] = d * force[s->num_dofs[i]];
     assert_int_equal(rths_cmat_solve(mt, 1, a, b), 0);
-    for (int i = 0; i < s->n_phys; i++) x[s->phys_dofs[i]] = b[i];
-    for (int l = 0; l < ni; l++) x[s->int_dofs[l]] = b[s->n_phys + l];
-    for (int i = 0; i < s->n_num; i++) x[s->num_dofs[i]] = b[np + ni + i];
+    for (int i = 0; i < s->n_phys; i++)
+        x[s->phys_dofs[i]] = b[i];
+    for (int l = 0; l < ni; l++)
+        x[s->int_dofs[l]] = b[s->n_phys + l];
+    for (int i = 0; i < s->n_num; i++)
+        x[s->num_dofs[i]] = b[np + ni + i];
     (void)n;
     free(a), free(b);
 }
@@ -175,18 +183,19 @@ static void test_zoh_is_half_sample_delay(void **state) {
         double complex x[4], y[4];
         assert_int_equal(rths_fidelity_response(fx.f, RTHS_SCHEME_EXACT_ZOH, w, x, &err), RTHS_OK);
         delayed_continuous(&fx.s, force, w, h / 2, y);
-        for (int i = 0; i < 4; i++) assert_close(cabs(x[i] - y[i]), 0.0, 1e-3 * cabs(y[i]));
+        for (int i = 0; i < 4; i++)
+            assert_close(cabs(x[i] - y[i]), 0.0, 1e-3 * cabs(y[i]));
         /* and with no delay the same routine reproduces the analytic FRF (checks the routine) */
         delayed_continuous(&fx.s, force, w, 0.0, y);
         assert_int_equal(rths_fidelity_response(fx.f, RTHS_FIDELITY_TRUE, w, x, &err), RTHS_OK);
-        for (int i = 0; i < 4; i++) assert_close(cabs(x[i] - y[i]), 0.0, 1e-9 * cabs(y[i]));
+        for (int i = 0; i < 4; i++)
+            assert_close(cabs(x[i] - y[i]), 0.0, 1e-9 * cabs(y[i]));
     }
     release(&fx);
 }
 
 /* Largest DoF error relative to the largest true amplitude at hz. */
-static double rel_error(const rths_split *s, const double *force, double h, int scheme,
-                        double hz) {
+static double rel_error(const rths_split *s, const double *force, double h, int scheme, double hz) {
     rths_fidelity *f;
     rths_error err;
     assert_int_equal(rths_fidelity_create(s, force, h, &f, &err), RTHS_OK);

@@ -4,18 +4,21 @@
  * The model of a converged iterative hybrid test at a perfect interface match:
  *   - the physical substructure (split->mass_phys, ...) is continuous time:
  *       D_p(w) Q_p = F_p + E lambda,   D_p = K_p - w^2 M_p + i w C_p,
- *     where lambda is the force the actuator applies to the physical interface DoFs (E selects them);
+ *     where lambda is the force the actuator applies to the physical interface DoFs (E selects
+ * them);
  *   - the numerical substructure is discretised at step h with one scheme and driven by sampled
  *     inputs: the interface force -lambda (Newton's third law: what the physical side pushes back
  *     with, measured by the load cell) and the forcing on the interface and numerical DoFs. For a
  *     sampled harmonic input u_k = Re(U z^k), z = e^{i w h}, its steady state is
- *       X = (z I - Ad)^{-1} (b_prev + z b_curr) U      (x_{k+1} = Ad x_k + b_prev u_k + b_curr u_{k+1});
+ *       X = (z I - Ad)^{-1} (b_prev + z b_curr) U      (x_{k+1} = Ad x_k + b_prev u_k + b_curr
+ * u_{k+1});
  *   - the interface displacements (fundamental harmonic) agree: E^T Q_p = Q_n(interface).
  * One complex linear system of size (np + n_int) per frequency gives lambda and every DoF.
  *
  * Forcing on an internal physical DoF acts on the continuous physical side; forcing on an interface
  * or numerical DoF is applied by the controller to the numerical model, so it is sampled too.
- * As h -> 0 every scheme tends to the true assembly's analytic FRF (the split recombines exactly). */
+ * As h -> 0 every scheme tends to the true assembly's analytic FRF (the split recombines exactly).
+ */
 #ifndef RTHS_FIDELITY_H
 #define RTHS_FIDELITY_H
 
@@ -30,8 +33,8 @@ typedef struct rths_fidelity rths_fidelity;
 
 /* Builds the hybrid model of split s under force (n assembly DoFs, N amplitudes) with the numerical
  * substructure discretised at step h_s by every scheme. Copies what it needs from s and force. */
-int rths_fidelity_create(const rths_split *s, const double *force, double h_s,
-                         rths_fidelity **out, rths_error *err);
+int rths_fidelity_create(const rths_split *s, const double *force, double h_s, rths_fidelity **out,
+                         rths_error *err);
 void rths_fidelity_free(rths_fidelity *f);
 int rths_fidelity_dofs(const rths_fidelity *f); /* n, the assembly's DoF count */
 

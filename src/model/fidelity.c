@@ -30,14 +30,17 @@ void rths_fidelity_free(rths_fidelity *f) {
     free(f->stiffness);
     free(f->force);
     free(f->force_phys);
-    for (int s = 0; s < RTHS_SCHEME_COUNT; s++) rths_discrete_free(&f->disc[s]);
+    for (int s = 0; s < RTHS_SCHEME_COUNT; s++)
+        rths_discrete_free(&f->disc[s]);
     free(f);
 }
 
-int rths_fidelity_dofs(const rths_fidelity *f) { return f->n; }
+int rths_fidelity_dofs(const rths_fidelity *f) {
+    return f->n;
+}
 
-int rths_fidelity_create(const rths_split *s, const double *force, double h_s,
-                         rths_fidelity **out, rths_error *err) {
+int rths_fidelity_create(const rths_split *s, const double *force, double h_s, rths_fidelity **out,
+                         rths_error *err) {
     *out = NULL;
     if (!(isfinite(h_s) && h_s > 0))
         return rths_error_set(err, RTHS_EINPUT, "sample step must be positive, got %g s", h_s);
@@ -68,18 +71,23 @@ int rths_fidelity_create(const rths_split *s, const double *force, double h_s,
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
     }
-    for (int i = 0; i < s->n_phys; i++) f->phys_map[i] = s->phys_dofs[i];
+    for (int i = 0; i < s->n_phys; i++)
+        f->phys_map[i] = s->phys_dofs[i];
     for (int j = 0; j < n_int; j++) {
         f->phys_map[s->n_phys + j] = s->int_dofs[j];
         f->num_map[j] = s->int_dofs[j];
     }
-    for (int i = 0; i < s->n_num; i++) f->num_map[n_int + i] = s->num_dofs[i];
+    for (int i = 0; i < s->n_num; i++)
+        f->num_map[n_int + i] = s->num_dofs[i];
     rths_split_recombine(s, f->mass, f->damping, f->stiffness);
     /* Only internal physical DoFs are forced in continuous time; the controller applies forcing on
      * the interface and numerical DoFs to the numerical model, at the samples. */
-    for (int i = 0; i < s->n_phys; i++) f->force_phys[i] = force[s->phys_dofs[i]];
-    for (int j = 0; j < n_int; j++) RTHS_AT(input, nn, j, j) = 1.0;
-    for (int i = 0; i < nn; i++) RTHS_AT(input, nn, i, n_int) = force[f->num_map[i]];
+    for (int i = 0; i < s->n_phys; i++)
+        f->force_phys[i] = force[s->phys_dofs[i]];
+    for (int j = 0; j < n_int; j++)
+        RTHS_AT(input, nn, j, j) = 1.0;
+    for (int i = 0; i < nn; i++)
+        RTHS_AT(input, nn, i, n_int) = force[f->num_map[i]];
     rc = rths_state_space(nn, s->mass_num, s->damping_num, s->stiffness_num, f->nu, input, &a, &b,
                           err);
     for (int sc = 0; sc < RTHS_SCHEME_COUNT && !rc; sc++)
@@ -117,7 +125,8 @@ static int numerical_transfer(const rths_fidelity *f, const rths_discrete *d, do
     int info = rths_cmat_solve(nx, nu, m, y);
     if (!info)
         for (int j = 0; j < nu; j++)
-            for (int i = 0; i < f->nn; i++) RTHS_AT(g, f->nn, i, j) = RTHS_AT(y, nx, i, j);
+            for (int i = 0; i < f->nn; i++)
+                RTHS_AT(g, f->nn, i, j) = RTHS_AT(y, nx, i, j);
     free(m), free(y);
     return info;
 }
@@ -151,10 +160,12 @@ static int hybrid_response(const rths_fidelity *f, const rths_discrete *d, doubl
     for (int k = 0; k < n_int; k++) {
         RTHS_AT(sys, ms, n_phys + k, np + k) = -1.0;
         RTHS_AT(sys, ms, np + k, n_phys + k) = 1.0;
-        for (int l = 0; l < n_int; l++) RTHS_AT(sys, ms, np + k, np + l) = RTHS_AT(g, nn, k, l);
+        for (int l = 0; l < n_int; l++)
+            RTHS_AT(sys, ms, np + k, np + l) = RTHS_AT(g, nn, k, l);
         v[np + k] = RTHS_AT(g, nn, k, n_int);
     }
-    for (int i = 0; i < np; i++) v[i] = f->force_phys[i];
+    for (int i = 0; i < np; i++)
+        v[i] = f->force_phys[i];
     info = rths_cmat_solve(ms, 1, sys, v);
     if (info) {
         rc = rths_error_set(err, RTHS_EFAIL,
@@ -162,10 +173,12 @@ static int hybrid_response(const rths_fidelity *f, const rths_discrete *d, doubl
                             rths_scheme_name(d->scheme), omega, info);
         goto done;
     }
-    for (int i = 0; i < np; i++) x_out[f->phys_map[i]] = v[i];
+    for (int i = 0; i < np; i++)
+        x_out[f->phys_map[i]] = v[i];
     for (int i = n_int; i < nn; i++) {
         double complex q = RTHS_AT(g, nn, i, n_int);
-        for (int l = 0; l < n_int; l++) q -= RTHS_AT(g, nn, i, l) * v[np + l];
+        for (int l = 0; l < n_int; l++)
+            q -= RTHS_AT(g, nn, i, l) * v[np + l];
         x_out[f->num_map[i]] = q;
     }
 done:
