@@ -46,7 +46,8 @@ static void patch_crcs(uint8_t *buf, size_t size) {
         size_t body = RTHS_PROTO_HEADER_SIZE + plen;
         if (plen > RTHS_PROTO_MAX_PAYLOAD || size - pos < body + RTHS_PROTO_CRC_SIZE) return;
         uint32_t c = rths_crc32(buf + pos, body);
-        for (int i = 0; i < 4; i++) buf[pos + body + (size_t)i] = (uint8_t)(c >> (8 * i));
+        for (int i = 0; i < 4; i++)
+            buf[pos + body + (size_t)i] = (uint8_t)(c >> (8 * i));
         pos += body + RTHS_PROTO_CRC_SIZE;
     }
 }

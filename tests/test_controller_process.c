@@ -168,7 +168,7 @@ static void test_uri_parsing(void **state) {
     assert_int_equal(port, 9);
     assert_int_equal(rths_remote_parse_uri("tcp://rtc.lab:65535", host, sizeof host, &port, NULL),
                      0);
-    const char *bad[] = {"udp://a:1", "tcp://a", "tcp://:1", "tcp://a:0", "tcp://a:65536",
+    const char *bad[] = {"udp://a:1",  "tcp://a",     "tcp://:1",     "tcp://a:0", "tcp://a:65536",
                          "tcp://a:1x", "tcp://::1:5", "tcp://[::1]5", "virtual"};
     for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++)
         assert_int_equal(rths_remote_parse_uri(bad[i], host, sizeof host, &port, NULL),
@@ -228,7 +228,8 @@ static void test_session_rules_and_hello(void **state) {
 
 static void put_crc(uint8_t *frame, size_t body) {
     uint32_t c = rths_crc32(frame, body);
-    for (int i = 0; i < 4; i++) frame[body + (size_t)i] = (uint8_t)(c >> (8 * i));
+    for (int i = 0; i < 4; i++)
+        frame[body + (size_t)i] = (uint8_t)(c >> (8 * i));
 }
 
 static void test_malformed_frames_keep_controller_safe(void **state) {
@@ -403,6 +404,14 @@ static void test_link_loss_and_second_client(void **state) {
     raw_request(&r1, RTHS_MSG_GET_STATUS, &reply);
     assert_true(reply.u.status.flags & RTHS_STATUS_ARMED);
     assert_true(reply.u.status.flags & RTHS_STATUS_CLIENT_OWNS);
+    /* The remote rig gets the same refusal, with the reason. */
+    char uri[64];
+    snprintf(uri, sizeof uri, "tcp://127.0.0.1:%d", port);
+    rths_rig *rig = NULL;
+    rths_error err;
+    assert_int_equal(rths_remote_rig_create(uri, NULL, &rig, &err), RTHS_EFAIL);
+    assert_null(rig);
+    assert_non_null(strstr(err.msg, "busy"));
     /* The host dies (its socket closes): the controller disarms at once, reason link, no
      * latched fault, and a new host may take over and arm. */
     close(r1.fd);
@@ -437,6 +446,26 @@ static rths_rig *remote_rig(int port) {
     return rig;
 }
 
+static void test_remote_rig_unreachable(void **state) {
+    (void)state;
+    /* A port nobody listens on: bind one, note it, close it. */
+    int fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(bind(fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    socklen_t sl = sizeof sa;
+    getsockname(fd, (struct sockaddr *)&sa, &sl);
+    close(fd);
+    char uri[64];
+    snprintf(uri, sizeof uri, "tcp://127.0.0.1:%d", ntohs(sa.sin_port));
+    rths_rig *rig = NULL;
+    rths_error err;
+    assert_int_equal(rths_remote_rig_create(uri, NULL, &rig, &err), RTHS_EFAIL);
+    assert_null(rig);
+    assert_non_null(strstr(err.msg, "cannot connect"));
+    assert_int_equal(rths_remote_rig_create("tcp://127.0.0.1", NULL, &rig, &err), RTHS_EINPUT);
+}
+
 static void test_limit_trip_and_restart_reconnect(void **state) {
     (void)state;
     rths_server *s = start_server(0, 30.0);
@@ -466,7 +495,8 @@ static void test_limit_trip_and_restart_reconnect(void **state) {
     s = start_server(port, 30.0);
     assert_int_equal(rths_rig_reset_fault(rig, &err), RTHS_OK);
     assert_int_equal(rths_rig_run_periods(rig, 3, per, &err), RTHS_OK);
-    for (int i = 0; i < 3; i++) assert_close(per[i].frequency_hz, 10.0, 0.0);
+    for (int i = 0; i < 3; i++)
+        assert_close(per[i].frequency_hz, 10.0, 0.0);
     assert_true(per[2].end_time_s <= rths_rig_time_s(rig));
     rths_rig_destroy(rig);
     wait_for_disarm(s, RTHS_DISARM_COMMAND);
@@ -480,6 +510,7 @@ int main(void) {
         cmocka_unit_test(test_malformed_frames_keep_controller_safe),
         cmocka_unit_test(test_watchdog_ramps_to_zero),
         cmocka_unit_test(test_link_loss_and_second_client),
+        cmocka_unit_test(test_remote_rig_unreachable),
         cmocka_unit_test(test_limit_trip_and_restart_reconnect),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

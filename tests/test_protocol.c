@@ -17,8 +17,8 @@ static void test_crc32_known_answer(void **state) {
 }
 
 /* Known-answer frames: {bytes, length}. */
-static const uint8_t kat_ping[] = {0x52, 0x54, 0x01, 0x0a, 0x02, 0x01, 0x00, 0x00,
-                                   0xce, 0x8f, 0x9c, 0x8f};
+static const uint8_t kat_ping[] = {0x52, 0x54, 0x01, 0x0a, 0x02, 0x01,
+                                   0x00, 0x00, 0xce, 0x8f, 0x9c, 0x8f};
 static const uint8_t kat_forcing[] = {0x52, 0x54, 0x01, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
                                       0x0a, 0xd7, 0xa3, 0xf0, 0x2a, 0x40, 0x00, 0x00, 0x00, 0x00,
                                       0x00, 0x00, 0xf0, 0x3f, 0x52, 0x45, 0x00, 0x08};
@@ -95,7 +95,7 @@ static int sample_messages(rths_msg *out) {
     rths_msg_init(m, RTHS_MSG_HELLO, 1);
     m->u.hello.version = RTHS_PROTO_VERSION;
     strcpy(m->u.hello.name, "rths host 0.1");
-    static const int empty[] = {RTHS_MSG_ARM, RTHS_MSG_DISARM, RTHS_MSG_GET_STATUS,
+    static const int empty[] = {RTHS_MSG_ARM,        RTHS_MSG_DISARM,      RTHS_MSG_GET_STATUS,
                                 RTHS_MSG_GET_COEFFS, RTHS_MSG_RESET_FAULT, RTHS_MSG_PING};
     for (size_t i = 0; i < sizeof empty / sizeof empty[0]; i++)
         rths_msg_init(&out[n++], empty[i], (uint16_t)(100 + i));
@@ -156,8 +156,8 @@ static int sample_messages(rths_msg *out) {
     rths_msg_init(m, RTHS_MSG_TRACE, 0);
     m->u.trace.count = RTHS_PROTO_MAX_TRACE_BATCH;
     for (int i = 0; i < RTHS_PROTO_MAX_TRACE_BATCH; i++) {
-        m->u.trace.s[i] = (rths_proto_trace_sample){i * 1e-3, 1e-4 * i, -2e-4 * i, 3e-4,
-                                                    -0.5 * i, 0.01 * i};
+        m->u.trace.s[i] =
+            (rths_proto_trace_sample){i * 1e-3, 1e-4 * i, -2e-4 * i, 3e-4, -0.5 * i, 0.01 * i};
     }
     m = &out[n++];
     rths_msg_error(m, 77, RTHS_PROTO_EBUSY, RTHS_MSG_ARM, "controller armed by %s", "10.0.0.1");
@@ -185,12 +185,13 @@ static void test_round_trip_every_type(void **state) {
         assert_int_equal(rths_proto_encode(&msgs[i], tight, len), len);
         assert_int_equal(rths_proto_encode(&msgs[i], tight, len - 1), 0);
     }
-    static const int all[] = {RTHS_MSG_HELLO, RTHS_MSG_ARM, RTHS_MSG_DISARM, RTHS_MSG_SET_FORCING,
-                              RTHS_MSG_SET_TARGET, RTHS_MSG_GET_STATUS, RTHS_MSG_GET_COEFFS,
-                              RTHS_MSG_SUBSCRIBE, RTHS_MSG_RESET_FAULT, RTHS_MSG_PING,
-                              RTHS_MSG_HELLO_REPLY, RTHS_MSG_ACK, RTHS_MSG_STATUS, RTHS_MSG_PERIOD,
-                              RTHS_MSG_TRACE, RTHS_MSG_ERROR};
-    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) assert_true(seen[all[i]]);
+    static const int all[] = {
+        RTHS_MSG_HELLO,       RTHS_MSG_ARM,        RTHS_MSG_DISARM,      RTHS_MSG_SET_FORCING,
+        RTHS_MSG_SET_TARGET,  RTHS_MSG_GET_STATUS, RTHS_MSG_GET_COEFFS,  RTHS_MSG_SUBSCRIBE,
+        RTHS_MSG_RESET_FAULT, RTHS_MSG_PING,       RTHS_MSG_HELLO_REPLY, RTHS_MSG_ACK,
+        RTHS_MSG_STATUS,      RTHS_MSG_PERIOD,     RTHS_MSG_TRACE,       RTHS_MSG_ERROR};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++)
+        assert_true(seen[all[i]]);
 }
 
 static void test_truncated_frames_are_incomplete(void **state) {
@@ -237,7 +238,8 @@ static size_t raw_frame(uint8_t *buf, int type, uint16_t seq, const uint8_t *pay
     buf[7] = (uint8_t)(n >> 8);
     if (n) memcpy(buf + 8, payload, n);
     uint32_t c = rths_crc32(buf, 8 + n);
-    for (int i = 0; i < 4; i++) buf[8 + n + (size_t)i] = (uint8_t)(c >> (8 * i));
+    for (int i = 0; i < 4; i++)
+        buf[8 + n + (size_t)i] = (uint8_t)(c >> (8 * i));
     return 8 + n + 4;
 }
 

@@ -31,8 +31,8 @@
 #define RTHS_PROTO_CRC_SIZE 4
 #define RTHS_PROTO_MAX_PAYLOAD 1024
 #define RTHS_PROTO_MAX_FRAME (RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_MAX_PAYLOAD + RTHS_PROTO_CRC_SIZE)
-#define RTHS_PROTO_MAX_TEXT 200      /* bytes of a name or error message (no NUL on the wire) */
-#define RTHS_PROTO_HARMONICS 5       /* coefficients k = 0..5 per signal in a PERIOD frame */
+#define RTHS_PROTO_MAX_TEXT 200 /* bytes of a name or error message (no NUL on the wire) */
+#define RTHS_PROTO_HARMONICS 5  /* coefficients k = 0..5 per signal in a PERIOD frame */
 #define RTHS_PROTO_MAX_TRACE_BATCH 16
 #define RTHS_PROTO_LATENCY_BINS 16
 
@@ -60,18 +60,18 @@ typedef enum rths_msg_type {
 /* Decoder results; the nonzero values are also the error codes carried by ERROR frames. */
 typedef enum rths_proto_status {
     RTHS_PROTO_OK = 0,
-    RTHS_PROTO_INCOMPLETE = 1,   /* not a whole frame yet: read more bytes */
-    RTHS_PROTO_EMAGIC = 2,       /* framing lost: the bytes are not a frame start (fatal) */
-    RTHS_PROTO_EVERSION = 3,     /* a protocol version this end does not speak (fatal) */
-    RTHS_PROTO_EOVERSIZE = 4,    /* payload length above RTHS_PROTO_MAX_PAYLOAD (fatal) */
-    RTHS_PROTO_ECRC = 5,         /* checksum mismatch (fatal) */
-    RTHS_PROTO_ETYPE = 6,        /* well-framed, unknown message type */
-    RTHS_PROTO_EPAYLOAD = 7,     /* well-framed, payload malformed for its type */
+    RTHS_PROTO_INCOMPLETE = 1, /* not a whole frame yet: read more bytes */
+    RTHS_PROTO_EMAGIC = 2,     /* framing lost: the bytes are not a frame start (fatal) */
+    RTHS_PROTO_EVERSION = 3,   /* a protocol version this end does not speak (fatal) */
+    RTHS_PROTO_EOVERSIZE = 4,  /* payload length above RTHS_PROTO_MAX_PAYLOAD (fatal) */
+    RTHS_PROTO_ECRC = 5,       /* checksum mismatch (fatal) */
+    RTHS_PROTO_ETYPE = 6,      /* well-framed, unknown message type */
+    RTHS_PROTO_EPAYLOAD = 7,   /* well-framed, payload malformed for its type */
     /* codes used only in ERROR frames (server-side refusals) */
-    RTHS_PROTO_EBUSY = 8,        /* another client holds the armed controller */
-    RTHS_PROTO_ESTATE = 9,       /* command not valid now (e.g. before HELLO, arm while faulted) */
-    RTHS_PROTO_ERANGE = 10,      /* value outside the controller's configured limits */
-    RTHS_PROTO_ENODATA = 11,     /* GET_COEFFS before any whole period */
+    RTHS_PROTO_EBUSY = 8,    /* another client holds the armed controller */
+    RTHS_PROTO_ESTATE = 9,   /* command not valid now (e.g. before HELLO, arm while faulted) */
+    RTHS_PROTO_ERANGE = 10,  /* value outside the controller's configured limits */
+    RTHS_PROTO_ENODATA = 11, /* GET_COEFFS before any whole period */
 } rths_proto_status;
 
 /* Fatal statuses mean the byte stream can no longer be trusted: the receiver answers with an
@@ -92,47 +92,47 @@ typedef struct rths_proto_fourier {
 
 /* Controller status flags. */
 #define RTHS_STATUS_ARMED 0x01u
-#define RTHS_STATUS_CLIENT_OWNS 0x02u    /* the asking client holds the control connection */
-#define RTHS_STATUS_RT_FIFO 0x04u        /* loop thread runs SCHED_FIFO */
-#define RTHS_STATUS_RT_MLOCK 0x08u       /* memory locked (mlockall) */
-#define RTHS_STATUS_RT_PINNED 0x10u      /* loop thread pinned to one CPU */
+#define RTHS_STATUS_CLIENT_OWNS 0x02u /* the asking client holds the control connection */
+#define RTHS_STATUS_RT_FIFO 0x04u     /* loop thread runs SCHED_FIFO */
+#define RTHS_STATUS_RT_MLOCK 0x08u    /* memory locked (mlockall) */
+#define RTHS_STATUS_RT_PINNED 0x10u   /* loop thread pinned to one CPU */
 
 /* Lateness histogram bin upper edges, seconds (last bin: everything above the previous edge). */
 extern const double rths_proto_latency_edges_s[RTHS_PROTO_LATENCY_BINS];
 
 typedef struct rths_proto_status_msg {
-    double time_s;             /* controller (rig) time: samples run * sample period */
-    uint8_t flags;             /* RTHS_STATUS_* */
-    uint8_t fault;             /* latched fault, rths_rig_fault numbering (0: none) */
-    uint8_t last_disarm;       /* why the controller last disarmed: rths_disarm_reason */
-    double frequency_hz;       /* forcing in effect */
+    double time_s;       /* controller (rig) time: samples run * sample period */
+    uint8_t flags;       /* RTHS_STATUS_* */
+    uint8_t fault;       /* latched fault, rths_rig_fault numbering (0: none) */
+    uint8_t last_disarm; /* why the controller last disarmed: rths_disarm_reason */
+    double frequency_hz; /* forcing in effect */
     double amplitude_n;
-    uint64_t samples;          /* loop cycles run */
-    uint64_t overruns;         /* cycles that started after the next deadline had passed */
-    double worst_lateness_s;   /* largest wake-up lateness seen */
-    uint64_t periods_dropped;  /* per-period records the network side could not keep up with */
+    uint64_t samples;         /* loop cycles run */
+    uint64_t overruns;        /* cycles that started after the next deadline had passed */
+    double worst_lateness_s;  /* largest wake-up lateness seen */
+    uint64_t periods_dropped; /* per-period records the network side could not keep up with */
     uint64_t latency_hist[RTHS_PROTO_LATENCY_BINS];
 } rths_proto_status_msg;
 
 /* Why the controller is (or was last) disarmed. */
 typedef enum rths_disarm_reason {
-    RTHS_DISARM_NONE = 0,       /* never armed */
-    RTHS_DISARM_COMMAND = 1,    /* DISARM from the host */
-    RTHS_DISARM_FAULT = 2,      /* a limit or non-finite signal latched a fault */
-    RTHS_DISARM_WATCHDOG = 3,   /* host silent longer than the watchdog time */
-    RTHS_DISARM_LINK = 4,       /* the control connection closed or sent a fatal frame */
-    RTHS_DISARM_SHUTDOWN = 5,   /* the controller process is stopping */
+    RTHS_DISARM_NONE = 0,     /* never armed */
+    RTHS_DISARM_COMMAND = 1,  /* DISARM from the host */
+    RTHS_DISARM_FAULT = 2,    /* a limit or non-finite signal latched a fault */
+    RTHS_DISARM_WATCHDOG = 3, /* host silent longer than the watchdog time */
+    RTHS_DISARM_LINK = 4,     /* the control connection closed or sent a fatal frame */
+    RTHS_DISARM_SHUTDOWN = 5, /* the controller process is stopping */
 } rths_disarm_reason;
 
 typedef struct rths_proto_period {
-    uint32_t index;            /* period counter since the controller started */
+    uint32_t index; /* period counter since the controller started */
     double frequency_hz;
-    double start_time_s;       /* controller time at the period's first sample */
-    double end_time_s;         /* ... and at its end */
+    double start_time_s; /* controller time at the period's first sample */
+    double end_time_s;   /* ... and at its end */
     uint32_t samples;
-    rths_proto_fourier phys;   /* physical interface displacement, m */
-    rths_proto_fourier num;    /* numerical interface displacement, m */
-    rths_proto_fourier force;  /* load cell, N */
+    rths_proto_fourier phys;  /* physical interface displacement, m */
+    rths_proto_fourier num;   /* numerical interface displacement, m */
+    rths_proto_fourier force; /* load cell, N */
 } rths_proto_period;
 
 typedef struct rths_proto_trace_sample {
@@ -143,26 +143,47 @@ typedef struct rths_proto_trace_sample {
 #define RTHS_SUBSCRIBE_TRACES 0x02u
 
 typedef struct rths_msg {
-    uint8_t type;   /* rths_msg_type */
+    uint8_t type; /* rths_msg_type */
     uint16_t seq;
     union {
-        struct { uint16_t version; char name[RTHS_PROTO_MAX_TEXT + 1]; } hello;
+        struct {
+            uint16_t version;
+            char name[RTHS_PROTO_MAX_TEXT + 1];
+        } hello;
         struct {
             uint16_t version;
             uint8_t max_harmonics;
             double sample_period_s, watchdog_s, noise_level_m;
             char name[RTHS_PROTO_MAX_TEXT + 1];
         } hello_reply;
-        struct { double frequency_hz, amplitude_n; } forcing;
-        struct { int harmonics; double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS]; } target;
-        struct { uint8_t flags; uint32_t trace_decimation; } subscribe;
+        struct {
+            double frequency_hz, amplitude_n;
+        } forcing;
+        struct {
+            int harmonics;
+            double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
+        } target;
+        struct {
+            uint8_t flags;
+            uint32_t trace_decimation;
+        } subscribe;
         /* time_s: controller time at which the command took effect (set forcing/target: later
          * periods with start_time_s >= time_s ran entirely under it). */
-        struct { uint8_t acked_type; double time_s; } ack;
+        struct {
+            uint8_t acked_type;
+            double time_s;
+        } ack;
         rths_proto_status_msg status;
         rths_proto_period period;
-        struct { int count; rths_proto_trace_sample s[RTHS_PROTO_MAX_TRACE_BATCH]; } trace;
-        struct { uint16_t code; uint8_t request_type; char message[RTHS_PROTO_MAX_TEXT + 1]; } error;
+        struct {
+            int count;
+            rths_proto_trace_sample s[RTHS_PROTO_MAX_TRACE_BATCH];
+        } trace;
+        struct {
+            uint16_t code;
+            uint8_t request_type;
+            char message[RTHS_PROTO_MAX_TEXT + 1];
+        } error;
     } u;
 } rths_msg;
 

@@ -25,8 +25,7 @@ int rths_rig_uri_is_remote(const char *uri);
 
 /* Parses "tcp://HOST:PORT" (HOST may be a name, an IPv4 address or [IPv6]). RTHS_EINPUT when
  * malformed. host must hold host_cap bytes. */
-int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *port,
-                          rths_error *err);
+int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *port, rths_error *err);
 
 /* Connects to the controller at uri and says HELLO; opt may be NULL for the defaults.
  * RTHS_EINPUT for a malformed uri, RTHS_EFAIL when the controller cannot be reached or refuses

@@ -15,15 +15,15 @@
 #include <stdint.h>
 
 typedef struct rths_server_options {
-    char host[256];           /* listen address; default "127.0.0.1" (loopback only) */
-    int port;                 /* 0: an ephemeral port, see rths_server_port() */
-    double watchdog_s;        /* server.watchdog_s: host silence that trips the watchdog */
-    int realtime;             /* server.realtime: try SCHED_FIFO, mlockall, CPU pinning */
-    int priority;             /* server.priority: SCHED_FIFO priority 1..99 */
-    int cpu;                  /* server.cpu: CPU for the loop thread, -1: the last one */
-    double max_frequency_hz;  /* server.max_frequency_hz: SET_FORCING above is refused */
-    double max_amplitude_n;   /* server.max_amplitude_n: |amplitude| above is refused */
-    int quiet;                /* no notices on stderr (tests, bench) */
+    char host[256];          /* listen address; default "127.0.0.1" (loopback only) */
+    int port;                /* 0: an ephemeral port, see rths_server_port() */
+    double watchdog_s;       /* server.watchdog_s: host silence that trips the watchdog */
+    int realtime;            /* server.realtime: try SCHED_FIFO, mlockall, CPU pinning */
+    int priority;            /* server.priority: SCHED_FIFO priority 1..99 */
+    int cpu;                 /* server.cpu: CPU for the loop thread, -1: the last one */
+    double max_frequency_hz; /* server.max_frequency_hz: SET_FORCING above is refused */
+    double max_amplitude_n;  /* server.max_amplitude_n: |amplitude| above is refused */
+    int quiet;               /* no notices on stderr (tests, bench) */
 } rths_server_options;
 
 void rths_server_options_defaults(rths_server_options *opt);
@@ -37,7 +37,7 @@ typedef struct rths_server rths_server;
  * listening socket. Nothing runs until rths_server_start. */
 int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_server **out,
                        rths_error *err);
-int rths_server_port(const rths_server *s);   /* the bound port (useful after port 0) */
+int rths_server_port(const rths_server *s); /* the bound port (useful after port 0) */
 double rths_server_sample_period_s(const rths_server *s);
 
 /* Starts the loop and network threads. */
@@ -47,16 +47,16 @@ void rths_server_stop(rths_server *s);
 void rths_server_destroy(rths_server *s);
 
 typedef struct rths_server_stats {
-    uint64_t samples;          /* loop cycles run */
-    uint64_t overruns;         /* cycles woken after the next deadline had already passed */
-    uint64_t resyncs;          /* times the loop gave up catching up and restarted its clock */
+    uint64_t samples;  /* loop cycles run */
+    uint64_t overruns; /* cycles woken after the next deadline had already passed */
+    uint64_t resyncs;  /* times the loop gave up catching up and restarted its clock */
     double worst_lateness_s;
     double lateness_p50_s, lateness_p90_s, lateness_p99_s, lateness_p999_s; /* 1 us bins */
     double step_mean_s, step_p50_s, step_p99_s, step_max_s;                 /* 0.1 us bins */
     int rt_fifo, rt_mlock, rt_pinned;
     int armed;
-    int fault;                 /* rths_rig_fault numbering */
-    int last_disarm;           /* rths_disarm_reason (protocol.h) */
+    int fault;       /* rths_rig_fault numbering */
+    int last_disarm; /* rths_disarm_reason (protocol.h) */
 } rths_server_stats;
 
 void rths_server_get_stats(rths_server *s, rths_server_stats *out);

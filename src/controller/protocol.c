@@ -10,8 +10,8 @@
 #include <string.h>
 
 const double rths_proto_latency_edges_s[RTHS_PROTO_LATENCY_BINS] = {
-    1e-6, 2e-6, 5e-6, 10e-6, 20e-6, 50e-6, 100e-6, 200e-6, 500e-6,
-    1e-3, 2e-3, 5e-3, 10e-3, 20e-3, 50e-3, INFINITY};
+    1e-6,   2e-6, 5e-6, 10e-6, 20e-6, 50e-6, 100e-6, 200e-6,
+    500e-6, 1e-3, 2e-3, 5e-3,  10e-3, 20e-3, 50e-3,  INFINITY};
 
 int rths_proto_status_is_fatal(int status) {
     return status == RTHS_PROTO_EMAGIC || status == RTHS_PROTO_EVERSION ||
@@ -20,40 +20,68 @@ int rths_proto_status_is_fatal(int status) {
 
 const char *rths_proto_status_name(int status) {
     switch (status) {
-    case RTHS_PROTO_OK: return "ok";
-    case RTHS_PROTO_INCOMPLETE: return "incomplete frame";
-    case RTHS_PROTO_EMAGIC: return "bad magic (not a frame start)";
-    case RTHS_PROTO_EVERSION: return "unsupported protocol version";
-    case RTHS_PROTO_EOVERSIZE: return "payload length above the maximum";
-    case RTHS_PROTO_ECRC: return "checksum mismatch";
-    case RTHS_PROTO_ETYPE: return "unknown message type";
-    case RTHS_PROTO_EPAYLOAD: return "malformed payload";
-    case RTHS_PROTO_EBUSY: return "controller busy with another client";
-    case RTHS_PROTO_ESTATE: return "command not valid in this state";
-    case RTHS_PROTO_ERANGE: return "value out of range";
-    case RTHS_PROTO_ENODATA: return "no data yet";
+    case RTHS_PROTO_OK:
+        return "ok";
+    case RTHS_PROTO_INCOMPLETE:
+        return "incomplete frame";
+    case RTHS_PROTO_EMAGIC:
+        return "bad magic (not a frame start)";
+    case RTHS_PROTO_EVERSION:
+        return "unsupported protocol version";
+    case RTHS_PROTO_EOVERSIZE:
+        return "payload length above the maximum";
+    case RTHS_PROTO_ECRC:
+        return "checksum mismatch";
+    case RTHS_PROTO_ETYPE:
+        return "unknown message type";
+    case RTHS_PROTO_EPAYLOAD:
+        return "malformed payload";
+    case RTHS_PROTO_EBUSY:
+        return "controller busy with another client";
+    case RTHS_PROTO_ESTATE:
+        return "command not valid in this state";
+    case RTHS_PROTO_ERANGE:
+        return "value out of range";
+    case RTHS_PROTO_ENODATA:
+        return "no data yet";
     }
     return "unknown status";
 }
 
 const char *rths_msg_type_name(int type) {
     switch (type) {
-    case RTHS_MSG_HELLO: return "HELLO";
-    case RTHS_MSG_ARM: return "ARM";
-    case RTHS_MSG_DISARM: return "DISARM";
-    case RTHS_MSG_SET_FORCING: return "SET_FORCING";
-    case RTHS_MSG_SET_TARGET: return "SET_TARGET";
-    case RTHS_MSG_GET_STATUS: return "GET_STATUS";
-    case RTHS_MSG_GET_COEFFS: return "GET_COEFFS";
-    case RTHS_MSG_SUBSCRIBE: return "SUBSCRIBE";
-    case RTHS_MSG_RESET_FAULT: return "RESET_FAULT";
-    case RTHS_MSG_PING: return "PING";
-    case RTHS_MSG_HELLO_REPLY: return "HELLO_REPLY";
-    case RTHS_MSG_ACK: return "ACK";
-    case RTHS_MSG_STATUS: return "STATUS";
-    case RTHS_MSG_PERIOD: return "PERIOD";
-    case RTHS_MSG_TRACE: return "TRACE";
-    case RTHS_MSG_ERROR: return "ERROR";
+    case RTHS_MSG_HELLO:
+        return "HELLO";
+    case RTHS_MSG_ARM:
+        return "ARM";
+    case RTHS_MSG_DISARM:
+        return "DISARM";
+    case RTHS_MSG_SET_FORCING:
+        return "SET_FORCING";
+    case RTHS_MSG_SET_TARGET:
+        return "SET_TARGET";
+    case RTHS_MSG_GET_STATUS:
+        return "GET_STATUS";
+    case RTHS_MSG_GET_COEFFS:
+        return "GET_COEFFS";
+    case RTHS_MSG_SUBSCRIBE:
+        return "SUBSCRIBE";
+    case RTHS_MSG_RESET_FAULT:
+        return "RESET_FAULT";
+    case RTHS_MSG_PING:
+        return "PING";
+    case RTHS_MSG_HELLO_REPLY:
+        return "HELLO_REPLY";
+    case RTHS_MSG_ACK:
+        return "ACK";
+    case RTHS_MSG_STATUS:
+        return "STATUS";
+    case RTHS_MSG_PERIOD:
+        return "PERIOD";
+    case RTHS_MSG_TRACE:
+        return "TRACE";
+    case RTHS_MSG_ERROR:
+        return "ERROR";
     }
     return "unknown";
 }
@@ -64,7 +92,8 @@ uint32_t rths_crc32(const uint8_t *data, size_t len) {
     uint32_t crc = 0xFFFFFFFFu;
     for (size_t i = 0; i < len; i++) {
         crc ^= data[i];
-        for (int k = 0; k < 8; k++) crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
+        for (int k = 0; k < 8; k++)
+            crc = (crc >> 1) ^ (0xEDB88320u & (0u - (crc & 1u)));
     }
     return crc ^ 0xFFFFFFFFu;
 }
@@ -98,13 +127,15 @@ static void w_u16(writer *w, unsigned v) {
 
 static void w_u32(writer *w, uint32_t v) {
     uint8_t b[4];
-    for (int i = 0; i < 4; i++) b[i] = (uint8_t)(v >> (8 * i));
+    for (int i = 0; i < 4; i++)
+        b[i] = (uint8_t)(v >> (8 * i));
     w_bytes(w, b, 4);
 }
 
 static void w_u64(writer *w, uint64_t v) {
     uint8_t b[8];
-    for (int i = 0; i < 8; i++) b[i] = (uint8_t)(v >> (8 * i));
+    for (int i = 0; i < 8; i++)
+        b[i] = (uint8_t)(v >> (8 * i));
     w_bytes(w, b, 8);
 }
 
@@ -129,8 +160,10 @@ static void w_text(writer *w, const char *s) {
 }
 
 static void w_fourier(writer *w, const rths_proto_fourier *f) {
-    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) w_f64(w, f->a[k]);
-    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) w_f64(w, f->b[k]);
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
+        w_f64(w, f->a[k]);
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
+        w_f64(w, f->b[k]);
 }
 
 static void encode_payload(writer *w, const rths_msg *m) {
@@ -157,8 +190,10 @@ static void encode_payload(writer *w, const rths_msg *m) {
             return;
         }
         w_u8(w, (unsigned)h);
-        for (int k = 0; k < h; k++) w_f64(w, m->u.target.a[k]);
-        for (int k = 0; k < h; k++) w_f64(w, m->u.target.b[k]);
+        for (int k = 0; k < h; k++)
+            w_f64(w, m->u.target.a[k]);
+        for (int k = 0; k < h; k++)
+            w_f64(w, m->u.target.b[k]);
         break;
     }
     case RTHS_MSG_SUBSCRIBE:
@@ -194,7 +229,8 @@ static void encode_payload(writer *w, const rths_msg *m) {
         w_u64(w, s->overruns);
         w_f64(w, s->worst_lateness_s);
         w_u64(w, s->periods_dropped);
-        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++) w_u64(w, s->latency_hist[i]);
+        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
+            w_u64(w, s->latency_hist[i]);
         break;
     }
     case RTHS_MSG_PERIOD: {
@@ -291,7 +327,8 @@ static uint32_t r_u32(reader *r) {
     const uint8_t *q = r_take(r, 4);
     uint32_t v = 0;
     if (q)
-        for (int i = 3; i >= 0; i--) v = v << 8 | q[i];
+        for (int i = 3; i >= 0; i--)
+            v = v << 8 | q[i];
     return v;
 }
 
@@ -299,7 +336,8 @@ static uint64_t r_u64(reader *r) {
     const uint8_t *q = r_take(r, 8);
     uint64_t v = 0;
     if (q)
-        for (int i = 7; i >= 0; i--) v = v << 8 | q[i];
+        for (int i = 7; i >= 0; i--)
+            v = v << 8 | q[i];
     return v;
 }
 
@@ -332,8 +370,10 @@ static void r_text(reader *r, char *out) {
 }
 
 static void r_fourier(reader *r, rths_proto_fourier *f) {
-    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) f->a[k] = r_f64(r);
-    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) f->b[k] = r_f64(r);
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
+        f->a[k] = r_f64(r);
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
+        f->b[k] = r_f64(r);
 }
 
 /* Returns RTHS_PROTO_OK, ETYPE or EPAYLOAD. Trailing bytes are a malformed payload: every type
@@ -359,8 +399,10 @@ static int decode_payload(reader *r, rths_msg *m) {
         unsigned h = r_u8(r);
         if (h > RTHS_PROTO_HARMONICS) return RTHS_PROTO_EPAYLOAD;
         m->u.target.harmonics = (int)h;
-        for (unsigned k = 0; k < h; k++) m->u.target.a[k] = r_f64(r);
-        for (unsigned k = 0; k < h; k++) m->u.target.b[k] = r_f64(r);
+        for (unsigned k = 0; k < h; k++)
+            m->u.target.a[k] = r_f64(r);
+        for (unsigned k = 0; k < h; k++)
+            m->u.target.b[k] = r_f64(r);
         break;
     }
     case RTHS_MSG_SUBSCRIBE:
@@ -394,7 +436,8 @@ static int decode_payload(reader *r, rths_msg *m) {
         s->overruns = r_u64(r);
         s->worst_lateness_s = r_f64(r);
         s->periods_dropped = r_u64(r);
-        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++) s->latency_hist[i] = r_u64(r);
+        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
+            s->latency_hist[i] = r_u64(r);
         break;
     }
     case RTHS_MSG_PERIOD: {
@@ -449,8 +492,8 @@ int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *con
     size_t total = RTHS_PROTO_HEADER_SIZE + plen + RTHS_PROTO_CRC_SIZE;
     if (len < total) return RTHS_PROTO_INCOMPLETE;
     const uint8_t *c = buf + RTHS_PROTO_HEADER_SIZE + plen;
-    uint32_t want = (uint32_t)c[0] | (uint32_t)c[1] << 8 | (uint32_t)c[2] << 16 |
-                    (uint32_t)c[3] << 24;
+    uint32_t want =
+        (uint32_t)c[0] | (uint32_t)c[1] << 8 | (uint32_t)c[2] << 16 | (uint32_t)c[3] << 24;
     if (rths_crc32(buf, RTHS_PROTO_HEADER_SIZE + plen) != want) return RTHS_PROTO_ECRC;
     memset(msg, 0, sizeof *msg);
     msg->type = buf[3];
@@ -466,8 +509,7 @@ void rths_msg_init(rths_msg *msg, int type, uint16_t seq) {
     msg->seq = seq;
 }
 
-void rths_msg_error(rths_msg *msg, uint16_t seq, int code, int request_type, const char *fmt,
-                    ...) {
+void rths_msg_error(rths_msg *msg, uint16_t seq, int code, int request_type, const char *fmt, ...) {
     rths_msg_init(msg, RTHS_MSG_ERROR, seq);
     msg->u.error.code = (uint16_t)code;
     msg->u.error.request_type = (uint8_t)request_type;

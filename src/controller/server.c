@@ -35,10 +35,10 @@
 #endif
 #endif
 
-#define CMD_RING 64            /* commands in flight; the network waits for each, so few */
-#define TRACE_RING 16384       /* trace samples between network-thread wake-ups */
-#define LAT_BINS 50000         /* lateness histogram: 1 us bins up to 50 ms, then overflow */
-#define STEP_BINS 10000        /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
+#define CMD_RING 64      /* commands in flight; the network waits for each, so few */
+#define TRACE_RING 16384 /* trace samples between network-thread wake-ups */
+#define LAT_BINS 50000   /* lateness histogram: 1 us bins up to 50 ms, then overflow */
+#define STEP_BINS 10000  /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
 #define RX_CAP 8192
 #define TX_CAP (256 * 1024)
 #define TX_RESERVE (32 * 1024) /* room kept for replies: stream frames never take it */
@@ -236,7 +236,8 @@ static void rt_setup(rths_server *s) {
         if (!pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp)) flags |= RTHS_STATUS_RT_FIFO;
         /* Pre-fault a stack reserve so the first deep call does not page-fault mid-loop. */
         volatile unsigned char stack[64 * 1024];
-        for (size_t i = 0; i < sizeof stack; i += 4096) stack[i] = 0;
+        for (size_t i = 0; i < sizeof stack; i += 4096)
+            stack[i] = 0;
     }
     atomic_fetch_or(&s->rt_flags, flags);
 }
@@ -277,14 +278,14 @@ static void *loop_main(void *arg) {
         }
 
         if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
-            if (rths_engine_armed(s->engine))
-                atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
+            if (rths_engine_armed(s->engine)) atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
             rths_engine_disarm(s->engine);
             shutdown_left = (int64_t)(0.5e9 / (double)period) + 1;
         }
         if (shutdown_left < 0) {
             loop_cmd c;
-            while (spsc_pop(&s->cmds, &c)) apply_cmd(s, &c);
+            while (spsc_pop(&s->cmds, &c))
+                apply_cmd(s, &c);
             if (rths_engine_armed(s->engine) &&
                 now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
                 atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
@@ -359,7 +360,8 @@ static void drop_client(rths_server *s, const char *why) {
     close(c->fd);
     c->fd = -1;
     atomic_store(&s->trace_on, 0);
-    if (!s->opt.quiet) fprintf(stderr, "rths controller: client %s disconnected (%s)\n", c->peer, why);
+    if (!s->opt.quiet)
+        fprintf(stderr, "rths controller: client %s disconnected (%s)\n", c->peer, why);
     if (atomic_load(&s->armed)) {
         /* Loss of the controlling connection disarms: excitation and target ramp to zero. */
         loop_cmd cmd = {.id = ++s->next_cmd_id, .type = CMD_DISARM, .reason = RTHS_DISARM_LINK};
@@ -421,7 +423,8 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
     int bin = 0;
     for (int i = 0; i <= LAT_BINS; i++) {
         /* fine bin i covers [i, i+1) us; coarse edges are whole microseconds */
-        while (bin < RTHS_PROTO_LATENCY_BINS - 1 && i >= (int)(rths_proto_latency_edges_s[bin] * 1e6 + 0.5))
+        while (bin < RTHS_PROTO_LATENCY_BINS - 1 &&
+               i >= (int)(rths_proto_latency_edges_s[bin] * 1e6 + 0.5))
             bin++;
         st->latency_hist[bin] += atomic_load_explicit(&s->lat_hist[i], memory_order_relaxed);
     }
@@ -430,12 +433,18 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
 /* The rths_rig_fault numbering (rig.h is above this module, so the names are repeated). */
 static const char *fault_name(int f) {
     switch (f) {
-    case 0: return "no";
-    case 1: return "displacement limit";
-    case 2: return "force limit";
-    case 3: return "demand limit";
-    case 4: return "non-finite signal";
-    case 6: return "watchdog";
+    case 0:
+        return "no";
+    case 1:
+        return "displacement limit";
+    case 2:
+        return "force limit";
+    case 3:
+        return "demand limit";
+    case 4:
+        return "non-finite signal";
+    case 6:
+        return "watchdog";
     }
     return "unknown";
 }
@@ -737,8 +746,7 @@ static int bind_listen(rths_server *s, rths_error *err) {
     int fd = -1;
     char why[200] = "no usable address";
     for (struct addrinfo *ai = res; ai; ai = ai->ai_next) {
-        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK,
-                    ai->ai_protocol);
+        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_CLOEXEC | SOCK_NONBLOCK, ai->ai_protocol);
         if (fd < 0) continue;
         int one = 1;
         /* A restarted controller must get its port back while old connections sit in TIME_WAIT. */
@@ -803,8 +811,12 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
     return RTHS_OK;
 }
 
-int rths_server_port(const rths_server *s) { return s->port; }
-double rths_server_sample_period_s(const rths_server *s) { return s->info.sample_period_s; }
+int rths_server_port(const rths_server *s) {
+    return s->port;
+}
+double rths_server_sample_period_s(const rths_server *s) {
+    return s->info.sample_period_s;
+}
 
 int rths_server_start(rths_server *s, rths_error *err) {
     if (s->loop_started) return RTHS_OK;
@@ -831,8 +843,7 @@ int rths_server_start(rths_server *s, rths_error *err) {
     }
     if ((e = pthread_create(&s->net_thread, NULL, net_main, s))) {
         rths_server_stop(s);
-        return rths_error_set(err, RTHS_EFAIL, "cannot start the network thread: %s",
-                              strerror(e));
+        return rths_error_set(err, RTHS_EFAIL, "cannot start the network thread: %s", strerror(e));
     }
     s->net_started = 1;
     if (!s->opt.quiet) {
@@ -842,12 +853,15 @@ int rths_server_start(rths_server *s, rths_error *err) {
                             "false); loop timing is best effort\n");
         else {
             if (!(f & RTHS_STATUS_RT_FIFO))
-                fprintf(stderr, "rths controller: notice: SCHED_FIFO priority %d not permitted; "
-                                "the loop runs at normal priority (timing best effort)\n",
+                fprintf(stderr,
+                        "rths controller: notice: SCHED_FIFO priority %d not permitted; "
+                        "the loop runs at normal priority (timing best effort)\n",
                         s->opt.priority);
             if (!mlocked)
-                fprintf(stderr, "rths controller: notice: memory not locked (%s); page faults "
-                                "may delay the loop\n", mlock_why);
+                fprintf(stderr,
+                        "rths controller: notice: memory not locked (%s); page faults "
+                        "may delay the loop\n",
+                        mlock_why);
             if (!(f & RTHS_STATUS_RT_PINNED))
                 fprintf(stderr, "rths controller: notice: loop thread not pinned to a CPU\n");
         }
@@ -880,7 +894,8 @@ void rths_server_destroy(rths_server *s) {
 
 static double hist_quantile(_Atomic uint32_t *h, int bins, double width_s, double q) {
     uint64_t total = 0;
-    for (int i = 0; i <= bins; i++) total += atomic_load_explicit(&h[i], memory_order_relaxed);
+    for (int i = 0; i <= bins; i++)
+        total += atomic_load_explicit(&h[i], memory_order_relaxed);
     if (!total) return 0.0;
     uint64_t want = (uint64_t)ceil(q * (double)total), acc = 0;
     for (int i = 0; i <= bins; i++) {
@@ -900,8 +915,8 @@ void rths_server_get_stats(rths_server *s, rths_server_stats *o) {
     o->lateness_p90_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.90);
     o->lateness_p99_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.99);
     o->lateness_p999_s = hist_quantile(s->lat_hist, LAT_BINS, 1e-6, 0.999);
-    o->step_mean_s = o->samples ? (double)atomic_load(&s->step_sum_ns) * 1e-9 / (double)o->samples
-                                : 0.0;
+    o->step_mean_s =
+        o->samples ? (double)atomic_load(&s->step_sum_ns) * 1e-9 / (double)o->samples : 0.0;
     o->step_p50_s = hist_quantile(s->step_hist, STEP_BINS, 1e-7, 0.50);
     o->step_p99_s = hist_quantile(s->step_hist, STEP_BINS, 1e-7, 0.99);
     o->step_max_s = (double)atomic_load(&s->worst_step_ns) * 1e-9;

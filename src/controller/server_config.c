@@ -7,10 +7,10 @@ int rths_server_config_read(rths_config *cfg, rths_server_options *opt, rths_err
     long v;
     if ((rc = rths_config_get_double(cfg, "server.watchdog_s", 0, opt->watchdog_s, 0.01, 3600.0,
                                      &opt->watchdog_s, err)) ||
-        (rc = rths_config_get_bool(cfg, "server.realtime", 0, opt->realtime, &opt->realtime,
-                                   err)) ||
-        (rc = rths_config_get_double(cfg, "server.max_frequency_hz", 0, opt->max_frequency_hz,
-                                     1e-3, 1e4, &opt->max_frequency_hz, err)) ||
+        (rc =
+             rths_config_get_bool(cfg, "server.realtime", 0, opt->realtime, &opt->realtime, err)) ||
+        (rc = rths_config_get_double(cfg, "server.max_frequency_hz", 0, opt->max_frequency_hz, 1e-3,
+                                     1e4, &opt->max_frequency_hz, err)) ||
         (rc = rths_config_get_double(cfg, "server.max_amplitude_n", 0, opt->max_amplitude_n, 0.0,
                                      1e5, &opt->max_amplitude_n, err)))
         return rc;

@@ -12,7 +12,7 @@ typedef struct rths_engine rths_engine;
 
 typedef struct rths_engine_info {
     double sample_period_s;
-    double noise_level_m;       /* displacement noise std of the plant's sensors, m */
+    double noise_level_m; /* displacement noise std of the plant's sensors, m */
     int max_harmonics;
     char description[RTHS_PROTO_MAX_TEXT + 1];
 } rths_engine_info;
@@ -27,14 +27,14 @@ void rths_engine_destroy(rths_engine *e);
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig);
 /* loop: 0 when armed, RTHS_PROTO_ESTATE when a latched fault forbids it. */
 int rths_engine_arm(rths_engine *e);
-void rths_engine_disarm(rths_engine *e);            /* loop: ramp excitation and target to zero */
-void rths_engine_trip_watchdog(rths_engine *e);     /* loop: latch the watchdog fault + disarm */
+void rths_engine_disarm(rths_engine *e);        /* loop: ramp excitation and target to zero */
+void rths_engine_trip_watchdog(rths_engine *e); /* loop: latch the watchdog fault + disarm */
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
 void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b);
-void rths_engine_reset_fault(rths_engine *e);       /* loop */
-int rths_engine_armed(const rths_engine *e);        /* loop */
-int rths_engine_fault(const rths_engine *e);        /* loop; rths_rig_fault numbering */
-double rths_engine_time_s(const rths_engine *e);    /* loop */
+void rths_engine_reset_fault(rths_engine *e);    /* loop */
+int rths_engine_armed(const rths_engine *e);     /* loop */
+int rths_engine_fault(const rths_engine *e);     /* loop; rths_rig_fault numbering */
+double rths_engine_time_s(const rths_engine *e); /* loop */
 
 /* network: next whole period from the step's ring; 1 when one was popped. */
 int rths_engine_pop_period(rths_engine *e, rths_proto_period *out);

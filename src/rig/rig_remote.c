@@ -72,7 +72,9 @@ void rths_remote_options_defaults(rths_remote_options *opt) {
     opt->client_name = "rths host";
 }
 
-int rths_rig_uri_is_remote(const char *uri) { return uri && !strncmp(uri, "tcp://", 6); }
+int rths_rig_uri_is_remote(const char *uri) {
+    return uri && !strncmp(uri, "tcp://", 6);
+}
 
 int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *port,
                           rths_error *err) {
@@ -90,12 +92,11 @@ int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *por
         colon = close + 1;
     } else {
         colon = strrchr(p, ':');
-        if (!colon)
-            return rths_error_set(err, RTHS_EINPUT, "rig '%s': missing :PORT", uri);
+        if (!colon) return rths_error_set(err, RTHS_EINPUT, "rig '%s': missing :PORT", uri);
         hl = (size_t)(colon - p);
         if (memchr(p, ':', hl))
-            return rths_error_set(err, RTHS_EINPUT,
-                                  "rig '%s': an IPv6 address must be in brackets", uri);
+            return rths_error_set(err, RTHS_EINPUT, "rig '%s': an IPv6 address must be in brackets",
+                                  uri);
     }
     if (hl == 0 || hl >= host_cap)
         return rths_error_set(err, RTHS_EINPUT, "rig '%s': missing or overlong host", uri);
@@ -151,7 +152,8 @@ static void queue_period(remote *r, const rths_proto_period *p) {
         size_t cap = r->q_cap ? 2 * r->q_cap : 64;
         rths_proto_period *nq = malloc(cap * sizeof *nq);
         if (!nq) return; /* dropped; run_periods will wait for the next one */
-        for (size_t i = 0; i < r->q_len; i++) nq[i] = r->q[(r->q_head + i) % r->q_cap];
+        for (size_t i = 0; i < r->q_len; i++)
+            nq[i] = r->q[(r->q_head + i) % r->q_cap];
         free(r->q);
         r->q = nq;
         r->q_cap = cap;
@@ -172,11 +174,11 @@ static void absorb(remote *r, const rths_msg *m) {
         for (int i = 0; i < m->u.trace.count; i++) {
             const rths_proto_trace_sample *s = &m->u.trace.s[i];
             if (s->time_s > r->last_time_s) r->last_time_s = s->time_s;
-            if (!r->tracing || s->time_s < r->trace_t0 - 0.5 * r->h ||
-                r->trace_n >= r->trace_max || s->time_s > r->trace_t1 + 0.5 * r->h)
+            if (!r->tracing || s->time_s < r->trace_t0 - 0.5 * r->h || r->trace_n >= r->trace_max ||
+                s->time_s > r->trace_t1 + 0.5 * r->h)
                 continue;
-            r->trace_out[r->trace_n++] = (rths_trace_sample){
-                s->time_s, s->x_phys_m, s->x_num_m, s->target_m, s->force_n, s->demand};
+            r->trace_out[r->trace_n++] = (rths_trace_sample){s->time_s,   s->x_phys_m, s->x_num_m,
+                                                             s->target_m, s->force_n,  s->demand};
         }
         break;
     case RTHS_MSG_STATUS:
@@ -244,6 +246,10 @@ static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rth
         if ((rc = read_frame(r, left, reply, &got, err))) return rc;
         if (!got) continue;
         if (reply->seq != req->seq || (reply->type != want_type && reply->type != RTHS_MSG_ERROR)) {
+            if (reply->seq == 0 && reply->type == RTHS_MSG_ERROR)
+                /* unsolicited: the controller refuses the connection (busy) or closes it */
+                return link_fail(r, err, "%s (%s)", reply->u.error.message,
+                                 rths_proto_status_name(reply->u.error.code));
             if (reply->seq == 0) {
                 absorb(r, reply);
                 continue;
@@ -318,8 +324,7 @@ static int connect_and_hello(remote *r, rths_error *err) {
     int fd = -1;
     char why[256] = "no address";
     for (struct addrinfo *ai = res; ai && fd < 0; ai = ai->ai_next) {
-        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC,
-                    ai->ai_protocol);
+        fd = socket(ai->ai_family, ai->ai_socktype | SOCK_NONBLOCK | SOCK_CLOEXEC, ai->ai_protocol);
         if (fd < 0) continue;
         int ok = connect(fd, ai->ai_addr, ai->ai_addrlen) == 0;
         if (!ok && errno == EINPROGRESS) {
@@ -388,8 +393,8 @@ static int connect_and_hello(remote *r, rths_error *err) {
 
 static int check_usable(remote *r, rths_error *err) {
     if (r->fault != RTHS_RIG_OK)
-        return rths_error_set(err, RTHS_EFAIL, "controller %s: rig fault '%s' latched: %s",
-                              r->uri, rths_rig_fault_name(r->fault), r->fault_msg);
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: rig fault '%s' latched: %s", r->uri,
+                              rths_rig_fault_name(r->fault), r->fault_msg);
     return RTHS_OK;
 }
 
@@ -472,8 +477,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
     remote *r = self;
     int rc = check_usable(r, err);
     if (rc) return rc;
-    if (!r->have_forcing)
-        return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
+    if (!r->have_forcing) return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
     if ((rc = ensure_armed(r, err))) return rc;
     double last_ping = now_s(), last_progress = now_s();
     double stall = r->opt.stall_timeout_s + 2.0 / r->frequency_hz;
@@ -578,7 +582,9 @@ static int r_reset_fault(void *self, rths_error *err) {
     return send_target(r, err);
 }
 
-static double r_noise_level_m(void *self) { return ((remote *)self)->noise_m; }
+static double r_noise_level_m(void *self) {
+    return ((remote *)self)->noise_m;
+}
 
 static void r_destroy(void *self) {
     remote *r = self;
