@@ -1,25 +1,22 @@
-/* Shared plumbing of the rths commands: argument parsing, config + setup
- * loading, the output folder, error reporting and exit status. A command looks
- * like:
+/* Shared plumbing of the rths commands: argument parsing, config + setup loading, the output
+ * folder, error reporting and exit status. A command looks like:
  *
- *     rths_cli_opt opts[] = {{"--frequency", "F", NULL}, {"--verbose", NULL,
- * NULL}}; rths_cli cli; int rc = rths_cli_parse(&cli, argc, argv,
- * RTHS_CLI_CONFIG | RTHS_CLI_OUT, usage, opts, 2); if (rc || cli.help) return
- * rc;            // message or usage already printed
- *     ... validate opts[i].value with rths_cli_double() etc. (exit 2, nothing
- * written) ... rths_config *cfg; rths_setup setup; rths_error err; if ((rc =
- * rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc,
- * &err);
- *     ... read the command's own config sections ...
- *     const char *const own[] = {"rig", NULL};
- *     if ((rc = rths_cli_check_config(cfg, own, &err))) ...   // unknown keys
- * -> exit 2 rths_report *rep; if ((rc = rths_cli_open_report(&cli, cfg, argc,
- * argv, &rep, &err))) ... // creates DIR
- *     ... work, write files ...
+ *   rths_cli_opt opts[] = {{"--frequency", "F", NULL}, {"--verbose", NULL, NULL}};
+ *   rths_cli cli;
+ *   int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT, usage, opts, 2);
+ *   if (rc || cli.help) return rc;               // message or usage already printed
+ *   ... validate opts[i].value with rths_cli_double() etc.; on error
+ *       return rths_cli_fail(&cli, rc, &err);    // exit 2, nothing written
+ *   rths_config *cfg; rths_setup setup; rths_error err;
+ *   if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
+ *   ... read the command's own config sections with the getters ...
+ *   rc = rths_cli_check_config(cfg, &err);       // unknown keys -> exit 2
+ *   rths_report *rep;
+ *   rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);   // creates DIR
+ *   ... work, write files; rths_report_close(rep); rths_cli_unload(cfg, &setup) ...
  *
- * Everything that can refuse input runs before rths_cli_open_report, so exit
- * status 2 never leaves files behind. Exit status: RTHS_OK 0, RTHS_EFAIL 1,
- * RTHS_EINPUT 2 (the rths_error codes). */
+ * Everything that can refuse input runs before rths_cli_open_report, so exit status 2 never
+ * leaves files behind. Exit status: RTHS_OK 0, RTHS_EFAIL 1, RTHS_EINPUT 2 (the error codes). */
 #ifndef RTHS_CLI_COMMON_H
 #define RTHS_CLI_COMMON_H
 
@@ -34,87 +31,78 @@ struct json_object;
 
 /* What a command takes besides --set, --quiet and --help (always accepted). */
 enum {
-  RTHS_CLI_CONFIG = 1, /* one positional CONFIG file, required */
-  RTHS_CLI_OUT = 2,    /* --out DIR, required */
-  RTHS_CLI_SEED = 4,   /* --seed S accepted (unsigned 64-bit) */
+    RTHS_CLI_CONFIG = 1, /* one positional CONFIG file, required */
+    RTHS_CLI_OUT = 2,    /* --out DIR, required */
+    RTHS_CLI_SEED = 4,   /* --seed S accepted (unsigned 64-bit) */
 };
 
-/* A command-specific option. metavar NULL: a flag (value becomes "1" when
- * given). Otherwise it takes a value ("--name V" or "--name=V"); the last
- * occurrence wins. value is NULL when absent. */
+/* A command-specific option. metavar NULL: a flag (value becomes "1" when given). Otherwise it
+ * takes a value ("--name V" or "--name=V"); the last occurrence wins. value is NULL when absent. */
 typedef struct rths_cli_opt {
-  const char *name;    /* with the dashes: "--frequency" */
-  const char *metavar; /* "F", or NULL for a flag */
-  const char *value;   /* filled by rths_cli_parse; points into argv */
+    const char *name;    /* with the dashes: "--frequency" */
+    const char *metavar; /* "F", or NULL for a flag */
+    const char *value;   /* filled by rths_cli_parse; points into argv */
 } rths_cli_opt;
 
 #define RTHS_CLI_MAX_SETS 64
 
 typedef struct rths_cli {
-  const char *command;                 /* argv[0], e.g. "fidelity" */
-  const char *config_path;             /* CONFIG */
-  const char *out_dir;                 /* --out */
-  const char *sets[RTHS_CLI_MAX_SETS]; /* --set k=v, in order */
-  int n_sets;
-  int quiet;    /* --quiet: nothing on stdout except errors (stderr) */
-  int has_seed; /* --seed given */
-  uint64_t seed;
-  int help; /* --help was given and the usage printed: return 0 */
+    const char *command;                 /* argv[0], e.g. "fidelity" */
+    const char *config_path;             /* CONFIG */
+    const char *out_dir;                 /* --out */
+    const char *sets[RTHS_CLI_MAX_SETS]; /* --set k=v, in order */
+    int n_sets;
+    int quiet;    /* --quiet: nothing on stdout except errors (stderr) */
+    int has_seed; /* --seed given */
+    uint64_t seed;
+    int help; /* --help was given and the usage printed: return 0 */
 } rths_cli;
 
-/* Parses argv (argv[0] = command name). usage is printed for --help (stdout,
- * then cli->help = 1 and RTHS_OK). Any problem: "rths <cmd>: <message>" on
- * stderr and RTHS_EINPUT. */
-int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags,
-                   const char *usage, rths_cli_opt *opts, int n_opts);
+/* Parses argv (argv[0] = command name). usage is printed for --help (stdout, then cli->help = 1
+ * and RTHS_OK). Any problem: "rths <cmd>: <message>" on stderr and RTHS_EINPUT. */
+int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *usage,
+                   rths_cli_opt *opts, int n_opts);
 
-/* Prints "rths <cmd>: <err->msg>" on stderr and returns rc (the exit status).
- */
+/* Prints "rths <cmd>: <err->msg>" on stderr and returns rc (the exit status). */
 int rths_cli_fail(const rths_cli *cli, int rc, const rths_error *err);
 
 /* printf to stdout unless --quiet. */
 void rths_cli_print(const rths_cli *cli, const char *fmt, ...)
     __attribute__((format(printf, 2, 3)));
 
-/* Option value parsers: the whole text must be the number, finite, inside [lo,
- * hi]; otherwise RTHS_EINPUT with "option --name: ..." in err. */
-int rths_cli_double(const char *opt, const char *text, double lo, double hi,
-                    double *out, rths_error *err);
-int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out,
-                 rths_error *err);
-/* Comma-separated numbers "1e-4,0,-2e-5" (at most max_count); *count how many.
- */
-int rths_cli_double_list(const char *opt, const char *text, double *out,
-                         int max_count, int *count, rths_error *err);
+/* Option value parsers: the whole text must be the number, finite, inside [lo, hi]; otherwise
+ * RTHS_EINPUT with "option --name: ..." in err. */
+int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
+                    rths_error *err);
+int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out, rths_error *err);
+/* Comma-separated numbers "1e-4,0,-2e-5" (at most max_count); *count how many. */
+int rths_cli_double_list(const char *opt, const char *text, double *out, int max_count, int *count,
+                         rths_error *err);
 
-/* Loads CONFIG with the --set overrides and reads the structural setup
- * (structure, split, forcing, model). On failure nothing is left allocated.
- * Free with rths_cli_unload. */
-int rths_cli_load(const rths_cli *cli, rths_config **cfg, rths_setup *setup,
-                  rths_error *err);
+/* Loads CONFIG with the --set overrides and reads the structural setup (structure, split,
+ * forcing, model). On failure nothing is left allocated. Free with rths_cli_unload. */
+int rths_cli_load(const rths_cli *cli, rths_config **cfg, rths_setup *setup, rths_error *err);
 void rths_cli_unload(rths_config *cfg, rths_setup *setup);
 
-/* Refuses unknown keys (typos, unknown sections) after the command has read its
- * sections with the getters (which check types and ranges). The setup's
- * sections (structure, split, forcing, model) and the command's own sections
- * (own: NULL-terminated list, may be NULL) are checked key by key; every other
- * section the rths configuration knows of (rig, controller, iteration,
- * continuation, stability, fidelity, output) is accepted whole, so one config
- * file serves every command. */
-int rths_cli_check_config(rths_config *cfg, const char *const *own,
-                          rths_error *err);
+/* Refuses unknown keys (typos, unknown sections) after the command has read its sections with the
+ * getters (which check types and ranges). The setup's sections (structure, split, forcing, model)
+ * are checked key by key; every other section the rths configuration knows of (rig, controller,
+ * iteration, continuation, stability, fidelity, output) is accepted whole, so one config file
+ * serves every command. */
+int rths_cli_check_config(rths_config *cfg, rths_error *err);
+/* The same, but the command's own sections (own: NULL-terminated, e.g. {"fidelity", NULL}) are
+ * also checked key by key, so a misspelt key there is refused instead of ignored. */
+int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err);
 
-/* Creates the output folder, opens run.log, writes config.yaml (as resolved).
- */
-int rths_cli_open_report(const rths_cli *cli, const rths_config *cfg, int argc,
-                         char **argv, rths_report **rep, rths_error *err);
+/* Creates the output folder, opens run.log, writes config.yaml (as resolved). */
+int rths_cli_open_report(const rths_cli *cli, const rths_config *cfg, int argc, char **argv,
+                         rths_report **rep, rths_error *err);
 
-/* rths_json_summary_new(command) plus "config_file", "overrides" and "seed"
- * (when given). */
+/* rths_json_summary_new(command) plus "config_file", "overrides" and "seed" (when given). */
 struct json_object *rths_cli_summary_new(const rths_cli *cli);
 
 /* dir/name written as JSON (atomic), the name logged. */
-int rths_cli_write_summary(rths_report *rep, const char *name,
-                           struct json_object *obj, rths_error *err);
+int rths_cli_write_summary(rths_report *rep, const char *name, struct json_object *obj,
+                           rths_error *err);
 
 #endif
