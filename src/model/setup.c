@@ -256,6 +256,10 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
         rc = rths_config_error_at(cfg, K_MATRICES, err,
                                   "give the structure either as structure.storeys or as "
                                   "structure.matrices, not both");
+    else if (!has_chain && !has_matrices && rths_config_has(cfg, "structure"))
+        rc = rths_config_error_at(cfg, "structure", err,
+                                  "must be a mapping with storeys: (mass_kg, damping_n_s_per_m, "
+                                  "stiffness_n_per_m lists) or matrices:");
     else if (!has_chain && !has_matrices)
         rc = rths_config_error_at(cfg, "structure", err,
                                   "missing: give structure.storeys (mass_kg, damping_n_s_per_m, "

@@ -1,0 +1,909 @@
+/* YAML configuration through libfyaml's event parser.
+ *
+ * The document is read into a small tree of our own that keeps every node's line and column (the
+ * document API of libfyaml 0.8 exposes positions only for scalars), whether a scalar was quoted,
+ * and which nodes came from --set. Getters mark what they read; check_unknown refuses the rest. */
+#include "rths/config.h"
+
+#include <ctype.h>
+#include <errno.h>
+#include <libfyaml.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+typedef enum { NODE_SCALAR, NODE_SEQUENCE, NODE_MAPPING } node_type;
+
+typedef struct cnode cnode;
+struct cnode {
+    node_type type;
+    int line, column;   /* 1-based; 0 when unknown */
+    const char *origin; /* the --set text this node came from, or NULL (the file) */
+    int known;          /* a getter read it (or an ancestor of something read) */
+    int known_subtree;  /* mark_known: everything below is known */
+    char *text;         /* scalar */
+    int quoted;         /* scalar was quoted: a string, never a number */
+    int count, cap;
+    cnode **items;      /* sequence items, or mapping values */
+    char **keys;        /* mapping keys */
+    int *key_line, *key_column;
+};
+
+struct rths_config {
+    char *path;
+    cnode *root;
+    char **overrides; /* owned copies of the --set texts (nodes point into them) */
+    int n_overrides;
+};
+
+/* ---- tree ---- */
+
+static cnode *node_new(node_type type, int line, int column, const char *origin) {
+    cnode *n = calloc(1, sizeof *n);
+    if (!n) return NULL;
+    n->type = type;
+    n->line = line;
+    n->column = column;
+    n->origin = origin;
+    return n;
+}
+
+static void node_free(cnode *n) {
+    if (!n) return;
+    for (int i = 0; i < n->count; i++) {
+        node_free(n->items[i]);
+        if (n->keys) free(n->keys[i]);
+    }
+    free(n->items);
+    free(n->keys);
+    free(n->key_line);
+    free(n->key_column);
+    free(n->text);
+    free(n);
+}
+
+static int node_grow(cnode *n) {
+    if (n->count < n->cap) return 0;
+    int cap = n->cap ? 2 * n->cap : 8;
+    cnode **items = realloc(n->items, (size_t)cap * sizeof *items);
+    if (!items) return -1;
+    n->items = items;
+    if (n->type == NODE_MAPPING) {
+        char **keys = realloc(n->keys, (size_t)cap * sizeof *keys);
+        if (!keys) return -1;
+        n->keys = keys;
+        int *kl = realloc(n->key_line, (size_t)cap * sizeof *kl);
+        if (!kl) return -1;
+        n->key_line = kl;
+        int *kc = realloc(n->key_column, (size_t)cap * sizeof *kc);
+        if (!kc) return -1;
+        n->key_column = kc;
+    }
+    n->cap = cap;
+    return 0;
+}
+
+static int map_find(const cnode *map, const char *key, size_t len) {
+    for (int i = 0; i < map->count; i++)
+        if (strlen(map->keys[i]) == len && !memcmp(map->keys[i], key, len)) return i;
+    return -1;
+}
+
+/* ---- parsing (events -> tree) ---- */
+
+typedef struct {
+    struct fy_parser *parser;
+    char diag_text[512]; /* libfyaml's first error line: "FILE:LINE:COL: error: what" */
+    const char *where; /* file name or "--set ..." for messages */
+    const char *origin;
+    int line_offset;
+    rths_error *err;
+} parse_ctx;
+
+static void event_position(struct fy_event *ev, int *line, int *column) {
+    const struct fy_mark *m = fy_event_start_mark(ev);
+    *line = m ? m->line + 1 : 0;
+    *column = m ? m->column + 1 : 0;
+}
+
+/* The parser's own diagnosis when it stops on a syntax error. */
+static int parse_error(parse_ctx *ctx) {
+    const char *text = ctx->diag_text, *sep = strstr(text, ": error: ");
+    if (sep && !ctx->origin)
+        return rths_error_set(ctx->err, RTHS_EINPUT, "%.*s: not valid YAML: %s",
+                              (int)(sep - text), text, sep + 9);
+    if (sep)
+        return rths_error_set(ctx->err, RTHS_EINPUT, "%s: not valid YAML: %s", ctx->where,
+                              sep + 9);
+    return rths_error_set(ctx->err, RTHS_EINPUT, "%s: not valid YAML", ctx->where);
+}
+
+static void capture_diag(struct fy_diag *diag, void *user, const char *buf, size_t len) {
+    (void)diag;
+    parse_ctx *ctx = user;
+    if (ctx->diag_text[0] || !memmem(buf, len, ": error: ", 9)) return;
+    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' ')) len--;
+    if (len >= sizeof ctx->diag_text) len = sizeof ctx->diag_text - 1;
+    memcpy(ctx->diag_text, buf, len);
+    ctx->diag_text[len] = 0;
+}
+
+static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out);
+
+static int parse_children(parse_ctx *ctx, cnode *n) {
+    for (;;) {
+        struct fy_event *ev = fy_parser_parse(ctx->parser);
+        if (!ev) return parse_error(ctx);
+        enum fy_event_type t = ev->type;
+        if (t == FYET_SEQUENCE_END || t == FYET_MAPPING_END) {
+            fy_parser_event_free(ctx->parser, ev);
+            return RTHS_OK;
+        }
+        if (n->type == NODE_MAPPING) {
+            /* key: must be a scalar */
+            int kl, kc;
+            event_position(ev, &kl, &kc);
+            if (t != FYET_SCALAR) {
+                fy_parser_event_free(ctx->parser, ev);
+                return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: mapping keys must be "
+                                      "plain names", ctx->where, kl, kc);
+            }
+            size_t len = 0;
+            const char *text = fy_token_get_text(ev->scalar.value, &len);
+            if (!text) text = "";
+            if (map_find(n, text, len) >= 0) {
+                int rc = rths_error_set(ctx->err, RTHS_EINPUT,
+                                        "%s:%d:%d: duplicate key '%.*s' in this mapping",
+                                        ctx->where, kl, kc, (int)len, text);
+                fy_parser_event_free(ctx->parser, ev);
+                return rc;
+            }
+            if (node_grow(n)) {
+                fy_parser_event_free(ctx->parser, ev);
+                return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
+            }
+            n->keys[n->count] = strndup(text, len);
+            n->key_line[n->count] = kl;
+            n->key_column[n->count] = kc;
+            fy_parser_event_free(ctx->parser, ev);
+            if (!n->keys[n->count]) return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
+            n->items[n->count] = NULL;
+            n->count++;
+            ev = fy_parser_parse(ctx->parser);
+            if (!ev) return parse_error(ctx);
+            int rc = parse_node(ctx, ev, &n->items[n->count - 1]);
+            if (rc) return rc;
+        } else {
+            if (node_grow(n)) {
+                fy_parser_event_free(ctx->parser, ev);
+                return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
+            }
+            n->items[n->count] = NULL;
+            n->count++;
+            int rc = parse_node(ctx, ev, &n->items[n->count - 1]);
+            if (rc) return rc;
+        }
+    }
+}
+
+/* Consumes ev (and, for collections, everything up to the matching end). */
+static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
+    int line, column;
+    event_position(ev, &line, &column);
+    enum fy_event_type t = ev->type;
+    int rc = RTHS_OK;
+    if (t == FYET_SCALAR) {
+        size_t len = 0;
+        const char *text = fy_token_get_text(ev->scalar.value, &len);
+        cnode *n = node_new(NODE_SCALAR, line, column, ctx->origin);
+        if (n) {
+            n->text = strndup(text ? text : "", text ? len : 0);
+            n->quoted = fy_token_scalar_style(ev->scalar.value) != FYSS_PLAIN;
+        }
+        fy_parser_event_free(ctx->parser, ev);
+        if (!n || !n->text) {
+            node_free(n);
+            return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
+        }
+        *out = n;
+        return RTHS_OK;
+    }
+    if (t == FYET_SEQUENCE_START || t == FYET_MAPPING_START) {
+        fy_parser_event_free(ctx->parser, ev);
+        cnode *n =
+            node_new(t == FYET_SEQUENCE_START ? NODE_SEQUENCE : NODE_MAPPING, line, column,
+                     ctx->origin);
+        if (!n) return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
+        *out = n;
+        rc = parse_children(ctx, n);
+        return rc;
+    }
+    fy_parser_event_free(ctx->parser, ev);
+    if (t == FYET_ALIAS)
+        return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: YAML aliases are not supported "
+                              "in rths configurations; write the value out",
+                              ctx->where, line, column);
+    return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: unexpected YAML structure",
+                          ctx->where, line, column);
+}
+
+/* Parses a whole stream with exactly one document (or none: NULL root). */
+static int parse_stream(parse_ctx *ctx, cnode **root) {
+    *root = NULL;
+    int docs = 0;
+    for (;;) {
+        struct fy_event *ev = fy_parser_parse(ctx->parser);
+        if (!ev) {
+            if (fy_parser_get_stream_error(ctx->parser)) {
+                node_free(*root);
+                *root = NULL;
+                return parse_error(ctx);
+            }
+            return RTHS_OK;
+        }
+        enum fy_event_type t = ev->type;
+        if (t == FYET_STREAM_START || t == FYET_DOCUMENT_END || t == FYET_STREAM_END) {
+            fy_parser_event_free(ctx->parser, ev);
+            if (t == FYET_STREAM_END) return RTHS_OK;
+            continue;
+        }
+        if (t == FYET_DOCUMENT_START) {
+            int line, column;
+            event_position(ev, &line, &column);
+            fy_parser_event_free(ctx->parser, ev);
+            if (++docs > 1) {
+                node_free(*root);
+                *root = NULL;
+                return rths_error_set(ctx->err, RTHS_EINPUT,
+                                      "%s:%d:%d: a configuration is one YAML document, found a "
+                                      "second",
+                                      ctx->where, line, column);
+            }
+            continue;
+        }
+        int rc = parse_node(ctx, ev, root);
+        if (rc) {
+            node_free(*root);
+            *root = NULL;
+            return rc;
+        }
+    }
+}
+
+static int parse_source(const char *path, const char *text, const char *where,
+                        const char *origin, cnode **root, rths_error *err) {
+    parse_ctx ctx = {.where = where, .origin = origin, .err = err};
+    struct fy_diag_cfg dcfg;
+    fy_diag_cfg_default(&dcfg);
+    dcfg.fp = NULL;
+    dcfg.output_fn = capture_diag;
+    dcfg.user = &ctx;
+    dcfg.colorize = false;
+    struct fy_diag *diag = fy_diag_create(&dcfg);
+    if (!diag) return rths_error_set(err, RTHS_EFAIL, "out of memory creating the YAML parser");
+    struct fy_parse_cfg pcfg = {.flags = FYPCF_QUIET, .diag = diag};
+    ctx.parser = fy_parser_create(&pcfg);
+    int rc = RTHS_OK;
+    if (!ctx.parser) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory creating the YAML parser");
+    } else if (path ? fy_parser_set_input_file(ctx.parser, path)
+                    : fy_parser_set_string(ctx.parser, text, strlen(text))) {
+        rc = path ? rths_error_set(err, RTHS_EINPUT, "%s: cannot read: %s", path,
+                                   strerror(errno ? errno : ENOENT))
+                  : rths_error_set(err, RTHS_EFAIL, "cannot parse %s", where);
+    } else {
+        rc = parse_stream(&ctx, root);
+    }
+    if (ctx.parser) fy_parser_destroy(ctx.parser);
+    fy_diag_destroy(diag);
+    return rc;
+}
+
+/* ---- locations and messages ---- */
+
+static void location(const rths_config *cfg, const cnode *n, int line, int column, char *buf,
+                     size_t size) {
+    if (n && n->origin)
+        snprintf(buf, size, "--set %s", n->origin);
+    else if (line > 0)
+        snprintf(buf, size, "%s:%d:%d", cfg->path ? cfg->path : "<config>", line, column);
+    else
+        snprintf(buf, size, "%s", cfg->path ? cfg->path : "<no config file>");
+}
+
+static int key_error(const rths_config *cfg, const char *key, const cnode *at, rths_error *err,
+                     const char *fmt, ...) __attribute__((format(printf, 5, 6)));
+static int key_error(const rths_config *cfg, const char *key, const cnode *at, rths_error *err,
+                     const char *fmt, ...) {
+    char loc[512], msg[RTHS_ERROR_MSG_LEN];
+    location(cfg, at, at ? at->line : 0, at ? at->column : 0, loc, sizeof loc);
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return rths_error_set(err, RTHS_EINPUT, "%s: key '%s': %s", loc, key, msg);
+}
+
+/* Walks the dotted key. Returns the node or NULL; *deepest receives the deepest existing node on
+ * the path (for locating "missing" errors). Marks the path as known when mark is set. */
+static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **deepest) {
+    cnode *n = cfg->root;
+    if (deepest) *deepest = NULL;
+    const char *p = key;
+    while (n) {
+        if (deepest) *deepest = n;
+        if (mark) n->known = 1;
+        if (!*p) return n;
+        const char *dot = strchr(p, '.');
+        size_t len = dot ? (size_t)(dot - p) : strlen(p);
+        if (n->type != NODE_MAPPING) return NULL;
+        int i = map_find(n, p, len);
+        if (i < 0) return NULL;
+        n = n->items[i];
+        p += len + (dot ? 1 : 0);
+        if (!dot) {
+            if (n && mark) n->known = 1;
+            if (deepest) *deepest = n;
+            return n;
+        }
+    }
+    return NULL;
+}
+
+/* ---- loading ---- */
+
+static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
+    const char *eq = strchr(text, '=');
+    if (!eq || eq == text)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "--set %s: expected dotted.key=value (e.g. split.mass_ratio=0.33)",
+                              text);
+    size_t klen = (size_t)(eq - text);
+    if (text[0] == '.' || text[klen - 1] == '.' || memmem(text, klen, "..", 2))
+        return rths_error_set(err, RTHS_EINPUT, "--set %s: the key has an empty part", text);
+    if (!eq[1])
+        return rths_error_set(err, RTHS_EINPUT, "--set %s: no value after '='", text);
+    char *copy = strdup(text);
+    char **list = realloc(cfg->overrides, (size_t)(cfg->n_overrides + 1) * sizeof *list);
+    if (!copy || !list) {
+        free(copy);
+        if (list) cfg->overrides = list;
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    cfg->overrides = list;
+    cfg->overrides[cfg->n_overrides++] = copy;
+    char where[600];
+    snprintf(where, sizeof where, "--set %s", copy);
+    cnode *value = NULL;
+    int rc = parse_source(NULL, copy + klen + 1, where, copy, &value, err);
+    if (rc) return rc;
+    if (!value) return rths_error_set(err, RTHS_EINPUT, "%s: no value after '='", where);
+    if (!cfg->root) {
+        cfg->root = node_new(NODE_MAPPING, 0, 0, NULL);
+        if (!cfg->root) {
+            node_free(value);
+            return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        }
+    }
+    cnode *n = cfg->root;
+    const char *p = copy;
+    for (;;) {
+        const char *dot = memchr(p, '.', (size_t)(copy + klen - p));
+        size_t len = dot ? (size_t)(dot - p) : (size_t)(copy + klen - p);
+        if (n->type != NODE_MAPPING) {
+            node_free(value);
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "%s: '%.*s' is not a mapping in the configuration, so it has no "
+                                  "key '%.*s'",
+                                  where, (int)(p - copy - 1), copy, (int)len, p);
+        }
+        int i = map_find(n, p, len);
+        if (!dot) {
+            if (i >= 0) {
+                node_free(n->items[i]);
+                n->items[i] = value;
+            } else {
+                if (node_grow(n)) {
+                    node_free(value);
+                    return rths_error_set(err, RTHS_EFAIL, "out of memory");
+                }
+                n->keys[n->count] = strndup(p, len);
+                n->key_line[n->count] = 0;
+                n->key_column[n->count] = 0;
+                n->items[n->count++] = value;
+            }
+            return RTHS_OK;
+        }
+        if (i < 0) {
+            cnode *m = node_new(NODE_MAPPING, 0, 0, copy);
+            if (!m || node_grow(n)) {
+                node_free(m);
+                node_free(value);
+                return rths_error_set(err, RTHS_EFAIL, "out of memory");
+            }
+            n->keys[n->count] = strndup(p, len);
+            n->key_line[n->count] = 0;
+            n->key_column[n->count] = 0;
+            n->items[n->count] = m;
+            i = n->count++;
+        }
+        n = n->items[i];
+        p = dot + 1;
+    }
+}
+
+int rths_config_load(const char *path, const char *const *overrides, int n_overrides,
+                     rths_config **out, rths_error *err) {
+    *out = NULL;
+    rths_config *cfg = calloc(1, sizeof *cfg);
+    if (!cfg) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = RTHS_OK;
+    if (path) {
+        cfg->path = strdup(path);
+        if (!cfg->path) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        if (!rc && access(path, R_OK) != 0)
+            rc = rths_error_set(err, RTHS_EINPUT, "%s: cannot read the configuration: %s", path,
+                                strerror(errno));
+        if (!rc) rc = parse_source(path, NULL, path, NULL, &cfg->root, err);
+        if (!rc && cfg->root && cfg->root->type != NODE_MAPPING)
+            rc = rths_error_set(err, RTHS_EINPUT,
+                                "%s:%d:%d: the configuration must be a mapping of sections "
+                                "(structure:, split:, ...)",
+                                path, cfg->root->line, cfg->root->column);
+    }
+    if (!rc && !cfg->root) {
+        cfg->root = node_new(NODE_MAPPING, 0, 0, NULL);
+        if (!cfg->root) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    for (int i = 0; i < n_overrides && !rc; i++) rc = apply_override(cfg, overrides[i], err);
+    if (rc) {
+        rths_config_free(cfg);
+        return rc;
+    }
+    cfg->root->known = 1;
+    *out = cfg;
+    return RTHS_OK;
+}
+
+void rths_config_free(rths_config *cfg) {
+    if (!cfg) return;
+    node_free(cfg->root);
+    for (int i = 0; i < cfg->n_overrides; i++) free(cfg->overrides[i]);
+    free(cfg->overrides);
+    free(cfg->path);
+    free(cfg);
+}
+
+const char *rths_config_path(const rths_config *cfg) { return cfg->path; }
+
+int rths_config_has(const rths_config *cfg, const char *key) {
+    return lookup(cfg, key, 0, NULL) != NULL;
+}
+
+/* ---- getters ---- */
+
+static int edit_distance(const char *a, const char *b) {
+    size_t la = strlen(a), lb = strlen(b);
+    if (la > 63 || lb > 63) return 99;
+    int d[64][64];
+    for (size_t i = 0; i <= la; i++) d[i][0] = (int)i;
+    for (size_t j = 0; j <= lb; j++) d[0][j] = (int)j;
+    for (size_t i = 1; i <= la; i++)
+        for (size_t j = 1; j <= lb; j++) {
+            int best = d[i - 1][j - 1] + (a[i - 1] != b[j - 1]);
+            if (d[i - 1][j] + 1 < best) best = d[i - 1][j] + 1;
+            if (d[i][j - 1] + 1 < best) best = d[i][j - 1] + 1;
+            d[i][j] = best;
+        }
+    return d[la][lb];
+}
+
+static const char *describe(const cnode *n) {
+    return n->type == NODE_MAPPING ? "a mapping" : n->type == NODE_SEQUENCE ? "a list" : "text";
+}
+
+
+
+/* Finds key for a getter: RTHS_OK with *n (NULL when absent and optional). */
+static int get_node(rths_config *cfg, const char *key, int required, cnode **n,
+                    rths_error *err) {
+    cnode *deepest = NULL;
+    *n = lookup(cfg, key, 1, &deepest);
+    if (*n) return RTHS_OK;
+    if (!required) return RTHS_OK;
+    if (deepest == cfg->root && !deepest->line) deepest = NULL;
+    /* a present key one or two letters off is most likely the user's spelling of this one */
+    const char *last = strrchr(key, '.');
+    last = last ? last + 1 : key;
+    if (deepest && deepest->type == NODE_MAPPING)
+        for (int i = 0; i < deepest->count; i++)
+            if (edit_distance(deepest->keys[i], last) <= 2)
+                return key_error(cfg, key, deepest, err,
+                                 "is required but missing (line %d has '%s': misspelt?)",
+                                 deepest->key_line[i], deepest->keys[i]);
+    if (deepest && deepest->type != NODE_MAPPING)
+        return key_error(cfg, key, deepest, err, "is required but its parent is %s, not a "
+                         "mapping", describe(deepest));
+    return key_error(cfg, key, deepest, err, "is required but missing");
+}
+
+static int scalar_number(rths_config *cfg, const char *key, const cnode *n, double *out,
+                         rths_error *err) {
+    if (n->type != NODE_SCALAR)
+        return key_error(cfg, key, n, err, "expected a number, got %s", describe(n));
+    const char *s = n->text;
+    if (!*s) return key_error(cfg, key, n, err, "has no value (expected a number)");
+    if (!n->quoted) {
+        const char *t = s + (*s == '-' || *s == '+');
+        if (!strcasecmp(t, ".nan") || !strcasecmp(t, ".inf") || !strcasecmp(t, "nan") ||
+            !strcasecmp(t, "inf") || !strcasecmp(t, "infinity"))
+            return key_error(cfg, key, n, err, "NaN/inf is not allowed (got '%s')", s);
+    }
+    char *end = NULL;
+    errno = 0;
+    double v = n->quoted ? NAN : strtod(s, &end);
+    if (n->quoted || end == s || *end || errno == ERANGE)
+        return key_error(cfg, key, n, err, "expected a number, got '%s'", s);
+    if (!isfinite(v)) return key_error(cfg, key, n, err, "NaN/inf is not allowed (got '%s')", s);
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_config_get_double(rths_config *cfg, const char *key, int required, double def, double lo,
+                           double hi, double *out, rths_error *err) {
+    cnode *n;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc) return rc;
+    if (!n) {
+        *out = def;
+        return RTHS_OK;
+    }
+    double v;
+    if ((rc = scalar_number(cfg, key, n, &v, err))) return rc;
+    if (v < lo || v > hi) {
+        if (isinf(hi)) return key_error(cfg, key, n, err, "must be >= %g (got %g)", lo, v);
+        if (isinf(lo)) return key_error(cfg, key, n, err, "must be <= %g (got %g)", hi, v);
+        return key_error(cfg, key, n, err, "must be in [%g, %g] (got %g)", lo, hi, v);
+    }
+    *out = v;
+    return RTHS_OK;
+}
+
+static int scalar_int(rths_config *cfg, const char *key, const cnode *n, long *out,
+                      rths_error *err) {
+    if (n->type != NODE_SCALAR)
+        return key_error(cfg, key, n, err, "expected an integer, got %s", describe(n));
+    char *end = NULL;
+    errno = 0;
+    long v = n->quoted ? 0 : strtol(n->text, &end, 10);
+    if (n->quoted || !*n->text || end == n->text || *end || errno == ERANGE)
+        return key_error(cfg, key, n, err, "expected an integer, got '%s'", n->text);
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo,
+                        long hi, long *out, rths_error *err) {
+    cnode *n;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc) return rc;
+    if (!n) {
+        *out = def;
+        return RTHS_OK;
+    }
+    long v;
+    if ((rc = scalar_int(cfg, key, n, &v, err))) return rc;
+    if (v < lo || v > hi)
+        return key_error(cfg, key, n, err, "must be in %ld..%ld (got %ld)", lo, hi, v);
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_config_get_bool(rths_config *cfg, const char *key, int required, int def, int *out,
+                         rths_error *err) {
+    cnode *n;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc) return rc;
+    if (!n) {
+        *out = def;
+        return RTHS_OK;
+    }
+    static const char *const yes[] = {"true", "yes", "on"}, *const no[] = {"false", "no", "off"};
+    if (n->type == NODE_SCALAR && !n->quoted)
+        for (int i = 0; i < 3; i++) {
+            if (!strcasecmp(n->text, yes[i])) {
+                *out = 1;
+                return RTHS_OK;
+            }
+            if (!strcasecmp(n->text, no[i])) {
+                *out = 0;
+                return RTHS_OK;
+            }
+        }
+    return key_error(cfg, key, n, err, "expected true or false, got %s%s%s",
+                     n->type == NODE_SCALAR ? "'" : "",
+                     n->type == NODE_SCALAR ? n->text : describe(n),
+                     n->type == NODE_SCALAR ? "'" : "");
+}
+
+int rths_config_get_string(rths_config *cfg, const char *key, int required, const char *def,
+                           const char **out, rths_error *err) {
+    cnode *n;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc) return rc;
+    if (!n) {
+        *out = def;
+        return RTHS_OK;
+    }
+    if (n->type != NODE_SCALAR)
+        return key_error(cfg, key, n, err, "expected text, got %s", describe(n));
+    *out = n->text;
+    return RTHS_OK;
+}
+
+int rths_config_get_choice(rths_config *cfg, const char *key, int required, int def_index,
+                           const char *const *choices, int *out_index, rths_error *err) {
+    const char *s;
+    int rc = rths_config_get_string(cfg, key, required, NULL, &s, err);
+    if (rc) return rc;
+    if (!s) {
+        *out_index = def_index;
+        return RTHS_OK;
+    }
+    for (int i = 0; choices[i]; i++)
+        if (!strcmp(s, choices[i])) {
+            *out_index = i;
+            return RTHS_OK;
+        }
+    char allowed[512] = "";
+    size_t len = 0;
+    for (int i = 0; choices[i] && len < sizeof allowed; i++)
+        len += (size_t)snprintf(allowed + len, sizeof allowed - len, "%s'%s'", i ? ", " : "",
+                                choices[i]);
+    return key_error(cfg, key, lookup(cfg, key, 0, NULL), err, "'%s' is not one of %s", s,
+                     allowed);
+}
+
+static int number_list(rths_config *cfg, const char *key, cnode *n, int integers, double **dout,
+                       int **iout, int *count, rths_error *err) {
+    if (n->type != NODE_SEQUENCE)
+        return key_error(cfg, key, n, err, "expected a list of numbers like [1, 2], got %s%s%s",
+                         describe(n), n->type == NODE_SCALAR ? " " : "",
+                         n->type == NODE_SCALAR ? n->text : "");
+    size_t m = (size_t)(n->count ? n->count : 1);
+    double *d = integers ? NULL : calloc(m, sizeof *d);
+    int *iv = integers ? calloc(m, sizeof *iv) : NULL;
+    if (!d && !iv) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < n->count; i++) {
+        cnode *item = n->items[i];
+        int rc;
+        if (integers) {
+            long v = 0;
+            rc = scalar_int(cfg, key, item, &v, err);
+            if (!rc && (v < -2147483647L || v > 2147483647L))
+                rc = key_error(cfg, key, item, err, "entry %d is out of range", i + 1);
+            if (!rc) iv[i] = (int)v;
+        } else {
+            rc = scalar_number(cfg, key, item, &d[i], err);
+        }
+        if (rc) {
+            free(d);
+            free(iv);
+            return rc;
+        }
+    }
+    if (dout) *dout = d;
+    if (iout) *iout = iv;
+    *count = n->count;
+    return RTHS_OK;
+}
+
+int rths_config_get_double_list(rths_config *cfg, const char *key, int required, double **out,
+                                int *count, rths_error *err) {
+    cnode *n;
+    *out = NULL;
+    *count = 0;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc || !n) return rc;
+    return number_list(cfg, key, n, 0, out, NULL, count, err);
+}
+
+int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out,
+                             int *count, rths_error *err) {
+    cnode *n;
+    *out = NULL;
+    *count = 0;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc || !n) return rc;
+    return number_list(cfg, key, n, 1, NULL, out, count, err);
+}
+
+int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out,
+                           int *rows, int *cols, rths_error *err) {
+    cnode *n;
+    *out = NULL;
+    *rows = *cols = 0;
+    int rc = get_node(cfg, key, required, &n, err);
+    if (rc || !n) return rc;
+    if (n->type != NODE_SEQUENCE || n->count == 0)
+        return key_error(cfg, key, n, err,
+                         "expected a matrix as a list of rows, e.g. [[1, 0], [0, 1]]");
+    int r = n->count, c = -1;
+    for (int i = 0; i < r; i++) {
+        cnode *row = n->items[i];
+        if (row->type != NODE_SEQUENCE)
+            return key_error(cfg, key, row, err, "row %d is not a list of numbers", i + 1);
+        if (c < 0) c = row->count;
+        if (row->count != c)
+            return key_error(cfg, key, row, err, "row %d has %d entries, row 1 has %d", i + 1,
+                             row->count, c);
+    }
+    if (c < 1) return key_error(cfg, key, n, err, "the matrix has empty rows");
+    double *m = calloc((size_t)r * (size_t)c, sizeof *m);
+    if (!m) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < r; i++)
+        for (int j = 0; j < c; j++) {
+            rc = scalar_number(cfg, key, n->items[i]->items[j], &RTHS_AT(m, r, i, j), err);
+            if (rc) {
+                free(m);
+                return rc;
+            }
+        }
+    *out = m;
+    *rows = r;
+    *cols = c;
+    return RTHS_OK;
+}
+
+void rths_config_mark_known(rths_config *cfg, const char *key_prefix) {
+    cnode *n = lookup(cfg, key_prefix, 1, NULL);
+    if (n) n->known_subtree = 1;
+}
+
+int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *err,
+                         const char *fmt, ...) {
+    char msg[RTHS_ERROR_MSG_LEN];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    cnode *deepest = NULL;
+    cnode *n = lookup(cfg, key, 0, &deepest);
+    if (!n && deepest == cfg->root && !deepest->line) deepest = NULL;
+    return key_error(cfg, key, n ? n : deepest, err, "%s", msg);
+}
+
+/* ---- unknown keys ---- */
+
+static int check_node(const rths_config *cfg, const cnode *n, char *path, size_t plen,
+                      rths_error *err) {
+    if (n->type != NODE_MAPPING || n->known_subtree) return RTHS_OK;
+    for (int i = 0; i < n->count; i++) {
+        size_t len = strlen(n->keys[i]);
+        if (plen + len + 2 >= 1024) continue;
+        size_t at = plen;
+        if (plen) path[at++] = '.';
+        memcpy(path + at, n->keys[i], len + 1);
+        const cnode *child = n->items[i];
+        if (!child->known) {
+            /* a misspelling of a key that was asked for at the same level? */
+            const char *suggest = NULL;
+            for (int j = 0; j < n->count; j++)
+                if (j != i && n->items[j]->known && edit_distance(n->keys[i], n->keys[j]) <= 2)
+                    suggest = n->keys[j];
+            char loc[512];
+            location(cfg, child, n->key_line[i] ? n->key_line[i] : child->line,
+                     n->key_line[i] ? n->key_column[i] : child->column, loc, sizeof loc);
+            if (suggest)
+                return rths_error_set(err, RTHS_EINPUT, "%s: unknown key '%s' (did you mean "
+                                      "'%.*s%s'?)",
+                                      loc, path, (int)(plen ? plen + 1 : 0), path, suggest);
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "%s: unknown key '%s' (see docs/config.md for the keys)", loc,
+                                  path);
+        }
+        int rc = check_node(cfg, child, path, at + len, err);
+        if (rc) return rc;
+    }
+    return RTHS_OK;
+}
+
+int rths_config_check_unknown(const rths_config *cfg, rths_error *err) {
+    char path[1024] = "";
+    return check_node(cfg, cfg->root, path, 0, err);
+}
+
+/* ---- writing the resolved document ---- */
+
+static int needs_quotes(const char *s) {
+    if (!*s) return 1;
+    if (strchr("-?:,[]{}#&*!|>'\"%@` ", s[0])) return 1;
+    for (const char *p = s; *p; p++)
+        if (*p == '#' || *p == ':' || *p == '\n' || *p == '"' || *p == '\\' ||
+            (unsigned char)*p < 0x20)
+            return 1;
+    return s[strlen(s) - 1] == ' ';
+}
+
+static void emit_scalar(FILE *f, const cnode *n) {
+    if (!n->quoted && !needs_quotes(n->text)) {
+        fputs(n->text, f);
+        return;
+    }
+    fputc('"', f);
+    for (const char *p = n->text; *p; p++) {
+        if (*p == '"' || *p == '\\')
+            fprintf(f, "\\%c", *p);
+        else if (*p == '\n')
+            fputs("\\n", f);
+        else if ((unsigned char)*p < 0x20)
+            fprintf(f, "\\x%02x", (unsigned char)*p);
+        else
+            fputc(*p, f);
+    }
+    fputc('"', f);
+}
+
+static void emit_flow(FILE *f, const cnode *n) {
+    if (n->type == NODE_SCALAR) {
+        emit_scalar(f, n);
+    } else if (n->type == NODE_SEQUENCE) {
+        fputc('[', f);
+        for (int i = 0; i < n->count; i++) {
+            if (i) fputs(", ", f);
+            emit_flow(f, n->items[i]);
+        }
+        fputc(']', f);
+    } else {
+        fputc('{', f);
+        for (int i = 0; i < n->count; i++) {
+            fprintf(f, "%s%s: ", i ? ", " : "", n->keys[i]);
+            emit_flow(f, n->items[i]);
+        }
+        fputc('}', f);
+    }
+}
+
+static void emit_block(FILE *f, const cnode *map, int indent) {
+    for (int i = 0; i < map->count; i++) {
+        const cnode *v = map->items[i];
+        fprintf(f, "%*s%s:", indent, "", map->keys[i]);
+        if (v->type == NODE_MAPPING && v->count > 0) {
+            fputc('\n', f);
+            emit_block(f, v, indent + 2);
+        } else {
+            fputc(' ', f);
+            emit_flow(f, v);
+            fputc('\n', f);
+        }
+    }
+}
+
+int rths_config_write(const rths_config *cfg, const char *path, rths_error *err) {
+    size_t len = strlen(path) + 32;
+    char *tmp = malloc(len);
+    if (!tmp) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    snprintf(tmp, len, "%s.tmp.%ld", path, (long)getpid());
+    FILE *f = fopen(tmp, "w");
+    if (!f) {
+        int e = errno;
+        free(tmp);
+        return rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(e));
+    }
+    fprintf(f, "# configuration as resolved (file %s, --set overrides applied)\n",
+            cfg->path ? cfg->path : "none");
+    emit_block(f, cfg->root, 0);
+    int bad = fflush(f) != 0 || fsync(fileno(f)) != 0;
+    bad |= fclose(f) != 0;
+    if (bad || rename(tmp, path) != 0) {
+        int e = errno;
+        remove(tmp);
+        free(tmp);
+        return rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(e));
+    }
+    free(tmp);
+    return RTHS_OK;
+}
