@@ -2,6 +2,8 @@
  * with exact Fourier sums, enough to exercise pacing, the link and the safety logic. */
 #include "controller/server_engine.h"
 
+#include "rths/setup.h"
+
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -28,7 +30,12 @@ struct rths_engine {
 
 int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *info,
                        rths_error *err) {
-    (void)cfg;
+    if (cfg) {
+        rths_setup setup;
+        int rc = rths_setup_read(cfg, &setup, err);
+        if (rc) return rc;
+        rths_setup_free(&setup);
+    }
     rths_engine *e = calloc(1, sizeof *e);
     if (!e) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     e->h = 1e-4;
@@ -40,11 +47,14 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     return RTHS_OK;
 }
 
-void rths_engine_destroy(rths_engine *e) { free(e); }
+void rths_engine_destroy(rths_engine *e) {
+    free(e);
+}
 
 static double target_at(const rths_engine *e, double ph) {
     double x = 0;
-    for (int k = 0; k < e->harmonics; k++) x += e->a[k] * cos((k + 1) * ph) + e->b[k] * sin((k + 1) * ph);
+    for (int k = 0; k < e->harmonics; k++)
+        x += e->a[k] * cos((k + 1) * ph) + e->b[k] * sin((k + 1) * ph);
     return x;
 }
 
@@ -118,7 +128,9 @@ int rths_engine_arm(rths_engine *e) {
     e->armed = 1;
     return 0;
 }
-void rths_engine_disarm(rths_engine *e) { e->armed = 0; }
+void rths_engine_disarm(rths_engine *e) {
+    e->armed = 0;
+}
 void rths_engine_trip_watchdog(rths_engine *e) {
     e->armed = 0;
     e->fault = 6;
@@ -137,10 +149,18 @@ void rths_engine_set_target(rths_engine *e, int h, const double *a, const double
     }
     e->acc_n = 0;
 }
-void rths_engine_reset_fault(rths_engine *e) { e->fault = 0; }
-int rths_engine_armed(const rths_engine *e) { return e->armed; }
-int rths_engine_fault(const rths_engine *e) { return e->fault; }
-double rths_engine_time_s(const rths_engine *e) { return (double)e->n * e->h; }
+void rths_engine_reset_fault(rths_engine *e) {
+    e->fault = 0;
+}
+int rths_engine_armed(const rths_engine *e) {
+    return e->armed;
+}
+int rths_engine_fault(const rths_engine *e) {
+    return e->fault;
+}
+double rths_engine_time_s(const rths_engine *e) {
+    return (double)e->n * e->h;
+}
 
 int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
     size_t t = atomic_load_explicit(&e->tail, memory_order_relaxed);

@@ -1,0 +1,154 @@
+/* Benchmark of the controller process (make bench): the per-sample step's cost inside the
+ * controller, and the wall-clock loop's lateness at the configured rate (10 kHz for the seed)
+ * while a host drives it over loopback TCP. Called from bench_main.c as rths_bench_link(). */
+#include "controller/server_engine.h"
+#include "rths/config.h"
+#include "rths/rig_remote.h"
+#include "rths/server.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/utsname.h>
+#include <time.h>
+
+void rths_bench_link(void);
+
+static double mono_s(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
+}
+
+static int cmp_double(const void *a, const void *b) {
+    double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static void kernel_notice(void) {
+    struct utsname u;
+    int rt = 0;
+    FILE *f = fopen("/sys/kernel/realtime", "r");
+    if (f) {
+        rt = fgetc(f) == '1';
+        fclose(f);
+    }
+    if (!uname(&u) && strstr(u.version, "PREEMPT_RT")) rt = 1;
+    printf("link: kernel %s %s: %s\n", u.release, u.version,
+           rt ? "a PREEMPT_RT (real-time) kernel"
+              : "NOT a real-time kernel (no PREEMPT_RT): lateness below is best effort on a "
+                "general-purpose kernel, shared with other jobs");
+}
+
+static rths_config *load_seed(void) {
+    const char *root = getenv("RTHS_SOURCE_DIR");
+    char path[4096];
+    snprintf(path, sizeof path, "%s/examples/four_storey.yaml", root ? root : ".");
+    const char *sets[] = {"server.watchdog_s=5"};
+    rths_config *cfg = NULL;
+    rths_error err;
+    if (rths_config_load(path, sets, 1, &cfg, &err)) {
+        printf("link: cannot load %s: %s\n", path, err.msg);
+        return NULL;
+    }
+    return cfg;
+}
+
+/* The step alone, back to back (no pacing): what one sample costs the controller. */
+static void bench_step_cost(void) {
+    rths_config *cfg = load_seed();
+    if (!cfg) return;
+    rths_engine *e = NULL;
+    rths_engine_info info;
+    rths_error err;
+    if (rths_engine_create(cfg, &e, &info, &err)) {
+        printf("link: engine: %s\n", err.msg);
+        rths_config_free(cfg);
+        return;
+    }
+    double a[1] = {1e-4}, b[1] = {0.0};
+    rths_engine_set_forcing(e, 13.47, 1.0);
+    rths_engine_set_target(e, 1, a, b);
+    rths_engine_arm(e);
+    enum { N = 200000 };
+    double *cost = malloc(N * sizeof *cost);
+    rths_proto_trace_sample sig;
+    for (int i = 0; i < 20000; i++)
+        rths_engine_step(e, &sig); /* warm up, settle the ramp */
+    double t_all = mono_s();
+    for (int i = 0; i < N; i++) {
+        double t0 = mono_s();
+        rths_engine_step(e, &sig);
+        cost[i] = mono_s() - t0;
+    }
+    t_all = mono_s() - t_all;
+    qsort(cost, N, sizeof *cost, cmp_double);
+    printf("link: step (controller + plant seam), %d samples back to back: mean %.0f ns "
+           "(incl. timer), p50 %.0f ns, p99 %.0f ns, p99.9 %.0f ns, max %.0f ns; "
+           "%.1f%% of the %.0f us sample period at p99\n",
+           N, t_all / N * 1e9, cost[N / 2] * 1e9, cost[(int)(0.99 * N)] * 1e9,
+           cost[(int)(0.999 * N)] * 1e9, cost[N - 1] * 1e9,
+           100.0 * cost[(int)(0.99 * N)] / info.sample_period_s, info.sample_period_s * 1e6);
+    free(cost);
+    rths_engine_destroy(e);
+    rths_config_free(cfg);
+}
+
+/* The paced loop, driven by a host over loopback for a few seconds. */
+static void bench_paced_loop(double seconds) {
+    rths_config *cfg = load_seed();
+    if (!cfg) return;
+    rths_server_options opt;
+    rths_server_options_defaults(&opt);
+    rths_error err;
+    rths_server *s = NULL;
+    if (rths_server_config_read(cfg, &opt, &err) ||
+        (opt.port = 0, opt.quiet = 1, rths_server_create(cfg, &opt, &s, &err)) ||
+        rths_server_start(s, &err)) {
+        printf("link: server: %s\n", err.msg);
+        rths_server_destroy(s);
+        rths_config_free(cfg);
+        return;
+    }
+    char uri[64];
+    snprintf(uri, sizeof uri, "tcp://127.0.0.1:%d", rths_server_port(s));
+    rths_rig *rig = NULL;
+    double a[1] = {1e-4}, b[1] = {0.0};
+    const double f = 13.47;
+    int periods = (int)ceil(seconds * f);
+    rths_period *per = malloc((size_t)periods * sizeof *per);
+    double t0 = mono_s();
+    int ok = !rths_remote_rig_create(uri, NULL, &rig, &err) &&
+             !rths_rig_set_forcing(rig, f, 1.0, &err) && !rths_rig_set_target(rig, 1, a, b, &err) &&
+             !rths_rig_run_periods(rig, periods, per, &err);
+    double wall = mono_s() - t0;
+    rths_server_stats st;
+    rths_server_get_stats(s, &st);
+    if (!ok) printf("link: host run failed: %s\n", err.msg);
+    double h = rths_server_sample_period_s(s);
+    printf("link: paced loop at %.0f Hz for %.2f s wall (%llu samples = %.2f s controller time), "
+           "host on loopback TCP receiving %d periods\n",
+           1.0 / h, wall, (unsigned long long)st.samples, (double)st.samples * h, periods);
+    printf("link: real-time: SCHED_FIFO %s, memory locked %s, CPU pinned %s\n",
+           st.rt_fifo ? "yes" : "no", st.rt_mlock ? "yes" : "no", st.rt_pinned ? "yes" : "no");
+    printf("link: wake-up lateness p50 %.0f us, p90 %.0f us, p99 %.0f us, p99.9 %.0f us, worst "
+           "%.0f us (1 us bins, upper edges); overruns %llu (%.3f%%), resyncs %llu\n",
+           st.lateness_p50_s * 1e6, st.lateness_p90_s * 1e6, st.lateness_p99_s * 1e6,
+           st.lateness_p999_s * 1e6, st.worst_lateness_s * 1e6, (unsigned long long)st.overruns,
+           st.samples ? 100.0 * (double)st.overruns / (double)st.samples : 0.0,
+           (unsigned long long)st.resyncs);
+    printf("link: step cost inside the paced loop: mean %.2f us, p50 %.1f us, p99 %.1f us, max "
+           "%.1f us\n",
+           st.step_mean_s * 1e6, st.step_p50_s * 1e6, st.step_p99_s * 1e6, st.step_max_s * 1e6);
+    free(per);
+    rths_rig_destroy(rig);
+    rths_server_destroy(s);
+    rths_config_free(cfg);
+}
+
+void rths_bench_link(void) {
+    kernel_notice();
+    bench_step_cost();
+    bench_paced_loop(3.0);
+}
