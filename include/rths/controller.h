@@ -1,0 +1,99 @@
+/* rths controller: the per-sample real-time step of the hybrid test (SPEC §1, §3, §8).
+ *
+ * Every sample: the numerical substructure is advanced one step (chosen scheme) driven by
+ *   F_num = F_comp - F_LC + F_ctrl  on the numerical interface DoF, plus the forcing
+ *   Phi cos(theta) on its DoF when that DoF is numerical,
+ * with inertial compensation F_comp = p m_int x''_measured (SPEC erratum 2: the rig's interface
+ * storey carries its full mass) and grounding control F_ctrl = kp^ (x - xi) + kd^ (x' - xi')
+ * (erratum 8); the actuator demand is the PD law U = kp (x* - x) + kd (x*' - x') towards the
+ * periodic target x*(theta) (or, in feedback mode, towards the numerical interface itself: the
+ * conventional real-time hybrid test); running Fourier sums of the physical and numerical
+ * interface displacement and the load-cell force are closed at every whole period and published
+ * to a lock-free single-producer/single-consumer ring.
+ *
+ * rths_controller_step never allocates, locks, prints or calls LAPACK: everything is built by
+ * rths_controller_create. The command functions (set_forcing, set_target, arm, ...) must be
+ * called from the thread that runs the step; only rths_controller_pop_period may run on another
+ * thread. One interface DoF is supported (the seed's); several are refused at create. */
+#ifndef RTHS_CONTROLLER_H
+#define RTHS_CONTROLLER_H
+
+#include "rths/config.h"
+#include "rths/rig.h"
+#include "rths/setup.h"
+
+#define RTHS_MAX_SENSED_DOFS 16
+
+/* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
+ * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
+ * physical DoFs, then the interface DoF), m; acceleration of the interface storey, m/s^2; load
+ * cell between actuator and interface storey, N (force on the storey, positive along x). */
+typedef struct rths_sensor_sample {
+    int n;
+    double displacement_m[RTHS_MAX_SENSED_DOFS];
+    double interface_acceleration_m_s2;
+    double interface_force_n;
+} rths_sensor_sample;
+
+/* What the step computed this sample (for traces). */
+typedef struct rths_controller_output {
+    double time_s;
+    double demand_v;   /* actuator demand, V */
+    double target_m;   /* x*(t) */
+    double x_phys_m;   /* measured physical interface displacement */
+    double x_num_m;    /* numerical interface displacement */
+    double force_n;    /* measured interface force */
+} rths_controller_output;
+
+typedef struct rths_controller_options {
+    double sample_rate_hz;          /* 10000 (seed) */
+    rths_scheme scheme;             /* numerical substructure integrator; default exact_foh */
+    double kp_v_per_m;              /* physical PD, 100 V/m (seed) */
+    double kd_v_s_per_m;            /* 10 V s/m (seed) */
+    double grounding_kp_n_per_m;    /* numerical grounding PD, 50000 N/m (seed) */
+    double grounding_kd_n_s_per_m;  /* 200 N s/m (seed) */
+    double velocity_cutoff_hz;      /* filtered differentiator of the laser signal */
+    double demand_limit_v;          /* |U| above this latches a fault */
+    double displacement_limit_m;    /* |x| of any physical DoF above this latches a fault */
+    double force_limit_n;           /* |F_LC| above this latches a fault */
+    double ramp_time_s;             /* demand, forcing and target ramp to zero in this time */
+} rths_controller_options;
+
+void rths_controller_defaults(rths_controller_options *opt);
+/* Reads the `controller` section over the defaults. */
+int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err);
+
+typedef struct rths_controller rths_controller;
+
+int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
+                           rths_controller **out, rths_error *err);
+void rths_controller_destroy(rths_controller *c);
+
+/* Commands (step thread). Forcing changes take effect at the next period boundary, so every
+ * published period has one frequency; the phase theta is continuous across changes. */
+void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
+void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
+                                const double *b);
+void rths_controller_set_feedback(rths_controller *c, int on);
+/* Armed: demand and forcing act. Disarming (or a fault) ramps them to zero over ramp_time_s. */
+void rths_controller_arm(rths_controller *c, int armed);
+int rths_controller_armed(const rths_controller *c);
+rths_rig_fault rths_controller_fault(const rths_controller *c);
+/* Latches an external fault (e.g. the watchdog) exactly like a limit trip. */
+void rths_controller_trip(rths_controller *c, rths_rig_fault fault);
+void rths_controller_reset_fault(rths_controller *c);
+double rths_controller_time_s(const rths_controller *c);
+double rths_controller_frequency_hz(const rths_controller *c);
+/* 1 when the forcing phase is at a period boundary (the last step closed a period). */
+int rths_controller_at_period_boundary(const rths_controller *c);
+
+/* The per-sample step: sensors in, demand out (V). out may be NULL. */
+double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
+                            rths_controller_output *out);
+
+/* Any thread (single consumer): the oldest unread whole period; 1 if one was available. Periods
+ * that do not fit in the ring (capacity 256) are dropped and counted. */
+int rths_controller_pop_period(rths_controller *c, rths_period *out);
+long rths_controller_dropped_periods(const rths_controller *c);
+
+#endif

@@ -1,0 +1,60 @@
+/* rths plant: the virtual laboratory (SPEC §5) behind the per-sample I/O seam of controller.h.
+ *
+ * The physical substructure with the interface storey's FULL mass (the rig's storey; the mass
+ * ratio is emulated by the controller's inertial compensation), optionally the bilinear leg with
+ * its static preload; an electrodynamic shaker in current mode (force = gain x demand through a
+ * pure transport delay and a first-order lag, armature mass moving with the interface storey);
+ * a load cell between shaker and storey; lasers on every physical DoF and an accelerometer on
+ * the interface, each with gain error, offset, white noise and quantisation from a seeded RNG.
+ * The demand is held over a sample (zero-order hold) and the plant is integrated with classical
+ * Runge-Kutta at substeps_per_sample substeps, so its own error is far below the effects
+ * studied (see tests). The preload is a static external force on the interface storey that the
+ * load cell does not see (the seed's shaker offset). */
+#ifndef RTHS_PLANT_H
+#define RTHS_PLANT_H
+
+#include "rths/controller.h"
+
+typedef struct rths_sensor_spec {
+    double gain_error;  /* relative: reading = (1 + gain_error) x true + offset + noise */
+    double offset;      /* in the sensor's unit (m, m/s^2, N) */
+    double noise_std;   /* white noise standard deviation, sensor's unit */
+    double quantum;     /* quantisation step (0: none) */
+} rths_sensor_spec;
+
+typedef struct rths_plant_options {
+    double gain_n_per_v;      /* shaker force per demand volt */
+    double delay_s;           /* pure transport delay (rounded to whole samples) */
+    double lag_cutoff_hz;     /* first-order lag; 0: none */
+    double armature_mass_kg;  /* moves with the interface storey */
+    int noise;                /* 0: every sensor exact (gain error, offset, noise, quantum off) */
+    uint64_t seed;            /* noise generator seed */
+    int substeps_per_sample;  /* Runge-Kutta substeps per controller sample */
+    rths_sensor_spec laser, accelerometer, load_cell;
+} rths_plant_options;
+
+void rths_plant_defaults(rths_plant_options *opt);
+/* An ideal shaker and exact sensors: no delay, no lag, no armature mass, no noise. */
+void rths_plant_ideal(rths_plant_options *opt);
+/* Reads the `rig` section (rig.noise, rig.seed, rig.shaker.*, rig.sensors.*) over the defaults. */
+int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err);
+
+typedef struct rths_plant rths_plant;
+
+int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
+                      double sample_rate_hz, rths_plant **out, rths_error *err);
+void rths_plant_destroy(rths_plant *p);
+/* Sensor readings at the current time (noise drawn here). */
+void rths_plant_read(rths_plant *p, rths_sensor_sample *out);
+/* Advances one sample with the demand held. */
+void rths_plant_advance(rths_plant *p, double demand_v);
+double rths_plant_time_s(const rths_plant *p);
+/* True interface displacement (no sensor effects), m: for tests. */
+double rths_plant_interface_displacement_m(const rths_plant *p);
+/* Displacement noise standard deviation of the lasers, m (0 with noise off). */
+double rths_plant_noise_level_m(const rths_plant *p);
+/* Restoring force of the bilinear leg (N, positive pulling the storeys together in extension)
+ * for a leg extension delta (m): k delta for delta >= 0, ratio k delta below. */
+double rths_plant_leg_force_n(const rths_plant *p, double delta_m);
+
+#endif

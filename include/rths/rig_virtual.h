@@ -1,0 +1,20 @@
+/* rths virtual rig: the in-process rig backend, the controller step driving the virtual plant
+ * on a simulated clock as fast as the CPU allows. Implements rig.h. */
+#ifndef RTHS_RIG_VIRTUAL_H
+#define RTHS_RIG_VIRTUAL_H
+
+#include "rths/plant.h"
+
+/* From the configuration: controller and rig sections (rths_controller_config_read,
+ * rths_plant_config_read). seed_override: when has_seed, replaces rig.seed. */
+int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_seed,
+                            uint64_t seed_override, rths_rig **out, rths_error *err);
+/* From parsed options (tests, benches). The rig starts armed, at rest, without forcing. */
+int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,
+                                 const rths_plant_options *popt, rths_rig **out,
+                                 rths_error *err);
+/* The controller inside a virtual rig (feedback mode, direct inspection); NULL for other rigs. */
+rths_controller *rths_virtual_rig_controller(rths_rig *rig);
+rths_plant *rths_virtual_rig_plant(rths_rig *rig);
+
+#endif
