@@ -1,0 +1,277 @@
+/* Shared plumbing of the rths commands (see cli_common.h). */
+#include "cli/cli_common.h"
+
+#include <errno.h>
+#include <json-c/json.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static int usage_error(const rths_cli *cli, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+
+static int usage_error(const rths_cli *cli, const char *fmt, ...) {
+    va_list ap;
+    fprintf(stderr, "rths %s: ", cli->command);
+    va_start(ap, fmt);
+    vfprintf(stderr, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, " (see 'rths %s --help')\n", cli->command);
+    return RTHS_EINPUT;
+}
+
+int rths_cli_fail(const rths_cli *cli, int rc, const rths_error *err) {
+    fprintf(stderr, "rths %s: %s\n", cli->command,
+            err && err->msg[0] ? err->msg : (rc == RTHS_EINPUT ? "bad input" : "failed"));
+    return rc == RTHS_OK ? RTHS_EFAIL : rc;
+}
+
+void rths_cli_print(const rths_cli *cli, const char *fmt, ...) {
+    if (cli->quiet) return;
+    va_list ap;
+    va_start(ap, fmt);
+    vprintf(fmt, ap);
+    va_end(ap);
+    fflush(stdout);
+}
+
+/* "--name=value" or "--name value": returns the value or NULL (missing), advancing *i. */
+static const char *option_value(int argc, char **argv, int *i, const char *name, int *matched) {
+    const char *arg = argv[*i];
+    size_t len = strlen(name);
+    *matched = 0;
+    if (strncmp(arg, name, len)) return NULL;
+    if (arg[len] == '=') {
+        *matched = 1;
+        return arg + len + 1;
+    }
+    if (arg[len] != '\0') return NULL;
+    *matched = 1;
+    /* "--out --quiet" is a forgotten value, not a folder called --quiet */
+    if (*i + 1 >= argc || !strncmp(argv[*i + 1], "--", 2)) return NULL;
+    return argv[++*i];
+}
+
+int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *usage,
+                   rths_cli_opt *opts, int n_opts) {
+    memset(cli, 0, sizeof *cli);
+    cli->command = argc > 0 ? argv[0] : "?";
+    for (int k = 0; k < n_opts; k++)
+        opts[k].value = NULL;
+    const char *seed_text = NULL;
+    for (int i = 1; i < argc; i++) {
+        const char *arg = argv[i];
+        int matched;
+        const char *v;
+        if (!strcmp(arg, "--help") || !strcmp(arg, "-h")) {
+            fputs(usage, stdout);
+            cli->help = 1;
+            return RTHS_OK;
+        }
+        if (!strcmp(arg, "--quiet") || !strcmp(arg, "-q")) {
+            cli->quiet = 1;
+            continue;
+        }
+        if ((v = option_value(argc, argv, &i, "--set", &matched)) || matched) {
+            if (!v) return usage_error(cli, "option --set needs a value KEY=VALUE");
+            if (!strchr(v, '=') || v[0] == '=')
+                return usage_error(
+                    cli, "--set %s: expected KEY=VALUE (e.g. --set split.mass_ratio=0.33)", v);
+            if (cli->n_sets >= RTHS_CLI_MAX_SETS)
+                return usage_error(cli, "at most %d --set options", RTHS_CLI_MAX_SETS);
+            cli->sets[cli->n_sets++] = v;
+            continue;
+        }
+        if ((flags & RTHS_CLI_OUT) &&
+            ((v = option_value(argc, argv, &i, "--out", &matched)) || matched)) {
+            if (!v || !v[0]) return usage_error(cli, "option --out needs a directory");
+            cli->out_dir = v;
+            continue;
+        }
+        if ((flags & RTHS_CLI_SEED) &&
+            ((v = option_value(argc, argv, &i, "--seed", &matched)) || matched)) {
+            if (!v) return usage_error(cli, "option --seed needs a value");
+            seed_text = v;
+            continue;
+        }
+        int found = 0;
+        for (int k = 0; k < n_opts && !found; k++) {
+            if (!opts[k].metavar) {
+                if (!strcmp(arg, opts[k].name)) opts[k].value = "1", found = 1;
+                continue;
+            }
+            v = option_value(argc, argv, &i, opts[k].name, &matched);
+            if (!matched) continue;
+            if (!v)
+                return usage_error(cli, "option %s needs a value %s", opts[k].name,
+                                   opts[k].metavar);
+            opts[k].value = v;
+            found = 1;
+        }
+        if (found) continue;
+        if (arg[0] == '-' && arg[1] != '\0') return usage_error(cli, "unknown option '%s'", arg);
+        if (!(flags & RTHS_CLI_CONFIG) || cli->config_path)
+            return usage_error(cli, "unexpected argument '%s'", arg);
+        cli->config_path = arg;
+    }
+    if ((flags & RTHS_CLI_CONFIG) && !cli->config_path)
+        return usage_error(cli, "missing CONFIG (a YAML test description, e.g. "
+                                "examples/four_storey.yaml)");
+    if ((flags & RTHS_CLI_OUT) && !cli->out_dir)
+        return usage_error(cli, "missing --out DIR (the folder the results go to)");
+    if (seed_text) {
+        char *end;
+        errno = 0;
+        unsigned long long s = strtoull(seed_text, &end, 0);
+        if (errno || end == seed_text || *end != '\0' || seed_text[0] == '-')
+            return usage_error(cli, "option --seed: '%s' is not a non-negative integer", seed_text);
+        cli->seed = (uint64_t)s;
+        cli->has_seed = 1;
+    }
+    return RTHS_OK;
+}
+
+int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
+                    rths_error *err) {
+    char *end;
+    errno = 0;
+    double v = strtod(text, &end);
+    if (end == text || *end != '\0')
+        return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not a number", opt, text);
+    if (!isfinite(v) || errno == ERANGE)
+        return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not a finite number", opt,
+                              text);
+    if (v < lo || v > hi) {
+        if (isinf(hi))
+            return rths_error_set(err, RTHS_EINPUT, "option %s: %g must be >= %g", opt, v, lo);
+        return rths_error_set(err, RTHS_EINPUT, "option %s: %g is outside [%g, %g]", opt, v, lo,
+                              hi);
+    }
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out, rths_error *err) {
+    char *end;
+    errno = 0;
+    long v = strtol(text, &end, 10);
+    if (end == text || *end != '\0' || errno == ERANGE)
+        return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not an integer", opt, text);
+    if (v < lo || v > hi)
+        return rths_error_set(err, RTHS_EINPUT, "option %s: %ld is outside [%ld, %ld]", opt, v, lo,
+                              hi);
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_cli_double_list(const char *opt, const char *text, double *out, int max_count, int *count,
+                         rths_error *err) {
+    *count = 0;
+    const char *p = text;
+    for (;;) {
+        const char *comma = strchr(p, ',');
+        size_t len = comma ? (size_t)(comma - p) : strlen(p);
+        char item[64];
+        if (len == 0 || len >= sizeof item)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option %s: '%s' must be comma-separated numbers", opt, text);
+        if (*count >= max_count)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option %s: at most %d values (got more in '%s')", opt, max_count,
+                                  text);
+        memcpy(item, p, len);
+        item[len] = '\0';
+        char *end;
+        double v = strtod(item, &end);
+        if (end == item || *end != '\0' || !isfinite(v))
+            return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not a finite number", opt,
+                                  item);
+        out[(*count)++] = v;
+        if (!comma) break;
+        p = comma + 1;
+    }
+    return RTHS_OK;
+}
+
+int rths_cli_load(const rths_cli *cli, rths_config **cfg, rths_setup *setup, rths_error *err) {
+    *cfg = NULL;
+    memset(setup, 0, sizeof *setup);
+    int rc = rths_config_load(cli->config_path, cli->sets, cli->n_sets, cfg, err);
+    if (rc) {
+        *cfg = NULL;
+        return rc;
+    }
+    rc = rths_setup_read(*cfg, setup, err);
+    if (rc) {
+        rths_setup_free(setup);
+        memset(setup, 0, sizeof *setup);
+        rths_config_free(*cfg);
+        *cfg = NULL;
+    }
+    return rc;
+}
+
+void rths_cli_unload(rths_config *cfg, rths_setup *setup) {
+    if (setup) rths_setup_free(setup);
+    if (cfg) rths_config_free(cfg);
+}
+
+int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err) {
+    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
+                                           "stability", "fidelity",   "output"};
+    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
+        int mine = 0;
+        for (int j = 0; own && own[j] && !mine; j++)
+            mine = !strcmp(own[j], sections[k]);
+        if (!mine) rths_config_mark_known(cfg, sections[k]);
+    }
+    return rths_config_check_unknown(cfg, err);
+}
+
+int rths_cli_check_config(rths_config *cfg, rths_error *err) {
+    return rths_cli_check_config_own(cfg, NULL, err);
+}
+
+int rths_cli_open_report(const rths_cli *cli, const rths_config *cfg, int argc, char **argv,
+                         rths_report **rep, rths_error *err) {
+    int rc = rths_report_open(cli->out_dir, cli->command, argc, argv, rep, err);
+    if (rc) return rc;
+    char *path = rths_report_path(*rep, "config.yaml");
+    if (!path) {
+        rths_report_close(*rep);
+        *rep = NULL;
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    rc = rths_config_write(cfg, path, err);
+    free(path);
+    if (rc) {
+        rths_report_close(*rep);
+        *rep = NULL;
+    }
+    return rc;
+}
+
+struct json_object *rths_cli_summary_new(const rths_cli *cli) {
+    json_object *o = rths_json_summary_new(cli->command);
+    if (!o) return NULL;
+    if (cli->config_path)
+        json_object_object_add(o, "config_file", json_object_new_string(cli->config_path));
+    json_object *sets = json_object_new_array();
+    for (int i = 0; i < cli->n_sets; i++)
+        json_object_array_add(sets, json_object_new_string(cli->sets[i]));
+    json_object_object_add(o, "overrides", sets);
+    if (cli->has_seed) json_object_object_add(o, "seed", json_object_new_uint64(cli->seed));
+    return o;
+}
+
+int rths_cli_write_summary(rths_report *rep, const char *name, struct json_object *obj,
+                           rths_error *err) {
+    char *path = rths_report_path(rep, name);
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = rths_json_write(path, obj, err);
+    if (!rc) rths_report_log(rep, "wrote %s", name);
+    free(path);
+    return rc;
+}
