@@ -1,0 +1,675 @@
+/* rths simulate: one hybrid test on the virtual rig at a fixed target (iterative mode), or the
+ * conventional real-time hybrid test with the feedback loop closed (feedback mode). */
+#include "cli/cli_common.h"
+#include "cli/commands.h"
+#include "rths/controller.h"
+#include "rths/rig.h"
+#include "rths/rig_virtual.h"
+#include "rths/stability.h"
+
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char usage[] =
+    "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...] "
+    "--periods N --out DIR\n"
+    "                     [--trace-periods K] [--seed S] [--set KEY=VALUE]... "
+    "[--quiet]\n"
+    "       rths simulate CONFIG --mode feedback [--delay TAU] --frequency F "
+    "--periods N --out DIR\n"
+    "                     [--seed S] [--set KEY=VALUE]... [--quiet]\n"
+    "\n"
+    "Iterative mode (default): runs the hybrid test on the virtual rig with "
+    "the forcing at F Hz and\n"
+    "the physical interface controlled to the fixed target\n"
+    "  x*(t) = sum_k A_k cos(k w t) + B_k sin(k w t)   (metres, w = 2 pi F)\n"
+    "for N whole forcing periods, then records a time trace over K more "
+    "periods (default\n"
+    "min(N, 5)). At the target that matches the interface, both sides move "
+    "alike.\n"
+    "\n"
+    "Feedback mode: the conventional real-time hybrid test, where the physical "
+    "interface follows\n"
+    "the numerical interface displacement in real time. With --delay TAU: the "
+    "seed's model of it,\n"
+    "an ideal actuator with a pure delay of TAU seconds, simulated in "
+    "continuous time (step much\n"
+    "finer than TAU). Without --delay: through the virtual rig's shaker and PD "
+    "controller.\n"
+    "summary.json says whether it diverged (growth beyond bounds or a limit "
+    "trip) and the growth\n"
+    "rate of the response.\n"
+    "\n"
+    "Writes DIR/coefficients.csv (one row per period: Fourier coefficients of "
+    "the physical and\n"
+    "numerical interface displacements, m), trace.csv (time_s, x_phys_m, "
+    "x_num_m, target_m,\n"
+    "force_n, demand), summary.json, config.yaml, simulate.gp/.png/.svg (time "
+    "traces and the\n"
+    "Lissajous plot of physical vs numerical interface displacement), "
+    "run.log.\n"
+    "\n"
+    "Options:\n"
+    "  --frequency F        forcing frequency, Hz (> 0)\n"
+    "  --target LIST        target coefficients A1,B1[,A2,B2,...], m "
+    "(iterative mode; an even\n"
+    "                       count, at most 2 x 5 harmonics)\n"
+    "  --periods N          forcing periods to run (>= 1)\n"
+    "  --trace-periods K    periods in the recorded trace (iterative mode; "
+    "default min(N, 5))\n"
+    "  --mode MODE          iterative (default) or feedback\n"
+    "  --delay TAU          feedback mode: pure actuator delay, s (> 0)\n"
+    "  --seed S             noise generator seed (unsigned integer; default "
+    "from rig.seed)\n"
+    "  --out DIR            output folder (created)\n"
+    "  --set KEY=VALUE      override a configuration key (repeatable)\n"
+    "  --quiet              print nothing on success\n"
+    "  --help               this text\n"
+    "\n"
+    "Exit status: 0 success (also when a feedback test diverged: that is a "
+    "result), 1 failure,\n"
+    "2 bad usage or input (nothing written).\n";
+
+enum { OPT_FREQ, OPT_TARGET, OPT_PERIODS, OPT_TRACE, OPT_MODE, OPT_DELAY, OPT_COUNT };
+
+typedef struct {
+    int feedback;
+    double frequency_hz;
+    int harmonics; /* target harmonics (iterative) */
+    double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
+    long periods, trace_periods;
+    int has_delay;
+    double delay_s;
+} sim_args;
+
+static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
+    int rc;
+    memset(a, 0, sizeof *a);
+    if (opts[OPT_MODE].value) {
+        if (!strcmp(opts[OPT_MODE].value, "feedback"))
+            a->feedback = 1;
+        else if (strcmp(opts[OPT_MODE].value, "iterative"))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --mode: '%s' is not a mode (iterative or feedback)",
+                                  opts[OPT_MODE].value);
+    }
+    if (!opts[OPT_FREQ].value)
+        return rths_error_set(err, RTHS_EINPUT, "missing --frequency F (forcing frequency, Hz)");
+    if ((rc = rths_cli_double("--frequency", opts[OPT_FREQ].value, -INFINITY, 1e5, &a->frequency_hz,
+                              err)))
+        return rc;
+    if (!(a->frequency_hz > 0))
+        return rths_error_set(err, RTHS_EINPUT, "option --frequency: must be > 0 Hz (got %s)",
+                              opts[OPT_FREQ].value);
+    if (!opts[OPT_PERIODS].value)
+        return rths_error_set(err, RTHS_EINPUT, "missing --periods N (forcing periods to run)");
+    if ((rc = rths_cli_int("--periods", opts[OPT_PERIODS].value, 1, 10000000, &a->periods, err)))
+        return rc;
+    if (a->feedback) {
+        if (opts[OPT_TARGET].value)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --target: not used in feedback mode (the target is the "
+                                  "numerical interface displacement itself)");
+        if (opts[OPT_TRACE].value)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --trace-periods: feedback mode traces the whole run");
+        if (opts[OPT_DELAY].value) {
+            if ((rc = rths_cli_double("--delay", opts[OPT_DELAY].value, -INFINITY, 1.0, &a->delay_s,
+                                      err)))
+                return rc;
+            if (!(a->delay_s > 0))
+                return rths_error_set(err, RTHS_EINPUT, "option --delay: must be > 0 s (got %s)",
+                                      opts[OPT_DELAY].value);
+            a->has_delay = 1;
+        }
+        return RTHS_OK;
+    }
+    if (opts[OPT_DELAY].value)
+        return rths_error_set(
+            err, RTHS_EINPUT,
+            "option --delay: only with --mode feedback (the iterative test has no "
+            "feedback loop to delay)");
+    if (!opts[OPT_TARGET].value)
+        return rths_error_set(
+            err, RTHS_EINPUT,
+            "missing --target A1,B1[,A2,B2,...] (target Fourier coefficients, m)");
+    double v[2 * RTHS_MAX_HARMONICS];
+    int count;
+    if ((rc = rths_cli_double_list("--target", opts[OPT_TARGET].value, v, 2 * RTHS_MAX_HARMONICS,
+                                   &count, err)))
+        return rc;
+    if (count % 2)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --target: %d values; give pairs A_k,B_k per harmonic", count);
+    a->harmonics = count / 2;
+    for (int k = 0; k < a->harmonics; k++)
+        a->target_a[k] = v[2 * k], a->target_b[k] = v[2 * k + 1];
+    a->trace_periods = a->periods < 5 ? a->periods : 5;
+    if (opts[OPT_TRACE].value && (rc = rths_cli_int("--trace-periods", opts[OPT_TRACE].value, 1,
+                                                    1000, &a->trace_periods, err)))
+        return rc;
+    return RTHS_OK;
+}
+
+/* ---- outputs ---- */
+
+/* coefficients.csv: period, frequency_hz, end_time_s, then for the physical and the numerical
+ * interface displacement a0 and a_k, b_k for k = 1..harmonics (m). */
+static int write_coefficients(rths_report *rep, const rths_period *p, int count, int harmonics,
+                              rths_error *err) {
+    int cols = 3 + 2 * (1 + 2 * harmonics);
+    const char **header = calloc((size_t)cols, sizeof *header);
+    char(*names)[32] = calloc((size_t)cols, sizeof *names);
+    double *row = calloc((size_t)cols, sizeof *row);
+    char *path = rths_report_path(rep, "coefficients.csv");
+    rths_csv *csv = NULL;
+    int rc = (header && names && row && path) ? RTHS_OK
+                                              : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (rc) goto done;
+    header[0] = "period", header[1] = "frequency_hz", header[2] = "end_time_s";
+    int c = 3;
+    static const char *const side[2] = {"phys", "num"};
+    for (int s = 0; s < 2; s++) {
+        snprintf(names[c], sizeof names[c], "%s_a0_m", side[s]);
+        header[c] = names[c], c++;
+        for (int k = 1; k <= harmonics; k++) {
+            snprintf(names[c], sizeof names[c], "%s_a%d_m", side[s], k);
+            header[c] = names[c], c++;
+            snprintf(names[c], sizeof names[c], "%s_b%d_m", side[s], k);
+            header[c] = names[c], c++;
+        }
+    }
+    if ((rc = rths_csv_open(path, cols, header, &csv, err))) goto done;
+    for (int i = 0; i < count && !rc; i++) {
+        row[0] = i + 1, row[1] = p[i].frequency_hz, row[2] = p[i].end_time_s;
+        c = 3;
+        const rths_fourier *f[2] = {&p[i].phys, &p[i].num};
+        for (int s = 0; s < 2; s++) {
+            row[c++] = f[s]->a[0];
+            for (int k = 1; k <= harmonics; k++)
+                row[c++] = f[s]->a[k], row[c++] = f[s]->b[k];
+        }
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing %s failed", path);
+    }
+    if (rc)
+        rths_csv_abort(csv);
+    else
+        rc = rths_csv_close(csv, err);
+done:
+    free(header), free(names), free(row), free(path);
+    return rc;
+}
+
+static int write_trace(rths_report *rep, const rths_trace_sample *t, int count, rths_error *err) {
+    static const char *const header[6] = {"time_s",   "x_phys_m", "x_num_m",
+                                          "target_m", "force_n",  "demand"};
+    char *path = rths_report_path(rep, "trace.csv");
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rths_csv *csv;
+    int rc = rths_csv_open(path, 6, header, &csv, err);
+    for (int i = 0; i < count && !rc; i++) {
+        double row[6] = {t[i].time_s,   t[i].x_phys_m, t[i].x_num_m,
+                         t[i].target_m, t[i].force_n,  t[i].demand};
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing %s failed", path);
+    }
+    if (!rc)
+        rc = rths_csv_close(csv, err);
+    else if (csv)
+        rths_csv_abort(csv);
+    free(path);
+    return rc;
+}
+
+/* The seed's Fig. 8: the phase (Lissajous) plot of physical against numerical interface
+ * displacement with the ideal x_phys = x_num line, and their time profiles. In mm so the tick
+ * labels stay short. */
+static int plot(rths_report *rep, const char *title, double lissajous_from_s, rths_error *err) {
+    char body[4096];
+    snprintf(
+        body, sizeof body,
+        "set datafile separator ','\n"
+        "set multiplot layout 1,2 title '%s'\n"
+        "set grid\n"
+        "set title 'phase plot (t >= %.4g s)'\n"
+        "set xlabel 'numerical interface displacement x_{num} (mm)'\n"
+        "set ylabel 'physical interface displacement x_{phys} (mm)'\n"
+        "set size ratio -1\n"
+        "set key top left\n"
+        "plot x with lines lw 1 lc rgb '#000000' title 'ideal: x_{phys} = x_{num}', \\\n"
+        "  'trace.csv' skip 1 using ($1 >= %.17g ? $3*1e3 : NaN):($2*1e3) with lines lw 2 "
+        "lc rgb '#1f77b4' title 'x_{phys} vs x_{num}'\n"
+        "set size noratio\n"
+        "set title 'time profiles'\n"
+        "set xlabel 'time (s)'\n"
+        "set ylabel 'interface displacement (mm)'\n"
+        "set key top right\n"
+        "plot 'trace.csv' skip 1 using 1:($2*1e3) with lines lw 2 lc rgb '#1f77b4' "
+        "title 'physical x_{phys}', \\\n"
+        "  '' skip 1 using 1:($3*1e3) with lines lw 2 dt 2 lc rgb '#2ca02c' "
+        "title 'numerical x_{num}', \\\n"
+        "  '' skip 1 using 1:($4*1e3) with lines lw 1 dt 3 lc rgb '#7f7f7f' title 'target x*'\n"
+        "unset multiplot\n",
+        title, lissajous_from_s, lissajous_from_s);
+    return rths_plot(rep, rths_report_dir(rep), "simulate", 1400, 620, body, err);
+}
+
+static double interface_error(const rths_fourier *p, const rths_fourier *n, int k) {
+    return hypot(p->a[k] - n->a[k], p->b[k] - n->b[k]);
+}
+
+/* ---- the runs ---- */
+
+typedef struct {
+    rths_period *periods;
+    int n_periods;
+    rths_trace_sample *trace;
+    int n_trace;
+    rths_rig_fault fault;
+    double rig_time_s;         /* rig clock, or simulated time of the pure-delay model */
+    int beyond_bounds;         /* pure-delay model: |x| beyond 1e3 x the steady amplitude */
+    double steady_amplitude_m; /* pure-delay model: true assembly's interface amplitude */
+} sim_result;
+
+static void sim_result_free(sim_result *r) {
+    free(r->periods);
+    free(r->trace);
+    memset(r, 0, sizeof *r);
+}
+
+/* Fourier coefficients of whole forcing periods from a uniformly sampled trace (the feedback
+ * model has no rig computing running sums). The trace starts at t = 0 with the forcing phase. */
+static int periods_from_trace(const rths_trace_sample *t, int n, double f_hz, int harmonics,
+                              rths_period **out, int *count, rths_error *err) {
+    double period = 1.0 / f_hz, w = 2 * M_PI * f_hz;
+    /* the samples cover [0, t_last + dt): a period is whole when its end is within that */
+    double dt = n > 1 ? (t[n - 1].time_s - t[0].time_s) / (n - 1) : 0;
+    int total = (int)floor((t[n - 1].time_s + dt) / period + 1e-9);
+    *out = calloc((size_t)(total > 0 ? total : 1), sizeof **out);
+    *count = 0;
+    if (!*out) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int i = 0;
+    for (int j = 0; j < total; j++) {
+        rths_period *p = &(*out)[j];
+        double end = (j + 1) * period;
+        int m = 0;
+        for (; i < n && t[i].time_s < end - 1e-12; i++, m++) {
+            double ph = w * t[i].time_s, xs[2] = {t[i].x_phys_m, t[i].x_num_m};
+            rths_fourier *f[2] = {&p->phys, &p->num};
+            for (int s = 0; s < 2; s++) {
+                f[s]->a[0] += xs[s];
+                for (int k = 1; k <= harmonics; k++) {
+                    f[s]->a[k] += xs[s] * cos(k * ph);
+                    f[s]->b[k] += xs[s] * sin(k * ph);
+                }
+            }
+            p->force.a[0] += t[i].force_n;
+            p->force.a[1] += t[i].force_n * cos(ph);
+            p->force.b[1] += t[i].force_n * sin(ph);
+        }
+        if (m == 0) break;
+        rths_fourier *f[3] = {&p->phys, &p->num, &p->force};
+        for (int s = 0; s < 3; s++) {
+            f[s]->a[0] /= m;
+            for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
+                f[s]->a[k] *= 2.0 / m, f[s]->b[k] *= 2.0 / m;
+        }
+        p->frequency_hz = f_hz;
+        p->end_time_s = end;
+        p->samples = m;
+        ++*count;
+    }
+    return RTHS_OK;
+}
+
+/* Growth of the response, free of the forced part: for a linear test under T-periodic forcing,
+ * d(t) = x_num(t) - x_num(t - T) solves the unforced equations (the periodic steady state cancels),
+ * so the slope of ln max|d| per window, fitted over the second half of the run, is the real part of
+ * the dominant characteristic root: negative when the loop is stable (transients decay), positive
+ * when it is not. Windows span at least one period of the slowest mode so its envelope is seen.
+ * A run that blew up before one forcing period uses x_num itself. Returns NAN when too short. */
+static double growth_rate(const rths_trace_sample *t, int n, double period_s, double slowest_s,
+                          double *last_env, double *fit_span_s) {
+    *last_env = NAN;
+    *fit_span_s = 0;
+    if (n < 8) return NAN;
+    double t0 = t[0].time_s, t1 = t[n - 1].time_s;
+    int use_diff = t1 - t0 > 1.5 * period_s;
+    double start = use_diff ? t0 + period_s : t0;
+    double window = fmax(period_s, slowest_s);
+    if ((t1 - start) / window < 4) window = (t1 - start) / 4;
+    if (!(window > 0)) return NAN;
+    int w_count = (int)floor((t1 - start) / window);
+    double sx = 0, sy = 0, sxx = 0, sxy = 0;
+    int used = 0, i = 0, j = 0;
+    while (i < n && t[i].time_s < start)
+        i++;
+    for (int w = 0; w < w_count; w++) {
+        double env = 0, t_end = start + (w + 1) * window;
+        for (; i < n && t[i].time_s < t_end; i++) {
+            double v = t[i].x_num_m;
+            if (use_diff) {
+                /* x_num(t - T), linear between the samples around it */
+                double tp = t[i].time_s - period_s;
+                while (j + 1 < i && t[j + 1].time_s <= tp)
+                    j++;
+                double span = t[j + 1].time_s - t[j].time_s;
+                double u = span > 0 ? (tp - t[j].time_s) / span : 0;
+                v -= (1 - u) * t[j].x_num_m + u * t[j + 1].x_num_m;
+            }
+            if (isfinite(v)) env = fmax(env, fabs(v));
+        }
+        if (!(env > 0)) continue;
+        *last_env = env;
+        if (w < w_count / 2) continue;
+        double x = t_end - 0.5 * window, y = log(env);
+        sx += x, sy += y, sxx += x * x, sxy += x * y, used++;
+    }
+    if (used < 2) return NAN;
+    *fit_span_s = (used - 1) * window;
+    return (used * sxy - sx * sy) / (used * sxx - sx * sx);
+}
+
+/* TEMPORARY (until the virtual rig's implementation is committed): 0 builds simulate without it,
+ * so only --mode feedback --delay works. */
+#define SIMULATE_HAS_VIRTUAL_RIG 0
+
+static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const rths_cli *cli,
+                              int feedback, rths_rig **rig, rths_error *err) {
+#if SIMULATE_HAS_VIRTUAL_RIG
+    int rc = rths_virtual_rig_create(cfg, setup, cli->has_seed, cli->seed, rig, err);
+    if (rc) return rc;
+    if (feedback) {
+        rths_controller *c = rths_virtual_rig_controller(*rig);
+        if (!c) return rths_error_set(err, RTHS_EFAIL, "this rig has no feedback mode");
+        rths_controller_set_feedback(c, 1);
+    }
+    return RTHS_OK;
+#else
+    (void)cfg, (void)setup, (void)cli, (void)feedback;
+    *rig = NULL;
+    return rths_error_set(err, RTHS_EFAIL,
+                          "the virtual rig is not available in this build (only --mode feedback "
+                          "--delay TAU works)");
+#endif
+}
+
+/* Feedback mode through the rig's shaker and PD: the whole run is recorded at the controller's
+ * sample rate (up to a cap), so divergence and its growth are seen from the start. */
+static int run_feedback_rig(rths_rig *rig, const rths_setup *setup, const sim_args *a,
+                            sim_result *r, rths_error *err) {
+    int rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err);
+    if (rc) return rc;
+    double duration = (double)a->periods / a->frequency_hz;
+    int max_samples = 2000000;
+    r->trace = calloc((size_t)max_samples, sizeof *r->trace);
+    if (!r->trace) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rc = rths_rig_record_trace(rig, duration, max_samples, r->trace, &r->n_trace, err);
+    r->fault = rths_rig_get_fault(rig);
+    r->rig_time_s = rths_rig_time_s(rig);
+    /* a limit trip is a result here (the loop went unstable), not a failure of the command */
+    if (rc && r->fault != RTHS_RIG_OK) {
+        rths_error_clear(err);
+        rc = RTHS_OK;
+    }
+    return rc;
+}
+
+/* Iterative mode: N periods at the fixed target, then a trace of K more periods. */
+static int run_iterative(rths_rig *rig, const rths_setup *setup, const sim_args *a, sim_result *r,
+                         rths_error *err) {
+    int rc;
+    if ((rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err)) ||
+        (rc = rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err)))
+        return rc;
+    r->periods = calloc((size_t)a->periods, sizeof *r->periods);
+    if (!r->periods) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if ((rc = rths_rig_run_periods(rig, (int)a->periods, r->periods, err))) return rc;
+    r->n_periods = (int)a->periods;
+    /* about 400 trace samples per period: smooth curves at any forcing frequency */
+    int max_samples = (int)(400 * a->trace_periods);
+    r->trace = calloc((size_t)max_samples, sizeof *r->trace);
+    if (!r->trace) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rc = rths_rig_record_trace(rig, a->trace_periods / a->frequency_hz, max_samples, r->trace,
+                               &r->n_trace, err);
+    r->fault = rths_rig_get_fault(rig);
+    r->rig_time_s = rths_rig_time_s(rig);
+    return rc;
+}
+
+/* Hook for the pure-delay feedback model (helper B's rths_delay_feedback_simulate); filled in
+ * when it lands. Fills a uniformly sampled trace starting at t = 0. */
+/* The seed's model of the conventional test (SPEC §4): an ideal actuator makes the physical
+ * interface follow the numerical one with a pure delay; simulated by the stability module in
+ * continuous time. The actuator's command (target) is the numerical interface now; there is no
+ * load cell or demand in this model, so those columns are NaN. */
+static int run_feedback_delay(const rths_setup *setup, const sim_args *a, sim_result *r,
+                              rths_error *err) {
+    rths_delay_sim_result res;
+    memset(&res, 0, sizeof res);
+    int rc = rths_delay_feedback_simulate(&setup->assembly, &setup->split, setup->force,
+                                          a->frequency_hz, a->delay_s,
+                                          (double)a->periods / a->frequency_hz, 0.0, &res, err);
+    if (rc) return rc;
+    r->trace = calloc((size_t)(res.n > 0 ? res.n : 1), sizeof *r->trace);
+    if (!r->trace) {
+        rths_delay_sim_result_free(&res);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    for (int i = 0; i < res.n; i++)
+        r->trace[i] = (rths_trace_sample){
+            res.t_s[i], res.x_phys_m[i], res.x_num_m[i], res.x_num_m[i], NAN, NAN};
+    r->n_trace = res.n;
+    r->beyond_bounds = res.diverged;
+    r->steady_amplitude_m = res.steady_amplitude_m;
+    r->rig_time_s = res.end_time_s;
+    rths_delay_sim_result_free(&res);
+    return RTHS_OK;
+}
+
+static json_object *fourier_json(const rths_fourier *f, int harmonics) {
+    json_object *o = json_object_new_object(), *a = json_object_new_array(),
+                *b = json_object_new_array();
+    for (int k = 1; k <= harmonics; k++) {
+        json_object_array_add(a, json_object_new_double(f->a[k]));
+        json_object_array_add(b, json_object_new_double(f->b[k]));
+    }
+    json_object_object_add(o, "a0_m", json_object_new_double(f->a[0]));
+    json_object_object_add(o, "a_m", a);
+    json_object_object_add(o, "b_m", b);
+    return o;
+}
+
+/* Decimates a fine trace to at most max_rows rows for trace.csv and the figure. */
+static rths_trace_sample *decimate(const rths_trace_sample *t, int n, int max_rows, int *n_out) {
+    int stride = n > max_rows ? (n + max_rows - 1) / max_rows : 1;
+    rths_trace_sample *d = malloc((size_t)(n / stride + 1) * sizeof *d);
+    *n_out = 0;
+    if (!d) return NULL;
+    for (int i = 0; i < n; i += stride)
+        d[(*n_out)++] = t[i];
+    return d;
+}
+
+/* "diverged" (SPEC §4: growth beyond bounds or a limit trip) and the growth rate, from the
+ * full-resolution trace of a feedback test. Growth alone counts as divergence only when the
+ * envelope of the unforced part at least doubled over the fitted span and stands clear of the
+ * sensor noise: a short run of a stable test can show a transient rise (mode beating), so a
+ * positive rate over too short a span is reported with a note, not as divergence. */
+static void add_divergence(json_object *summary, const rths_cli *cli, const rths_setup *setup,
+                           const sim_args *a, const sim_result *r, double noise_m) {
+    rths_modes modes;
+    rths_error err;
+    double slowest = 0;
+    if (!rths_modal_analysis(&setup->assembly, &modes, &err)) {
+        slowest = 1.0 / modes.frequency_hz[0];
+        rths_modes_free(&modes);
+    }
+    double last_env, span;
+    double g = growth_rate(r->trace, r->n_trace, 1.0 / a->frequency_hz, slowest, &last_env, &span);
+    double max_x = 0;
+    int finite = 1;
+    for (int i = 0; i < r->n_trace; i++) {
+        if (!isfinite(r->trace[i].x_num_m) || !isfinite(r->trace[i].x_phys_m))
+            finite = 0;
+        else
+            max_x = fmax(max_x, fabs(r->trace[i].x_num_m));
+    }
+    double requested = a->periods / a->frequency_hz;
+    double reached = r->n_trace > 0 ? r->trace[r->n_trace - 1].time_s : 0;
+    const char *why = NULL, *note = NULL;
+    if (!finite)
+        why = "the response became non-finite";
+    else if (r->fault != RTHS_RIG_OK)
+        why = "a safety limit tripped";
+    else if (r->beyond_bounds || reached < requested - 2.0 / a->frequency_hz)
+        why = "the response grew beyond bounds (1000 x the true steady amplitude)";
+    else if (g > 0 && g * span > log(2.0) && last_env > 10 * noise_m)
+        why = "the response grows (its unforced part more than doubled over the second half)";
+    else if (g > 0)
+        note = "positive growth rate but too little growth over this run to call it divergence; "
+               "run more periods to decide";
+    json_object_object_add(summary, "diverged", json_object_new_boolean(why != NULL));
+    json_object_object_add(summary, "growth_rate_per_s", json_object_new_double(g));
+    json_object_object_add(summary, "growth_fit_span_s", json_object_new_double(span));
+    json_object_object_add(summary, "divergence_reason", why ? json_object_new_string(why) : NULL);
+    if (note) json_object_object_add(summary, "note", json_object_new_string(note));
+    json_object_object_add(summary, "max_abs_x_num_m", json_object_new_double(max_x));
+    json_object_object_add(summary, "simulated_s", json_object_new_double(reached));
+    if (r->steady_amplitude_m > 0)
+        json_object_object_add(summary, "true_steady_amplitude_m",
+                               json_object_new_double(r->steady_amplitude_m));
+    rths_cli_print(cli, "feedback test %s: growth rate %.4g 1/s%s%s\n",
+                   why ? "DIVERGED" : "stayed bounded over this run", g, (why || note) ? "; " : "",
+                   why ? why : (note ? note : ""));
+}
+
+int rths_cmd_simulate(int argc, char **argv) {
+    rths_cli_opt opts[OPT_COUNT] = {
+        [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
+        [OPT_PERIODS] = {"--periods", "N", NULL}, [OPT_TRACE] = {"--trace-periods", "K", NULL},
+        [OPT_MODE] = {"--mode", "MODE", NULL},    [OPT_DELAY] = {"--delay", "TAU", NULL},
+    };
+    rths_cli cli;
+    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
+                            opts, OPT_COUNT);
+    if (rc || cli.help) return rc;
+    rths_error err;
+    rths_error_clear(&err);
+    sim_args a;
+    if ((rc = parse_args(opts, &a, &err))) return rths_cli_fail(&cli, rc, &err);
+
+    rths_config *cfg = NULL;
+    rths_setup setup;
+    rths_rig *rig = NULL;
+    rths_report *rep = NULL;
+    json_object *summary = NULL;
+    sim_result r;
+    memset(&r, 0, sizeof r);
+    rths_trace_sample *shown = NULL;
+    int n_shown = 0;
+    if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
+    int pure_delay = a.feedback && a.has_delay;
+    if (!pure_delay && (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err)))
+        goto done;
+    if ((rc = rths_cli_check_config(cfg, &err))) goto done;
+    if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
+    rths_report_log(rep, "simulate: mode %s, %g Hz, %ld periods",
+                    a.feedback ? "feedback" : "iterative", a.frequency_hz, a.periods);
+
+    int harmonics = a.feedback ? 1 : a.harmonics;
+    if (pure_delay)
+        rc = run_feedback_delay(&setup, &a, &r, &err);
+    else if (!a.feedback)
+        rc = run_iterative(rig, &setup, &a, &r, &err);
+    else
+        rc = run_feedback_rig(rig, &setup, &a, &r, &err);
+    if (rc) goto done;
+    if (a.feedback && r.n_trace > 0 && !r.periods &&
+        (rc = periods_from_trace(r.trace, r.n_trace, a.frequency_hz, harmonics, &r.periods,
+                                 &r.n_periods, &err)))
+        goto done;
+    shown = decimate(r.trace, r.n_trace, 10000, &n_shown);
+    if (!shown) {
+        rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    if ((rc = write_coefficients(rep, r.periods, r.n_periods, harmonics, &err)) ||
+        (rc = write_trace(rep, shown, n_shown, &err)))
+        goto done;
+
+    summary = rths_cli_summary_new(&cli);
+    json_object_object_add(summary, "mode",
+                           json_object_new_string(a.feedback ? "feedback" : "iterative"));
+    json_object_object_add(summary, "frequency_hz", json_object_new_double(a.frequency_hz));
+    json_object_object_add(summary, "forcing_amplitude_n",
+                           json_object_new_double(setup.forcing_amplitude_n));
+    json_object_object_add(summary, "mass_ratio", json_object_new_double(setup.split.mass_ratio));
+    json_object_object_add(summary, "periods", json_object_new_int(r.n_periods));
+    json_object_object_add(summary, "harmonics", json_object_new_int(harmonics));
+    if (rig)
+        json_object_object_add(summary, "rig", json_object_new_string(rths_rig_description(rig)));
+    json_object_object_add(
+        summary, "fault",
+        json_object_new_string(r.fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r.fault)));
+    json_object_object_add(summary, "rig_time_s", json_object_new_double(r.rig_time_s));
+    if (!a.feedback) {
+        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
+        for (int k = 0; k < a.harmonics; k++) {
+            json_object_array_add(ta, json_object_new_double(a.target_a[k]));
+            json_object_array_add(tb, json_object_new_double(a.target_b[k]));
+        }
+        json_object *tg = json_object_new_object();
+        json_object_object_add(tg, "a_m", ta);
+        json_object_object_add(tg, "b_m", tb);
+        json_object_object_add(summary, "target", tg);
+    }
+    if (r.n_periods > 0) {
+        const rths_period *last = &r.periods[r.n_periods - 1];
+        json_object *errs = json_object_new_array(), *rel = json_object_new_array();
+        for (int k = 1; k <= harmonics; k++) {
+            double e = interface_error(&last->phys, &last->num, k);
+            double amp = hypot(last->num.a[k], last->num.b[k]);
+            json_object_array_add(errs, json_object_new_double(e));
+            json_object_array_add(rel, json_object_new_double(amp > 0 ? e / amp : NAN));
+        }
+        json_object_object_add(summary, "final_interface_error_m", errs);
+        json_object_object_add(summary, "final_interface_error_relative", rel);
+        json_object_object_add(summary, "final_phys", fourier_json(&last->phys, harmonics));
+        json_object_object_add(summary, "final_num", fourier_json(&last->num, harmonics));
+        rths_cli_print(&cli,
+                       "%d periods at %g Hz; last period: physical a1 = %.6e m, b1 = %.6e m; "
+                       "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
+                       r.n_periods, a.frequency_hz, last->phys.a[1], last->phys.b[1],
+                       last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
+    }
+    if (a.feedback) {
+        add_divergence(summary, &cli, &setup, &a, &r, rig ? rths_rig_noise_level_m(rig) : 0.0);
+        json_object_object_add(summary, "delay_s",
+                               pure_delay ? json_object_new_double(a.delay_s) : NULL);
+    }
+    if ((rc = rths_cli_write_summary(rep, "summary.json", summary, &err))) goto done;
+    char title[256];
+    if (a.feedback)
+        snprintf(title, sizeof title, "Feedback hybrid test%s, p = %g, %g Hz",
+                 pure_delay ? " with a pure delay" : " through the rig", setup.split.mass_ratio,
+                 a.frequency_hz);
+    else
+        snprintf(title, sizeof title, "Iterative hybrid test at a fixed target, p = %g, %g Hz",
+                 setup.split.mass_ratio, a.frequency_hz);
+    /* the phase plot shows the last (up to) five periods: the steady state, or the growth */
+    double t_last = n_shown > 0 ? shown[n_shown - 1].time_s : 0;
+    rc = plot(rep, title,
+              fmax(shown && n_shown ? shown[0].time_s : 0, t_last - 5.0 / a.frequency_hz), &err);
+done:
+    if (summary) json_object_put(summary);
+    free(shown);
+    sim_result_free(&r);
+    if (rig) rths_rig_destroy(rig);
+    if (rep) rths_report_close(rep);
+    rths_cli_unload(cfg, &setup);
+    if (rc) return rths_cli_fail(&cli, rc, &err);
+    return RTHS_OK;
+}
