@@ -39,6 +39,8 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
                        rths_error *err);
 int rths_server_port(const rths_server *s); /* the bound port (useful after port 0) */
 double rths_server_sample_period_s(const rths_server *s);
+/* Time the step takes to ramp demand, forcing and target to zero after a disarm or fault, s. */
+double rths_server_ramp_time_s(const rths_server *s);
 
 /* Starts the loop and network threads. */
 int rths_server_start(rths_server *s, rths_error *err);

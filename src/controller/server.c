@@ -122,14 +122,16 @@ struct rths_server {
     uint32_t next_cmd_id; /* network thread */
     _Atomic uint32_t applied_id;
     atomic_int applied_result;
-    _Atomic uint64_t applied_sample;
+    _Atomic uint64_t applied_time_bits; /* controller time at which the command took effect */
 
     /* published by the loop */
     _Atomic uint64_t samples, overruns, resyncs, worst_late_ns, worst_step_ns, step_sum_ns;
     atomic_int armed, fault, last_disarm, rt_flags;
     _Atomic uint64_t freq_bits, amp_bits;
-    _Atomic uint32_t *lat_hist;  /* LAT_BINS + 1 */
-    _Atomic uint32_t *step_hist; /* STEP_BINS + 1 */
+    _Atomic uint64_t time_bits;      /* controller time after the last step, s */
+    _Atomic uint64_t engine_dropped; /* periods the step's ring dropped */
+    _Atomic uint32_t *lat_hist;      /* LAT_BINS + 1 */
+    _Atomic uint32_t *step_hist;     /* STEP_BINS + 1 */
 
     /* written by the network thread, read by the loop */
     _Atomic int64_t last_rx_ns;
@@ -218,7 +220,8 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         break;
     }
     atomic_store_explicit(&s->applied_result, result, memory_order_relaxed);
-    atomic_store_explicit(&s->applied_sample, atomic_load(&s->samples), memory_order_relaxed);
+    atomic_store_explicit(&s->applied_time_bits, dbits(rths_engine_time_s(e)),
+                          memory_order_relaxed);
     atomic_store_explicit(&s->applied_id, c->id, memory_order_release);
 }
 
@@ -320,6 +323,10 @@ static void *loop_main(void *arg) {
         prev_armed = armed;
         atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
         atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
+        atomic_store_explicit(&s->time_bits, dbits(rths_engine_time_s(s->engine)),
+                              memory_order_relaxed);
+        atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
+                              memory_order_relaxed);
         add64(&s->samples, 1);
     }
     atomic_store(&s->armed, 0);
@@ -329,8 +336,7 @@ static void *loop_main(void *arg) {
 /* ---- the network thread ---- */
 
 static double ctl_time(rths_server *s) {
-    return (double)atomic_load_explicit(&s->samples, memory_order_relaxed) * (double)s->period_ns *
-           1e-9;
+    return bitsd(atomic_load_explicit(&s->time_bits, memory_order_relaxed));
 }
 
 /* Queues a frame; stream frames (replies == 0) only when the reply reserve stays free. */
@@ -400,8 +406,7 @@ static int run_cmd(rths_server *s, loop_cmd *cmd, double *applied_time) {
         struct timespec ts = {0, 50000};
         nanosleep(&ts, NULL);
     }
-    *applied_time = (double)atomic_load_explicit(&s->applied_sample, memory_order_relaxed) *
-                    (double)s->period_ns * 1e-9;
+    *applied_time = bitsd(atomic_load_explicit(&s->applied_time_bits, memory_order_relaxed));
     return atomic_load_explicit(&s->applied_result, memory_order_relaxed);
 }
 
@@ -419,7 +424,7 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
     st->samples = atomic_load(&s->samples);
     st->overruns = atomic_load(&s->overruns);
     st->worst_lateness_s = (double)atomic_load(&s->worst_late_ns) * 1e-9;
-    st->periods_dropped = atomic_load(&s->periods_dropped);
+    st->periods_dropped = atomic_load(&s->periods_dropped) + atomic_load(&s->engine_dropped);
     int bin = 0;
     for (int i = 0; i <= LAT_BINS; i++) {
         /* fine bin i covers [i, i+1) us; coarse edges are whole microseconds */
@@ -801,6 +806,8 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
                               s->info.sample_period_s);
     }
     atomic_store(&s->freq_bits, dbits(0.0));
+    atomic_store(&s->time_bits, dbits(0.0));
+    atomic_store(&s->applied_time_bits, dbits(0.0));
     atomic_store(&s->amp_bits, dbits(0.0));
     atomic_store(&s->trace_decimation, 1);
     if ((rc = bind_listen(s, err))) {
@@ -816,6 +823,9 @@ int rths_server_port(const rths_server *s) {
 }
 double rths_server_sample_period_s(const rths_server *s) {
     return s->info.sample_period_s;
+}
+double rths_server_ramp_time_s(const rths_server *s) {
+    return s->info.ramp_time_s;
 }
 
 int rths_server_start(rths_server *s, rths_error *err) {

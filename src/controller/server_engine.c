@@ -42,6 +42,7 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     info->sample_period_s = e->h;
     info->noise_level_m = 0.0;
     info->max_harmonics = RTHS_PROTO_HARMONICS;
+    info->ramp_time_s = 0.1;
     strcpy(info->description, "stub engine");
     *out = e;
     return RTHS_OK;
@@ -168,4 +169,8 @@ int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
     *out = e->ring[t % PRING];
     atomic_store_explicit(&e->tail, t + 1, memory_order_release);
     return 1;
+}
+long rths_engine_dropped_periods(const rths_engine *e) {
+    (void)e;
+    return 0;
 }

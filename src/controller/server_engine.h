@@ -14,6 +14,7 @@ typedef struct rths_engine_info {
     double sample_period_s;
     double noise_level_m; /* displacement noise std of the plant's sensors, m */
     int max_harmonics;
+    double ramp_time_s; /* disarm/fault ramp of demand, forcing and target to zero, s */
     char description[RTHS_PROTO_MAX_TEXT + 1];
 } rths_engine_info;
 
@@ -31,10 +32,11 @@ void rths_engine_disarm(rths_engine *e);        /* loop: ramp excitation and tar
 void rths_engine_trip_watchdog(rths_engine *e); /* loop: latch the watchdog fault + disarm */
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
 void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b);
-void rths_engine_reset_fault(rths_engine *e);    /* loop */
-int rths_engine_armed(const rths_engine *e);     /* loop */
-int rths_engine_fault(const rths_engine *e);     /* loop; rths_rig_fault numbering */
-double rths_engine_time_s(const rths_engine *e); /* loop */
+void rths_engine_reset_fault(rths_engine *e);           /* loop */
+int rths_engine_armed(const rths_engine *e);            /* loop */
+int rths_engine_fault(const rths_engine *e);            /* loop; rths_rig_fault numbering */
+double rths_engine_time_s(const rths_engine *e);        /* loop: controller (rig) time, s */
+long rths_engine_dropped_periods(const rths_engine *e); /* loop */
 
 /* network: next whole period from the step's ring; 1 when one was popped. */
 int rths_engine_pop_period(rths_engine *e, rths_proto_period *out);
