@@ -263,6 +263,13 @@ int rths_cmd_fidelity(int argc, char **argv) {
                         peak_hz[c + 1], e);
     }
     json_object_object_add(summary, "curves", curves);
+    if (setup.has_bilinear) {
+        /* the frequency-domain model is linear: the leg's extension stiffness is what it sees */
+        static const char note[] = "the bilinear leg is not modelled: the structure is taken as "
+                                   "linear with the leg's extension stiffness";
+        json_object_object_add(summary, "note", json_object_new_string(note));
+        rths_cli_print(&cli, "note: %s\n", note);
+    }
     if ((rc = rths_cli_write_summary(rep, "summary.json", summary, &err))) goto done;
     /* zoom: a few half-power bandwidths of the true peak (found on the analytic curve), wide enough
      * for every scheme's shifted peak */
