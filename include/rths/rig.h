@@ -78,6 +78,8 @@ typedef struct rths_rig_ops {
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description);
 void rths_rig_destroy(rths_rig *rig);
 const char *rths_rig_description(const rths_rig *rig);
+/* The backend object when rig was created with ops, else NULL (for backend-specific calls). */
+void *rths_rig_backend(rths_rig *rig, const rths_rig_ops *ops);
 
 int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n, rths_error *err);
 int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const double *b,

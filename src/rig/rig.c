@@ -32,6 +32,10 @@ rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *descr
     return rig;
 }
 
+void *rths_rig_backend(rths_rig *rig, const rths_rig_ops *ops) {
+    return rig && rig->ops == ops ? rig->self : NULL;
+}
+
 void rths_rig_destroy(rths_rig *rig) {
     if (!rig) return;
     if (rig->ops->destroy) rig->ops->destroy(rig->self);

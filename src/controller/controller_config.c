@@ -1,0 +1,43 @@
+/* The `controller` configuration section. */
+#include "rths/controller.h"
+
+#include <math.h>
+
+int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
+    static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh",
+                                          "exact_foh", NULL};
+    int scheme = (int)opt->scheme, rc;
+    if ((rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, opt->sample_rate_hz,
+                                     100, 1e6, &opt->sample_rate_hz, err)) ||
+        (rc = rths_config_get_choice(cfg, "controller.scheme", 0, scheme, schemes, &scheme,
+                                     err)) ||
+        (rc = rths_config_get_double(cfg, "controller.kp_v_per_m", 0, opt->kp_v_per_m, 0, 1e9,
+                                     &opt->kp_v_per_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.kd_v_s_per_m", 0, opt->kd_v_s_per_m, 0,
+                                     1e9, &opt->kd_v_s_per_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.grounding_kp_n_per_m", 0,
+                                     opt->grounding_kp_n_per_m, 0, 1e12,
+                                     &opt->grounding_kp_n_per_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.grounding_kd_n_s_per_m", 0,
+                                     opt->grounding_kd_n_s_per_m, 0, 1e12,
+                                     &opt->grounding_kd_n_s_per_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.velocity_cutoff_hz", 0,
+                                     opt->velocity_cutoff_hz, 0, 1e6, &opt->velocity_cutoff_hz,
+                                     err)) ||
+        (rc = rths_config_get_double(cfg, "controller.limits.demand_v", 0, opt->demand_limit_v,
+                                     1e-6, 1e6, &opt->demand_limit_v, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.limits.displacement_m", 0,
+                                     opt->displacement_limit_m, 1e-9, 10,
+                                     &opt->displacement_limit_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.limits.force_n", 0, opt->force_limit_n,
+                                     1e-6, 1e9, &opt->force_limit_n, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.ramp_time_s", 0, opt->ramp_time_s, 0, 60,
+                                     &opt->ramp_time_s, err)))
+        return rc;
+    opt->scheme = (rths_scheme)scheme;
+    if (opt->velocity_cutoff_hz >= 0.5 * opt->sample_rate_hz)
+        return rths_config_error_at(cfg, "controller.velocity_cutoff_hz", err,
+                                    "must be below half the sample rate (%g Hz)",
+                                    0.5 * opt->sample_rate_hz);
+    return RTHS_OK;
+}

@@ -1,0 +1,359 @@
+/* The per-sample real-time step (see controller.h). Nothing in rths_controller_step allocates,
+ * locks, prints or calls LAPACK; tests/test_controller.c checks it. */
+#include "rths/controller.h"
+
+#include <math.h>
+#include <stdatomic.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define RING_CAPACITY 256
+#define MAX_STATE (2 * RTHS_MAX_SENSED_DOFS)
+#define N_INPUTS 2 /* numerical interface force, external forcing */
+
+typedef struct {
+    double a[RTHS_MAX_HARMONICS + 1], b[RTHS_MAX_HARMONICS + 1];
+} sums;
+
+struct rths_controller {
+    rths_controller_options opt;
+    double h;
+    int nn, nx, np;      /* numerical DoFs, its state size, physical DoFs (sensors) */
+    int forcing_index;   /* forcing DoF in the numerical substructure's order */
+    double m_comp;       /* inertial compensation mass p m_int, kg */
+    double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * N_INPUTS], b_curr[MAX_STATE * N_INPUTS];
+    double z[MAX_STATE], z_next[MAX_STATE], u_prev[N_INPUTS];
+    /* commands */
+    double omega, pending_omega, amplitude_n;
+    int pending_frequency;
+    int harmonics;
+    double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
+    int feedback, armed;
+    rths_rig_fault fault;
+    double ramp;         /* 0..1: scales demand, forcing and target */
+    /* signal state */
+    double time_s, theta;
+    double x_prev, v_est, velocity_alpha;
+    double x_last, x_last_prev, xi_last_prev; /* grounding control's consistent samples */
+    int grounding_have;
+    int have_prev;
+    /* running Fourier sums of the open period, and the previous sample for the trapezoid */
+    sums acc_phys, acc_num, acc_force;
+    double y_prev[3], theta_prev;
+    int period_samples, at_boundary;
+    /* published periods: single producer (step), single consumer (pop) */
+    rths_period ring[RING_CAPACITY];
+    atomic_size_t head, tail;
+    atomic_long dropped;
+};
+
+void rths_controller_defaults(rths_controller_options *opt) {
+    opt->sample_rate_hz = 10000.0;
+    opt->scheme = RTHS_SCHEME_DEFAULT;
+    opt->kp_v_per_m = 100.0;
+    opt->kd_v_s_per_m = 10.0;
+    opt->grounding_kp_n_per_m = 50000.0;
+    opt->grounding_kd_n_s_per_m = 200.0;
+    opt->velocity_cutoff_hz = 1000.0;
+    opt->demand_limit_v = 10.0;
+    opt->displacement_limit_m = 0.01;
+    opt->force_limit_n = 200.0;
+    opt->ramp_time_s = 0.1;
+}
+
+int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
+                           rths_controller **out, rths_error *err) {
+    *out = NULL;
+    const rths_split *s = &setup->split;
+    if (s->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the controller drives one interface DoF; this split has %d",
+                              s->n_int);
+    if (s->np > RTHS_MAX_SENSED_DOFS || s->nn > RTHS_MAX_SENSED_DOFS)
+        return rths_error_set(err, RTHS_EINPUT, "at most %d DoFs per substructure",
+                              RTHS_MAX_SENSED_DOFS);
+    if (setup->split.int_dofs[0] != setup->forcing_dof) {
+        int numerical = 0;
+        for (int i = 0; i < s->n_num; i++) numerical |= s->num_dofs[i] == setup->forcing_dof;
+        if (!numerical)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "forcing.dof %d is on the physical side; the virtual rig "
+                                  "applies the forcing in the numerical substructure (or at the "
+                                  "interface)",
+                                  setup->forcing_dof + 1);
+    }
+    if (!(opt->sample_rate_hz > 0))
+        return rths_error_set(err, RTHS_EINPUT, "sample rate must be positive");
+    rths_controller *c = calloc(1, sizeof *c);
+    if (!c) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    c->opt = *opt;
+    c->h = 1.0 / opt->sample_rate_hz;
+    c->nn = s->nn;
+    c->nx = 2 * s->nn;
+    c->np = s->np;
+    c->m_comp = RTHS_AT(s->mass_num, s->nn, 0, 0);
+    c->forcing_index = 0;
+    for (int i = 0; i < s->n_num; i++)
+        if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
+    double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
+    input[0] = 1.0;                          /* column 0: interface force */
+    input[s->nn + c->forcing_index] = 1.0;   /* column 1: external forcing */
+    double *a = NULL, *b = NULL;
+    rths_discrete d = {0};
+    int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS,
+                              input, &a, &b, err);
+    if (!rc) rc = rths_discretise(c->nx, N_INPUTS, a, b, c->h, opt->scheme, &d, err);
+    if (!rc) {
+        memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
+        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * N_INPUTS));
+        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * N_INPUTS));
+    }
+    free(a);
+    free(b);
+    rths_discrete_free(&d);
+    if (rc) {
+        free(c);
+        return rc;
+    }
+    c->velocity_alpha =
+        opt->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * opt->velocity_cutoff_hz * c->h) : 0.0;
+    c->harmonics = 1;
+    atomic_init(&c->head, 0);
+    atomic_init(&c->tail, 0);
+    atomic_init(&c->dropped, 0);
+    *out = c;
+    return RTHS_OK;
+}
+
+void rths_controller_destroy(rths_controller *c) { free(c); }
+
+void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
+    c->amplitude_n = amplitude_n;
+    double w = 2 * M_PI * frequency_hz;
+    if (c->omega == 0) {
+        c->omega = w; /* nothing running yet: start now */
+    } else if (w != c->omega) {
+        c->pending_omega = w;
+        c->pending_frequency = 1;
+    }
+}
+
+void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
+                                const double *b) {
+    if (harmonics < 0) harmonics = 0;
+    if (harmonics > RTHS_MAX_HARMONICS) harmonics = RTHS_MAX_HARMONICS;
+    c->harmonics = harmonics;
+    for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
+        c->target_a[k] = k < harmonics ? a[k] : 0;
+        c->target_b[k] = k < harmonics ? b[k] : 0;
+    }
+}
+
+void rths_controller_set_feedback(rths_controller *c, int on) { c->feedback = on; }
+void rths_controller_arm(rths_controller *c, int armed) { c->armed = armed; }
+int rths_controller_armed(const rths_controller *c) { return c->armed; }
+rths_rig_fault rths_controller_fault(const rths_controller *c) { return c->fault; }
+void rths_controller_trip(rths_controller *c, rths_rig_fault fault) {
+    if (!c->fault) c->fault = fault;
+}
+void rths_controller_reset_fault(rths_controller *c) { c->fault = RTHS_RIG_OK; }
+double rths_controller_time_s(const rths_controller *c) { return c->time_s; }
+double rths_controller_frequency_hz(const rths_controller *c) { return c->omega / (2 * M_PI); }
+int rths_controller_at_period_boundary(const rths_controller *c) { return c->at_boundary; }
+long rths_controller_dropped_periods(const rths_controller *c) {
+    return atomic_load(&c->dropped);
+}
+
+/* Adds the trapezoid of y(theta) cos/sin(k theta) over [t0, t1] to the sums. */
+static void accumulate(sums *s, double t0, double y0, double t1, double y1) {
+    double w = 0.5 * (t1 - t0) / M_PI;
+    double c0 = cos(t0), s0 = sin(t0), c1 = cos(t1), s1 = sin(t1);
+    s->a[0] += 0.25 * (t1 - t0) / M_PI * (y0 + y1);
+    /* cos/sin of k theta by the angle-addition recurrence */
+    double ck0 = c0, sk0 = s0, ck1 = c1, sk1 = s1;
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
+        s->a[k] += w * (y0 * ck0 + y1 * ck1);
+        s->b[k] += w * (y0 * sk0 + y1 * sk1);
+        double n0 = ck0 * c0 - sk0 * s0, n1 = ck1 * c1 - sk1 * s1;
+        sk0 = sk0 * c0 + ck0 * s0;
+        sk1 = sk1 * c1 + ck1 * s1;
+        ck0 = n0;
+        ck1 = n1;
+    }
+}
+
+static void publish(rths_controller *c, double end_time) {
+    size_t head = atomic_load_explicit(&c->head, memory_order_relaxed);
+    size_t tail = atomic_load_explicit(&c->tail, memory_order_acquire);
+    if (head - tail >= RING_CAPACITY) {
+        atomic_fetch_add(&c->dropped, 1);
+    } else {
+        rths_period *p = &c->ring[head % RING_CAPACITY];
+        p->frequency_hz = c->omega / (2 * M_PI);
+        p->end_time_s = end_time;
+        p->samples = c->period_samples;
+        memcpy(p->phys.a, c->acc_phys.a, sizeof p->phys.a);
+        memcpy(p->phys.b, c->acc_phys.b, sizeof p->phys.b);
+        memcpy(p->num.a, c->acc_num.a, sizeof p->num.a);
+        memcpy(p->num.b, c->acc_num.b, sizeof p->num.b);
+        memcpy(p->force.a, c->acc_force.a, sizeof p->force.a);
+        memcpy(p->force.b, c->acc_force.b, sizeof p->force.b);
+        p->phys.b[0] = p->num.b[0] = p->force.b[0] = 0;
+        atomic_store_explicit(&c->head, head + 1, memory_order_release);
+    }
+    memset(&c->acc_phys, 0, sizeof c->acc_phys);
+    memset(&c->acc_num, 0, sizeof c->acc_num);
+    memset(&c->acc_force, 0, sizeof c->acc_force);
+    c->period_samples = 0;
+}
+
+int rths_controller_pop_period(rths_controller *c, rths_period *out) {
+    size_t tail = atomic_load_explicit(&c->tail, memory_order_relaxed);
+    size_t head = atomic_load_explicit(&c->head, memory_order_acquire);
+    if (tail == head) return 0;
+    *out = c->ring[tail % RING_CAPACITY];
+    atomic_store_explicit(&c->tail, tail + 1, memory_order_release);
+    return 1;
+}
+
+static void latch(rths_controller *c, rths_rig_fault f) {
+    if (!c->fault) c->fault = f;
+}
+
+double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
+                            rths_controller_output *out) {
+    const double h = c->h;
+    const int nx = c->nx, nn = c->nn;
+    /* ramp: up to 1 while armed and healthy, down to 0 otherwise */
+    double dr = c->opt.ramp_time_s > 0 ? h / c->opt.ramp_time_s : 1.0;
+    if (c->armed && !c->fault)
+        c->ramp = fmin(1.0, c->ramp + dr);
+    else
+        c->ramp = fmax(0.0, c->ramp - dr);
+
+    double x = in->displacement_m[c->np - 1];
+    double acc = in->interface_acceleration_m_s2, f_lc = in->interface_force_n;
+    int finite = isfinite(x) && isfinite(acc) && isfinite(f_lc);
+    for (int i = 0; i < in->n && i < RTHS_MAX_SENSED_DOFS; i++) {
+        finite &= isfinite(in->displacement_m[i]);
+        if (fabs(in->displacement_m[i]) > c->opt.displacement_limit_m)
+            latch(c, RTHS_RIG_FAULT_DISPLACEMENT);
+    }
+    if (!finite) {
+        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        x = acc = f_lc = 0; /* keep the numerical model finite */
+        c->ramp = 0;
+    }
+    if (fabs(f_lc) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
+
+    /* velocity of the physical interface: filtered backward difference */
+    double v_raw = c->have_prev ? (x - c->x_prev) / h : 0.0;
+    c->v_est = c->velocity_alpha * c->v_est + (1 - c->velocity_alpha) * v_raw;
+    c->x_prev = x;
+    c->have_prev = 1;
+
+    /* phase of this sample */
+    double theta0 = c->theta;
+    double theta1 = theta0 + c->omega * h;
+
+    /* numerical substructure: F_num = F_comp - F_LC + F_ctrl. The grounding control compares
+     * like with like, the last measured x with the last xi and both velocities by the same
+     * backward difference, so it vanishes exactly when the interface matches (erratum 8) and
+     * adds no spurious stiffness or damping to the converged response. */
+    double xi = c->z[0], xi_dot;
+    double x_last = c->grounding_have ? c->x_last : x;
+    double xi_last_prev = c->grounding_have ? c->xi_last_prev : xi;
+    double x_last_prev = c->grounding_have ? c->x_last_prev : x_last;
+    double f_ctrl = c->opt.grounding_kp_n_per_m * (x_last - xi) +
+                    c->opt.grounding_kd_n_s_per_m *
+                        ((x_last - x_last_prev) - (xi - xi_last_prev)) / h;
+    c->x_last_prev = x_last;
+    c->x_last = x;
+    c->xi_last_prev = xi;
+    c->grounding_have = 1;
+    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl,
+                          c->ramp * c->amplitude_n * cos(theta1)};
+    for (int i = 0; i < nx; i++) {
+        double v = 0;
+        for (int j = 0; j < nx; j++) v += c->ad[i + j * nx] * c->z[j];
+        for (int j = 0; j < N_INPUTS; j++)
+            v += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
+        c->z_next[i] = v;
+    }
+    memcpy(c->z, c->z_next, sizeof(double) * (size_t)nx);
+    memcpy(c->u_prev, u, sizeof u);
+    xi = c->z[0];
+    xi_dot = c->z[nn];
+    if (!isfinite(xi)) {
+        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        memset(c->z, 0, sizeof c->z);
+        memset(c->u_prev, 0, sizeof c->u_prev);
+        xi = xi_dot = 0;
+    }
+
+    /* target and PD demand */
+    double target, target_dot;
+    if (c->feedback) {
+        target = xi;
+        target_dot = xi_dot;
+    } else {
+        target = target_dot = 0;
+        for (int k = 1; k <= c->harmonics; k++) {
+            double ck = cos(k * theta1), sk = sin(k * theta1);
+            target += c->target_a[k - 1] * ck + c->target_b[k - 1] * sk;
+            target_dot += k * c->omega * (-c->target_a[k - 1] * sk + c->target_b[k - 1] * ck);
+        }
+        target *= c->ramp;
+        target_dot *= c->ramp;
+    }
+    double demand = c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
+    if (!isfinite(demand)) {
+        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        demand = 0;
+    }
+    if (fabs(demand) > c->opt.demand_limit_v) latch(c, RTHS_RIG_FAULT_DEMAND);
+    if (c->fault) demand *= c->ramp; /* ramps to zero after a trip, then holds zero */
+
+    /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation) */
+    double y[3] = {x, xi, f_lc};
+    c->at_boundary = 0;
+    c->time_s += h;
+    if (c->omega > 0) {
+        if (theta1 < 2 * M_PI) {
+            accumulate(&c->acc_phys, theta0, c->y_prev[0], theta1, y[0]);
+            accumulate(&c->acc_num, theta0, c->y_prev[1], theta1, y[1]);
+            accumulate(&c->acc_force, theta0, c->y_prev[2], theta1, y[2]);
+            c->period_samples++;
+            c->theta = theta1;
+        } else {
+            double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
+            double yb[3];
+            for (int i = 0; i < 3; i++) yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
+            accumulate(&c->acc_phys, theta0, c->y_prev[0], 2 * M_PI, yb[0]);
+            accumulate(&c->acc_num, theta0, c->y_prev[1], 2 * M_PI, yb[1]);
+            accumulate(&c->acc_force, theta0, c->y_prev[2], 2 * M_PI, yb[2]);
+            c->period_samples++;
+            publish(c, c->time_s - (1 - alpha) * h);
+            if (c->pending_frequency) {
+                c->omega = c->pending_omega;
+                c->pending_frequency = 0;
+            }
+            double rest = theta1 - 2 * M_PI;
+            accumulate(&c->acc_phys, 0, yb[0], rest, y[0]);
+            accumulate(&c->acc_num, 0, yb[1], rest, y[1]);
+            accumulate(&c->acc_force, 0, yb[2], rest, y[2]);
+            c->theta = rest;
+            c->at_boundary = 1;
+        }
+    }
+    memcpy(c->y_prev, y, sizeof y);
+    if (out) {
+        out->time_s = c->time_s;
+        out->demand_v = demand;
+        out->target_m = target;
+        out->x_phys_m = x;
+        out->x_num_m = xi;
+        out->force_n = f_lc;
+    }
+    return demand;
+}

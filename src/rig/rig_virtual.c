@@ -1,0 +1,177 @@
+/* The virtual rig: controller step + virtual plant on a simulated clock (see rig_virtual.h). */
+#include "rths/rig_virtual.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+typedef struct {
+    rths_controller *ctrl;
+    rths_plant *plant;
+    double sample_rate_hz;
+} virtual_rig;
+
+/* One controller sample: sensors in, step, demand out, plant advances. */
+static void sample(virtual_rig *v, rths_controller_output *out) {
+    rths_sensor_sample s;
+    rths_plant_read(v->plant, &s);
+    double demand = rths_controller_step(v->ctrl, &s, out);
+    rths_plant_advance(v->plant, demand);
+}
+
+static int fault_error(virtual_rig *v, rths_error *err) {
+    rths_rig_fault f = rths_controller_fault(v->ctrl);
+    return rths_error_set(err, RTHS_EFAIL,
+                          "virtual rig fault at t = %.4f s: %s (limits in the controller "
+                          "section); the demand was ramped to zero",
+                          rths_controller_time_s(v->ctrl), rths_rig_fault_name(f));
+}
+
+static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {
+    virtual_rig *v = self;
+    if (!(frequency_hz > 0 && frequency_hz < 0.25 * v->sample_rate_hz) || !isfinite(amplitude_n))
+        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N is out of range",
+                              frequency_hz, amplitude_n);
+    rths_controller_set_forcing(v->ctrl, frequency_hz, amplitude_n);
+    return RTHS_OK;
+}
+
+static int v_set_target(void *self, int harmonics, const double *a, const double *b,
+                        rths_error *err) {
+    virtual_rig *v = self;
+    if (harmonics < 0 || harmonics > RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT, "%d harmonics: 0..%d supported", harmonics,
+                              RTHS_MAX_HARMONICS);
+    for (int k = 0; k < harmonics; k++)
+        if (!isfinite(a[k]) || !isfinite(b[k]))
+            return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite",
+                                  k + 1);
+    rths_controller_set_target(v->ctrl, harmonics, a, b);
+    return RTHS_OK;
+}
+
+static int v_run_periods(void *self, int count, rths_period *out, rths_error *err) {
+    virtual_rig *v = self;
+    double f = rths_controller_frequency_hz(v->ctrl);
+    if (!(f > 0)) return rths_error_set(err, RTHS_EINPUT, "set the forcing before running");
+    rths_period discard;
+    while (rths_controller_pop_period(v->ctrl, &discard)) {
+    }
+    /* bound: twice the samples of the slowest plausible periods, plus slack */
+    long limit = (long)(count + 2) * (long)(2 * v->sample_rate_hz / f) + 100000;
+    int got = 0;
+    for (long i = 0; got < count; i++) {
+        if (i > limit)
+            return rths_error_set(err, RTHS_EFAIL, "virtual rig: no period completed");
+        sample(v, NULL);
+        if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
+        while (got < count && rths_controller_pop_period(v->ctrl, &out[got])) got++;
+    }
+    return RTHS_OK;
+}
+
+static int v_record_trace(void *self, double duration_s, int max_samples, rths_trace_sample *out,
+                          int *n_out, rths_error *err) {
+    virtual_rig *v = self;
+    *n_out = 0;
+    if (!(duration_s > 0) || max_samples < 1)
+        return rths_error_set(err, RTHS_EINPUT, "trace of %g s with %d samples", duration_s,
+                              max_samples);
+    long total = (long)ceil(duration_s * v->sample_rate_hz);
+    long every = (total + max_samples - 1) / max_samples;
+    if (every < 1) every = 1;
+    rths_controller_output o;
+    for (long i = 0; i < total; i++) {
+        sample(v, &o);
+        if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
+        if (i % every == 0 && *n_out < max_samples)
+            out[(*n_out)++] = (rths_trace_sample){o.time_s, o.x_phys_m, o.x_num_m, o.target_m,
+                                                  o.force_n, o.demand_v};
+    }
+    rths_period discard;
+    while (rths_controller_pop_period(v->ctrl, &discard)) {
+    }
+    return RTHS_OK;
+}
+
+static double v_time(void *self) { return rths_controller_time_s(((virtual_rig *)self)->ctrl); }
+static rths_rig_fault v_fault(void *self) {
+    return rths_controller_fault(((virtual_rig *)self)->ctrl);
+}
+static int v_reset_fault(void *self, rths_error *err) {
+    (void)err;
+    virtual_rig *v = self;
+    rths_controller_reset_fault(v->ctrl);
+    rths_controller_arm(v->ctrl, 1);
+    return RTHS_OK;
+}
+static double v_noise(void *self) {
+    return rths_plant_noise_level_m(((virtual_rig *)self)->plant);
+}
+static void v_destroy(void *self) {
+    virtual_rig *v = self;
+    rths_controller_destroy(v->ctrl);
+    rths_plant_destroy(v->plant);
+    free(v);
+}
+
+static const rths_rig_ops virtual_ops = {
+    .set_forcing = v_set_forcing,
+    .set_target = v_set_target,
+    .run_periods = v_run_periods,
+    .record_trace = v_record_trace,
+    .time_s = v_time,
+    .fault = v_fault,
+    .reset_fault = v_reset_fault,
+    .noise_level_m = v_noise,
+    .destroy = v_destroy,
+};
+
+int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,
+                                 const rths_plant_options *popt, rths_rig **out,
+                                 rths_error *err) {
+    *out = NULL;
+    virtual_rig *v = calloc(1, sizeof *v);
+    if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    v->sample_rate_hz = copt->sample_rate_hz;
+    int rc = rths_controller_create(setup, copt, &v->ctrl, err);
+    if (!rc) rc = rths_plant_create(setup, popt, copt->sample_rate_hz, &v->plant, err);
+    char description[200];
+    snprintf(description, sizeof description,
+             "virtual rig: %s integrator, %g Hz, shaker delay %g s, lag %g Hz, noise %s",
+             rths_scheme_name(copt->scheme), copt->sample_rate_hz,
+             popt->delay_s, popt->lag_cutoff_hz, popt->noise ? "on" : "off");
+    if (!rc && !(*out = rths_rig_create(&virtual_ops, v, description)))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (rc) {
+        rths_controller_destroy(v->ctrl);
+        rths_plant_destroy(v->plant);
+        free(v);
+        return rc;
+    }
+    rths_controller_arm(v->ctrl, 1);
+    return RTHS_OK;
+}
+
+int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_seed,
+                            uint64_t seed_override, rths_rig **out, rths_error *err) {
+    rths_controller_options copt;
+    rths_plant_options popt;
+    rths_controller_defaults(&copt);
+    rths_plant_defaults(&popt);
+    int rc = rths_controller_config_read(cfg, &copt, err);
+    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
+    if (rc) return rc;
+    if (has_seed) popt.seed = seed_override;
+    return rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
+}
+
+rths_controller *rths_virtual_rig_controller(rths_rig *rig) {
+    virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
+    return v ? v->ctrl : NULL;
+}
+
+rths_plant *rths_virtual_rig_plant(rths_rig *rig) {
+    virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
+    return v ? v->plant : NULL;
+}
