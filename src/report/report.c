@@ -251,7 +251,7 @@ void rths_csv_abort(rths_csv *csv) {
 int rths_json_write(const char *path, struct json_object *obj, rths_error *err) {
     json_c_set_serialization_double_format("%.17g", JSON_C_OPTION_THREAD);
     const char *text =
-        json_object_to_json_string_ext(obj, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED);
+        json_object_to_json_string_ext(obj, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED | JSON_C_TO_STRING_NOSLASHESCAPE);
     json_c_set_serialization_double_format(NULL, JSON_C_OPTION_THREAD);
     if (!text) return rths_error_set(err, RTHS_EFAIL, "cannot serialise %s", path);
     size_t len = strlen(text);

@@ -1,0 +1,249 @@
+/* rths model CONFIG --out DIR: modes and analytic FRF of the true assembly, the ground truth every
+ * hybrid result is judged against. */
+#include "cli/cli_common.h"
+#include "cli/commands.h"
+#include "rths/report.h"
+#include "rths/setup.h"
+
+#include <complex.h>
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const char usage[] =
+    "Usage: rths model CONFIG --out DIR [--set key=value]... [--quiet]\n"
+    "\n"
+    "Modal analysis and analytic frequency response of the true assembly described by CONFIG\n"
+    "(structure, split, forcing sections; see docs/config.md).\n"
+    "\n"
+    "Prints the modes and writes into DIR:\n"
+    "  modes.csv      mode, frequency_hz, omega_rad_s, damping_ratio, phi<i> (mass-normalised)\n"
+    "  true_frf.csv   frequency_hz, x<i>_amplitude_m, x<i>_phase_rad for every DoF i, response to\n"
+    "                 the configured force; range model.frf.{start_hz,end_hz,points}, by default\n"
+    "                 up to 1.25 x the highest mode with every peak resolved\n"
+    "  true_frf.gp/.png/.svg   the FRF figure\n"
+    "  summary.json, config.yaml (as resolved), run.log\n"
+    "\n"
+    "Options:\n"
+    "  --out DIR          output folder (created)\n"
+    "  --set key=value    override a configuration key (repeatable), e.g. split.mass_ratio=0.33\n"
+    "  --quiet            print nothing but errors\n"
+    "  --help             this text\n"
+    "\n"
+    "Exit status: 0 success, 1 failure, 2 bad usage or configuration (nothing written).\n";
+
+static int write_modes(rths_report *rep, const rths_modes *m, rths_error *err) {
+    int n = m->n, cols = 4 + n;
+    const char **header = calloc((size_t)cols, sizeof *header);
+    char (*names)[32] = calloc((size_t)n, sizeof *names);
+    double *row = calloc((size_t)cols, sizeof *row);
+    char *path = rths_report_path(rep, "modes.csv");
+    rths_csv *csv = NULL;
+    int rc = (header && names && row && path) ? RTHS_OK
+                                              : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        header[0] = "mode";
+        header[1] = "frequency_hz";
+        header[2] = "omega_rad_s";
+        header[3] = "damping_ratio";
+        for (int i = 0; i < n; i++) {
+            snprintf(names[i], sizeof names[i], "phi%d_per_sqrt_kg", i + 1);
+            header[4 + i] = names[i];
+        }
+        rc = rths_csv_open(path, cols, header, &csv, err);
+    }
+    for (int r = 0; r < n && !rc; r++) {
+        row[0] = r + 1;
+        row[1] = m->frequency_hz[r];
+        row[2] = m->omega_rad_s[r];
+        row[3] = m->damping_ratio[r];
+        for (int i = 0; i < n; i++) row[4 + i] = RTHS_AT(m->shapes, n, i, r);
+        rc = rths_csv_row(csv, row);
+        if (rc) rths_error_set(err, RTHS_EFAIL, "writing modes.csv failed");
+    }
+    if (csv) {
+        if (rc)
+            rths_csv_abort(csv);
+        else
+            rc = rths_csv_close(csv, err);
+    }
+    free(header);
+    free(names);
+    free(row);
+    free(path);
+    return rc;
+}
+
+/* Writes true_frf.csv; returns the interface DoF's peak (amplitude, frequency) for the summary. */
+static int write_frf(rths_report *rep, const rths_setup *s, const double *freqs, int count,
+                     double *peak_amp, double *peak_hz, rths_error *err) {
+    int n = s->assembly.n, cols = 1 + 2 * n;
+    const char **header = calloc((size_t)cols, sizeof *header);
+    char (*names)[40] = calloc((size_t)(2 * n), sizeof *names);
+    double *row = calloc((size_t)cols, sizeof *row);
+    double complex *x = calloc((size_t)n, sizeof *x);
+    char *path = rths_report_path(rep, "true_frf.csv");
+    rths_csv *csv = NULL;
+    int rc = (header && names && row && x && path)
+                 ? RTHS_OK
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        header[0] = "frequency_hz";
+        for (int i = 0; i < n; i++) {
+            snprintf(names[2 * i], sizeof names[0], "x%d_amplitude_m", i + 1);
+            snprintf(names[2 * i + 1], sizeof names[0], "x%d_phase_rad", i + 1);
+            header[1 + 2 * i] = names[2 * i];
+            header[2 + 2 * i] = names[2 * i + 1];
+        }
+        rc = rths_csv_open(path, cols, header, &csv, err);
+    }
+    int iface = s->split.int_dofs[0];
+    *peak_amp = 0;
+    *peak_hz = 0;
+    for (int j = 0; j < count && !rc; j++) {
+        rc = rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
+                      2 * M_PI * freqs[j], x, err);
+        if (rc) break;
+        row[0] = freqs[j];
+        for (int i = 0; i < n; i++) {
+            row[1 + 2 * i] = cabs(x[i]);
+            row[2 + 2 * i] = carg(x[i]);
+        }
+        if (cabs(x[iface]) > *peak_amp) {
+            *peak_amp = cabs(x[iface]);
+            *peak_hz = freqs[j];
+        }
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing true_frf.csv");
+    }
+    if (csv) {
+        if (rc)
+            rths_csv_abort(csv);
+        else
+            rc = rths_csv_close(csv, err);
+    }
+    free(header);
+    free(names);
+    free(row);
+    free(x);
+    free(path);
+    return rc;
+}
+
+static int plot_frf(rths_report *rep, const rths_setup *s, const rths_modes *m, rths_error *err) {
+    int n = s->assembly.n;
+    size_t cap = 4096 + (size_t)n * 256;
+    char *body = malloc(cap);
+    if (!body) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    size_t len = (size_t)snprintf(
+        body, cap,
+        "set datafile separator ','\n"
+        "set title 'True assembly: response to %g N on DoF %d (analytic)'\n"
+        "set xlabel 'Forcing frequency (Hz)'\n"
+        "set ylabel 'Displacement amplitude (m)'\n"
+        "set logscale y\n"
+        "set format y '10^{%%L}'\n"
+        "set grid\n"
+        "set key top right\n",
+        s->forcing_amplitude_n, s->forcing_dof + 1);
+    for (int r = 0; r < m->n && len < cap; r++)
+        len += (size_t)snprintf(body + len, cap - len,
+                                "set arrow from %.6g, graph 0 to %.6g, graph 1 nohead dt 3 lc "
+                                "rgb 'gray50'\n",
+                                m->frequency_hz[r], m->frequency_hz[r]);
+    len += (size_t)snprintf(body + len, cap - len, "plot ");
+    for (int i = 0; i < n && len < cap; i++) {
+        const char *role = s->roles[i] == RTHS_DOF_INTERFACE  ? "interface"
+                           : s->roles[i] == RTHS_DOF_PHYSICAL ? "physical"
+                                                              : "numerical";
+        len += (size_t)snprintf(body + len, cap - len,
+                                "%s'true_frf.csv' using 1:%d skip 1 with lines lw %d title "
+                                "'x_%d (%s)'",
+                                i ? ", \\\n     " : "", 2 + 2 * i,
+                                s->roles[i] == RTHS_DOF_INTERFACE ? 3 : 1, i + 1, role);
+    }
+    if (len < cap) snprintf(body + len, cap - len, "\n");
+    int rc = rths_plot(rep, rths_report_dir(rep), "true_frf", 1200, 800, body, err);
+    free(body);
+    return rc;
+}
+
+static int write_summary(const rths_cli *cli, rths_report *rep, const rths_setup *s,
+                         const rths_modes *m, double peak_amp, double peak_hz, int points,
+                         rths_error *err) {
+    json_object *root = rths_cli_summary_new(cli);
+    json_object *modes = json_object_new_array();
+    for (int r = 0; r < m->n; r++) {
+        json_object *mode = json_object_new_object();
+        json_object_object_add(mode, "mode", json_object_new_int(r + 1));
+        json_object_object_add(mode, "frequency_hz", json_object_new_double(m->frequency_hz[r]));
+        json_object_object_add(mode, "damping_ratio", json_object_new_double(m->damping_ratio[r]));
+        json_object_array_add(modes, mode);
+    }
+    json_object_object_add(root, "config", json_object_new_string(s->chain ? "storey chain"
+                                                                            : "matrices"));
+    json_object_object_add(root, "dofs", json_object_new_int(s->assembly.n));
+    json_object_object_add(root, "mass_ratio", json_object_new_double(s->split.mass_ratio));
+    json_object_object_add(root, "interface_dof", json_object_new_int(s->split.int_dofs[0] + 1));
+    json_object_object_add(root, "forcing_dof", json_object_new_int(s->forcing_dof + 1));
+    json_object_object_add(root, "forcing_amplitude_n",
+                           json_object_new_double(s->forcing_amplitude_n));
+    json_object_object_add(root, "modes", modes);
+    json_object_object_add(root, "frf_points", json_object_new_int(points));
+    json_object_object_add(root, "interface_peak_amplitude_m", json_object_new_double(peak_amp));
+    json_object_object_add(root, "interface_peak_frequency_hz", json_object_new_double(peak_hz));
+    int rc = rths_cli_write_summary(rep, "summary.json", root, err);
+    json_object_put(root);
+    return rc;
+}
+
+int rths_cmd_model(int argc, char **argv) {
+    rths_cli cli;
+    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT, usage, NULL, 0);
+    if (rc || cli.help) return rc;
+    rths_error err = {0};
+    rths_config *cfg = NULL;
+    rths_setup setup = {0};
+    rths_modes modes = {0};
+    rths_report *rep = NULL;
+    double *freqs = NULL;
+    int count = 0;
+    rc = rths_cli_load(&cli, &cfg, &setup, &err);
+    if (rc) return rths_cli_fail(&cli, rc, &err);
+    static const char *const own[] = {"structure", "split", "forcing", "model", NULL};
+    rc = rths_cli_check_config_own(cfg, own, &err);
+    if (!rc) rc = rths_modal_analysis(&setup.assembly, &modes, &err);
+    if (!rc) rc = rths_frf_grid(&modes, setup.frf_start_hz, setup.frf_end_hz, setup.frf_points,
+                                &freqs, &count, &err);
+    if (!rc) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
+    if (!rc) {
+        rths_cli_print(&cli, "True assembly: %d DoFs, interface DoF %d, p = %g, %g N on DoF %d\n",
+                       setup.assembly.n, setup.split.int_dofs[0] + 1, setup.split.mass_ratio,
+                       setup.forcing_amplitude_n, setup.forcing_dof + 1);
+        rths_cli_print(&cli, "%6s %14s %14s %14s\n", "mode", "frequency_hz", "omega_rad_s",
+                       "damping_%");
+        for (int r = 0; r < modes.n; r++)
+            rths_cli_print(&cli, "%6d %14.4f %14.3f %14.4f\n", r + 1, modes.frequency_hz[r],
+                           modes.omega_rad_s[r], 100 * modes.damping_ratio[r]);
+    }
+    double peak_amp = 0, peak_hz = 0;
+    if (!rc) rc = write_modes(rep, &modes, &err);
+    if (!rc) rc = write_frf(rep, &setup, freqs, count, &peak_amp, &peak_hz, &err);
+    if (!rc) rc = write_summary(&cli, rep, &setup, &modes, peak_amp, peak_hz, count, &err);
+    if (!rc) rc = plot_frf(rep, &setup, &modes, &err);
+    if (!rc)
+        rths_cli_print(&cli,
+                       "Interface (DoF %d) peak: %.4g m at %.4f Hz; %d frequencies in "
+                       "%s/true_frf.csv\n",
+                       setup.split.int_dofs[0] + 1, peak_amp, peak_hz, count,
+                       rths_report_dir(rep));
+    if (rep) rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "",
+                             rc ? err.msg : "");
+    if (rc) rths_cli_fail(&cli, rc, &err);
+    free(freqs);
+    rths_modes_free(&modes);
+    rths_cli_unload(cfg, &setup);
+    rths_report_close(rep);
+    return rc;
+}
