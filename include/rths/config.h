@@ -24,6 +24,10 @@ int rths_config_has(const rths_config *cfg, const char *key);
 /* Inclusive range [lo, hi]; pass -INFINITY / INFINITY for no bound. NaN and inf are refused. */
 int rths_config_get_double(rths_config *cfg, const char *key, int required, double def, double lo,
                            double hi, double *out, rths_error *err);
+/* The same with open bounds where flagged: RTHS_CONFIG_LO_OPEN gives lo < x ("must be > 0"). */
+enum { RTHS_CONFIG_LO_OPEN = 1, RTHS_CONFIG_HI_OPEN = 2 };
+int rths_config_get_double_ex(rths_config *cfg, const char *key, int required, double def,
+                              double lo, double hi, unsigned flags, double *out, rths_error *err);
 int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo,
                         long hi, long *out, rths_error *err);
 int rths_config_get_bool(rths_config *cfg, const char *key, int required, int def, int *out,
@@ -42,7 +46,8 @@ int rths_config_get_int_list(rths_config *cfg, const char *key, int required, in
 /* Sequence of equal-length rows of numbers -> column-major matrix (caller frees). */
 int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out,
                            int *rows, int *cols, rths_error *err);
-/* Marks a whole subtree as known (for sections read by a component not linked in this command). */
+/* Marks a whole subtree as known (for sections read by a component not linked in this command);
+ * NULL or "" marks the whole document. */
 void rths_config_mark_known(rths_config *cfg, const char *key_prefix);
 
 /* A semantic error about a key that exists (e.g. "matrix is not symmetric"): the message is

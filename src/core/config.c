@@ -8,6 +8,8 @@
 #include <ctype.h>
 #include <errno.h>
 #include <libfyaml.h>
+#include <limits.h>
+#include <locale.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -27,8 +29,8 @@ struct cnode {
     char *text;         /* scalar */
     int quoted;         /* scalar was quoted: a string, never a number */
     int count, cap;
-    cnode **items;      /* sequence items, or mapping values */
-    char **keys;        /* mapping keys */
+    cnode **items; /* sequence items, or mapping values */
+    char **keys;   /* mapping keys */
     int *key_line, *key_column;
 };
 
@@ -37,6 +39,8 @@ struct rths_config {
     cnode *root;
     char **overrides; /* owned copies of the --set texts (nodes point into them) */
     int n_overrides;
+    char **asked; /* every key a getter asked for, present or not: "did you mean" candidates */
+    int n_asked, cap_asked;
 };
 
 /* ---- tree ---- */
@@ -86,6 +90,12 @@ static int node_grow(cnode *n) {
     return 0;
 }
 
+/* "split:" with nothing after it: an empty section, not a value */
+static int is_empty(const cnode *n) {
+    return n && n->type == NODE_SCALAR && !n->quoted &&
+           (!n->text[0] || !strcmp(n->text, "~") || !strcasecmp(n->text, "null"));
+}
+
 static int map_find(const cnode *map, const char *key, size_t len) {
     for (int i = 0; i < map->count; i++)
         if (strlen(map->keys[i]) == len && !memcmp(map->keys[i], key, len)) return i;
@@ -97,7 +107,7 @@ static int map_find(const cnode *map, const char *key, size_t len) {
 typedef struct {
     struct fy_parser *parser;
     char diag_text[512]; /* libfyaml's first error line: "FILE:LINE:COL: error: what" */
-    const char *where; /* file name or "--set ..." for messages */
+    const char *where;   /* file name or "--set ..." for messages */
     const char *origin;
     int line_offset;
     rths_error *err;
@@ -113,11 +123,10 @@ static void event_position(struct fy_event *ev, int *line, int *column) {
 static int parse_error(parse_ctx *ctx) {
     const char *text = ctx->diag_text, *sep = strstr(text, ": error: ");
     if (sep && !ctx->origin)
-        return rths_error_set(ctx->err, RTHS_EINPUT, "%.*s: not valid YAML: %s",
-                              (int)(sep - text), text, sep + 9);
+        return rths_error_set(ctx->err, RTHS_EINPUT, "%.*s: not valid YAML: %s", (int)(sep - text),
+                              text, sep + 9);
     if (sep)
-        return rths_error_set(ctx->err, RTHS_EINPUT, "%s: not valid YAML: %s", ctx->where,
-                              sep + 9);
+        return rths_error_set(ctx->err, RTHS_EINPUT, "%s: not valid YAML: %s", ctx->where, sep + 9);
     return rths_error_set(ctx->err, RTHS_EINPUT, "%s: not valid YAML", ctx->where);
 }
 
@@ -125,7 +134,8 @@ static void capture_diag(struct fy_diag *diag, void *user, const char *buf, size
     (void)diag;
     parse_ctx *ctx = user;
     if (ctx->diag_text[0] || !memmem(buf, len, ": error: ", 9)) return;
-    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' ')) len--;
+    while (len && (buf[len - 1] == '\n' || buf[len - 1] == ' '))
+        len--;
     if (len >= sizeof ctx->diag_text) len = sizeof ctx->diag_text - 1;
     memcpy(ctx->diag_text, buf, len);
     ctx->diag_text[len] = 0;
@@ -148,15 +158,28 @@ static int parse_children(parse_ctx *ctx, cnode *n) {
             event_position(ev, &kl, &kc);
             if (t != FYET_SCALAR) {
                 fy_parser_event_free(ctx->parser, ev);
-                return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: mapping keys must be "
-                                      "plain names", ctx->where, kl, kc);
+                return rths_error_set(ctx->err, RTHS_EINPUT,
+                                      "%s:%d:%d: mapping keys must be "
+                                      "plain names",
+                                      ctx->where, kl, kc);
             }
             size_t len = 0;
             const char *text = fy_token_get_text(ev->scalar.value, &len);
             if (!text) text = "";
-            if (map_find(n, text, len) >= 0) {
+            int first = map_find(n, text, len);
+            if (first >= 0) {
                 int rc = rths_error_set(ctx->err, RTHS_EINPUT,
-                                        "%s:%d:%d: duplicate key '%.*s' in this mapping",
+                                        "%s:%d:%d: duplicate key '%.*s' in this mapping (first "
+                                        "at line %d)",
+                                        ctx->where, kl, kc, (int)len, text, n->key_line[first]);
+                fy_parser_event_free(ctx->parser, ev);
+                return rc;
+            }
+            if (memchr(text, '.', len) || !len) {
+                /* a dotted key could never be read: dots separate the levels of a key */
+                int rc = rths_error_set(ctx->err, RTHS_EINPUT,
+                                        "%s:%d:%d: key '%.*s': keys may not be empty or contain "
+                                        "'.'; write nested mappings instead",
                                         ctx->where, kl, kc, (int)len, text);
                 fy_parser_event_free(ctx->parser, ev);
                 return rc;
@@ -176,6 +199,11 @@ static int parse_children(parse_ctx *ctx, cnode *n) {
             if (!ev) return parse_error(ctx);
             int rc = parse_node(ctx, ev, &n->items[n->count - 1]);
             if (rc) return rc;
+            cnode *v = n->items[n->count - 1];
+            if (!v->line && !v->origin) { /* an empty value has no mark of its own */
+                v->line = kl;
+                v->column = kc;
+            }
         } else {
             if (node_grow(n)) {
                 fy_parser_event_free(ctx->parser, ev);
@@ -201,7 +229,17 @@ static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
         cnode *n = node_new(NODE_SCALAR, line, column, ctx->origin);
         if (n) {
             n->text = strndup(text ? text : "", text ? len : 0);
-            n->quoted = fy_token_scalar_style(ev->scalar.value) != FYSS_PLAIN;
+            enum fy_scalar_style style =
+                ev->scalar.value ? fy_token_scalar_style(ev->scalar.value) : FYSS_PLAIN;
+            n->quoted = style != FYSS_PLAIN;
+            /* libfyaml marks a quoted scalar after its opening quote; point at the quote */
+            if ((style == FYSS_SINGLE_QUOTED || style == FYSS_DOUBLE_QUOTED) && n->column > 1)
+                n->column--;
+            if (ev->scalar.tag) { /* "!!str 1.5" is text, like a quoted scalar */
+                const char *tag = fy_token_get_text0(ev->scalar.tag);
+                size_t tl = tag ? strlen(tag) : 0;
+                if (tl >= 4 && !strcmp(tag + tl - 4, ":str")) n->quoted = 1;
+            }
         }
         fy_parser_event_free(ctx->parser, ev);
         if (!n || !n->text) {
@@ -213,21 +251,21 @@ static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
     }
     if (t == FYET_SEQUENCE_START || t == FYET_MAPPING_START) {
         fy_parser_event_free(ctx->parser, ev);
-        cnode *n =
-            node_new(t == FYET_SEQUENCE_START ? NODE_SEQUENCE : NODE_MAPPING, line, column,
-                     ctx->origin);
+        cnode *n = node_new(t == FYET_SEQUENCE_START ? NODE_SEQUENCE : NODE_MAPPING, line, column,
+                            ctx->origin);
         if (!n) return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
         *out = n;
         rc = parse_children(ctx, n);
         return rc;
     }
     fy_parser_event_free(ctx->parser, ev);
-    if (t == FYET_ALIAS)
-        return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: YAML aliases are not supported "
+    if (t == FYET_ALIAS) /* marked after the '*' */
+        return rths_error_set(ctx->err, RTHS_EINPUT,
+                              "%s:%d:%d: YAML aliases are not supported "
                               "in rths configurations; write the value out",
-                              ctx->where, line, column);
-    return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: unexpected YAML structure",
-                          ctx->where, line, column);
+                              ctx->where, line, column > 1 ? column - 1 : column);
+    return rths_error_set(ctx->err, RTHS_EINPUT, "%s:%d:%d: unexpected YAML structure", ctx->where,
+                          line, column);
 }
 
 /* Parses a whole stream with exactly one document (or none: NULL root). */
@@ -273,8 +311,8 @@ static int parse_stream(parse_ctx *ctx, cnode **root) {
     }
 }
 
-static int parse_source(const char *path, const char *text, const char *where,
-                        const char *origin, cnode **root, rths_error *err) {
+static int parse_source(const char *path, const char *text, const char *where, const char *origin,
+                        cnode **root, rths_error *err) {
     parse_ctx ctx = {.where = where, .origin = origin, .err = err};
     struct fy_diag_cfg dcfg;
     fy_diag_cfg_default(&dcfg);
@@ -364,8 +402,7 @@ static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
     size_t klen = (size_t)(eq - text);
     if (text[0] == '.' || text[klen - 1] == '.' || memmem(text, klen, "..", 2))
         return rths_error_set(err, RTHS_EINPUT, "--set %s: the key has an empty part", text);
-    if (!eq[1])
-        return rths_error_set(err, RTHS_EINPUT, "--set %s: no value after '='", text);
+    if (!eq[1]) return rths_error_set(err, RTHS_EINPUT, "--set %s: no value after '='", text);
     char *copy = strdup(text);
     char **list = realloc(cfg->overrides, (size_t)(cfg->n_overrides + 1) * sizeof *list);
     if (!copy || !list) {
@@ -393,6 +430,11 @@ static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
     for (;;) {
         const char *dot = memchr(p, '.', (size_t)(copy + klen - p));
         size_t len = dot ? (size_t)(dot - p) : (size_t)(copy + klen - p);
+        if (is_empty(n)) { /* "split:" with nothing under it becomes a mapping */
+            n->type = NODE_MAPPING;
+            free(n->text);
+            n->text = NULL;
+        }
         if (n->type != NODE_MAPPING) {
             node_free(value);
             return rths_error_set(err, RTHS_EINPUT,
@@ -458,7 +500,8 @@ int rths_config_load(const char *path, const char *const *overrides, int n_overr
         cfg->root = node_new(NODE_MAPPING, 0, 0, NULL);
         if (!cfg->root) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
-    for (int i = 0; i < n_overrides && !rc; i++) rc = apply_override(cfg, overrides[i], err);
+    for (int i = 0; i < n_overrides && !rc; i++)
+        rc = apply_override(cfg, overrides[i], err);
     if (rc) {
         rths_config_free(cfg);
         return rc;
@@ -471,13 +514,19 @@ int rths_config_load(const char *path, const char *const *overrides, int n_overr
 void rths_config_free(rths_config *cfg) {
     if (!cfg) return;
     node_free(cfg->root);
-    for (int i = 0; i < cfg->n_overrides; i++) free(cfg->overrides[i]);
+    for (int i = 0; i < cfg->n_overrides; i++)
+        free(cfg->overrides[i]);
     free(cfg->overrides);
+    for (int i = 0; i < cfg->n_asked; i++)
+        free(cfg->asked[i]);
+    free(cfg->asked);
     free(cfg->path);
     free(cfg);
 }
 
-const char *rths_config_path(const rths_config *cfg) { return cfg->path; }
+const char *rths_config_path(const rths_config *cfg) {
+    return cfg->path;
+}
 
 int rths_config_has(const rths_config *cfg, const char *key) {
     return lookup(cfg, key, 0, NULL) != NULL;
@@ -489,8 +538,10 @@ static int edit_distance(const char *a, const char *b) {
     size_t la = strlen(a), lb = strlen(b);
     if (la > 63 || lb > 63) return 99;
     int d[64][64];
-    for (size_t i = 0; i <= la; i++) d[i][0] = (int)i;
-    for (size_t j = 0; j <= lb; j++) d[0][j] = (int)j;
+    for (size_t i = 0; i <= la; i++)
+        d[i][0] = (int)i;
+    for (size_t j = 0; j <= lb; j++)
+        d[0][j] = (int)j;
     for (size_t i = 1; i <= la; i++)
         for (size_t j = 1; j <= lb; j++) {
             int best = d[i - 1][j - 1] + (a[i - 1] != b[j - 1]);
@@ -502,32 +553,74 @@ static int edit_distance(const char *a, const char *b) {
 }
 
 static const char *describe(const cnode *n) {
-    return n->type == NODE_MAPPING ? "a mapping" : n->type == NODE_SEQUENCE ? "a list" : "text";
+    return n->type == NODE_MAPPING    ? "a mapping"
+           : n->type == NODE_SEQUENCE ? "a list"
+           : is_empty(n)              ? "an empty value"
+                                      : "text";
 }
 
-
+static void remember(rths_config *cfg, const char *key) {
+    if (!key || !*key) return;
+    for (int i = 0; i < cfg->n_asked; i++)
+        if (!strcmp(cfg->asked[i], key)) return;
+    if (cfg->n_asked == cfg->cap_asked) {
+        int cap = cfg->cap_asked ? 2 * cfg->cap_asked : 32;
+        char **a = realloc(cfg->asked, (size_t)cap * sizeof *a);
+        if (!a) return; /* costs a spelling hint only */
+        cfg->asked = a;
+        cfg->cap_asked = cap;
+    }
+    char *copy = strdup(key);
+    if (copy) cfg->asked[cfg->n_asked++] = copy;
+}
 
 /* Finds key for a getter: RTHS_OK with *n (NULL when absent and optional). */
-static int get_node(rths_config *cfg, const char *key, int required, cnode **n,
-                    rths_error *err) {
+static int get_node(rths_config *cfg, const char *key, int required, cnode **n, rths_error *err) {
     cnode *deepest = NULL;
+    remember(cfg, key);
     *n = lookup(cfg, key, 1, &deepest);
     if (*n) return RTHS_OK;
+    /* "split: 0.5" when split.mass_ratio is asked for: refused even for an optional key, or the
+     * value would silently be ignored */
+    if (deepest && deepest->type != NODE_MAPPING && !is_empty(deepest))
+        return key_error(cfg, key, deepest, err, "%s its parent is %s, not a mapping",
+                         required ? "is required but" : "cannot be read:", describe(deepest));
     if (!required) return RTHS_OK;
-    if (deepest == cfg->root && !deepest->line) deepest = NULL;
+    /* a missing top-level key has no better place than the file itself */
+    cnode *where = deepest == cfg->root ? NULL : deepest;
     /* a present key one or two letters off is most likely the user's spelling of this one */
     const char *last = strrchr(key, '.');
     last = last ? last + 1 : key;
     if (deepest && deepest->type == NODE_MAPPING)
         for (int i = 0; i < deepest->count; i++)
             if (edit_distance(deepest->keys[i], last) <= 2)
-                return key_error(cfg, key, deepest, err,
+                return key_error(cfg, key, where, err,
                                  "is required but missing (line %d has '%s': misspelt?)",
                                  deepest->key_line[i], deepest->keys[i]);
-    if (deepest && deepest->type != NODE_MAPPING)
-        return key_error(cfg, key, deepest, err, "is required but its parent is %s, not a "
-                         "mapping", describe(deepest));
-    return key_error(cfg, key, deepest, err, "is required but missing");
+    return key_error(cfg, key, where, err, "is required but missing");
+}
+
+/* YAML 1.2 core-schema decimal numbers: [-+]? (digits [. digits?] | . digits) ([eE] [-+]? digits)?
+ * (strtod alone would also take hex floats, "infinity" and leading blanks) */
+static int number_syntax(const char *p) {
+    int digits = 0;
+    if (*p == '+' || *p == '-') p++;
+    while (isdigit((unsigned char)*p))
+        p++, digits++;
+    if (*p == '.') {
+        p++;
+        while (isdigit((unsigned char)*p))
+            p++, digits++;
+    }
+    if (!digits) return 0;
+    if (*p == 'e' || *p == 'E') {
+        p++;
+        if (*p == '+' || *p == '-') p++;
+        if (!isdigit((unsigned char)*p)) return 0;
+        while (isdigit((unsigned char)*p))
+            p++;
+    }
+    return *p == 0;
 }
 
 static int scalar_number(rths_config *cfg, const char *key, const cnode *n, double *out,
@@ -535,25 +628,34 @@ static int scalar_number(rths_config *cfg, const char *key, const cnode *n, doub
     if (n->type != NODE_SCALAR)
         return key_error(cfg, key, n, err, "expected a number, got %s", describe(n));
     const char *s = n->text;
-    if (!*s) return key_error(cfg, key, n, err, "has no value (expected a number)");
+    if (is_empty(n)) return key_error(cfg, key, n, err, "has no value (expected a number)");
     if (!n->quoted) {
         const char *t = s + (*s == '-' || *s == '+');
         if (!strcasecmp(t, ".nan") || !strcasecmp(t, ".inf") || !strcasecmp(t, "nan") ||
             !strcasecmp(t, "inf") || !strcasecmp(t, "infinity"))
             return key_error(cfg, key, n, err, "NaN/inf is not allowed (got '%s')", s);
     }
-    char *end = NULL;
+    if (n->quoted)
+        return key_error(cfg, key, n, err,
+                         "expected a number, got the quoted text '%s' (write numbers without "
+                         "quotes)",
+                         s);
+    if (!number_syntax(s)) return key_error(cfg, key, n, err, "expected a number, got '%s'", s);
+    /* '.' is the decimal point whatever locale the process runs in */
+    locale_t c = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+    if (!c) return rths_error_set(err, RTHS_EFAIL, "cannot create the C locale");
     errno = 0;
-    double v = n->quoted ? NAN : strtod(s, &end);
-    if (n->quoted || end == s || *end || errno == ERANGE)
-        return key_error(cfg, key, n, err, "expected a number, got '%s'", s);
-    if (!isfinite(v)) return key_error(cfg, key, n, err, "NaN/inf is not allowed (got '%s')", s);
+    double v = strtod_l(s, NULL, c);
+    int range = errno == ERANGE && fabs(v) > 1.0; /* underflow to a subnormal or 0 is fine */
+    freelocale(c);
+    if (range || !isfinite(v))
+        return key_error(cfg, key, n, err, "'%s' is out of range for a double", s);
     *out = v;
     return RTHS_OK;
 }
 
-int rths_config_get_double(rths_config *cfg, const char *key, int required, double def, double lo,
-                           double hi, double *out, rths_error *err) {
+int rths_config_get_double_ex(rths_config *cfg, const char *key, int required, double def,
+                              double lo, double hi, unsigned flags, double *out, rths_error *err) {
     cnode *n;
     int rc = get_node(cfg, key, required, &n, err);
     if (rc) return rc;
@@ -563,13 +665,26 @@ int rths_config_get_double(rths_config *cfg, const char *key, int required, doub
     }
     double v;
     if ((rc = scalar_number(cfg, key, n, &v, err))) return rc;
-    if (v < lo || v > hi) {
-        if (isinf(hi)) return key_error(cfg, key, n, err, "must be >= %g (got %g)", lo, v);
-        if (isinf(lo)) return key_error(cfg, key, n, err, "must be <= %g (got %g)", hi, v);
-        return key_error(cfg, key, n, err, "must be in [%g, %g] (got %g)", lo, hi, v);
+    int lo_open = (flags & RTHS_CONFIG_LO_OPEN) != 0, hi_open = (flags & RTHS_CONFIG_HI_OPEN) != 0;
+    if (lo_open ? !(v > lo) : v < lo) {
+        if (isinf(hi))
+            return key_error(cfg, key, n, err, "must be %s %g (got %s)", lo_open ? ">" : ">=", lo,
+                             n->text);
+    } else if (hi_open ? !(v < hi) : v > hi) {
+        if (isinf(lo))
+            return key_error(cfg, key, n, err, "must be %s %g (got %s)", hi_open ? "<" : "<=", hi,
+                             n->text);
+    } else {
+        *out = v;
+        return RTHS_OK;
     }
-    *out = v;
-    return RTHS_OK;
+    return key_error(cfg, key, n, err, "must be in %c%g, %g%c (got %s)", lo_open ? '(' : '[', lo,
+                     hi, hi_open ? ')' : ']', n->text);
+}
+
+int rths_config_get_double(rths_config *cfg, const char *key, int required, double def, double lo,
+                           double hi, double *out, rths_error *err) {
+    return rths_config_get_double_ex(cfg, key, required, def, lo, hi, 0, out, err);
 }
 
 static int scalar_int(rths_config *cfg, const char *key, const cnode *n, long *out,
@@ -579,14 +694,17 @@ static int scalar_int(rths_config *cfg, const char *key, const cnode *n, long *o
     char *end = NULL;
     errno = 0;
     long v = n->quoted ? 0 : strtol(n->text, &end, 10);
-    if (n->quoted || !*n->text || end == n->text || *end || errno == ERANGE)
-        return key_error(cfg, key, n, err, "expected an integer, got '%s'", n->text);
+    if (n->quoted || !*n->text || end == n->text || *end || isspace((unsigned char)n->text[0]))
+        return key_error(cfg, key, n, err, "expected an integer, got %s'%s'",
+                         n->quoted ? "the quoted text " : "", n->text);
+    if (errno == ERANGE)
+        return key_error(cfg, key, n, err, "'%s' is out of range for an integer", n->text);
     *out = v;
     return RTHS_OK;
 }
 
-int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo,
-                        long hi, long *out, rths_error *err) {
+int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo, long hi,
+                        long *out, rths_error *err) {
     cnode *n;
     int rc = get_node(cfg, key, required, &n, err);
     if (rc) return rc;
@@ -596,8 +714,12 @@ int rths_config_get_int(rths_config *cfg, const char *key, int required, long de
     }
     long v;
     if ((rc = scalar_int(cfg, key, n, &v, err))) return rc;
+    if (v < lo && hi == LONG_MAX)
+        return key_error(cfg, key, n, err, "must be >= %ld (got %ld)", lo, v);
+    if (v > hi && lo == LONG_MIN)
+        return key_error(cfg, key, n, err, "must be <= %ld (got %ld)", hi, v);
     if (v < lo || v > hi)
-        return key_error(cfg, key, n, err, "must be in %ld..%ld (got %ld)", lo, hi, v);
+        return key_error(cfg, key, n, err, "must be in [%ld, %ld] (got %ld)", lo, hi, v);
     *out = v;
     return RTHS_OK;
 }
@@ -623,10 +745,9 @@ int rths_config_get_bool(rths_config *cfg, const char *key, int required, int de
                 return RTHS_OK;
             }
         }
-    return key_error(cfg, key, n, err, "expected true or false, got %s%s%s",
-                     n->type == NODE_SCALAR ? "'" : "",
-                     n->type == NODE_SCALAR ? n->text : describe(n),
-                     n->type == NODE_SCALAR ? "'" : "");
+    return key_error(
+        cfg, key, n, err, "expected true or false, got %s%s%s", n->type == NODE_SCALAR ? "'" : "",
+        n->type == NODE_SCALAR ? n->text : describe(n), n->type == NODE_SCALAR ? "'" : "");
 }
 
 int rths_config_get_string(rths_config *cfg, const char *key, int required, const char *def,
@@ -638,7 +759,7 @@ int rths_config_get_string(rths_config *cfg, const char *key, int required, cons
         *out = def;
         return RTHS_OK;
     }
-    if (n->type != NODE_SCALAR)
+    if (n->type != NODE_SCALAR || is_empty(n))
         return key_error(cfg, key, n, err, "expected text, got %s", describe(n));
     *out = n->text;
     return RTHS_OK;
@@ -663,8 +784,7 @@ int rths_config_get_choice(rths_config *cfg, const char *key, int required, int 
     for (int i = 0; choices[i] && len < sizeof allowed; i++)
         len += (size_t)snprintf(allowed + len, sizeof allowed - len, "%s'%s'", i ? ", " : "",
                                 choices[i]);
-    return key_error(cfg, key, lookup(cfg, key, 0, NULL), err, "'%s' is not one of %s", s,
-                     allowed);
+    return key_error(cfg, key, lookup(cfg, key, 0, NULL), err, "'%s' is not one of %s", s, allowed);
 }
 
 static int number_list(rths_config *cfg, const char *key, cnode *n, int integers, double **dout,
@@ -711,8 +831,8 @@ int rths_config_get_double_list(rths_config *cfg, const char *key, int required,
     return number_list(cfg, key, n, 0, out, NULL, count, err);
 }
 
-int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out,
-                             int *count, rths_error *err) {
+int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out, int *count,
+                             rths_error *err) {
     cnode *n;
     *out = NULL;
     *count = 0;
@@ -721,8 +841,8 @@ int rths_config_get_int_list(rths_config *cfg, const char *key, int required, in
     return number_list(cfg, key, n, 1, NULL, out, count, err);
 }
 
-int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out,
-                           int *rows, int *cols, rths_error *err) {
+int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out, int *rows,
+                           int *cols, rths_error *err) {
     cnode *n;
     *out = NULL;
     *rows = *cols = 0;
@@ -759,12 +879,15 @@ int rths_config_get_matrix(rths_config *cfg, const char *key, int required, doub
 }
 
 void rths_config_mark_known(rths_config *cfg, const char *key_prefix) {
+    if (!cfg) return;
+    if (!key_prefix) key_prefix = "";
+    remember(cfg, key_prefix);
     cnode *n = lookup(cfg, key_prefix, 1, NULL);
     if (n) n->known_subtree = 1;
 }
 
-int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *err,
-                         const char *fmt, ...) {
+int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *err, const char *fmt,
+                         ...) {
     char msg[RTHS_ERROR_MSG_LEN];
     va_list ap;
     va_start(ap, fmt);
@@ -772,7 +895,7 @@ int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *er
     va_end(ap);
     cnode *deepest = NULL;
     cnode *n = lookup(cfg, key, 0, &deepest);
-    if (!n && deepest == cfg->root && !deepest->line) deepest = NULL;
+    if (!n && deepest == cfg->root) deepest = NULL;
     return key_error(cfg, key, n ? n : deepest, err, "%s", msg);
 }
 
@@ -791,16 +914,36 @@ static int check_node(const rths_config *cfg, const cnode *n, char *path, size_t
         if (!child->known) {
             /* a misspelling of a key that was asked for at the same level? */
             const char *suggest = NULL;
+            size_t suggest_len = 0;
             for (int j = 0; j < n->count; j++)
-                if (j != i && n->items[j]->known && edit_distance(n->keys[i], n->keys[j]) <= 2)
+                if (j != i && n->items[j]->known && edit_distance(n->keys[i], n->keys[j]) <= 2) {
                     suggest = n->keys[j];
+                    suggest_len = strlen(suggest);
+                }
+            /* or a key some reader asked for at this level that is absent (an optional key) */
+            for (int j = 0; j < cfg->n_asked && !suggest; j++) {
+                const char *a = cfg->asked[j];
+                if (plen && (strncmp(a, path, plen) != 0 || a[plen] != '.')) continue;
+                const char *c = plen ? a + plen + 1 : a, *dot = strchr(c, '.');
+                size_t cl = dot ? (size_t)(dot - c) : strlen(c);
+                char comp[64];
+                if (cl >= sizeof comp) continue;
+                memcpy(comp, c, cl);
+                comp[cl] = 0;
+                if (strcmp(comp, n->keys[i]) && edit_distance(n->keys[i], comp) <= 2) {
+                    suggest = c;
+                    suggest_len = cl;
+                }
+            }
             char loc[512];
             location(cfg, child, n->key_line[i] ? n->key_line[i] : child->line,
                      n->key_line[i] ? n->key_column[i] : child->column, loc, sizeof loc);
             if (suggest)
-                return rths_error_set(err, RTHS_EINPUT, "%s: unknown key '%s' (did you mean "
-                                      "'%.*s%s'?)",
-                                      loc, path, (int)(plen ? plen + 1 : 0), path, suggest);
+                return rths_error_set(err, RTHS_EINPUT,
+                                      "%s: unknown key '%s' (did you mean "
+                                      "'%.*s%.*s'?)",
+                                      loc, path, (int)(plen ? plen + 1 : 0), path, (int)suggest_len,
+                                      suggest);
             return rths_error_set(err, RTHS_EINPUT,
                                   "%s: unknown key '%s' (see docs/config.md for the keys)", loc,
                                   path);
@@ -820,15 +963,18 @@ int rths_config_check_unknown(const rths_config *cfg, rths_error *err) {
 
 static int needs_quotes(const char *s) {
     if (!*s) return 1;
-    if (strchr("-?:,[]{}#&*!|>'\"%@` ", s[0])) return 1;
+    if (strchr("?:-", s[0]) && (s[1] == ' ' || !s[1])) return 1; /* "-1.5" stays a number */
+    if (strchr(",[]{}#&*!|>'\"%@` ", s[0])) return 1;
     for (const char *p = s; *p; p++)
-        if (*p == '#' || *p == ':' || *p == '\n' || *p == '"' || *p == '\\' ||
-            (unsigned char)*p < 0x20)
-            return 1;
+        if (strchr("#:,[]{}\"\\\n", *p) || (unsigned char)*p < 0x20) return 1;
     return s[strlen(s) - 1] == ' ';
 }
 
 static void emit_scalar(FILE *f, const cnode *n) {
+    if (!n->quoted && !n->text[0]) {
+        fputc('~', f); /* an empty value stays empty (null), not the text "" */
+        return;
+    }
     if (!n->quoted && !needs_quotes(n->text)) {
         fputs(n->text, f);
         return;
