@@ -1,176 +1,155 @@
-/* TEMPORARY stub engine (until the controller step and plant land): a target-following "rig"
- * with exact Fourier sums, enough to exercise pacing, the link and the safety logic. */
+/* The controller process's engine: the per-sample controller step (controller.h) on the virtual
+ * plant (plant.h), joined at the per-sample I/O seam exactly as the in-process virtual rig joins
+ * them: read the sensors, step the controller, advance the plant one sample with the demand held.
+ * A DAQ backend would replace the two plant calls and nothing else. */
 #include "controller/server_engine.h"
 
+#include "rths/controller.h"
+#include "rths/plant.h"
 #include "rths/setup.h"
 
 #include <math.h>
-#include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
-#define PRING 256
-
 struct rths_engine {
+    rths_setup setup;
+    int have_setup;
+    rths_controller *ctl;
+    rths_plant *plant;
     double h;
-    uint64_t n;
-    int armed, fault;
-    double f, amp, w, phase;
-    int harmonics;
-    double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
-    double gain; /* excitation ramp 0..1 */
-    /* period accumulation */
-    int acc_n;
-    double acc_start;
-    rths_proto_fourier sp, sn, sf;
-    uint32_t index;
-    rths_proto_period ring[PRING];
-    _Atomic size_t head, tail;
+    rths_sensor_sample sensors; /* preallocated: the step thread reads into it every sample */
+    uint32_t period_index;      /* network thread only */
+    double last_end_s;          /* network thread: end of the last period popped */
+    int have_last_end;
 };
 
 int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *info,
                        rths_error *err) {
-    if (cfg) {
-        rths_setup setup;
-        int rc = rths_setup_read(cfg, &setup, err);
-        if (rc) return rc;
-        rths_setup_free(&setup);
-    }
+    *out = NULL;
+    if (!cfg) return rths_error_set(err, RTHS_EINPUT, "the controller needs a test configuration");
     rths_engine *e = calloc(1, sizeof *e);
     if (!e) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    e->h = 1e-4;
+    rths_controller_options copt;
+    rths_plant_options popt;
+    rths_controller_defaults(&copt);
+    rths_plant_defaults(&popt);
+    int rc = rths_setup_read(cfg, &e->setup, err);
+    if (!rc) e->have_setup = 1;
+    if (!rc) rc = rths_controller_config_read(cfg, &copt, err);
+    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
+    if (!rc) rc = rths_controller_create(&e->setup, &copt, &e->ctl, err);
+    if (!rc) rc = rths_plant_create(&e->setup, &popt, copt.sample_rate_hz, &e->plant, err);
+    if (rc) {
+        rths_engine_destroy(e);
+        return rc;
+    }
+    /* The controller must not excite anything until the host arms it. */
+    rths_controller_arm(e->ctl, 0);
+    e->h = 1.0 / copt.sample_rate_hz;
     info->sample_period_s = e->h;
-    info->noise_level_m = 0.0;
-    info->max_harmonics = RTHS_PROTO_HARMONICS;
-    info->ramp_time_s = 0.1;
-    strcpy(info->description, "stub engine");
+    info->noise_level_m = rths_plant_noise_level_m(e->plant);
+    info->max_harmonics = RTHS_MAX_HARMONICS;
+    info->ramp_time_s = copt.ramp_time_s;
+    snprintf(info->description, sizeof info->description,
+             "rths controller: virtual plant, %d DoF assembly, %.0f Hz, sensor noise %s",
+             e->setup.assembly.n, copt.sample_rate_hz, popt.noise ? "on" : "off");
     *out = e;
     return RTHS_OK;
 }
 
 void rths_engine_destroy(rths_engine *e) {
+    if (!e) return;
+    rths_plant_destroy(e->plant);
+    rths_controller_destroy(e->ctl);
+    if (e->have_setup) rths_setup_free(&e->setup);
     free(e);
 }
 
-static double target_at(const rths_engine *e, double ph) {
-    double x = 0;
-    for (int k = 0; k < e->harmonics; k++)
-        x += e->a[k] * cos((k + 1) * ph) + e->b[k] * sin((k + 1) * ph);
-    return x;
-}
-
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig) {
-    double t = (double)e->n * e->h;
-    double g_target = e->armed ? 1.0 : 0.0;
-    double dg = e->h / 0.1;
-    e->gain = g_target > e->gain ? fmin(1.0, e->gain + dg) : fmax(0.0, e->gain - dg);
-    double xp = e->gain * target_at(e, e->phase);
-    double xn = xp;
-    double force = e->gain * e->amp * sin(e->phase);
-    sig->time_s = t;
-    sig->x_phys_m = xp;
-    sig->x_num_m = xn;
-    sig->target_m = xp;
-    sig->force_n = force;
-    sig->demand = force * 0.1;
-    if (e->w > 0) {
-        if (e->acc_n == 0) {
-            memset(&e->sp, 0, sizeof e->sp);
-            memset(&e->sn, 0, sizeof e->sn);
-            memset(&e->sf, 0, sizeof e->sf);
-            e->acc_start = t;
-        }
-        for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) {
-            double c = cos(k * e->phase), s = sin(k * e->phase);
-            e->sp.a[k] += xp * c;
-            e->sp.b[k] += xp * s;
-            e->sn.a[k] += xn * c;
-            e->sn.b[k] += xn * s;
-            e->sf.a[k] += force * c;
-            e->sf.b[k] += force * s;
-        }
-        e->acc_n++;
-        e->phase += e->w * e->h;
-        if (e->phase >= 2 * M_PI) {
-            e->phase -= 2 * M_PI;
-            rths_proto_period p;
-            memset(&p, 0, sizeof p);
-            p.index = e->index++;
-            p.frequency_hz = e->f;
-            p.start_time_s = e->acc_start;
-            p.end_time_s = t + e->h;
-            p.samples = (uint32_t)e->acc_n;
-            for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) {
-                double sc = (k ? 2.0 : 1.0) / e->acc_n;
-                p.phys.a[k] = e->sp.a[k] * sc;
-                p.phys.b[k] = k ? e->sp.b[k] * sc : 0;
-                p.num.a[k] = e->sn.a[k] * sc;
-                p.num.b[k] = k ? e->sn.b[k] * sc : 0;
-                p.force.a[k] = e->sf.a[k] * sc;
-                p.force.b[k] = k ? e->sf.b[k] * sc : 0;
-            }
-            size_t h = atomic_load_explicit(&e->head, memory_order_relaxed);
-            if (h - atomic_load_explicit(&e->tail, memory_order_acquire) < PRING) {
-                e->ring[h % PRING] = p;
-                atomic_store_explicit(&e->head, h + 1, memory_order_release);
-            }
-            e->acc_n = 0;
-        }
-    }
-    if (e->armed && fabs(xp) > 0.01) {
-        e->fault = 1;
-        e->armed = 0;
-    }
-    e->n++;
+    rths_controller_output o;
+    rths_plant_read(e->plant, &e->sensors);
+    double u = rths_controller_step(e->ctl, &e->sensors, &o);
+    rths_plant_advance(e->plant, u);
+    /* A latched fault disarms: after RESET_FAULT, excitation needs a new, explicit ARM (the step
+     * itself only ramps while the fault is latched and would resume on reset). */
+    if (rths_controller_fault(e->ctl) != RTHS_RIG_OK && rths_controller_armed(e->ctl))
+        rths_controller_arm(e->ctl, 0);
+    sig->time_s = o.time_s;
+    sig->x_phys_m = o.x_phys_m;
+    sig->x_num_m = o.x_num_m;
+    sig->target_m = o.target_m;
+    sig->force_n = o.force_n;
+    sig->demand = o.demand_v;
 }
 
 int rths_engine_arm(rths_engine *e) {
-    if (e->fault) return RTHS_PROTO_ESTATE;
-    e->armed = 1;
+    if (rths_controller_fault(e->ctl) != RTHS_RIG_OK) return RTHS_PROTO_ESTATE;
+    rths_controller_arm(e->ctl, 1);
     return 0;
 }
+
 void rths_engine_disarm(rths_engine *e) {
-    e->armed = 0;
+    rths_controller_arm(e->ctl, 0);
 }
+
 void rths_engine_trip_watchdog(rths_engine *e) {
-    e->armed = 0;
-    e->fault = 6;
+    rths_controller_trip(e->ctl, RTHS_RIG_FAULT_WATCHDOG);
+    rths_controller_arm(e->ctl, 0);
 }
-void rths_engine_set_forcing(rths_engine *e, double f, double a) {
-    e->f = f;
-    e->amp = a;
-    e->w = 2 * M_PI * f;
-    e->acc_n = 0;
+
+void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n) {
+    rths_controller_set_forcing(e->ctl, frequency_hz, amplitude_n);
 }
-void rths_engine_set_target(rths_engine *e, int h, const double *a, const double *b) {
-    e->harmonics = h;
-    for (int k = 0; k < h; k++) {
-        e->a[k] = a[k];
-        e->b[k] = b[k];
-    }
-    e->acc_n = 0;
+
+void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b) {
+    rths_controller_set_target(e->ctl, harmonics, a, b);
 }
+
 void rths_engine_reset_fault(rths_engine *e) {
-    e->fault = 0;
+    rths_controller_reset_fault(e->ctl);
 }
 int rths_engine_armed(const rths_engine *e) {
-    return e->armed;
+    return rths_controller_armed(e->ctl) && rths_controller_fault(e->ctl) == RTHS_RIG_OK;
 }
 int rths_engine_fault(const rths_engine *e) {
-    return e->fault;
+    return (int)rths_controller_fault(e->ctl);
 }
 double rths_engine_time_s(const rths_engine *e) {
-    return (double)e->n * e->h;
+    return rths_controller_time_s(e->ctl);
+}
+long rths_engine_dropped_periods(const rths_engine *e) {
+    return rths_controller_dropped_periods(e->ctl);
+}
+
+static void copy_fourier(const rths_fourier *in, rths_proto_fourier *out) {
+    for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++) {
+        out->a[k] = in->a[k];
+        out->b[k] = in->b[k];
+    }
 }
 
 int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
-    size_t t = atomic_load_explicit(&e->tail, memory_order_relaxed);
-    if (t == atomic_load_explicit(&e->head, memory_order_acquire)) return 0;
-    *out = e->ring[t % PRING];
-    atomic_store_explicit(&e->tail, t + 1, memory_order_release);
+    rths_period p;
+    if (!rths_controller_pop_period(e->ctl, &p)) return 0;
+    memset(out, 0, sizeof *out);
+    out->index = e->period_index++;
+    out->frequency_hz = p.frequency_hz;
+    out->end_time_s = p.end_time_s;
+    /* Periods are contiguous (each ends where the next starts, interpolated between samples),
+     * so the previous end is this start; after a gap (dropped periods, the first one) the
+     * estimate errs early, which only makes the host discard the period. */
+    double span = p.samples * e->h;
+    if (e->have_last_end && fabs(p.end_time_s - e->last_end_s - span) <= 1.5 * e->h)
+        out->start_time_s = e->last_end_s;
+    else
+        out->start_time_s = p.end_time_s - span - e->h;
+    e->last_end_s = p.end_time_s;
+    e->have_last_end = 1;
+    out->samples = (uint32_t)p.samples;
+    copy_fourier(&p.phys, &out->phys);
+    copy_fourier(&p.num, &out->num);
+    copy_fourier(&p.force, &out->force);
     return 1;
-}
-long rths_engine_dropped_periods(const rths_engine *e) {
-    (void)e;
-    return 0;
 }
