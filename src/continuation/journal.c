@@ -98,10 +98,10 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "frequency_hz", json_object_new_double(e->frequency_hz));
     json_object_object_add(o, "target_a_m", dbl_array(s->target_a, N));
     json_object_object_add(o, "target_b_m", dbl_array(s->target_b, N));
-    add_fourier(o, "phys", &e->phys, N);
-    add_fourier(o, "num", &e->num, N);
-    add_fourier(o, "phys_se", &e->phys_se, N);
-    add_fourier(o, "num_se", &e->num_se, N);
+    add_fourier(o, "phys", &e->phys, RTHS_MAX_HARMONICS);
+    add_fourier(o, "num", &e->num, RTHS_MAX_HARMONICS);
+    add_fourier(o, "phys_se", &e->phys_se, RTHS_MAX_HARMONICS);
+    add_fourier(o, "num_se", &e->num_se, RTHS_MAX_HARMONICS);
     json_object_object_add(o, "eval_rig_time_s", json_object_new_double(e->rig_time_s));
     json_object_object_add(o, "wait_periods", json_object_new_int(e->wait_periods));
     json_object_object_add(o, "average_periods", json_object_new_int(e->average_periods));
@@ -177,8 +177,8 @@ static int parse_point(json_object *o, rths_point *pt) {
     pt->corrector.n = 2 * N;
     if (get_dbl(o, "omega_rad_s", &s->omega_rad_s) || get_dbl(o, "frequency_hz", &e->frequency_hz) ||
         get_arr(o, "target_a_m", s->target_a, N) || get_arr(o, "target_b_m", s->target_b, N) ||
-        get_fourier(o, "phys", &e->phys, N) || get_fourier(o, "num", &e->num, N) ||
-        get_fourier(o, "phys_se", &e->phys_se, N) || get_fourier(o, "num_se", &e->num_se, N) ||
+        get_fourier(o, "phys", &e->phys, RTHS_MAX_HARMONICS) || get_fourier(o, "num", &e->num, RTHS_MAX_HARMONICS) ||
+        get_fourier(o, "phys_se", &e->phys_se, RTHS_MAX_HARMONICS) || get_fourier(o, "num_se", &e->num_se, RTHS_MAX_HARMONICS) ||
         get_dbl(o, "eval_rig_time_s", &e->rig_time_s) ||
         get_int(o, "wait_periods", &e->wait_periods) ||
         get_int(o, "average_periods", &e->average_periods) || get_int(o, "steady", &e->steady) ||

@@ -118,8 +118,10 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
     for (int q = 0; q < n_avg; q++) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
         const rths_fourier *side[2] = {&p.phys, &p.num};
+        /* every harmonic the rig measures, not only the matched ones: the report shows the
+         * higher harmonics' interface error too */
         for (int s = 0; s < 2; s++)
-            for (int k = 0; k <= harmonics; k++) {
+            for (int k = 0; k <= RTHS_MAX_HARMONICS; k++) {
                 sum[s][0][k] += side[s]->a[k];
                 sum[s][1][k] += side[s]->b[k];
                 sum2[s][0][k] += side[s]->a[k] * side[s]->a[k];
@@ -128,7 +130,7 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
     }
     rths_fourier *mean[2] = {&out->phys, &out->num}, *se[2] = {&out->phys_se, &out->num_se};
     for (int s = 0; s < 2; s++)
-        for (int k = 0; k <= harmonics; k++)
+        for (int k = 0; k <= RTHS_MAX_HARMONICS; k++)
             for (int c = 0; c < 2; c++) {
                 double mu = sum[s][c][k] / n_avg;
                 double var = n_avg > 1 ? (sum2[s][c][k] - n_avg * mu * mu) / (n_avg - 1) : 0.0;
@@ -342,6 +344,19 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
             fresh = 1;
             continue;
         }
+        /* Rig safety: never ask for more than double the current target in one step. A step
+         * from a stale (Broyden) or noisy Jacobian can be huge, and on a real rig the trial
+         * evaluation itself would trip a limit before the line search could reject it. */
+        double tnorm = 0, dnorm = 0;
+        for (int i = 0; i < c.n; i++) {
+            tnorm += u[i] * u[i];
+            dnorm += du[i] * du[i];
+        }
+        tnorm = sqrt(tnorm);
+        dnorm = sqrt(dnorm);
+        double limit = fmax(tnorm, 1e-2);
+        if (dnorm > limit)
+            for (int i = 0; i < c.m; i++) du[i] *= limit / dnorm;
         /* Backtracking line search on the residual norm (erratum 5). */
         double lambda = 1.0, ut[RTHS_MAX_UNKNOWNS] = {0}, phit[RTHS_MAX_UNKNOWNS] = {0}, extt = 0;
         int accepted = 0;
