@@ -34,7 +34,8 @@ static const char usage[] =
     "                       branch, exact first-order-hold integrator (the project's best);\n"
     "                       paper: the seed's flowchart (fixed waits, fresh finite-difference\n"
     "                       Jacobian at every point, implicit Euler numerical substructure)\n"
-    "  --harmonics N        harmonics matched at the interface, 1..3 (default: iteration.harmonics, 1)\n"
+    "  --harmonics N        harmonics matched at the interface, 1..3 (default: "
+    "iteration.harmonics, 1)\n"
     "  --seed S             noise seed of the virtual rig (default: rig.seed)\n"
     "  --resume             continue the interrupted run in DIR from its journal's last point\n"
     "  --rig URI            tcp://HOST:PORT: a controller process instead of the virtual rig\n"
@@ -91,12 +92,26 @@ static double harmonic_error(const rths_point *pt, int k) {
 enum { FRF_COLUMNS = 20 };
 
 static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) {
-    static const char *const header[FRF_COLUMNS] = {
-        "point", "frequency_hz", "amplitude_m", "numerical_amplitude_m", "phase_rad",
-        "interface_error_m", "interface_error_h2_m", "interface_error_h3_m",
-        "amplitude_h2_m", "amplitude_h3_m", "target_a1_m", "target_b1_m", "residual_norm_m",
-        "tolerance_m", "evaluations", "iterations", "rig_time_s", "converged", "fold",
-        "segment"};
+    static const char *const header[FRF_COLUMNS] = {"point",
+                                                    "frequency_hz",
+                                                    "amplitude_m",
+                                                    "numerical_amplitude_m",
+                                                    "phase_rad",
+                                                    "interface_error_m",
+                                                    "interface_error_h2_m",
+                                                    "interface_error_h3_m",
+                                                    "amplitude_h2_m",
+                                                    "amplitude_h3_m",
+                                                    "target_a1_m",
+                                                    "target_b1_m",
+                                                    "residual_norm_m",
+                                                    "tolerance_m",
+                                                    "evaluations",
+                                                    "iterations",
+                                                    "rig_time_s",
+                                                    "converged",
+                                                    "fold",
+                                                    "segment"};
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
     int rc = path ? rths_csv_open(path, FRF_COLUMNS, header, &csv, err)
@@ -105,26 +120,13 @@ static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) 
         const rths_point *pt = &run->pts[i];
         const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
         double row[FRF_COLUMNS] = {
-            pt->index,
-            pt->sol.omega_rad_s / (2 * M_PI),
-            hypot(ph->a[1], ph->b[1]),
+            pt->index, pt->sol.omega_rad_s / (2 * M_PI), hypot(ph->a[1], ph->b[1]),
             hypot(nu->a[1], nu->b[1]),
             /* x = A cos + B sin = R cos(wt + phi) with phi = atan2(-B, A) */
-            atan2(-ph->b[1], ph->a[1]),
-            harmonic_error(pt, 1),
-            harmonic_error(pt, 2),
-            harmonic_error(pt, 3),
-            hypot(ph->a[2], ph->b[2]),
-            hypot(ph->a[3], ph->b[3]),
-            pt->sol.target_a[0],
-            pt->sol.target_b[0],
-            pt->sol.residual_norm_m,
-            pt->sol.tolerance_m,
-            pt->evaluations,
-            pt->iterations,
-            pt->rig_time_s,
-            pt->sol.converged,
-            pt->fold,
+            atan2(-ph->b[1], ph->a[1]), harmonic_error(pt, 1), harmonic_error(pt, 2),
+            harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
+            pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
+            pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold,
             pt->segment};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
@@ -172,8 +174,11 @@ static int compute_truth(const rths_setup *s, double lo_hz, double hi_hz, truth_
     int iface = s->split.int_dofs[0], n = s->assembly.n;
     memset(t, 0, sizeof *t);
     if (s->has_bilinear) {
-        rths_shooting_options opt = {.start_hz = lo_hz, .end_hz = hi_hz, .steps_per_period = 1024,
-                                     .max_step = 0.02, .max_points = 4000};
+        rths_shooting_options opt = {.start_hz = lo_hz,
+                                     .end_hz = hi_hz,
+                                     .steps_per_period = 1024,
+                                     .max_step = 0.02,
+                                     .max_points = 4000};
         rths_periodic_point *pp = NULL;
         int count = 0;
         int rc = rths_bilinear_frf(&s->assembly, &s->leg, s->static_force, s->force, &opt, &pp,
@@ -232,8 +237,7 @@ static int write_truth_csv(rths_report *rep, const truth_curve *t, rths_error *e
     int rc = path ? rths_csv_open(path, 5, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j],
-                         t->stable[j]};
+        double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     if (csv) {
@@ -246,8 +250,8 @@ static int write_truth_csv(rths_report *rep, const truth_curve *t, rths_error *e
     return rc;
 }
 
-static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t,
-                    const char *title, rths_error *err) {
+static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t, const char *title,
+                    rths_error *err) {
     /* Interface errors are tiny next to the response: magnify them so the largest bar is about
      * 5 % of the peak, and say by how much in the legend (the seed used a fixed 2x). */
     double max_amp = 0, max_err = 0;
@@ -312,14 +316,18 @@ static int trace_point(rths_report *rep, rths_rig *rig, const rths_settle_option
     if (!rc && !tr) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, tr, &n, err);
     *trace_rig_time_s = rths_rig_time_s(rig) - t0;
-    static const char *const header[6] = {"time_s", "x_phys_m", "x_num_m",
-                                          "target_m", "force_n", "demand"};
+    static const char *const header[6] = {"time_s",   "x_phys_m", "x_num_m",
+                                          "target_m", "force_n",  "demand"};
     char *path = rc ? NULL : rths_report_path(rep, "trace.csv");
     rths_csv *csv = NULL;
     if (!rc) rc = rths_csv_open(path, 6, header, &csv, err);
     for (int i = 0; i < n && !rc; i++) {
-        double row[6] = {tr[i].time_s - tr[0].time_s, tr[i].x_phys_m, tr[i].x_num_m,
-                         tr[i].target_m, tr[i].force_n, tr[i].demand};
+        double row[6] = {tr[i].time_s - tr[0].time_s,
+                         tr[i].x_phys_m,
+                         tr[i].x_num_m,
+                         tr[i].target_m,
+                         tr[i].force_n,
+                         tr[i].demand};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing trace.csv");
     }
     if (csv) {
@@ -370,8 +378,9 @@ typedef struct {
     const rths_setup *setup;
 } run_facts;
 
-static int write_summary(const rths_cli *cli, rths_report *rep, const frf_run *run, const truth_curve *t,
-                         const run_facts *facts, double *max_truth_error, rths_error *err) {
+static int write_summary(const rths_cli *cli, rths_report *rep, const frf_run *run,
+                         const truth_curve *t, const run_facts *facts, double *max_truth_error,
+                         rths_error *err) {
     const rths_continuation_result *res = facts->result;
     json_object *root = rths_cli_summary_new(cli);
     int converged = 0, evaluations = 0;
@@ -384,16 +393,16 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const frf_run *r
         evaluations += pt->evaluations;
         rig_time += pt->rig_time_s;
         if (evals) evals[i] = pt->evaluations;
-        for (int k = 1; k <= 3; k++) max_h[k] = fmax(max_h[k], harmonic_error(pt, k));
-        double e = truth_relative_error(t, pt->sol.omega_rad_s / (2 * M_PI),
-                                        rths_point_amplitude_m(pt));
+        for (int k = 1; k <= 3; k++)
+            max_h[k] = fmax(max_h[k], harmonic_error(pt, k));
+        double e =
+            truth_relative_error(t, pt->sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(pt));
         if (isfinite(e)) *max_truth_error = fmax(*max_truth_error, e);
     }
     double median = 0;
     if (evals && run->n) {
         qsort(evals, (size_t)run->n, sizeof *evals, compare_int);
-        median = run->n % 2 ? evals[run->n / 2]
-                            : 0.5 * (evals[run->n / 2 - 1] + evals[run->n / 2]);
+        median = run->n % 2 ? evals[run->n / 2] : 0.5 * (evals[run->n / 2 - 1] + evals[run->n / 2]);
     }
     free(evals);
     json_object_object_add(root, "strategy", json_object_new_string(facts->strategy));
@@ -436,8 +445,8 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const frf_run *r
             }
         if (!found && i + 1 < run->n) {
             f = 0.25 * (run->pts[i].sol.omega_rad_s + run->pts[i + 1].sol.omega_rad_s) / M_PI;
-            a = 0.5 * (rths_point_amplitude_m(&run->pts[i]) +
-                       rths_point_amplitude_m(&run->pts[i + 1]));
+            a = 0.5 *
+                (rths_point_amplitude_m(&run->pts[i]) + rths_point_amplitude_m(&run->pts[i + 1]));
         }
         json_object *fold = json_object_new_object();
         json_object_object_add(fold, "frequency_hz", json_object_new_double(f));
@@ -449,10 +458,11 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const frf_run *r
     json_object_object_add(root, "max_interface_error_h1_m", json_object_new_double(max_h[1]));
     json_object_object_add(root, "max_interface_error_h2_m", json_object_new_double(max_h[2]));
     json_object_object_add(root, "max_interface_error_h3_m", json_object_new_double(max_h[3]));
-    json_object_object_add(root, "truth", json_object_new_string(
-                                              facts->setup->has_bilinear
-                                                  ? "shooting with the bilinear leg (truth.csv)"
-                                                  : "analytic FRF of the assembly (truth.csv)"));
+    json_object_object_add(
+        root, "truth",
+        json_object_new_string(facts->setup->has_bilinear
+                                   ? "shooting with the bilinear leg (truth.csv)"
+                                   : "analytic FRF of the assembly (truth.csv)"));
     json_object_object_add(root, "max_relative_error_vs_truth",
                            json_object_new_double(*max_truth_error));
     int rc = rths_cli_write_summary(rep, "summary.json", root, err);
@@ -484,7 +494,8 @@ static int load_resume(const char *journal_path, const char *strategy, int harmo
     remove(tmp);
     rths_journal *j = NULL;
     rc = rths_journal_open(tmp, strategy, &j, err);
-    for (int i = 0; i < *n && !rc; i++) rc = rths_journal_append(j, &(*pts)[i], 0, err);
+    for (int i = 0; i < *n && !rc; i++)
+        rc = rths_journal_append(j, &(*pts)[i], 0, err);
     if (j) rths_journal_close(j);
     if (!rc && rename(tmp, journal_path))
         rc = rths_error_set(err, RTHS_EFAIL, "cannot replace %s", journal_path);
@@ -503,7 +514,8 @@ static double now_s(void) {
 static int remember(frf_run *run, const rths_point *pt) {
     if (pt->index >= run->cap) {
         int cap = run->cap ? 2 * run->cap : 64;
-        while (cap <= pt->index) cap *= 2;
+        while (cap <= pt->index)
+            cap *= 2;
         rths_point *p = realloc(run->pts, (size_t)cap * sizeof *p);
         if (!p) return RTHS_EFAIL;
         run->pts = p;
@@ -539,16 +551,17 @@ int rths_cmd_frf(int argc, char **argv) {
         [OPT_RIG] = {"--rig", "URI", NULL},
     };
     rths_cli cli;
-    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED,
-                            usage, opts, N_OPTS);
+    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
+                            opts, N_OPTS);
     if (rc || cli.help) return rc;
     rths_error err = {0};
     const char *strategy = opts[OPT_STRATEGY].value ? opts[OPT_STRATEGY].value : "default";
     if (strcmp(strategy, "default") && strcmp(strategy, "paper"))
-        return rths_cli_fail(&cli, rths_error_set(&err, RTHS_EINPUT,
-                                                  "option --strategy: '%s' is neither 'default' "
-                                                  "nor 'paper'",
-                                                  strategy),
+        return rths_cli_fail(&cli,
+                             rths_error_set(&err, RTHS_EINPUT,
+                                            "option --strategy: '%s' is neither 'default' "
+                                            "nor 'paper'",
+                                            strategy),
                              &err);
     int paper = !strcmp(strategy, "paper");
     long harmonics_cli = 0;
@@ -558,10 +571,10 @@ int rths_cmd_frf(int argc, char **argv) {
     int resume = opts[OPT_RESUME].value != NULL;
     const char *rig_uri = opts[OPT_RIG].value;
     if (rig_uri && strncmp(rig_uri, "tcp://", 6))
-        return rths_cli_fail(&cli, rths_error_set(&err, RTHS_EINPUT,
-                                                  "option --rig: '%s' is not tcp://HOST:PORT",
-                                                  rig_uri),
-                             &err);
+        return rths_cli_fail(
+            &cli,
+            rths_error_set(&err, RTHS_EINPUT, "option --rig: '%s' is not tcp://HOST:PORT", rig_uri),
+            &err);
     /* The paper strategy integrates the numerical substructure as the seed did; an explicit
      * --set controller.scheme=... still wins, because overrides apply in order. */
     if (paper) {
@@ -595,8 +608,9 @@ int rths_cmd_frf(int argc, char **argv) {
     rc = rths_iterate_config_read(cfg, &settle, &newton, &harmonics, &err);
     if (!rc && harmonics_cli) harmonics = (int)harmonics_cli;
     if (!rc) rc = rths_continuation_config_read(cfg, &cont, &err);
-    if (!rc) rc = rths_config_get_double(cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
-                                         &trace_hz, &err);
+    if (!rc)
+        rc =
+            rths_config_get_double(cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5, &trace_hz, &err);
     /* The rig is created before anything is written: its configuration errors are input errors. */
     if (!rc && !rig_uri)
         rc = rths_virtual_rig_create(cfg, &setup, cli.has_seed, cli.seed, &rig, &err);
@@ -648,8 +662,8 @@ int rths_cmd_frf(int argc, char **argv) {
                                        setup.forcing_amplitude_n, resume_pts, n_resume, on_point,
                                        on_progress, &run, &result, &run_err);
         if (run.progress) fprintf(stderr, "\n");
-        rths_report_log(rep, "continuation ended: %s%s%s", result.stop_reason,
-                        run_rc ? "; " : "", run_rc ? run_err.msg : "");
+        rths_report_log(rep, "continuation ended: %s%s%s", result.stop_reason, run_rc ? "; " : "",
+                        run_rc ? run_err.msg : "");
     }
     double wall = now_s() - t_start;
     /* Whatever ended the run, everything accepted is written out. A rig fault makes the trace
@@ -657,13 +671,17 @@ int rths_cmd_frf(int argc, char **argv) {
     double trace_rig_time = 0, max_truth_error = 0;
     if (!rc) rc = write_frf_csv(rep, &run, &err);
     if (!rc) {
-        run_facts facts = {.strategy = strategy, .harmonics = harmonics, .wall_time_s = wall,
-                           .resumed_points = n_resume, .result = &result, .setup = &setup};
+        run_facts facts = {.strategy = strategy,
+                           .harmonics = harmonics,
+                           .wall_time_s = wall,
+                           .resumed_points = n_resume,
+                           .result = &result,
+                           .setup = &setup};
         int pick = run_rc ? -1 : choose_trace_point(&run, trace_hz);
         if (pick >= 0) {
             rths_error trace_err;
-            if (trace_point(rep, rig, &settle, harmonics, setup.forcing_amplitude_n,
-                            &run.pts[pick], &trace_rig_time, &trace_err))
+            if (trace_point(rep, rig, &settle, harmonics, setup.forcing_amplitude_n, &run.pts[pick],
+                            &trace_rig_time, &trace_err))
                 rths_report_log(rep, "no trace figure: %s", trace_err.msg);
         }
         facts.trace_rig_time_s = trace_rig_time;

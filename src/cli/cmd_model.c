@@ -37,7 +37,7 @@ static const char usage[] =
 static int write_modes(rths_report *rep, const rths_modes *m, rths_error *err) {
     int n = m->n, cols = 4 + n;
     const char **header = calloc((size_t)cols, sizeof *header);
-    char (*names)[32] = calloc((size_t)n, sizeof *names);
+    char(*names)[32] = calloc((size_t)n, sizeof *names);
     double *row = calloc((size_t)cols, sizeof *row);
     char *path = rths_report_path(rep, "modes.csv");
     rths_csv *csv = NULL;
@@ -59,7 +59,8 @@ static int write_modes(rths_report *rep, const rths_modes *m, rths_error *err) {
         row[1] = m->frequency_hz[r];
         row[2] = m->omega_rad_s[r];
         row[3] = m->damping_ratio[r];
-        for (int i = 0; i < n; i++) row[4 + i] = RTHS_AT(m->shapes, n, i, r);
+        for (int i = 0; i < n; i++)
+            row[4 + i] = RTHS_AT(m->shapes, n, i, r);
         rc = rths_csv_row(csv, row);
         if (rc) rths_error_set(err, RTHS_EFAIL, "writing modes.csv failed");
     }
@@ -81,7 +82,7 @@ static int write_frf(rths_report *rep, const rths_setup *s, const double *freqs,
                      double *peak_amp, double *peak_hz, rths_error *err) {
     int n = s->assembly.n, cols = 1 + 2 * n;
     const char **header = calloc((size_t)cols, sizeof *header);
-    char (*names)[40] = calloc((size_t)(2 * n), sizeof *names);
+    char(*names)[40] = calloc((size_t)(2 * n), sizeof *names);
     double *row = calloc((size_t)cols, sizeof *row);
     double complex *x = calloc((size_t)n, sizeof *x);
     char *path = rths_report_path(rep, "true_frf.csv");
@@ -136,17 +137,17 @@ static int plot_frf(rths_report *rep, const rths_setup *s, const rths_modes *m, 
     size_t cap = 4096 + (size_t)n * 256;
     char *body = malloc(cap);
     if (!body) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    size_t len = (size_t)snprintf(
-        body, cap,
-        "set datafile separator ','\n"
-        "set title 'True assembly: response to %g N on DoF %d (analytic)'\n"
-        "set xlabel 'Forcing frequency (Hz)'\n"
-        "set ylabel 'Displacement amplitude (m)'\n"
-        "set logscale y\n"
-        "set format y '10^{%%L}'\n"
-        "set grid\n"
-        "set key top right\n",
-        s->forcing_amplitude_n, s->forcing_dof + 1);
+    size_t len =
+        (size_t)snprintf(body, cap,
+                         "set datafile separator ','\n"
+                         "set title 'True assembly: response to %g N on DoF %d (analytic)'\n"
+                         "set xlabel 'Forcing frequency (Hz)'\n"
+                         "set ylabel 'Displacement amplitude (m)'\n"
+                         "set logscale y\n"
+                         "set format y '10^{%%L}'\n"
+                         "set grid\n"
+                         "set key top right\n",
+                         s->forcing_amplitude_n, s->forcing_dof + 1);
     for (int r = 0; r < m->n && len < cap; r++)
         len += (size_t)snprintf(body + len, cap - len,
                                 "set arrow from %.6g, graph 0 to %.6g, graph 1 nohead dt 3 lc "
@@ -181,8 +182,8 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const rths_setup
         json_object_object_add(mode, "damping_ratio", json_object_new_double(m->damping_ratio[r]));
         json_object_array_add(modes, mode);
     }
-    json_object_object_add(root, "config", json_object_new_string(s->chain ? "storey chain"
-                                                                            : "matrices"));
+    json_object_object_add(root, "config",
+                           json_object_new_string(s->chain ? "storey chain" : "matrices"));
     json_object_object_add(root, "dofs", json_object_new_int(s->assembly.n));
     json_object_object_add(root, "mass_ratio", json_object_new_double(s->split.mass_ratio));
     json_object_object_add(root, "interface_dof", json_object_new_int(s->split.int_dofs[0] + 1));
@@ -214,8 +215,9 @@ int rths_cmd_model(int argc, char **argv) {
     static const char *const own[] = {"structure", "split", "forcing", "model", NULL};
     rc = rths_cli_check_config_own(cfg, own, &err);
     if (!rc) rc = rths_modal_analysis(&setup.assembly, &modes, &err);
-    if (!rc) rc = rths_frf_grid(&modes, setup.frf_start_hz, setup.frf_end_hz, setup.frf_points,
-                                &freqs, &count, &err);
+    if (!rc)
+        rc = rths_frf_grid(&modes, setup.frf_start_hz, setup.frf_end_hz, setup.frf_points, &freqs,
+                           &count, &err);
     if (!rc) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
     if (!rc) {
         rths_cli_print(&cli, "True assembly: %d DoFs, interface DoF %d, p = %g, %g N on DoF %d\n",
@@ -236,10 +238,9 @@ int rths_cmd_model(int argc, char **argv) {
         rths_cli_print(&cli,
                        "Interface (DoF %d) peak: %.4g m at %.4f Hz; %d frequencies in "
                        "%s/true_frf.csv\n",
-                       setup.split.int_dofs[0] + 1, peak_amp, peak_hz, count,
-                       rths_report_dir(rep));
-    if (rep) rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "",
-                             rc ? err.msg : "");
+                       setup.split.int_dofs[0] + 1, peak_amp, peak_hz, count, rths_report_dir(rep));
+    if (rep)
+        rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);
     free(freqs);
     rths_modes_free(&modes);

@@ -36,8 +36,7 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
     return RTHS_OK;
 }
 
-int rths_journal_open(const char *path, const char *strategy, rths_journal **out,
-                      rths_error *err) {
+int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err) {
     set_exact_doubles();
     rths_journal *j = calloc(1, sizeof *j);
     if (!j) return rths_error_set(err, RTHS_EFAIL, "out of memory opening the journal");
@@ -74,7 +73,8 @@ void rths_journal_close(rths_journal *j) {
 
 static json_object *dbl_array(const double *v, int n) {
     json_object *a = json_object_new_array();
-    for (int i = 0; i < n; i++) json_object_array_add(a, json_object_new_double(v[i]));
+    for (int i = 0; i < n; i++)
+        json_object_array_add(a, json_object_new_double(v[i]));
     return a;
 }
 
@@ -117,8 +117,8 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "step", json_object_new_double(pt->step));
     json_object_object_add(o, "secant_omega", json_object_new_double(pt->secant_omega));
     json_object_object_add(o, "have_jacobian", json_object_new_int(pt->corrector.have_jacobian));
-    json_object_object_add(o, "jacobian",
-                           dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
+    json_object_object_add(
+        o, "jacobian", dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -175,10 +175,13 @@ static int parse_point(json_object *o, rths_point *pt) {
     s->harmonics = e->harmonics = N;
     pt->corrector.harmonics = N;
     pt->corrector.n = 2 * N;
-    if (get_dbl(o, "omega_rad_s", &s->omega_rad_s) || get_dbl(o, "frequency_hz", &e->frequency_hz) ||
-        get_arr(o, "target_a_m", s->target_a, N) || get_arr(o, "target_b_m", s->target_b, N) ||
-        get_fourier(o, "phys", &e->phys, RTHS_MAX_HARMONICS) || get_fourier(o, "num", &e->num, RTHS_MAX_HARMONICS) ||
-        get_fourier(o, "phys_se", &e->phys_se, RTHS_MAX_HARMONICS) || get_fourier(o, "num_se", &e->num_se, RTHS_MAX_HARMONICS) ||
+    if (get_dbl(o, "omega_rad_s", &s->omega_rad_s) ||
+        get_dbl(o, "frequency_hz", &e->frequency_hz) || get_arr(o, "target_a_m", s->target_a, N) ||
+        get_arr(o, "target_b_m", s->target_b, N) ||
+        get_fourier(o, "phys", &e->phys, RTHS_MAX_HARMONICS) ||
+        get_fourier(o, "num", &e->num, RTHS_MAX_HARMONICS) ||
+        get_fourier(o, "phys_se", &e->phys_se, RTHS_MAX_HARMONICS) ||
+        get_fourier(o, "num_se", &e->num_se, RTHS_MAX_HARMONICS) ||
         get_dbl(o, "eval_rig_time_s", &e->rig_time_s) ||
         get_int(o, "wait_periods", &e->wait_periods) ||
         get_int(o, "average_periods", &e->average_periods) || get_int(o, "steady", &e->steady) ||
@@ -200,7 +203,9 @@ int rths_journal_read(const char *path, rths_point **points, int *n_points, char
     *n_points = 0;
     if (strategy) *strategy = NULL;
     FILE *f = fopen(path, "r");
-    if (!f) return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path, strerror(errno));
+    if (!f)
+        return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path,
+                              strerror(errno));
     char *line = NULL;
     size_t cap = 0;
     ssize_t len;
@@ -230,7 +235,8 @@ int rths_journal_read(const char *path, rths_point **points, int *n_points, char
             if (parse_point(o, &pt)) {
                 json_object_put(o);
                 if (!complete) break;
-                rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", path, lineno);
+                rc =
+                    rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", path, lineno);
                 break;
             }
             int is_update = !strcmp(type, "update");

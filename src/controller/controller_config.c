@@ -4,20 +4,19 @@
 #include <math.h>
 
 int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
-    static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh",
-                                          "exact_foh", NULL};
+    static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh", "exact_foh",
+                                          NULL};
     int scheme = (int)opt->scheme, rc;
-    if ((rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, opt->sample_rate_hz,
-                                     100, 1e6, &opt->sample_rate_hz, err)) ||
-        (rc = rths_config_get_choice(cfg, "controller.scheme", 0, scheme, schemes, &scheme,
-                                     err)) ||
+    if ((rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, opt->sample_rate_hz, 100,
+                                     1e6, &opt->sample_rate_hz, err)) ||
+        (rc = rths_config_get_choice(cfg, "controller.scheme", 0, scheme, schemes, &scheme, err)) ||
         (rc = rths_config_get_double(cfg, "controller.kp_v_per_m", 0, opt->kp_v_per_m, 0, 1e9,
                                      &opt->kp_v_per_m, err)) ||
-        (rc = rths_config_get_double(cfg, "controller.kd_v_s_per_m", 0, opt->kd_v_s_per_m, 0,
-                                     1e9, &opt->kd_v_s_per_m, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.kd_v_s_per_m", 0, opt->kd_v_s_per_m, 0, 1e9,
+                                     &opt->kd_v_s_per_m, err)) ||
         (rc = rths_config_get_double(cfg, "controller.grounding_kp_n_per_m", 0,
-                                     opt->grounding_kp_n_per_m, 0, 1e12,
-                                     &opt->grounding_kp_n_per_m, err)) ||
+                                     opt->grounding_kp_n_per_m, 0, 1e12, &opt->grounding_kp_n_per_m,
+                                     err)) ||
         (rc = rths_config_get_double(cfg, "controller.grounding_kd_n_s_per_m", 0,
                                      opt->grounding_kd_n_s_per_m, 0, 1e12,
                                      &opt->grounding_kd_n_s_per_m, err)) ||
@@ -29,8 +28,8 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = rths_config_get_double(cfg, "controller.limits.displacement_m", 0,
                                      opt->displacement_limit_m, 1e-9, 10,
                                      &opt->displacement_limit_m, err)) ||
-        (rc = rths_config_get_double(cfg, "controller.limits.force_n", 0, opt->force_limit_n,
-                                     1e-6, 1e9, &opt->force_limit_n, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.limits.force_n", 0, opt->force_limit_n, 1e-6,
+                                     1e9, &opt->force_limit_n, err)) ||
         (rc = rths_config_get_double(cfg, "controller.ramp_time_s", 0, opt->ramp_time_s, 0, 60,
                                      &opt->ramp_time_s, err)))
         return rc;

@@ -18,9 +18,9 @@ typedef struct {
 struct rths_controller {
     rths_controller_options opt;
     double h;
-    int nn, nx, np;      /* numerical DoFs, its state size, physical DoFs (sensors) */
-    int forcing_index;   /* forcing DoF in the numerical substructure's order */
-    double m_comp;       /* inertial compensation mass p m_int, kg */
+    int nn, nx, np;    /* numerical DoFs, its state size, physical DoFs (sensors) */
+    int forcing_index; /* forcing DoF in the numerical substructure's order */
+    double m_comp;     /* inertial compensation mass p m_int, kg */
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * N_INPUTS], b_curr[MAX_STATE * N_INPUTS];
     double z[MAX_STATE], z_next[MAX_STATE], u_prev[N_INPUTS];
     /* commands */
@@ -30,7 +30,7 @@ struct rths_controller {
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
     int feedback, armed;
     rths_rig_fault fault;
-    double ramp;         /* 0..1: scales demand, forcing and target */
+    double ramp; /* 0..1: scales demand, forcing and target */
     /* signal state */
     double time_s, theta;
     double x_prev, v_est, velocity_alpha;
@@ -74,7 +74,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                               RTHS_MAX_SENSED_DOFS);
     if (setup->split.int_dofs[0] != setup->forcing_dof) {
         int numerical = 0;
-        for (int i = 0; i < s->n_num; i++) numerical |= s->num_dofs[i] == setup->forcing_dof;
+        for (int i = 0; i < s->n_num; i++)
+            numerical |= s->num_dofs[i] == setup->forcing_dof;
         if (!numerical)
             return rths_error_set(err, RTHS_EINPUT,
                                   "forcing.dof %d is on the physical side; the virtual rig "
@@ -96,12 +97,12 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
     double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
-    input[0] = 1.0;                          /* column 0: interface force */
-    input[s->nn + c->forcing_index] = 1.0;   /* column 1: external forcing */
+    input[0] = 1.0;                        /* column 0: interface force */
+    input[s->nn + c->forcing_index] = 1.0; /* column 1: external forcing */
     double *a = NULL, *b = NULL;
     rths_discrete d = {0};
-    int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS,
-                              input, &a, &b, err);
+    int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS, input,
+                              &a, &b, err);
     if (!rc) rc = rths_discretise(c->nx, N_INPUTS, a, b, c->h, opt->scheme, &d, err);
     if (!rc) {
         memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
@@ -125,7 +126,9 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     return RTHS_OK;
 }
 
-void rths_controller_destroy(rths_controller *c) { free(c); }
+void rths_controller_destroy(rths_controller *c) {
+    free(c);
+}
 
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
     c->amplitude_n = amplitude_n;
@@ -149,17 +152,33 @@ void rths_controller_set_target(rths_controller *c, int harmonics, const double 
     }
 }
 
-void rths_controller_set_feedback(rths_controller *c, int on) { c->feedback = on; }
-void rths_controller_arm(rths_controller *c, int armed) { c->armed = armed; }
-int rths_controller_armed(const rths_controller *c) { return c->armed; }
-rths_rig_fault rths_controller_fault(const rths_controller *c) { return c->fault; }
+void rths_controller_set_feedback(rths_controller *c, int on) {
+    c->feedback = on;
+}
+void rths_controller_arm(rths_controller *c, int armed) {
+    c->armed = armed;
+}
+int rths_controller_armed(const rths_controller *c) {
+    return c->armed;
+}
+rths_rig_fault rths_controller_fault(const rths_controller *c) {
+    return c->fault;
+}
 void rths_controller_trip(rths_controller *c, rths_rig_fault fault) {
     if (!c->fault) c->fault = fault;
 }
-void rths_controller_reset_fault(rths_controller *c) { c->fault = RTHS_RIG_OK; }
-double rths_controller_time_s(const rths_controller *c) { return c->time_s; }
-double rths_controller_frequency_hz(const rths_controller *c) { return c->omega / (2 * M_PI); }
-int rths_controller_at_period_boundary(const rths_controller *c) { return c->at_boundary; }
+void rths_controller_reset_fault(rths_controller *c) {
+    c->fault = RTHS_RIG_OK;
+}
+double rths_controller_time_s(const rths_controller *c) {
+    return c->time_s;
+}
+double rths_controller_frequency_hz(const rths_controller *c) {
+    return c->omega / (2 * M_PI);
+}
+int rths_controller_at_period_boundary(const rths_controller *c) {
+    return c->at_boundary;
+}
 long rths_controller_dropped_periods(const rths_controller *c) {
     return atomic_load(&c->dropped);
 }
@@ -264,18 +283,18 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     double x_last = c->grounding_have ? c->x_last : x;
     double xi_last_prev = c->grounding_have ? c->xi_last_prev : xi;
     double x_last_prev = c->grounding_have ? c->x_last_prev : x_last;
-    double f_ctrl = c->opt.grounding_kp_n_per_m * (x_last - xi) +
-                    c->opt.grounding_kd_n_s_per_m *
-                        ((x_last - x_last_prev) - (xi - xi_last_prev)) / h;
+    double f_ctrl =
+        c->opt.grounding_kp_n_per_m * (x_last - xi) +
+        c->opt.grounding_kd_n_s_per_m * ((x_last - x_last_prev) - (xi - xi_last_prev)) / h;
     c->x_last_prev = x_last;
     c->x_last = x;
     c->xi_last_prev = xi;
     c->grounding_have = 1;
-    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl,
-                          c->ramp * c->amplitude_n * cos(theta1)};
+    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->ramp * c->amplitude_n * cos(theta1)};
     for (int i = 0; i < nx; i++) {
         double v = 0;
-        for (int j = 0; j < nx; j++) v += c->ad[i + j * nx] * c->z[j];
+        for (int j = 0; j < nx; j++)
+            v += c->ad[i + j * nx] * c->z[j];
         for (int j = 0; j < N_INPUTS; j++)
             v += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
         c->z_next[i] = v;
@@ -306,7 +325,8 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         target *= c->ramp;
         target_dot *= c->ramp;
     }
-    double demand = c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
+    double demand =
+        c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
     if (!isfinite(demand)) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
         demand = 0;
@@ -328,7 +348,8 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         } else {
             double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
             double yb[3];
-            for (int i = 0; i < 3; i++) yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
+            for (int i = 0; i < 3; i++)
+                yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
             accumulate(&c->acc_phys, theta0, c->y_prev[0], 2 * M_PI, yb[0]);
             accumulate(&c->acc_num, theta0, c->y_prev[1], 2 * M_PI, yb[1]);
             accumulate(&c->acc_force, theta0, c->y_prev[2], 2 * M_PI, yb[2]);

@@ -45,13 +45,14 @@ static int coefficient_vector(const rths_period *p, int harmonics, double *v) {
 
 static double vec_norm(const double *v, int n) {
     double s = 0;
-    for (int i = 0; i < n; i++) s += v[i] * v[i];
+    for (int i = 0; i < n; i++)
+        s += v[i] * v[i];
     return sqrt(s);
 }
 
-int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
-                  double frequency_hz, double amplitude_n, const double *target_a,
-                  const double *target_b, rths_evaluation *out, rths_error *err) {
+int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, double frequency_hz,
+                  double amplitude_n, const double *target_a, const double *target_b,
+                  rths_evaluation *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     out->harmonics = harmonics;
     out->frequency_hz = frequency_hz;
@@ -82,7 +83,8 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
             m = coefficient_vector(&p, harmonics, cur);
             if (waited > 1) {
                 double d[NC];
-                for (int i = 0; i < m; i++) d[i] = cur[i] - prev[i];
+                for (int i = 0; i < m; i++)
+                    d[i] = cur[i] - prev[i];
                 double change = vec_norm(d, m);
                 /* White noise of std s on S samples gives each per-period coefficient a std of
                  * s sqrt(2/S); the change of m of them between periods, sqrt(2 m) times that. */
@@ -114,7 +116,8 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
     }
     /* Average whole periods: mean and standard error of the mean of each coefficient. */
     int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
-    double sum[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}}, sum2[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}};
+    double sum[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}},
+                                          sum2[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}};
     for (int q = 0; q < n_avg; q++) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
         const rths_fourier *side[2] = {&p.phys, &p.num};
@@ -135,8 +138,10 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
                 double mu = sum[s][c][k] / n_avg;
                 double var = n_avg > 1 ? (sum2[s][c][k] - n_avg * mu * mu) / (n_avg - 1) : 0.0;
                 double e = sqrt(fmax(var, 0.0) / n_avg);
-                if (c == 0) mean[s]->a[k] = mu, se[s]->a[k] = e;
-                else mean[s]->b[k] = mu, se[s]->b[k] = e;
+                if (c == 0)
+                    mean[s]->a[k] = mu, se[s]->a[k] = e;
+                else
+                    mean[s]->b[k] = mu, se[s]->b[k] = e;
             }
     out->wait_periods = waited;
     out->average_periods = n_avg;
@@ -169,8 +174,8 @@ typedef struct {
     const rths_arclength *arc;
     rths_corrector_state *st;
     double amplitude_n;
-    int n;       /* 2N */
-    int m;       /* unknowns: n, or n + 1 with the arclength row */
+    int n; /* 2N */
+    int m; /* unknowns: n, or n + 1 with the arclength row */
     double scale[RTHS_MAX_UNKNOWNS];
 } corrector;
 
@@ -219,7 +224,8 @@ static int eval_at(corrector *c, const double *u, rths_solution *s, double *phi_
     double ext = sq / (c->scale[0] * c->scale[0]);
     if (c->m > c->n) {
         double g = 0;
-        for (int j = 0; j < c->m; j++) g += c->arc->tangent[j] * (u[j] - c->arc->predicted[j]);
+        for (int j = 0; j < c->m; j++)
+            g += c->arc->tangent[j] * (u[j] - c->arc->predicted[j]);
         phi_scaled[c->n] = g;
         ext += g * g;
     }
@@ -279,12 +285,14 @@ static int solve_small(int m, double *a, int lda, double *b) {
         }
         for (int i = k + 1; i < m; i++) {
             double f = a[i + k * lda] / a[k + k * lda];
-            for (int j = k; j < m; j++) a[i + j * lda] -= f * a[k + j * lda];
+            for (int j = k; j < m; j++)
+                a[i + j * lda] -= f * a[k + j * lda];
             b[i] -= f * b[k];
         }
     }
     for (int k = m - 1; k >= 0; k--) {
-        for (int j = k + 1; j < m; j++) b[k] -= a[k + j * lda] * b[j];
+        for (int j = k + 1; j < m; j++)
+            b[k] -= a[k + j * lda] * b[j];
         b[k] /= a[k + k * lda];
     }
     return 0;
@@ -293,14 +301,19 @@ static int solve_small(int m, double *a, int lda, double *b) {
 int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
                  double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
                  rths_solution *sol, rths_error *err) {
-    corrector c = {.rig = rig, .settle = settle, .opt = opt, .arc = arc, .st = state,
+    corrector c = {.rig = rig,
+                   .settle = settle,
+                   .opt = opt,
+                   .arc = arc,
+                   .st = state,
                    .amplitude_n = amplitude_n};
     int N = sol->harmonics;
     c.n = 2 * N;
     c.m = (arc && arc->active) ? c.n + 1 : c.n;
     double amp_scale = (arc && arc->amplitude_scale_m > 0) ? arc->amplitude_scale_m : 1e-4;
     double om_scale = (arc && arc->omega_scale_rad_s > 0) ? arc->omega_scale_rad_s : 1.0;
-    for (int j = 0; j < c.n; j++) c.scale[j] = amp_scale;
+    for (int j = 0; j < c.n; j++)
+        c.scale[j] = amp_scale;
     c.scale[c.n] = om_scale;
     if (state->harmonics != N) {
         memset(state, 0, sizeof *state);
@@ -337,14 +350,16 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
                 a[i + j * RTHS_MAX_UNKNOWNS] = state->jacobian[i + j * RTHS_MAX_UNKNOWNS];
             if (c.m > c.n) a[c.n + j * RTHS_MAX_UNKNOWNS] = arc->tangent[j];
         }
-        for (int i = 0; i < c.m; i++) du[i] = -phi[i];
+        for (int i = 0; i < c.m; i++)
+            du[i] = -phi[i];
         if (solve_small(c.m, a, RTHS_MAX_UNKNOWNS, du) != 0) {
             if (fresh) return rths_error_set(err, RTHS_EFAIL, "singular Jacobian");
             if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
             fresh = 1;
             continue;
         }
-        /* Rig safety: never ask for more than double the current target in one step. A step
+        /* Rig safety: never step by more than twice the larger of the current target and the
+         * measured numerical response. A step
          * from a stale (Broyden) or noisy Jacobian can be huge, and on a real rig the trial
          * evaluation itself would trip a limit before the line search could reject it. */
         double tnorm = 0, dnorm = 0;
@@ -354,16 +369,25 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
         }
         tnorm = sqrt(tnorm);
         dnorm = sqrt(dnorm);
-        double limit = fmax(tnorm, 1e-2);
+        /* scale: the current target or the numerical response it should follow */
+        double rnorm = 0;
+        for (int k = 1; k <= N; k++)
+            rnorm +=
+                sol->eval.num.a[k] * sol->eval.num.a[k] + sol->eval.num.b[k] * sol->eval.num.b[k];
+        rnorm = sqrt(rnorm) / amp_scale;
+        double limit = 2.0 * fmax(tnorm, rnorm);
         if (dnorm > limit)
-            for (int i = 0; i < c.m; i++) du[i] *= limit / dnorm;
+            for (int i = 0; i < c.m; i++)
+                du[i] *= limit / dnorm;
         /* Backtracking line search on the residual norm (erratum 5). */
         double lambda = 1.0, ut[RTHS_MAX_UNKNOWNS] = {0}, phit[RTHS_MAX_UNKNOWNS] = {0}, extt = 0;
         int accepted = 0;
         rths_solution trial = *sol;
         while (lambda >= opt->min_damping) {
-            for (int i = 0; i < c.m; i++) ut[i] = u[i] + lambda * du[i];
-            for (int i = c.m; i < RTHS_MAX_UNKNOWNS; i++) ut[i] = u[i];
+            for (int i = 0; i < c.m; i++)
+                ut[i] = u[i] + lambda * du[i];
+            for (int i = c.m; i < RTHS_MAX_UNKNOWNS; i++)
+                ut[i] = u[i];
             if ((rc = eval_at(&c, ut, &trial, phit, &extt, err))) return rc;
             if (extt < ext) {
                 accepted = 1;
@@ -383,13 +407,16 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
             s[j] = ut[j] - u[j];
             ss += s[j] * s[j];
         }
-        for (int i = 0; i < c.n; i++) y[i] = phit[i] - phi[i];
+        for (int i = 0; i < c.n; i++)
+            y[i] = phit[i] - phi[i];
         if (ss > 0)
             for (int i = 0; i < c.n; i++) {
                 double js = 0;
-                for (int j = 0; j < c.m; j++) js += state->jacobian[i + j * RTHS_MAX_UNKNOWNS] * s[j];
+                for (int j = 0; j < c.m; j++)
+                    js += state->jacobian[i + j * RTHS_MAX_UNKNOWNS] * s[j];
                 double f = (y[i] - js) / ss;
-                for (int j = 0; j < c.m; j++) state->jacobian[i + j * RTHS_MAX_UNKNOWNS] += f * s[j];
+                for (int j = 0; j < c.m; j++)
+                    state->jacobian[i + j * RTHS_MAX_UNKNOWNS] += f * s[j];
             }
         fresh = 0;
         memcpy(u, ut, sizeof u);

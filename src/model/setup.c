@@ -22,20 +22,20 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
         rc = rths_config_get_double_list(cfg, keys[k], 1, &v[k], &count[k], err);
     for (int k = 0; k < 3 && !rc; k++) {
         if (count[k] != count[0])
-            rc = rths_config_error_at(cfg, keys[k],
-                                      err, "has %d entries but %s has %d: one per storey",
-                                      count[k], keys[0], count[0]);
+            rc = rths_config_error_at(cfg, keys[k], err,
+                                      "has %d entries but %s has %d: one per storey", count[k],
+                                      keys[0], count[0]);
         else if (count[k] < 1)
             rc = rths_config_error_at(cfg, keys[k], err, "needs at least one storey");
         for (int i = 0; i < count[k] && !rc; i++) {
             if (must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0))
-                rc = rths_config_error_at(cfg, keys[k], err,
-                                          "storey %d: must be %s (got %g)", i + 1,
-                                          must_be_positive[k] ? "> 0" : ">= 0", v[k][i]);
+                rc = rths_config_error_at(cfg, keys[k], err, "storey %d: must be %s (got %g)",
+                                          i + 1, must_be_positive[k] ? "> 0" : ">= 0", v[k][i]);
         }
     }
     if (!rc) rc = rths_assembly_from_chain(count[0], v[0], v[1], v[2], &s->assembly, err);
-    for (int k = 0; k < 3; k++) free(v[k]);
+    for (int k = 0; k < 3; k++)
+        free(v[k]);
     s->chain = 1;
     return rc;
 }
@@ -63,7 +63,8 @@ static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
                                   "must be positive definite (a mass matrix with a zero or "
                                   "negative mode has no dynamics)");
     if (!rc) rc = rths_assembly_from_matrices(rows[0], m[0], m[1], m[2], &s->assembly, err);
-    for (int k = 0; k < 3; k++) free(m[k]);
+    for (int k = 0; k < 3; k++)
+        free(m[k]);
     s->chain = 0;
     return rc;
 }
@@ -76,9 +77,8 @@ static int assign_roles(rths_config *cfg, const char *key, const int *dofs, int 
         if (dofs[i] < 1 || dofs[i] > n)
             return rths_config_error_at(cfg, key, err, "DoF %d is outside 1..%d", dofs[i], n);
         if (assigned[dofs[i] - 1])
-            return rths_config_error_at(cfg, key, err,
-                                        "DoF %d is listed twice (each DoF has exactly one side)",
-                                        dofs[i]);
+            return rths_config_error_at(
+                cfg, key, err, "DoF %d is listed twice (each DoF has exactly one side)", dofs[i]);
         assigned[dofs[i] - 1] = 1;
         s->roles[dofs[i] - 1] = role;
     }
@@ -91,13 +91,13 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
     int *assigned = calloc((size_t)n, sizeof *assigned);
     s->roles = calloc((size_t)n, sizeof *s->roles);
     double p = 0, *c_int = NULL, *k_int = NULL;
-    int rc = (assigned && s->roles) ? RTHS_OK
-                                    : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = (assigned && s->roles) ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) rc = rths_config_get_int_list(cfg, "split.interface", 1, &iface, &n_iface, err);
     if (!rc && n_iface < 1)
         rc = rths_config_error_at(cfg, "split.interface", err, "needs at least one DoF");
-    if (!rc) rc = assign_roles(cfg, "split.interface", iface, n_iface, RTHS_DOF_INTERFACE,
-                               assigned, s, err);
+    if (!rc)
+        rc = assign_roles(cfg, "split.interface", iface, n_iface, RTHS_DOF_INTERFACE, assigned, s,
+                          err);
     if (!rc) rc = rths_config_get_double(cfg, "split.mass_ratio", 1, 0.5, 0, 1, &p, err);
     if (!rc && !(p > 0 && p < 1))
         rc = rths_config_error_at(cfg, "split.mass_ratio", err,
@@ -106,10 +106,10 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
                                   p);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.physical", 0, &phys, &n_phys, err);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.numerical", 0, &num, &n_num, err);
-    if (!rc) rc = assign_roles(cfg, "split.physical", phys, n_phys, RTHS_DOF_PHYSICAL, assigned,
-                               s, err);
-    if (!rc) rc = assign_roles(cfg, "split.numerical", num, n_num, RTHS_DOF_NUMERICAL, assigned,
-                               s, err);
+    if (!rc)
+        rc = assign_roles(cfg, "split.physical", phys, n_phys, RTHS_DOF_PHYSICAL, assigned, s, err);
+    if (!rc)
+        rc = assign_roles(cfg, "split.numerical", num, n_num, RTHS_DOF_NUMERICAL, assigned, s, err);
     if (!rc && (n_phys == 0 || n_num == 0)) {
         /* For a chain the natural split is: below the interface physical, above it numerical. */
         if (!s->chain && n_phys + n_num + n_iface < n)
@@ -174,8 +174,9 @@ static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
     long dof = 0;
     int n = s->assembly.n;
     int rc = rths_config_get_int(cfg, "forcing.dof", 1, 0, 1, n, &dof, err);
-    if (!rc) rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, INFINITY,
-                                         &s->forcing_amplitude_n, err);
+    if (!rc)
+        rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, INFINITY,
+                                    &s->forcing_amplitude_n, err);
     if (!rc && !(s->forcing_amplitude_n > 0))
         rc = rths_config_error_at(cfg, "forcing.amplitude_n", err, "must be > 0 (got %g)",
                                   s->forcing_amplitude_n);
@@ -198,12 +199,15 @@ static int read_bilinear(rths_config *cfg, rths_setup *s, rths_error *err) {
     /* defaults are the seed's: the leg below the (first) interface storey, twice as stiff in
      * compression, preloaded by 26.68 N so the static point sits on the stiff side */
     long def_storey = s->split.n_int > 0 ? s->split.int_dofs[0] + 1 : 1;
-    if (!rc) rc = rths_config_get_int(cfg, "structure.bilinear.storey", 0, def_storey, 1, n,
-                                      &storey, err);
-    if (!rc) rc = rths_config_get_double(cfg, "structure.bilinear.compression_ratio", 0, 2.0,
-                                         1e-3, 1e3, &ratio, err);
-    if (!rc) rc = rths_config_get_double(cfg, "structure.bilinear.preload_n", 0, 26.68, 0,
-                                         1e6, &preload, err);
+    if (!rc)
+        rc = rths_config_get_int(cfg, "structure.bilinear.storey", 0, def_storey, 1, n, &storey,
+                                 err);
+    if (!rc)
+        rc = rths_config_get_double(cfg, "structure.bilinear.compression_ratio", 0, 2.0, 1e-3, 1e3,
+                                    &ratio, err);
+    if (!rc)
+        rc = rths_config_get_double(cfg, "structure.bilinear.preload_n", 0, 26.68, 0, 1e6, &preload,
+                                    err);
     if (rc || !enabled) return rc;
     if (!s->chain)
         return rths_config_error_at(cfg, "structure.bilinear", err,
@@ -218,10 +222,10 @@ static int read_bilinear(rths_config *cfg, rths_setup *s, rths_error *err) {
     s->leg.lower_dof = upper - 1;
     s->leg.upper_dof = upper;
     /* the chain's leg stiffness: minus the coupling term, or the ground term for storey 1 */
-    s->leg.stiffness_n_per_m = upper > 0 ? -RTHS_AT(s->assembly.stiffness, n, upper - 1, upper)
-                                         : RTHS_AT(s->assembly.stiffness, n, 0, 0) -
-                                               (n > 1 ? -RTHS_AT(s->assembly.stiffness, n, 0, 1)
-                                                      : 0.0);
+    s->leg.stiffness_n_per_m = upper > 0
+                                   ? -RTHS_AT(s->assembly.stiffness, n, upper - 1, upper)
+                                   : RTHS_AT(s->assembly.stiffness, n, 0, 0) -
+                                         (n > 1 ? -RTHS_AT(s->assembly.stiffness, n, 0, 1) : 0.0);
     s->leg.ratio = ratio;
     s->preload_n = preload;
     /* The preload pushes the leg's upper storey down, compressing the leg when ratio > 1 (stiff
@@ -232,10 +236,9 @@ static int read_bilinear(rths_config *cfg, rths_setup *s, rths_error *err) {
 
 static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
     long points = 0;
-    int rc = rths_config_get_double(cfg, "model.frf.start_hz", 0, 0, 0, 1e6, &s->frf_start_hz,
-                                    err);
-    if (!rc) rc = rths_config_get_double(cfg, "model.frf.end_hz", 0, 0, 0, 1e6, &s->frf_end_hz,
-                                         err);
+    int rc = rths_config_get_double(cfg, "model.frf.start_hz", 0, 0, 0, 1e6, &s->frf_start_hz, err);
+    if (!rc)
+        rc = rths_config_get_double(cfg, "model.frf.end_hz", 0, 0, 0, 1e6, &s->frf_end_hz, err);
     if (!rc) rc = rths_config_get_int(cfg, "model.frf.points", 0, 0, 0, 10000000, &points, err);
     if (!rc && rths_config_has(cfg, "model.frf.points") && points < 2)
         rc = rths_config_error_at(cfg, "model.frf.points", err, "must be at least 2 (got %ld)",
@@ -250,7 +253,8 @@ static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
 
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
-    int has_chain = rths_config_has(cfg, K_STOREYS), has_matrices = rths_config_has(cfg, K_MATRICES);
+    int has_chain = rths_config_has(cfg, K_STOREYS),
+        has_matrices = rths_config_has(cfg, K_MATRICES);
     int rc;
     if (has_chain && has_matrices)
         rc = rths_config_error_at(cfg, K_MATRICES, err,

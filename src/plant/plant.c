@@ -11,7 +11,7 @@
 
 struct rths_plant {
     rths_plant_options opt;
-    int n;                 /* physical DoFs, interface last */
+    int n; /* physical DoFs, interface last */
     double h, dt;
     double minv[MAXN * MAXN], c[MAXN * MAXN], k[MAXN * MAXN];
     double static_force[MAXN];
@@ -50,8 +50,8 @@ void rths_plant_ideal(rths_plant_options *opt) {
     opt->noise = 0;
 }
 
-int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
-                      double sample_rate_hz, rths_plant **out, rths_error *err) {
+int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, double sample_rate_hz,
+                      rths_plant **out, rths_error *err) {
     *out = NULL;
     const rths_split *s = &setup->split;
     int n = s->np;
@@ -90,12 +90,14 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
     }
     /* physical order: internal physical DoFs, then the interface */
     int to_phys[256];
-    for (int i = 0; i < setup->assembly.n && i < 256; i++) to_phys[i] = -1;
-    for (int i = 0; i < s->n_phys; i++) to_phys[s->phys_dofs[i]] = i;
+    for (int i = 0; i < setup->assembly.n && i < 256; i++)
+        to_phys[i] = -1;
+    for (int i = 0; i < s->n_phys; i++)
+        to_phys[s->phys_dofs[i]] = i;
     to_phys[iface] = n - 1;
     for (int i = 0; i < setup->assembly.n; i++)
-        if (to_phys[i] >= 0 && setup->static_force) p->static_force[to_phys[i]] =
-            setup->static_force[i];
+        if (to_phys[i] >= 0 && setup->static_force)
+            p->static_force[to_phys[i]] = setup->static_force[i];
     p->leg_upper = -1;
     if (setup->has_bilinear) {
         p->leg_upper = to_phys[setup->leg.upper_dof];
@@ -125,9 +127,8 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
             }
         }
         if (rths_mat_solve(n, 1, kk, q)) continue;
-        double delta = p->leg_upper >= 0
-                           ? q[p->leg_upper] - (p->leg_lower >= 0 ? q[p->leg_lower] : 0)
-                           : 0;
+        double delta =
+            p->leg_upper >= 0 ? q[p->leg_upper] - (p->leg_lower >= 0 ? q[p->leg_lower] : 0) : 0;
         if (p->leg_upper < 0 || (side == 0) == (delta >= 0)) {
             memcpy(p->q, q, sizeof(double) * (size_t)n);
             break;
@@ -137,7 +138,9 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
     return RTHS_OK;
 }
 
-void rths_plant_destroy(rths_plant *p) { free(p); }
+void rths_plant_destroy(rths_plant *p) {
+    free(p);
+}
 
 double rths_plant_leg_force_n(const rths_plant *p, double delta) {
     double k = p->leg_upper >= 0 ? p->leg_k : 0;
@@ -151,7 +154,8 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
     double f[MAXN] = {0};
     for (int i = 0; i < n; i++) {
         double s = p->static_force[i];
-        for (int j = 0; j < n; j++) s -= p->c[i + j * n] * v[j] + p->k[i + j * n] * q[j];
+        for (int j = 0; j < n; j++)
+            s -= p->c[i + j * n] * v[j] + p->k[i + j * n] * q[j];
         f[i] = s;
     }
     f[n - 1] += fs;
@@ -166,15 +170,16 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
     }
     for (int i = 0; i < n; i++) {
         double s = 0;
-        for (int j = 0; j < n; j++) s += p->minv[i + j * n] * f[j];
+        for (int j = 0; j < n; j++)
+            s += p->minv[i + j * n] * f[j];
         a[i] = s;
     }
 }
 
 static double measure(rths_plant *p, const rths_sensor_spec *spec, double value) {
     if (!p->opt.noise) return value;
-    double r = (1 + spec->gain_error) * value + spec->offset +
-               spec->noise_std * rths_rng_normal(&p->rng);
+    double r =
+        (1 + spec->gain_error) * value + spec->offset + spec->noise_std * rths_rng_normal(&p->rng);
     if (spec->quantum > 0) r = spec->quantum * nearbyint(r / spec->quantum);
     return r;
 }
@@ -183,7 +188,8 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     double a[MAXN];
     accelerations(p, p->q, p->v, p->fs, a);
     out->n = p->n;
-    for (int i = 0; i < p->n; i++) out->displacement_m[i] = measure(p, &p->opt.laser, p->q[i]);
+    for (int i = 0; i < p->n; i++)
+        out->displacement_m[i] = measure(p, &p->opt.laser, p->q[i]);
     double acc = a[p->n - 1];
     out->interface_acceleration_m_s2 = measure(p, &p->opt.accelerometer, acc);
     /* the load cell sits between the armature and the storey */
@@ -245,8 +251,12 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
     p->time_s += p->h;
 }
 
-double rths_plant_time_s(const rths_plant *p) { return p->time_s; }
-double rths_plant_interface_displacement_m(const rths_plant *p) { return p->q[p->n - 1]; }
+double rths_plant_time_s(const rths_plant *p) {
+    return p->time_s;
+}
+double rths_plant_interface_displacement_m(const rths_plant *p) {
+    return p->q[p->n - 1];
+}
 double rths_plant_noise_level_m(const rths_plant *p) {
     return p->opt.noise ? p->opt.laser.noise_std : 0.0;
 }
@@ -256,17 +266,16 @@ int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error
     int rc;
     if ((rc = rths_config_get_bool(cfg, "rig.noise", 0, opt->noise, &opt->noise, err)) ||
         (rc = rths_config_get_int(cfg, "rig.seed", 0, seed, 0, 2147483647L, &seed, err)) ||
-        (rc = rths_config_get_int(cfg, "rig.substeps_per_sample", 0, substeps, 1, 1000,
-                                  &substeps, err)) ||
+        (rc = rths_config_get_int(cfg, "rig.substeps_per_sample", 0, substeps, 1, 1000, &substeps,
+                                  err)) ||
         (rc = rths_config_get_double(cfg, "rig.shaker.gain_n_per_v", 0, opt->gain_n_per_v, 1e-6,
                                      1e6, &opt->gain_n_per_v, err)) ||
         (rc = rths_config_get_double(cfg, "rig.shaker.delay_s", 0, opt->delay_s, 0, 0.1,
                                      &opt->delay_s, err)) ||
-        (rc = rths_config_get_double(cfg, "rig.shaker.lag_cutoff_hz", 0, opt->lag_cutoff_hz, 0,
-                                     1e6, &opt->lag_cutoff_hz, err)) ||
-        (rc = rths_config_get_double(cfg, "rig.shaker.armature_mass_kg", 0,
-                                     opt->armature_mass_kg, 0, 1e3, &opt->armature_mass_kg,
-                                     err)))
+        (rc = rths_config_get_double(cfg, "rig.shaker.lag_cutoff_hz", 0, opt->lag_cutoff_hz, 0, 1e6,
+                                     &opt->lag_cutoff_hz, err)) ||
+        (rc = rths_config_get_double(cfg, "rig.shaker.armature_mass_kg", 0, opt->armature_mass_kg,
+                                     0, 1e3, &opt->armature_mass_kg, err)))
         return rc;
     opt->seed = (uint64_t)seed;
     opt->substeps_per_sample = (int)substeps;

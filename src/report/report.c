@@ -52,8 +52,8 @@ static void utc_now(char *buf, size_t size) {
     strftime(buf, size, "%Y-%m-%dT%H:%M:%SZ", &tm);
 }
 
-int rths_report_open(const char *dir, const char *command, int argc, char **argv,
-                     rths_report **out, rths_error *err) {
+int rths_report_open(const char *dir, const char *command, int argc, char **argv, rths_report **out,
+                     rths_error *err) {
     *out = NULL;
     int rc = mkdir_p(dir, err);
     if (rc) return rc;
@@ -76,7 +76,8 @@ int rths_report_open(const char *dir, const char *command, int argc, char **argv
     char when[32];
     utc_now(when, sizeof when);
     fprintf(rep->log, "%s rths %s %s:", when, RTHS_VERSION, command);
-    for (int i = 1; i < argc; i++) fprintf(rep->log, " %s", argv[i]);
+    for (int i = 1; i < argc; i++)
+        fprintf(rep->log, " %s", argv[i]);
     fputc('\n', rep->log);
     fflush(rep->log);
     *out = rep;
@@ -90,7 +91,9 @@ void rths_report_close(rths_report *rep) {
     free(rep);
 }
 
-const char *rths_report_dir(const rths_report *rep) { return rep->dir; }
+const char *rths_report_dir(const rths_report *rep) {
+    return rep->dir;
+}
 
 char *rths_report_path(const rths_report *rep, const char *name) {
     size_t len = strlen(rep->dir) + strlen(name) + 2;
@@ -149,6 +152,20 @@ static void atomic_free(rths_atomic_file *a) {
     free(a);
 }
 
+/* After a rename the new directory entry itself must reach the disk, or a crash can bring back
+ * the old file (or none) although the data were synced. Best effort: some filesystems refuse. */
+static void sync_parent_dir(const char *path) {
+    const char *slash = strrchr(path, '/');
+    char *dir = slash ? strndup(path, (size_t)(slash - path)) : strdup(".");
+    if (!dir) return;
+    int fd = open(*dir ? dir : "/", O_RDONLY | O_DIRECTORY | O_CLOEXEC);
+    if (fd >= 0) {
+        (void)fsync(fd);
+        close(fd);
+    }
+    free(dir);
+}
+
 int rths_atomic_commit(rths_atomic_file *a, rths_error *err) {
     int bad = ferror(a->f) || fflush(a->f) != 0 || fsync(fileno(a->f)) != 0;
     int e = errno;
@@ -161,6 +178,8 @@ int rths_atomic_commit(rths_atomic_file *a, rths_error *err) {
     if (bad) {
         remove(a->tmp);
         rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", a->path, strerror(e));
+    } else {
+        sync_parent_dir(a->path);
     }
     atomic_free(a);
     return rc;
@@ -212,7 +231,8 @@ int rths_csv_open(const char *path, int n_columns, const char *const *header, rt
         return rc;
     }
     csv->columns = n_columns;
-    for (int i = 0; i < n_columns; i++) fprintf(csv->f, "%s%s", i ? "," : "", header[i]);
+    for (int i = 0; i < n_columns; i++)
+        fprintf(csv->f, "%s%s", i ? "," : "", header[i]);
     fputc('\n', csv->f);
     *out = csv;
     return RTHS_OK;
@@ -250,8 +270,8 @@ void rths_csv_abort(rths_csv *csv) {
 
 int rths_json_write(const char *path, struct json_object *obj, rths_error *err) {
     json_c_set_serialization_double_format("%.17g", JSON_C_OPTION_THREAD);
-    const char *text =
-        json_object_to_json_string_ext(obj, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED | JSON_C_TO_STRING_NOSLASHESCAPE);
+    const char *text = json_object_to_json_string_ext(
+        obj, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED | JSON_C_TO_STRING_NOSLASHESCAPE);
     json_c_set_serialization_double_format(NULL, JSON_C_OPTION_THREAD);
     if (!text) return rths_error_set(err, RTHS_EFAIL, "cannot serialise %s", path);
     size_t len = strlen(text);
@@ -311,8 +331,8 @@ int rths_plot(rths_report *rep, const char *dir, const char *basename, int width
             "set output '%s.png'\n%s\n"
             "set terminal svg size %d,%d font 'DejaVu Sans,14' enhanced background rgb 'white'\n"
             "set output '%s.svg'\n%s\nunset output\n",
-            basename, basename, basename, width_px, height_px, basename, body, width_px,
-            height_px, basename, body);
+            basename, basename, basename, width_px, height_px, basename, body, width_px, height_px,
+            basename, body);
     rc = rths_atomic_commit(a, err);
     if (rc) {
         free(gp);
@@ -346,4 +366,6 @@ int rths_plot(rths_report *rep, const char *dir, const char *basename, int width
     return RTHS_OK;
 }
 
-int rths_progress_enabled(int quiet) { return !quiet && isatty(2); }
+int rths_progress_enabled(int quiet) {
+    return !quiet && isatty(2);
+}

@@ -30,8 +30,8 @@ static int fault_error(virtual_rig *v, rths_error *err) {
 static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {
     virtual_rig *v = self;
     if (!(frequency_hz > 0 && frequency_hz < 0.25 * v->sample_rate_hz) || !isfinite(amplitude_n))
-        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N is out of range",
-                              frequency_hz, amplitude_n);
+        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N is out of range", frequency_hz,
+                              amplitude_n);
     rths_controller_set_forcing(v->ctrl, frequency_hz, amplitude_n);
     return RTHS_OK;
 }
@@ -44,8 +44,7 @@ static int v_set_target(void *self, int harmonics, const double *a, const double
                               RTHS_MAX_HARMONICS);
     for (int k = 0; k < harmonics; k++)
         if (!isfinite(a[k]) || !isfinite(b[k]))
-            return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite",
-                                  k + 1);
+            return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite", k + 1);
     rths_controller_set_target(v->ctrl, harmonics, a, b);
     return RTHS_OK;
 }
@@ -61,11 +60,11 @@ static int v_run_periods(void *self, int count, rths_period *out, rths_error *er
     long limit = (long)(count + 2) * (long)(2 * v->sample_rate_hz / f) + 100000;
     int got = 0;
     for (long i = 0; got < count; i++) {
-        if (i > limit)
-            return rths_error_set(err, RTHS_EFAIL, "virtual rig: no period completed");
+        if (i > limit) return rths_error_set(err, RTHS_EFAIL, "virtual rig: no period completed");
         sample(v, NULL);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
-        while (got < count && rths_controller_pop_period(v->ctrl, &out[got])) got++;
+        while (got < count && rths_controller_pop_period(v->ctrl, &out[got]))
+            got++;
     }
     return RTHS_OK;
 }
@@ -85,8 +84,8 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
         sample(v, &o);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
         if (i % every == 0 && *n_out < max_samples)
-            out[(*n_out)++] = (rths_trace_sample){o.time_s, o.x_phys_m, o.x_num_m, o.target_m,
-                                                  o.force_n, o.demand_v};
+            out[(*n_out)++] = (rths_trace_sample){o.time_s,   o.x_phys_m, o.x_num_m,
+                                                  o.target_m, o.force_n,  o.demand_v};
     }
     rths_period discard;
     while (rths_controller_pop_period(v->ctrl, &discard)) {
@@ -94,7 +93,9 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
     return RTHS_OK;
 }
 
-static double v_time(void *self) { return rths_controller_time_s(((virtual_rig *)self)->ctrl); }
+static double v_time(void *self) {
+    return rths_controller_time_s(((virtual_rig *)self)->ctrl);
+}
 static rths_rig_fault v_fault(void *self) {
     return rths_controller_fault(((virtual_rig *)self)->ctrl);
 }
@@ -128,8 +129,7 @@ static const rths_rig_ops virtual_ops = {
 };
 
 int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,
-                                 const rths_plant_options *popt, rths_rig **out,
-                                 rths_error *err) {
+                                 const rths_plant_options *popt, rths_rig **out, rths_error *err) {
     *out = NULL;
     virtual_rig *v = calloc(1, sizeof *v);
     if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -139,8 +139,8 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     char description[200];
     snprintf(description, sizeof description,
              "virtual rig: %s integrator, %g Hz, shaker delay %g s, lag %g Hz, noise %s",
-             rths_scheme_name(copt->scheme), copt->sample_rate_hz,
-             popt->delay_s, popt->lag_cutoff_hz, popt->noise ? "on" : "off");
+             rths_scheme_name(copt->scheme), copt->sample_rate_hz, popt->delay_s,
+             popt->lag_cutoff_hz, popt->noise ? "on" : "off");
     if (!rc && !(*out = rths_rig_create(&virtual_ops, v, description)))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (rc) {
