@@ -8,6 +8,7 @@
 #include "testlib.h"
 
 #include "rths/config.h"
+#include "rths/continuation.h"
 #include "rths/controller.h"
 #include "rths/iterate.h"
 #include "rths/protocol.h"
@@ -632,6 +633,80 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
     rths_config_free(cfg);
 }
 
+typedef struct {
+    rths_point pts[4];
+    int n;
+} point_log;
+
+static int keep_point(void *user, const rths_point *pt, int is_update) {
+    point_log *log = user;
+    if (!is_update && log->n < 4) log->pts[log->n++] = *pt;
+    return 0;
+}
+
+static void run_short_continuation(rths_rig *rig, point_log *log) {
+    rths_continuation_options copt;
+    rths_settle_options settle;
+    rths_newton_options newton;
+    rths_continuation_defaults(&copt);
+    rths_settle_defaults(&settle, 0);
+    rths_newton_defaults(&newton, 0);
+    copt.method = RTHS_CONT_NATURAL;
+    copt.start_hz = 16.0;
+    copt.end_hz = 16.2;
+    copt.initial_step_hz = 0.1;
+    copt.max_step_hz = 0.1;
+    copt.max_points = 2;
+    newton.rel_tolerance = 1e-6; /* noise off: the tolerance, not the noise, bounds agreement */
+    rths_continuation_result res;
+    rths_error err;
+    memset(log, 0, sizeof *log);
+    int rc = rths_continuation_run(rig, &copt, &settle, &newton, 1, 1.0, NULL, 0, keep_point, NULL,
+                                   log, &res, &err);
+    if (rc) fprintf(stderr, "continuation: %s\n", err.msg);
+    assert_int_equal(rc, RTHS_OK);
+    assert_int_equal(log->n, 2);
+}
+
+static void test_remote_continuation_matches_in_process(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]"};
+    rths_config *cfg = seed_config(sets, 1);
+    rths_setup setup;
+    rths_error err;
+    assert_int_equal(rths_setup_read(cfg, &setup, &err), RTHS_OK);
+    rths_rig *local = NULL;
+    assert_int_equal(rths_virtual_rig_create(cfg, &setup, 0, 0, &local, &err), RTHS_OK);
+    point_log want, got;
+    run_short_continuation(local, &want);
+
+    rths_server *s = start_server_with(0, 30.0, sets, 1);
+    rths_rig *remote = remote_rig(rths_server_port(s));
+    run_short_continuation(remote, &got);
+
+    for (int i = 0; i < 2; i++) {
+        const rths_solution *g = &got.pts[i].sol, *w = &want.pts[i].sol;
+        assert_true(g->converged && w->converged);
+        assert_close(g->omega_rad_s, w->omega_rad_s, 1e-9);
+        double scale = hypot(w->target_a[0], w->target_b[0]);
+        double d = hypot(g->target_a[0] - w->target_a[0], g->target_b[0] - w->target_b[0]);
+        print_message("continuation point %d at %.3f Hz: target |a*| %.6e m, remote - local "
+                      "%.3g m (%.2g relative); %d vs %d evaluations\n",
+                      i, w->omega_rad_s / (2 * M_PI), scale, d, d / scale, got.pts[i].evaluations,
+                      want.pts[i].evaluations);
+        /* Both solve Phi = 0 to ||Phi|| < 1e-6 relative; the solutions may differ by that
+         * residual times the conditioning of the zero problem, far below 1e-4. */
+        assert_true(d <= 1e-4 * scale);
+        assert_close(rths_point_amplitude_m(&got.pts[i]), rths_point_amplitude_m(&want.pts[i]),
+                     1e-4 * rths_point_amplitude_m(&want.pts[i]));
+    }
+    rths_rig_destroy(remote);
+    rths_server_destroy(s);
+    rths_rig_destroy(local);
+    rths_setup_free(&setup);
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_uri_parsing),
@@ -642,6 +717,7 @@ int main(void) {
         cmocka_unit_test(test_remote_rig_unreachable),
         cmocka_unit_test(test_limit_trip_and_restart_reconnect),
         cmocka_unit_test(test_remote_matches_in_process_virtual_rig),
+        cmocka_unit_test(test_remote_continuation_matches_in_process),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
