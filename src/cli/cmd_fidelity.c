@@ -2,6 +2,7 @@
  * integration scheme of the numerical substructure, against the true assembly (SPEC §8). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
+#include "rths/controller.h"
 #include "rths/fidelity.h"
 
 #include <json-c/json.h>
@@ -77,11 +78,12 @@ static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_opti
                                     "must be above fidelity.start_hz (%g Hz), got %g Hz",
                                     o->start_hz, o->end_hz);
     o->points = (int)points;
-    /* Same key, range and default as the controller section's reader: the controller samples at
-     * this rate and the numerical substructure is integrated once per sample. */
-    if ((rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, 10000.0, 100.0, 1e6,
-                                     &o->sample_rate_hz, err)))
-        return rc;
+    /* the controller's own reader: one default and range for the sample rate, and the rest of
+     * the controller section is checked too */
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    if ((rc = rths_controller_config_read(cfg, &copt, err))) return rc;
+    o->sample_rate_hz = copt.sample_rate_hz;
     o->dof = setup->split.int_dofs[0];
     return RTHS_OK;
 }
@@ -185,7 +187,7 @@ static int plot(rths_report *rep, const fidelity_options *o, double mass_ratio, 
 }
 
 int rths_cmd_fidelity(int argc, char **argv) {
-    static const char *const own_sections[] = {"fidelity", NULL};
+    static const char *const own_sections[] = {"fidelity", "controller", NULL};
     rths_cli cli;
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT, usage, NULL, 0);
     if (rc || cli.help) return rc;

@@ -226,33 +226,37 @@ static int write_trace(rths_report *rep, const rths_trace_sample *t, int count, 
 /* The seed's Fig. 8: the phase (Lissajous) plot of physical against numerical interface
  * displacement with the ideal x_phys = x_num line, and their time profiles. In mm so the tick
  * labels stay short. */
-static int plot(rths_report *rep, const char *title, double lissajous_from_s, rths_error *err) {
+static int plot(rths_report *rep, const char *title, double lissajous_from_s, double max_abs_m,
+                rths_error *err) {
+    /* micrometres below a millimetre, so tick labels stay short */
+    double scale = max_abs_m < 1e-3 ? 1e6 : 1e3;
+    const char *unit = max_abs_m < 1e-3 ? "µm" : "mm";
     char body[4096];
-    snprintf(
-        body, sizeof body,
-        "set datafile separator ','\n"
-        "set multiplot layout 1,2 title '%s'\n"
-        "set grid\n"
-        "set title 'phase plot (t >= %.4g s)'\n"
-        "set xlabel 'numerical interface displacement x_{num} (mm)'\n"
-        "set ylabel 'physical interface displacement x_{phys} (mm)'\n"
-        "set size ratio -1\n"
-        "set key top left\n"
-        "plot x with lines lw 1 lc rgb '#000000' title 'ideal: x_{phys} = x_{num}', \\\n"
-        "  'trace.csv' skip 1 using ($1 >= %.17g ? $3*1e3 : NaN):($2*1e3) with lines lw 2 "
-        "lc rgb '#1f77b4' title 'x_{phys} vs x_{num}'\n"
-        "set size noratio\n"
-        "set title 'time profiles'\n"
-        "set xlabel 'time (s)'\n"
-        "set ylabel 'interface displacement (mm)'\n"
-        "set key top right\n"
-        "plot 'trace.csv' skip 1 using 1:($2*1e3) with lines lw 2 lc rgb '#1f77b4' "
-        "title 'physical x_{phys}', \\\n"
-        "  '' skip 1 using 1:($3*1e3) with lines lw 2 dt 2 lc rgb '#2ca02c' "
-        "title 'numerical x_{num}', \\\n"
-        "  '' skip 1 using 1:($4*1e3) with lines lw 1 dt 3 lc rgb '#7f7f7f' title 'target x*'\n"
-        "unset multiplot\n",
-        title, lissajous_from_s, lissajous_from_s);
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set multiplot layout 1,2 title '%s'\n"
+             "set grid\n"
+             "set title 'phase plot (t >= %.4g s)'\n"
+             "set xlabel 'numerical interface displacement x_{num} (%s)'\n"
+             "set ylabel 'physical interface displacement x_{phys} (%s)'\n"
+             "set size ratio -1\n"
+             "set key top left\n"
+             "plot x with lines lw 1 lc rgb '#000000' title 'ideal: x_{phys} = x_{num}', \\\n"
+             "  'trace.csv' skip 1 using ($1 >= %.17g ? $3*%g : NaN):($2*%g) with lines lw 2 "
+             "lc rgb '#1f77b4' title 'x_{phys} vs x_{num}'\n"
+             "set size noratio\n"
+             "set title 'time profiles'\n"
+             "set xlabel 'time (s)'\n"
+             "set ylabel 'interface displacement (%s)'\n"
+             "set key top right\n"
+             "plot 'trace.csv' skip 1 using 1:($2*%g) with lines lw 2 lc rgb '#1f77b4' "
+             "title 'physical x_{phys}', \\\n"
+             "  '' skip 1 using 1:($3*%g) with lines lw 2 dt 2 lc rgb '#2ca02c' "
+             "title 'numerical x_{num}', \\\n"
+             "  '' skip 1 using 1:($4*%g) with lines lw 1 dt 3 lc rgb '#7f7f7f' title 'target x*'\n"
+             "unset multiplot\n",
+             title, lissajous_from_s, unit, unit, lissajous_from_s, scale, scale, unit, scale,
+             scale, scale);
     return rths_plot(rep, rths_report_dir(rep), "simulate", 1400, 620, body, err);
 }
 
@@ -372,13 +376,8 @@ static double growth_rate(const rths_trace_sample *t, int n, double period_s, do
     return (used * sxy - sx * sy) / (used * sxx - sx * sx);
 }
 
-/* TEMPORARY (until the virtual rig's implementation is committed): 0 builds simulate without it,
- * so only --mode feedback --delay works. */
-#define SIMULATE_HAS_VIRTUAL_RIG 0
-
 static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const rths_cli *cli,
                               int feedback, rths_rig **rig, rths_error *err) {
-#if SIMULATE_HAS_VIRTUAL_RIG
     int rc = rths_virtual_rig_create(cfg, setup, cli->has_seed, cli->seed, rig, err);
     if (rc) return rc;
     if (feedback) {
@@ -387,13 +386,6 @@ static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const r
         rths_controller_set_feedback(c, 1);
     }
     return RTHS_OK;
-#else
-    (void)cfg, (void)setup, (void)cli, (void)feedback;
-    *rig = NULL;
-    return rths_error_set(err, RTHS_EFAIL,
-                          "the virtual rig is not available in this build (only --mode feedback "
-                          "--delay TAU works)");
-#endif
 }
 
 /* Feedback mode through the rig's shaker and PD: the whole run is recorded at the controller's
@@ -403,7 +395,8 @@ static int run_feedback_rig(rths_rig *rig, const rths_setup *setup, const sim_ar
     int rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err);
     if (rc) return rc;
     double duration = (double)a->periods / a->frequency_hz;
-    int max_samples = 2000000;
+    /* 200 samples per period resolve the harmonics and the envelope; the cap bounds memory */
+    int max_samples = (int)fmin(200.0 * (double)a->periods + 100, 400000);
     r->trace = calloc((size_t)max_samples, sizeof *r->trace);
     if (!r->trace) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     rc = rths_rig_record_trace(rig, duration, max_samples, r->trace, &r->n_trace, err);
@@ -574,7 +567,9 @@ int rths_cmd_simulate(int argc, char **argv) {
     int pure_delay = a.feedback && a.has_delay;
     if (!pure_delay && (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err)))
         goto done;
-    if ((rc = rths_cli_check_config(cfg, &err))) goto done;
+    /* the virtual rig read the rig and controller sections: a misspelt key there is an error */
+    static const char *const rig_sections[] = {"rig", "controller", NULL};
+    if ((rc = rths_cli_check_config_own(cfg, rig ? rig_sections : NULL, &err))) goto done;
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
     rths_report_log(rep, "simulate: mode %s, %g Hz, %ld periods",
                     a.feedback ? "feedback" : "iterative", a.frequency_hz, a.periods);
@@ -660,9 +655,15 @@ int rths_cmd_simulate(int argc, char **argv) {
         snprintf(title, sizeof title, "Iterative hybrid test at a fixed target, p = %g, %g Hz",
                  setup.split.mass_ratio, a.frequency_hz);
     /* the phase plot shows the last (up to) five periods: the steady state, or the growth */
-    double t_last = n_shown > 0 ? shown[n_shown - 1].time_s : 0;
+    double t_last = n_shown > 0 ? shown[n_shown - 1].time_s : 0, max_abs = 0;
+    for (int i = 0; i < n_shown; i++) {
+        const double v[3] = {shown[i].x_phys_m, shown[i].x_num_m, shown[i].target_m};
+        for (int k = 0; k < 3; k++)
+            if (isfinite(v[k])) max_abs = fmax(max_abs, fabs(v[k]));
+    }
     rc = plot(rep, title,
-              fmax(shown && n_shown ? shown[0].time_s : 0, t_last - 5.0 / a.frequency_hz), &err);
+              fmax(shown && n_shown ? shown[0].time_s : 0, t_last - 5.0 / a.frequency_hz), max_abs,
+              &err);
 done:
     if (summary) json_object_put(summary);
     free(shown);
