@@ -30,11 +30,14 @@ typedef struct rths_plant_options {
     int noise;                /* 0: every sensor exact (gain error, offset, noise, quantum off) */
     uint64_t seed;            /* noise generator seed */
     int substeps_per_sample;  /* Runge-Kutta substeps per controller sample */
+    int linear_hold;          /* 1: the demand ramps linearly from the last sample's value over
+                                 the sample (a reconstruction filter) instead of a DAC's step */
     rths_sensor_spec laser, accelerometer, load_cell;
 } rths_plant_options;
 
 void rths_plant_defaults(rths_plant_options *opt);
-/* An ideal shaker and exact sensors: no delay, no lag, no armature mass, no noise. */
+/* An ideal shaker and exact sensors: no delay, no lag, no armature mass, no noise, and a
+ * continuous force (linear hold of the demand): the only discrete thing left is the controller. */
 void rths_plant_ideal(rths_plant_options *opt);
 /* Reads the `rig` section (rig.noise, rig.seed, rig.shaker.*, rig.sensors.*) over the defaults. */
 int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err);

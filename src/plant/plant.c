@@ -22,7 +22,8 @@ struct rths_plant {
     double time_s;
     double delay_line[MAX_DELAY];
     int delay_samples, delay_pos;
-    double lag_rate; /* 2 pi f_c, 0: no lag */
+    double lag_rate;          /* 2 pi f_c, 0: no lag */
+    double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
     rths_rng rng;
 };
@@ -48,6 +49,7 @@ void rths_plant_ideal(rths_plant_options *opt) {
     opt->lag_cutoff_hz = 0;
     opt->armature_mass_kg = 0;
     opt->noise = 0;
+    opt->linear_hold = 1;
 }
 
 int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, double sample_rate_hz,
@@ -205,38 +207,45 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
         p->delay_line[p->delay_pos] = demand_v;
         p->delay_pos = (p->delay_pos + 1) % len;
     }
-    double target = p->opt.gain_n_per_v * u;
+    double target_end = p->opt.gain_n_per_v * u;
+    double target_start = p->opt.linear_hold ? p->last_force_target : target_end;
+    p->last_force_target = target_end;
     int n = p->n;
     double dt = p->dt;
-    for (int s = 0; s < p->opt.substeps_per_sample; s++) {
-        /* classical RK4 on (q, v, fs) */
+    int m = p->opt.substeps_per_sample;
+    for (int s = 0; s < m; s++) {
+        /* classical RK4 on (q, v, fs); the force target is linear in time within the sample */
+        double t0 = (double)s / m, t1 = (double)(s + 1) / m;
+        double target_0 = target_start + (target_end - target_start) * t0;
+        double target_h = target_start + (target_end - target_start) * 0.5 * (t0 + t1);
+        double target_1 = target_start + (target_end - target_start) * t1;
         double q1[MAXN], v1[MAXN], a1[MAXN], q2[MAXN], v2[MAXN], a2[MAXN], q3[MAXN], v3[MAXN],
             a3[MAXN], a4[MAXN];
         double f1, f2, f3, g1, g2, g3, g4;
         if (p->lag_rate > 0) {
-            g1 = p->lag_rate * (target - p->fs);
+            g1 = p->lag_rate * (target_0 - p->fs);
         } else {
-            p->fs = target;
+            p->fs = target_0;
             g1 = 0;
         }
         f1 = p->fs;
         accelerations(p, p->q, p->v, f1, a1);
-        f2 = f1 + 0.5 * dt * g1;
-        g2 = p->lag_rate > 0 ? p->lag_rate * (target - f2) : 0;
+        f2 = p->lag_rate > 0 ? f1 + 0.5 * dt * g1 : target_h;
+        g2 = p->lag_rate > 0 ? p->lag_rate * (target_h - f2) : 0;
         for (int i = 0; i < n; i++) {
             q1[i] = p->q[i] + 0.5 * dt * p->v[i];
             v1[i] = p->v[i] + 0.5 * dt * a1[i];
         }
         accelerations(p, q1, v1, f2, a2);
-        f3 = f1 + 0.5 * dt * g2;
-        g3 = p->lag_rate > 0 ? p->lag_rate * (target - f3) : 0;
+        f3 = p->lag_rate > 0 ? f1 + 0.5 * dt * g2 : target_h;
+        g3 = p->lag_rate > 0 ? p->lag_rate * (target_h - f3) : 0;
         for (int i = 0; i < n; i++) {
             q2[i] = p->q[i] + 0.5 * dt * v1[i];
             v2[i] = p->v[i] + 0.5 * dt * a2[i];
         }
         accelerations(p, q2, v2, f3, a3);
-        double f4 = f1 + dt * g3;
-        g4 = p->lag_rate > 0 ? p->lag_rate * (target - f4) : 0;
+        double f4 = p->lag_rate > 0 ? f1 + dt * g3 : target_1;
+        g4 = p->lag_rate > 0 ? p->lag_rate * (target_1 - f4) : 0;
         for (int i = 0; i < n; i++) {
             q3[i] = p->q[i] + dt * v2[i];
             v3[i] = p->v[i] + dt * a3[i];
@@ -246,7 +255,10 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
             p->q[i] += dt / 6 * (p->v[i] + 2 * v1[i] + 2 * v2[i] + v3[i]);
             p->v[i] += dt / 6 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i]);
         }
-        if (p->lag_rate > 0) p->fs += dt / 6 * (g1 + 2 * g2 + 2 * g3 + g4);
+        if (p->lag_rate > 0)
+            p->fs += dt / 6 * (g1 + 2 * g2 + 2 * g3 + g4);
+        else
+            p->fs = target_1;
     }
     p->time_s += p->h;
 }
