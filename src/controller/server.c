@@ -186,7 +186,7 @@ void rths_server_options_defaults(rths_server_options *opt) {
     memset(opt, 0, sizeof *opt);
     snprintf(opt->host, sizeof opt->host, "127.0.0.1");
     opt->port = 7400;
-    opt->watchdog_s = 1.0;
+    opt->watchdog_s = 2.0;
     opt->realtime = 1;
     opt->priority = 80;
     opt->cpu = -1;

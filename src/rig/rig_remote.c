@@ -45,6 +45,7 @@ typedef struct remote {
     double valid_from_s; /* periods starting before this ran under an older setting */
     double last_time_s;
     int armed;
+    double last_sent_s; /* any frame to the controller feeds its watchdog */
     rths_rig_fault fault;
     char fault_msg[512];
     /* the last settings, replayed after a reconnect */
@@ -142,6 +143,7 @@ static int send_msg(remote *r, rths_msg *m, rths_error *err) {
         if (k <= 0) return link_fail(r, err, "send: %s", strerror(errno));
         off += (size_t)k;
     }
+    r->last_sent_s = now_s();
     return RTHS_OK;
 }
 
@@ -414,14 +416,14 @@ static double ping_interval(const remote *r) {
     return p > 0 && p < 0.5 ? p : 0.5;
 }
 
-/* Waits for frames for up to `wait` seconds, pinging to keep the watchdog fed. */
-static int pump(remote *r, double wait, double *last_ping, rths_error *err) {
+/* Waits for frames for up to `wait` seconds, pinging to keep the watchdog fed (the last frame
+ * sent counts, across calls: a host calling run_periods(1) in a loop is not silent). */
+static int pump(remote *r, double wait, rths_error *err) {
     rths_msg m;
     int got, rc;
-    if (now_s() - *last_ping >= ping_interval(r)) {
+    if (now_s() - r->last_sent_s >= ping_interval(r)) {
         rths_msg reply;
         if ((rc = simple(r, RTHS_MSG_PING, &reply, err))) return rc;
-        *last_ping = now_s();
     }
     if ((rc = read_frame(r, wait, &m, &got, err))) return rc;
     if (got) {
@@ -479,7 +481,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
     if (rc) return rc;
     if (!r->have_forcing) return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
     if ((rc = ensure_armed(r, err))) return rc;
-    double last_ping = now_s(), last_progress = now_s();
+    double last_progress = now_s();
     double stall = r->opt.stall_timeout_s + 2.0 / r->frequency_hz;
     int n = 0;
     while (n < count) {
@@ -499,7 +501,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
         }
         if (now_s() - last_progress > stall)
             return link_fail(r, err, "no whole period from the controller for %.3g s", stall);
-        if ((rc = pump(r, ping_interval(r), &last_ping, err))) return rc;
+        if ((rc = pump(r, ping_interval(r), err))) return rc;
     }
     return RTHS_OK;
 }
@@ -528,14 +530,14 @@ static int r_record_trace(void *self, double duration_s, int max_samples, rths_t
     r->trace_n = 0;
     r->trace_t0 = reply.u.ack.time_s;
     r->trace_t1 = reply.u.ack.time_s + duration_s;
-    double last_ping = now_s(), start = now_s();
+    double start = now_s();
     while (r->trace_n < max_samples && r->last_time_s < r->trace_t1) {
         if (now_s() - start > duration_s + r->opt.stall_timeout_s) {
             r->tracing = 0;
             return link_fail(r, err, "trace did not arrive within %.3g s",
                              duration_s + r->opt.stall_timeout_s);
         }
-        if ((rc = pump(r, ping_interval(r), &last_ping, err))) {
+        if ((rc = pump(r, ping_interval(r), err))) {
             r->tracing = 0;
             *n_out = r->trace_n;
             return rc;

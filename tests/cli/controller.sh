@@ -41,8 +41,16 @@ expect_exit 2 "unknown server key" "$RTHS" controller --config "$CFG" --listen 1
 expect_exit 2 "missing config file" "$RTHS" controller --config "$tmp/nope.yaml"
 expect_exit 2 "unknown option" "$RTHS" controller --config "$CFG" --frobnicate
 
+# The seed with heavier damping (the transient dies out in seconds of wall-clock time), noise
+# off, and a two-point natural continuation: shared by the controller and both host runs.
+PHYS=(--set "structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]" --set rig.noise=false)
+HOST=(--set continuation.method=natural --set continuation.start_hz=16
+    --set continuation.end_hz=16.2 --set continuation.initial_step_hz=0.1
+    --set continuation.max_step_hz=0.1 --set continuation.max_points=2
+    --set iteration.rel_tolerance=1e-6)
+
 # Start on an ephemeral port.
-"$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false \
+"$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false "${PHYS[@]}" \
     >"$tmp/ctl.out" 2>"$tmp/ctl.err" &
 pid=$!
 port=
@@ -60,10 +68,28 @@ expect_exit 1 "port in use" "$RTHS" controller --config "$CFG" --listen "127.0.0
     --set server.realtime=false
 grep -q "cannot listen" "$tmp/x.err" || fail "port-in-use message"
 
-# A host run over TCP, if the simulate command is linked and takes --rig.
-if "$RTHS" simulate --help 2>/dev/null | grep -q -- "--rig"; then
-    "$RTHS" simulate "$CFG" --rig "tcp://127.0.0.1:$port" --out "$tmp/sim" \
-        >"$tmp/sim.out" 2>"$tmp/sim.err" || fail "rths simulate over tcp failed"
+# rths frf over TCP against the same run on the in-process virtual rig: the same points, the
+# same solution (both converge to 1e-6 relative; agreement asked: 1e-4 relative).
+if "$RTHS" frf --help 2>/dev/null | grep -q -- "--rig"; then
+    "$RTHS" frf "$CFG" --out "$tmp/remote" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" "${HOST[@]}" \
+        --quiet >"$tmp/frf_remote.out" 2>"$tmp/frf_remote.err" || fail "rths frf over tcp failed"
+    "$RTHS" frf "$CFG" --out "$tmp/local" "${PHYS[@]}" "${HOST[@]}" --quiet \
+        >"$tmp/frf_local.out" 2>"$tmp/frf_local.err" || fail "rths frf in-process failed"
+    [ -s "$tmp/remote/trace.csv" ] || fail "no trace recorded over tcp"
+    paste -d, "$tmp/remote/frf.csv" "$tmp/local/frf.csv" | awk -F, '
+        NR == 1 { n = NF / 2; for (i = 1; i <= n; i++) col[$i] = i; next }
+        {
+            rows++
+            if ($(col["frequency_hz"]) != $(n + col["frequency_hz"])) bad = bad " frequency"
+            split("amplitude_m numerical_amplitude_m target_a1_m target_b1_m", names, " ")
+            for (j in names) {
+                c = col[names[j]]; r = $c; l = $(n + c)
+                d = r - l; if (d < 0) d = -d; s = l < 0 ? -l : l
+                if (d > 1e-4 * s) bad = bad " " names[j] "(" r " vs " l ")"
+            }
+        }
+        END { if (rows != 2 || bad != "") { print "frf remote vs local:" bad " rows " rows; exit 1 } }
+    ' || fail "frf over tcp differs from the in-process run"
 fi
 
 # SIGTERM: disarm, ramp down, statistics on stderr, exit 0.
