@@ -106,7 +106,7 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
                               opts[OPT_FREQ].value);
     if (!opts[OPT_PERIODS].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --periods N (forcing periods to run)");
-    if ((rc = rths_cli_int("--periods", opts[OPT_PERIODS].value, 1, 10000000, &a->periods, err)))
+    if ((rc = rths_cli_int("--periods", opts[OPT_PERIODS].value, 1, 100000, &a->periods, err)))
         return rc;
     if (a->feedback) {
         if (opts[OPT_TARGET].value)
@@ -392,14 +392,13 @@ static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const r
  * sample rate (up to a cap), so divergence and its growth are seen from the start. */
 static int run_feedback_rig(rths_rig *rig, const rths_setup *setup, const sim_args *a,
                             sim_result *r, rths_error *err) {
-    int rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err);
-    if (rc) return rc;
+    (void)setup;
     double duration = (double)a->periods / a->frequency_hz;
     /* 200 samples per period resolve the harmonics and the envelope; the cap bounds memory */
     int max_samples = (int)fmin(200.0 * (double)a->periods + 100, 400000);
     r->trace = calloc((size_t)max_samples, sizeof *r->trace);
     if (!r->trace) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    rc = rths_rig_record_trace(rig, duration, max_samples, r->trace, &r->n_trace, err);
+    int rc = rths_rig_record_trace(rig, duration, max_samples, r->trace, &r->n_trace, err);
     r->fault = rths_rig_get_fault(rig);
     r->rig_time_s = rths_rig_time_s(rig);
     /* a limit trip is a result here (the loop went unstable), not a failure of the command */
@@ -414,9 +413,7 @@ static int run_feedback_rig(rths_rig *rig, const rths_setup *setup, const sim_ar
 static int run_iterative(rths_rig *rig, const rths_setup *setup, const sim_args *a, sim_result *r,
                          rths_error *err) {
     int rc;
-    if ((rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err)) ||
-        (rc = rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err)))
-        return rc;
+    (void)setup;
     r->periods = calloc((size_t)a->periods, sizeof *r->periods);
     if (!r->periods) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     if ((rc = rths_rig_run_periods(rig, (int)a->periods, r->periods, err))) return rc;
@@ -567,6 +564,31 @@ int rths_cmd_simulate(int argc, char **argv) {
     int pure_delay = a.feedback && a.has_delay;
     if (!pure_delay && (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err)))
         goto done;
+    if (rig) {
+        /* everything the rig can refuse is checked here, before the output folder exists */
+        rths_controller_options copt;
+        rths_controller_defaults(&copt);
+        if ((rc = rths_controller_config_read(cfg, &copt, &err))) goto done;
+        int top = a.feedback ? 1 : a.harmonics;
+        if (!(a.frequency_hz < 0.25 * copt.sample_rate_hz)) {
+            rc = rths_error_set(&err, RTHS_EINPUT,
+                                "option --frequency: %g Hz must be below a quarter of the "
+                                "controller's sample rate (controller.sample_rate_hz = %g Hz)",
+                                a.frequency_hz, copt.sample_rate_hz);
+            goto done;
+        }
+        if (top * a.frequency_hz >= 0.5 * copt.sample_rate_hz) {
+            rc = rths_error_set(&err, RTHS_EINPUT,
+                                "option --target: harmonic %d of %g Hz is at or beyond the "
+                                "controller's Nyquist frequency (%g Hz)",
+                                top, a.frequency_hz, 0.5 * copt.sample_rate_hz);
+            goto done;
+        }
+        if ((rc = rths_rig_set_forcing(rig, a.frequency_hz, setup.forcing_amplitude_n, &err)) ||
+            (!a.feedback &&
+             (rc = rths_rig_set_target(rig, a.harmonics, a.target_a, a.target_b, &err))))
+            goto done;
+    }
     /* the virtual rig read the rig and controller sections: a misspelt key there is an error */
     static const char *const rig_sections[] = {"rig", "controller", NULL};
     if ((rc = rths_cli_check_config_own(cfg, rig ? rig_sections : NULL, &err))) goto done;

@@ -158,6 +158,10 @@ bad "seed negative" "--seed" "$cfg" "${ok[@]}" --seed -1
 bad "seed not a number" "--seed" "$cfg" "${ok[@]}" --seed abc
 bad "unknown option" "unknown option '--frobnicate'" "$cfg" "${ok[@]}" --frobnicate
 bad "bad config override" "split.mass_ratio" "$cfg" "${ok[@]}" --set split.mass_ratio=1.5
+bad "frequency beyond the controller" "--frequency.*quarter of the controller" "$cfg" --frequency 3000 --target 1e-4,0 --periods 3
+bad "harmonic beyond Nyquist" "--target.*harmonic 3.*Nyquist" "$cfg" --frequency 2000 --target 1e-4,0,0,0,0,0 --periods 3
+bad "periods too many" "--periods" "$cfg" --frequency 13 --target 1e-4,0 --periods 100000000
+bad "misspelt rig key" "controller.kp_v_per_mm" "$cfg" "${ok[@]}" --set controller.kp_v_per_mm=3
 bad "missing config" "missing CONFIG" "${ok[@]}"
 "$bin" simulate "$cfg" "${ok[@]}" >/dev/null 2>"$work/bstderr"
 [ $? -eq 2 ] && grep -q -- "--out" "$work/bstderr" || fail "missing --out not refused"
