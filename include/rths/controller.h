@@ -38,25 +38,27 @@ typedef struct rths_sensor_sample {
 /* What the step computed this sample (for traces). */
 typedef struct rths_controller_output {
     double time_s;
-    double demand_v;   /* actuator demand, V */
-    double target_m;   /* x*(t) */
-    double x_phys_m;   /* measured physical interface displacement */
-    double x_num_m;    /* numerical interface displacement */
-    double force_n;    /* measured interface force */
+    double demand_v; /* actuator demand, V */
+    double target_m; /* x*(t) */
+    double x_phys_m; /* measured physical interface displacement */
+    double x_num_m;  /* numerical interface displacement */
+    double force_n;  /* measured interface force */
 } rths_controller_output;
 
 typedef struct rths_controller_options {
-    double sample_rate_hz;          /* 10000 (seed) */
-    rths_scheme scheme;             /* numerical substructure integrator; default exact_foh */
-    double kp_v_per_m;              /* physical PD, 100 V/m (seed) */
-    double kd_v_s_per_m;            /* 10 V s/m (seed) */
-    double grounding_kp_n_per_m;    /* numerical grounding PD, 50000 N/m (seed) */
-    double grounding_kd_n_s_per_m;  /* 200 N s/m (seed) */
-    double velocity_cutoff_hz;      /* filtered differentiator of the laser signal */
-    double demand_limit_v;          /* |U| above this latches a fault */
-    double displacement_limit_m;    /* |x| of any physical DoF above this latches a fault */
-    double force_limit_n;           /* |F_LC| above this latches a fault */
-    double ramp_time_s;             /* demand, forcing and target ramp to zero in this time */
+    double sample_rate_hz;         /* 10000 (seed) */
+    rths_scheme scheme;            /* numerical substructure integrator; default exact_foh */
+    double kp_v_per_m;             /* physical PD, 100 V/m (seed) */
+    double kd_v_s_per_m;           /* 10 V s/m (seed) */
+    double grounding_kp_n_per_m;   /* numerical grounding PD, 50000 N/m (seed) */
+    double grounding_kd_n_s_per_m; /* 200 N s/m (seed) */
+    double velocity_cutoff_hz;     /* filtered differentiator of the laser signal */
+    double demand_limit_v;         /* |U| above this latches a fault */
+    double displacement_limit_m;   /* |x| of any physical DoF above this latches a fault */
+    double force_limit_n;          /* |F_LC| above this latches a fault */
+    double ramp_time_s;            /* demand, forcing and target ramp to zero in this time */
+    int track_static;              /* target's static term = the measured mean of the last
+                                      period (the actuator carries no static load) */
 } rths_controller_options;
 
 void rths_controller_defaults(rths_controller_options *opt);

@@ -31,7 +31,9 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = rths_config_get_double(cfg, "controller.limits.force_n", 0, opt->force_limit_n, 1e-6,
                                      1e9, &opt->force_limit_n, err)) ||
         (rc = rths_config_get_double(cfg, "controller.ramp_time_s", 0, opt->ramp_time_s, 0, 60,
-                                     &opt->ramp_time_s, err)))
+                                     &opt->ramp_time_s, err)) ||
+        (rc = rths_config_get_bool(cfg, "controller.track_static", 0, opt->track_static,
+                                   &opt->track_static, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
     if (opt->velocity_cutoff_hz >= 0.5 * opt->sample_rate_hz)

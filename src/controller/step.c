@@ -30,7 +30,8 @@ struct rths_controller {
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
     int feedback, armed;
     rths_rig_fault fault;
-    double ramp; /* 0..1: scales demand, forcing and target */
+    double ramp;          /* 0..1: scales demand, forcing and target */
+    double static_offset; /* mean physical interface displacement of the last period, m */
     /* signal state */
     double time_s, theta;
     double x_prev, v_est, velocity_alpha;
@@ -59,6 +60,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->displacement_limit_m = 0.01;
     opt->force_limit_n = 200.0;
     opt->ramp_time_s = 0.1;
+    opt->track_static = 1;
 }
 
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
@@ -324,6 +326,10 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         }
         target *= c->ramp;
         target_dot *= c->ramp;
+        /* The static term follows the physical side's own mean (last whole period), so the
+         * actuator carries no static load: the preload alone sets the static point, as in the
+         * true assembly, and the numerical interface's mean follows through the grounding. */
+        if (c->opt.track_static) target += c->static_offset;
     }
     double demand =
         c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
@@ -354,6 +360,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
             accumulate(&c->acc_num, theta0, c->y_prev[1], 2 * M_PI, yb[1]);
             accumulate(&c->acc_force, theta0, c->y_prev[2], 2 * M_PI, yb[2]);
             c->period_samples++;
+            c->static_offset = c->acc_phys.a[0];
             publish(c, c->time_s - (1 - alpha) * h);
             if (c->pending_frequency) {
                 c->omega = c->pending_omega;
