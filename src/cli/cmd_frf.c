@@ -380,7 +380,7 @@ static int trace_point(rths_report *rep, rths_rig *rig, const rths_settle_option
              "set xlabel 'Physical x_3 (m)'\n"
              "set ylabel 'Numerical {/Symbol x}_3 (m)'\n"
              "set format x '%%.1e'\n"
-             "set size ratio -1\n"
+             "set size square\n"
              "unset key\n"
              "plot 'trace.csv' using 2:3 skip 1 with lines lw 2 lc rgb '#1f77b4'\n"
              "unset multiplot\n",
@@ -715,7 +715,7 @@ int rths_cmd_frf(int argc, char **argv) {
         facts.trace_rig_time_s = trace_rig_time;
         rc = write_summary(&cli, rep, &run, &truth, &facts, &max_truth_error, &err);
     }
-    if (!rc) {
+    if (!rc && run.n > 0) {
         char title[256];
         snprintf(title, sizeof title, "Hybrid test, %s strategy, p = %g, %d harmonic(s)%s",
                  strategy, setup.split.mass_ratio, harmonics,

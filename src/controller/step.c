@@ -58,7 +58,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->velocity_cutoff_hz = 1000.0;
     opt->demand_limit_v = 10.0;
     opt->displacement_limit_m = 0.01;
-    opt->force_limit_n = 200.0;
+    opt->force_limit_n = 500.0;
     opt->ramp_time_s = 0.1;
     opt->track_static = 1;
 }
