@@ -13,7 +13,7 @@ void rths_settle_defaults(rths_settle_options *opt, int paper) {
     opt->min_wait_periods = 3;
     opt->max_wait_periods = 400;
     opt->abs_tolerance_m = 1e-10;
-    opt->rel_tolerance = 1e-4;
+    opt->rel_tolerance = 3e-4;
     opt->noise_factor = 3.0;
 }
 
