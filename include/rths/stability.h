@@ -63,7 +63,8 @@ int rths_dde_char(const rths_dde *d, double tau, double complex lambda, double c
  * 1-norms of M_0 + M_tau etc.): a positive factor, so zeros and the signs of Re and Im are those
  * of D, but the value stays O(1) for any size and frequency (what MDBM compares). */
 double complex rths_dde_char_scaled(const rths_dde *d, double tau, double complex lambda);
-/* Smallest singular value of A(lambda) relative to the same row scales (0: exact root). */
+/* Smallest singular value of the row-scaled A(lambda), estimated as 1/norm_F(A^{-1}) (within a
+ * factor sqrt(n)); 0 at an exact root. */
 double rths_dde_residual(const rths_dde *d, double tau, double complex lambda);
 /* Newton on D(lambda) = 0 from *lambda (in place). 0 when converged (|step| <= 1e-12 (1+|lambda|)
  * within 50 iterations). */

@@ -10,6 +10,11 @@
 #include <string.h>
 #include <unistd.h>
 
+/* OpenBLAS's own threads fight OpenMP's when LAPACK runs inside the parallel rows (3-4x slower
+ * on two cores); its control functions are bound weakly so another BLAS still links. */
+void openblas_set_num_threads(int n) __attribute__((weak));
+int openblas_get_num_threads(void) __attribute__((weak));
+
 void rths_chart_options_default(rths_chart_options *o) {
     memset(o, 0, sizeof *o);
     o->tau_min_s = 5e-5;
@@ -195,6 +200,8 @@ int rths_chart_compute(rths_dde_family_fn family, void *ctx, const rths_chart_op
     for (int j = 0; j < np; j++)
         out->p[j] = np > 1 ? o->p_min + (o->p_max - o->p_min) * j / (np - 1) : o->p_min;
     int done = 0;
+    int blas_threads = openblas_get_num_threads ? openblas_get_num_threads() : 0;
+    if (openblas_set_num_threads && blas_threads > 1) openblas_set_num_threads(1);
 #pragma omp parallel for schedule(dynamic)
     for (int j = 0; j < np; j++) {
         st[j].rc = chart_row(family, ctx, o, out, j, &st[j].err);
@@ -214,6 +221,7 @@ int rths_chart_compute(rths_dde_family_fn family, void *ctx, const rths_chart_op
         }
     free(st);
     if (!rc) rc = rths_mdbm_boundaries(family, ctx, o, out, err);
+    if (openblas_set_num_threads && blas_threads > 1) openblas_set_num_threads(blas_threads);
     if (rc) {
         rths_chart_free(out);
         return rc;

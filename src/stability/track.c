@@ -54,7 +54,12 @@ static int try_step(const rths_tracker *t, double tau1, double complex *r1) {
             if (j != i) sep = fmin(sep, cabs(l - t->roots[j]));
             sep = fmin(sep, cabs(l - conj(t->roots[j])) + (j == i && cimag(l) == 0 ? INFINITY : 0));
         }
-        if (rths_dde_char(d, t->tau, l, NULL, &gl, &gt) || gl == 0.0) return -1;
+        /* at a root converged to the last bit the LU may hit an exact zero pivot; the ratio
+         * D_tau / D_lambda the predictor needs is smooth there, so take it a hair away */
+        if (rths_dde_char(d, t->tau, l, NULL, &gl, &gt) &&
+            rths_dde_char(d, t->tau, l + 1e-9 * (1.0 + cabs(l)), NULL, &gl, &gt))
+            return -1;
+        if (gl == 0.0) return -1;
         double complex pred = l - gt / gl * dtau;
         double complex c = pred;
         if (rths_dde_newton(d, tau1, &c)) return -1;
