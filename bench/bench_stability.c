@@ -20,15 +20,15 @@ void rths_bench_stability(void) {
     static const double m[4] = {5.37, 5.37, 5.37, 10.74};
     static const double c[4] = {4.4062, 3.7979, 3.7421, 3.7421};
     static const double k[4] = {53048, 45724, 45052, 45052};
-    static const rths_dof_role roles[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_PHYSICAL,
-                                           RTHS_DOF_INTERFACE, RTHS_DOF_NUMERICAL};
+    static const rths_dof_role roles[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_PHYSICAL, RTHS_DOF_INTERFACE,
+                                           RTHS_DOF_NUMERICAL};
     rths_assembly a;
     rths_error err;
     if (rths_assembly_from_chain(4, m, c, k, &a, &err)) {
         printf("stability: %s\n", err.msg);
         return;
     }
-    rths_split_family fam = {&a, roles};
+    rths_split_family fam = {.assembly = &a, .roles = roles};
     rths_chart_options o;
     rths_chart_options_default(&o); /* the seed's ranges, 200 x 200 */
     const int threads[2] = {1, 2};

@@ -1,7 +1,7 @@
-/* Stability module against closed forms: Hayes' equation, x' = -x(t - tau), the delayed oscillator's
- * D(i omega) = 0 curves, a scalar neutral equation's root chain, the seed's delay equation (its
- * structure, D(0) = det K, the p = 1/2 chain), chart self-consistency, and the time-domain
- * delayed-feedback simulation against the chart's labels. */
+/* Stability module against closed forms: Hayes' equation, x' = -x(t - tau), the delayed
+ * oscillator's D(i omega) = 0 curves, a scalar neutral equation's root chain, the seed's delay
+ * equation (its structure, D(0) = det K, the p = 1/2 chain), chart self-consistency, and the
+ * time-domain delayed-feedback simulation against the chart's labels. */
 #include "testlib.h"
 
 #include "rths/stability.h"
@@ -81,13 +81,17 @@ static double hayes_zeta(double a) {
     if (a == 0) return M_PI / 2;
     /* bisection of g(z) = z cos z - a sin z on (0, pi): sign change bracketing the root */
     double lo = 1e-9, hi = M_PI - 1e-9;
-    if (a < 0) lo = M_PI / 2;
-    else hi = M_PI / 2;
+    if (a < 0)
+        lo = M_PI / 2;
+    else
+        hi = M_PI / 2;
     for (int i = 0; i < 200; i++) {
         double mid = 0.5 * (lo + hi);
         double gl = lo * cos(lo) - a * sin(lo), gm = mid * cos(mid) - a * sin(mid);
-        if ((gl < 0) == (gm < 0)) lo = mid;
-        else hi = mid;
+        if ((gl < 0) == (gm < 0))
+            lo = mid;
+        else
+            hi = mid;
     }
     return 0.5 * (lo + hi);
 }
@@ -146,12 +150,14 @@ static void test_neutral_scalar_chain(void **state) {
         prev = dev;
     }
     /* spectral roots: every accepted root solves D = 0 and none lies right of the stable real
-     * root of the delay-free limit... the rightmost is the real root of lambda (1 + c e) = a + b e */
+     * root of the delay-free limit... the rightmost is the real root of lambda (1 + c e) = a + b e
+     */
     double complex *r;
     int nr;
     assert_int_equal(rths_dde_spectral_roots(&d, tau, 32, 0, &r, &nr, &err), RTHS_OK);
     assert_true(nr >= 3);
-    for (int i = 0; i < nr; i++) assert_true(rths_dde_residual(&d, tau, r[i]) < 1e-10);
+    for (int i = 0; i < nr; i++)
+        assert_true(rths_dde_residual(&d, tau, r[i]) < 1e-10);
     double complex lr = r[0];
     assert_close(cimag(lr), 0, 1e-9);
     double complex e = cexp(-lr * tau);
@@ -161,7 +167,8 @@ static void test_neutral_scalar_chain(void **state) {
 }
 
 /* Delayed oscillator x'' + 0.1 x' + x + k x(t - tau) = 0 charted over (tau, k): every MDBM point
- * must satisfy the closed form k = |1 - w^2 + 0.1 i w| and e^{-i w tau} = -(1 - w^2 + 0.1 i w) / k. */
+ * must satisfy the closed form k = |1 - w^2 + 0.1 i w| and e^{-i w tau} = -(1 - w^2 + 0.1 i w) / k.
+ */
 static int oscillator_family(void *ctx, double k, rths_dde *out, rths_error *err) {
     (void)ctx;
     double m = 1, c = 0.1, k0 = 1;
@@ -194,7 +201,8 @@ static void test_delayed_oscillator_mdbm(void **state) {
     assert_int_equal(c.boundary_unexplained, 0);
     /* k < 0.1 (below the minimum of |1 - w^2 + 0.1 i w| = 0.0999) no root can cross: stable for
      * every delay; the critical delay for k = 0.05 is then not found (NaN) */
-    for (int i = 0; i < c.nt; i++) assert_true(c.stable[i]);
+    for (int i = 0; i < c.nt; i++)
+        assert_true(c.stable[i]);
     assert_true(isnan(c.critical_tau[0]));
     rths_chart_free(&c);
 }
@@ -336,7 +344,8 @@ static void test_seed_chart(void **state) {
     assert_int_equal(c->boundary_unexplained, 0);
     for (int j = 0; j < c->np; j++) {
         if (c->p[j] <= 0.5) {
-            for (int i = 0; i < c->nt; i++) assert_false(c->stable[i + j * c->nt]);
+            for (int i = 0; i < c->nt; i++)
+                assert_false(c->stable[i + j * c->nt]);
             assert_close(c->critical_tau[j], 0, 0);
         }
         /* the chart's critical delay separates its own labels along the row */
@@ -351,7 +360,7 @@ static void test_seed_chart(void **state) {
     rths_assembly a;
     rths_error err;
     assert_int_equal(rths_assembly_from_chain(4, seed_m, seed_c, seed_k, &a, &err), RTHS_OK);
-    rths_split_family fam = {&a, seed_roles};
+    rths_split_family fam = {.assembly = &a, .roles = seed_roles};
     for (int b = 0; b < c->n_boundary; b += 7) {
         rths_dde d;
         assert_int_equal(rths_split_family_build(&fam, c->b_p[b], &d, &err), RTHS_OK);
@@ -380,7 +389,8 @@ static void sim_point(double p, double tau, double duration, int *diverged, doub
            r.diverged, r.divergence_time_s, r.growth_rate_per_s, r.n);
     assert_true(r.n > 10);
     double peak = 0;
-    for (int i = 0; i < r.n; i++) peak = fmax(peak, fabs(r.x_num_m[i]));
+    for (int i = 0; i < r.n; i++)
+        peak = fmax(peak, fabs(r.x_num_m[i]));
     last_peak_ratio = peak / r.steady_amplitude_m;
     printf("  peak / steady amplitude %.3g\n", last_peak_ratio);
     *diverged = r.diverged;

@@ -21,7 +21,8 @@
  *  - numerical internal rows: X_0 += N_ni, N_nn (no delay anywhere on the numerical side).
  * So the rule is one line: every physical-substructure entry in an interface COLUMN is delayed,
  * everything else is immediate; X_0 + X_tau = the assembly's X, hence D(0) = det K. For the seed
- * (storeys 1..4, interface 3): M_tau = (1-p) m3 e3 e3^T, C_tau/K_tau hold c3/k3 in column 3 rows 2, 3
+ * (storeys 1..4, interface 3): M_tau = (1-p) m3 e3 e3^T, C_tau/K_tau hold c3/k3 in column 3 rows 2,
+ * 3
  * (-c3, +c3 / -k3, +k3), exactly the paper's eq. (2.10); det(M_0 + z M_tau) = 0 at z = -p/(1-p),
  * so the neutral root chain sits at Re lambda = ln((1-p)/p)/tau: p > 1/2 is necessary.
  *
@@ -81,20 +82,20 @@ int rths_dde_essential(const rths_dde *d, double *rate_times_tau, double complex
 /* ---- rightmost roots by Chebyshev collocation ---- */
 
 /* Roots of D from the spectral discretisation of the DAE form (SPEC §4) on nodes+1 Chebyshev
- * nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root is accepted only when the relative
- * residual rths_dde_residual of the raw eigenvalue is below accept_tol (<= 0: 1e-6); accepted roots
- * are polished by Newton and returned with Im >= 0 (one of each conjugate pair), sorted by
- * decreasing real part. *roots is malloc'ed. */
+ * nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root is accepted only when the
+ * relative residual rths_dde_residual of the raw eigenvalue is below accept_tol (<= 0: 1e-6);
+ * accepted roots are polished by Newton and returned with Im >= 0 (one of each conjugate pair),
+ * sorted by decreasing real part. *roots is malloc'ed. */
 int rths_dde_spectral_roots(const rths_dde *d, double tau, int nodes, double accept_tol,
                             double complex **roots, int *n_roots, rths_error *err);
 
 /* Stability at one delay: max_real = max(rightmost accepted root, essential bound); stable iff
  * every accepted root has Re < 0 and the essential bound is < 0. */
 typedef struct rths_dde_label {
-    double max_real_per_s;    /* as above */
-    double rightmost_real;    /* of the accepted roots (-inf when none) */
+    double max_real_per_s; /* as above */
+    double rightmost_real; /* of the accepted roots (-inf when none) */
     double rightmost_imag;
-    double essential_per_s;   /* rate_times_tau / tau */
+    double essential_per_s; /* rate_times_tau / tau */
     int stable;
 } rths_dde_label;
 int rths_dde_label_at(const rths_dde *d, double tau, int nodes, rths_dde_label *out,
@@ -119,11 +120,11 @@ typedef struct rths_chart_options {
     double p_min, p_max;
     int p_points;
     double omega_min_rad_s, omega_max_rad_s; /* MDBM omega range */
-    int omega_points;                         /* MDBM omega grid */
-    int mdbm_tau_points, mdbm_p_points;       /* MDBM (tau, p) grid (0: the chart's) */
-    int mdbm_refine;                          /* bisection levels per cell */
+    int omega_points;                        /* MDBM omega grid */
+    int mdbm_tau_points, mdbm_p_points;      /* MDBM (tau, p) grid (0: the chart's) */
+    int mdbm_refine;                         /* bisection levels per cell */
     int chebyshev_nodes;
-    int progress;                             /* \r progress line on stderr */
+    int progress; /* \r progress line on stderr */
 } rths_chart_options;
 
 /* The seed's ranges (tau 5e-5..3e-4 s, p 0.01..0.99, omega 1e-4..550 rad/s), 200 x 200 grid. */
@@ -131,14 +132,14 @@ void rths_chart_options_default(rths_chart_options *o);
 
 typedef struct rths_chart {
     int nt, np;
-    double *tau;           /* nt */
-    double *p;             /* np */
-    double *max_real;      /* nt x np, [i + j nt] (tau i, p j) */
-    int *stable;           /* nt x np */
+    double *tau;                      /* nt */
+    double *p;                        /* np */
+    double *max_real;                 /* nt x np, [i + j nt] (tau i, p j) */
+    int *stable;                      /* nt x np */
     double *essential_rate_times_tau; /* np */
-    double *critical_tau;  /* np: rths_dde_critical_delay semantics */
+    double *critical_tau;             /* np: rths_dde_critical_delay semantics */
     double *critical_omega;
-    int n_boundary;        /* MDBM points, ordered along connected curves */
+    int n_boundary; /* MDBM points, ordered along connected curves */
     double *b_tau, *b_p, *b_omega;
     int *b_curve;          /* curve id of each point */
     double b_max_residual; /* max |D_scaled(i omega)| over the polished boundary points */
@@ -155,21 +156,24 @@ void rths_chart_free(rths_chart *c);
 typedef struct rths_split_family {
     const rths_assembly *assembly;
     const rths_dof_role *roles;
+    /* physical shares of the interface damping / stiffness blocks (n_int x n_int), as for
+     * rths_split_create; NULL: the coupling rule */
+    const double *damping_int_phys, *stiffness_int_phys;
 } rths_split_family;
 int rths_split_family_build(void *ctx, double p, rths_dde *out, rths_error *err);
 
 /* ---- time-domain simulation of the delayed-feedback test ---- */
 
 typedef struct rths_delay_sim_result {
-    int n;                 /* samples in the decimated trace */
-    double *t_s;           /* n */
-    double *x_phys_m;      /* physical interface displacement (first interface DoF), n */
-    double *x_num_m;       /* numerical interface displacement, n */
-    int diverged;          /* |x| > 1e3 x steady amplitude, or non-finite */
-    double divergence_time_s; /* NaN when not diverged */
-    double growth_rate_per_s; /* slope of log(window max |x_num|) over the second half */
+    int n;                     /* samples in the decimated trace */
+    double *t_s;               /* n */
+    double *x_phys_m;          /* physical interface displacement (first interface DoF), n */
+    double *x_num_m;           /* numerical interface displacement, n */
+    int diverged;              /* |x| > 1e3 x steady amplitude, or non-finite */
+    double divergence_time_s;  /* NaN when not diverged */
+    double growth_rate_per_s;  /* slope of log(window max |x_num|) over the second half */
     double steady_amplitude_m; /* true assembly's interface amplitude at forcing_hz */
-    double end_time_s;     /* simulated time (early stop on divergence) */
+    double end_time_s;         /* simulated time (early stop on divergence) */
 } rths_delay_sim_result;
 
 /* Physical substructure with its interface DoFs following the numerical ones delayed by tau_s

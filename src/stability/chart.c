@@ -51,7 +51,8 @@ void rths_chart_free(rths_chart *c) {
 int rths_split_family_build(void *ctx, double p, rths_dde *out, rths_error *err) {
     const rths_split_family *f = ctx;
     rths_split s;
-    int rc = rths_split_create(f->assembly, f->roles, p, NULL, NULL, &s, err);
+    int rc = rths_split_create(f->assembly, f->roles, p, f->damping_int_phys, f->stiffness_int_phys,
+                               &s, err);
     if (rc) return rc;
     rc = rths_dde_from_split(f->assembly, &s, out, err);
     rths_split_free(&s);
@@ -162,7 +163,8 @@ static void cross_check(rths_chart *c) {
         if (i < 0 || j < 0 || i + 1 >= nt || j + 1 >= np) continue;
         int all = 1;
         for (int a = 0; a <= 1; a++)
-            for (int e = 0; e <= 1; e++) all &= c->stable[(i + a) + (j + e) * nt];
+            for (int e = 0; e <= 1; e++)
+                all &= c->stable[(i + a) + (j + e) * nt];
         /* only deep inside: the neighbours one further out must be stable too */
         if (all && i >= 1 && j >= 1 && i + 2 < nt && j + 2 < np)
             all &= c->stable[(i - 1) + j * nt] && c->stable[(i + 2) + j * nt] &&

@@ -42,8 +42,10 @@ int rths_dde_from_matrices(int n, const double *m0, const double *mt, const doub
         for (size_t k = 0; k < nn; k++) {
             if (!isfinite(src[m][k])) {
                 rths_dde_free(out);
-                return rths_error_set(err, RTHS_EINPUT, "delay equation matrix %d has a "
-                                                        "non-finite entry", m);
+                return rths_error_set(err, RTHS_EINPUT,
+                                      "delay equation matrix %d has a "
+                                      "non-finite entry",
+                                      m);
             }
             dst[m][k] = src[m][k];
         }
@@ -110,7 +112,8 @@ static double complex clu(int n, double complex *a, int *piv) {
             double complex l = a[i + k * n] / pk;
             a[i + k * n] = l;
             if (l != 0.0)
-                for (int j = k + 1; j < n; j++) a[i + j * n] -= l * a[k + j * n];
+                for (int j = k + 1; j < n; j++)
+                    a[i + j * n] -= l * a[k + j * n];
         }
     }
     return det;
@@ -125,10 +128,12 @@ static void clu_solve(int n, const double complex *lu, const int *piv, double co
             b[piv[k]] = t;
         }
     for (int k = 0; k < n; k++)
-        for (int i = k + 1; i < n; i++) b[i] -= lu[i + k * n] * b[k];
+        for (int i = k + 1; i < n; i++)
+            b[i] -= lu[i + k * n] * b[k];
     for (int k = n - 1; k >= 0; k--) {
         b[k] /= lu[k + k * n];
-        for (int i = 0; i < k; i++) b[i] -= lu[i + k * n] * b[k];
+        for (int i = 0; i < k; i++)
+            b[i] -= lu[i + k * n] * b[k];
     }
 }
 
@@ -142,7 +147,8 @@ static void char_matrix(const rths_dde *d, double tau, double complex l, double 
     for (int k = 0; k < n * n; k++) {
         double complex del = l * l * d->mt[k] + l * d->ct[k] + d->kt[k];
         a[k] = l * l * d->m0[k] + l * d->c0[k] + d->k0[k] + e * del;
-        if (da) da[k] = 2.0 * l * (d->m0[k] + e * d->mt[k]) + d->c0[k] + e * d->ct[k] - tau * e * del;
+        if (da)
+            da[k] = 2.0 * l * (d->m0[k] + e * d->mt[k]) + d->c0[k] + e * d->ct[k] - tau * e * del;
         if (dt) dt[k] = -l * e * del;
     }
 }
@@ -224,7 +230,8 @@ double complex rths_dde_char_scaled(const rths_dde *d, double tau, double comple
     double r = cabs(lambda);
     for (int i = 0; i < n; i++) {
         double s = 1.0 / row_scale(d, i, r);
-        for (int j = 0; j < n; j++) a[i + (size_t)j * n] *= s;
+        for (int j = 0; j < n; j++)
+            a[i + (size_t)j * n] *= s;
     }
     double complex det = clu(n, a, piv);
     if (a != sa) free(a);
@@ -249,7 +256,8 @@ double rths_dde_residual(const rths_dde *d, double tau, double complex lambda) {
     double r = cabs(lambda);
     for (int i = 0; i < n; i++) {
         double s = 1.0 / row_scale(d, i, r);
-        for (int j = 0; j < n; j++) a[i + (size_t)j * n] *= s;
+        for (int j = 0; j < n; j++)
+            a[i + (size_t)j * n] *= s;
     }
     double complex det = clu(n, a, piv);
     double res = 0.0;
@@ -259,7 +267,8 @@ double rths_dde_residual(const rths_dde *d, double tau, double complex lambda) {
             memset(col, 0, (size_t)n * sizeof *col);
             col[j] = 1.0;
             clu_solve(n, a, piv, col);
-            for (int i = 0; i < n; i++) fro += creal(col[i] * conj(col[i]));
+            for (int i = 0; i < n; i++)
+                fro += creal(col[i] * conj(col[i]));
         }
         res = isfinite(fro) && fro > 0 ? 1.0 / sqrt(fro) : 0.0;
     } else if (!isfinite(creal(det)) || !isfinite(cimag(det))) {
@@ -304,7 +313,8 @@ int rths_dde_essential(const rths_dde *d, double *rate_times_tau, double complex
     if (rths_mat_max_abs(d->m0, n, n) == 0 && rths_mat_max_abs(d->mt, n, n) == 0)
         lead0 = d->c0, leadt = d->ct;
     int any_mt = 0;
-    for (size_t k = 0; k < nn; k++) any_mt |= leadt[k] != 0.0;
+    for (size_t k = 0; k < nn; k++)
+        any_mt |= leadt[k] != 0.0;
     double *a = rths_mat_dup(lead0, n, n), *b = NULL;
     double *ar = malloc((size_t)n * 3 * sizeof(double));
     if (!a || !ar) {
@@ -319,7 +329,8 @@ int rths_dde_essential(const rths_dde *d, double *rate_times_tau, double complex
         free(ar);
         return rths_error_set(err, RTHS_EFAIL, "out of memory (essential spectrum)");
     }
-    for (size_t k = 0; k < nn; k++) b[k] = -leadt[k];
+    for (size_t k = 0; k < nn; k++)
+        b[k] = -leadt[k];
     double *ai = ar + n, *be = ar + 2 * n;
     lapack_int info =
         LAPACKE_dggev(LAPACK_COL_MAJOR, 'N', 'N', n, a, n, b, n, ar, ai, be, NULL, 1, NULL, 1);

@@ -22,12 +22,13 @@ void rths_delay_sim_result_free(rths_delay_sim_result *r) {
 }
 
 typedef struct sim {
-    int ph, ni, nn, np; /* internal physical, interface, numerical substructure size, physical size */
+    int ph, ni, nn,
+        np; /* internal physical, interface, numerical substructure size, physical size */
     const rths_split *s;
-    double *m11inv;     /* ph x ph */
-    double *nminv;      /* nn x nn */
-    double *fp, *fn;    /* force amplitudes: physical internal (ph), numerical side (nn) */
-    double w;           /* forcing rad/s */
+    double *m11inv;  /* ph x ph */
+    double *nminv;   /* nn x nn */
+    double *fp, *fn; /* force amplitudes: physical internal (ph), numerical side (nn) */
+    double w;        /* forcing rad/s */
     double h, tau;
     /* ring buffer of interface history: position, velocity, acceleration per step */
     int cap;
@@ -85,7 +86,8 @@ static void rhs(const sim *S, double t, const double *y, double *dy) {
     }
     for (int i = 0; i < ph; i++) {
         double acc = 0;
-        for (int j = 0; j < ph; j++) acc += RTHS_AT(S->m11inv, ph, i, j) * r[j];
+        for (int j = 0; j < ph; j++)
+            acc += RTHS_AT(S->m11inv, ph, i, j) * r[j];
         ap[i] = acc;
     }
     /* force the physical substructure needs at its (delayed) interface */
@@ -111,7 +113,8 @@ static void rhs(const sim *S, double t, const double *y, double *dy) {
     double *ai = dy + 2 * ph + nn;
     for (int i = 0; i < nn; i++) {
         double acc = 0;
-        for (int j = 0; j < nn; j++) acc += RTHS_AT(S->nminv, nn, i, j) * r[j];
+        for (int j = 0; j < nn; j++)
+            acc += RTHS_AT(S->nminv, nn, i, j) * r[j];
         ai[i] = acc;
     }
     memcpy(dy, vp, (size_t)ph * sizeof *dy);
@@ -130,7 +133,8 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
     if (!(duration_s > 0) || !isfinite(duration_s))
         return rths_error_set(err, RTHS_EINPUT, "feedback simulation: duration must be > 0 s");
     if (!(forcing_hz >= 0) || !isfinite(forcing_hz))
-        return rths_error_set(err, RTHS_EINPUT, "feedback simulation: forcing frequency must be >= 0");
+        return rths_error_set(err, RTHS_EINPUT,
+                              "feedback simulation: forcing frequency must be >= 0");
     if (h_s <= 0) h_s = tau_s / 40;
     if (h_s > tau_s / 20 * (1 + 1e-12))
         return rths_error_set(err, RTHS_EINPUT,
@@ -173,7 +177,8 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
             goto done;
         }
         for (int i = 0; i < ph; i++)
-            for (int j = 0; j < ph; j++) RTHS_AT(m11, ph, i, j) = RTHS_AT(s->mass_phys, S.np, i, j);
+            for (int j = 0; j < ph; j++)
+                RTHS_AT(m11, ph, i, j) = RTHS_AT(s->mass_phys, S.np, i, j);
         int info = rths_mat_inverse(ph, m11, S.m11inv);
         rths_mat_free(m11);
         if (info) {
@@ -185,9 +190,12 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
         rc = rths_error_set(err, RTHS_EINPUT, "numerical substructure mass matrix is singular");
         goto done;
     }
-    for (int i = 0; i < ph; i++) S.fp[i] = force_amplitudes[s->phys_dofs[i]];
-    for (int i = 0; i < ni; i++) S.fn[i] = force_amplitudes[s->int_dofs[i]];
-    for (int i = 0; i < s->n_num; i++) S.fn[ni + i] = force_amplitudes[s->num_dofs[i]];
+    for (int i = 0; i < ph; i++)
+        S.fp[i] = force_amplitudes[s->phys_dofs[i]];
+    for (int i = 0; i < ni; i++)
+        S.fn[i] = force_amplitudes[s->int_dofs[i]];
+    for (int i = 0; i < s->n_num; i++)
+        S.fn[ni + i] = force_amplitudes[s->num_dofs[i]];
     /* the true assembly's steady amplitude at the first interface DoF: the yardstick */
     rc = rths_frf(a->n, a->mass, a->damping, a->stiffness, force_amplitudes, S.w, xf, err);
     if (rc) goto done;
@@ -251,13 +259,17 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
         out->end_time_s = t;
         if (st == steps) break;
         rhs(&S, t, y, k1);
-        for (int k = 0; k < ny; k++) yt[k] = y[k] + 0.5 * h_s * k1[k];
+        for (int k = 0; k < ny; k++)
+            yt[k] = y[k] + 0.5 * h_s * k1[k];
         rhs(&S, t + 0.5 * h_s, yt, k2);
-        for (int k = 0; k < ny; k++) yt[k] = y[k] + 0.5 * h_s * k2[k];
+        for (int k = 0; k < ny; k++)
+            yt[k] = y[k] + 0.5 * h_s * k2[k];
         rhs(&S, t + 0.5 * h_s, yt, k3);
-        for (int k = 0; k < ny; k++) yt[k] = y[k] + h_s * k3[k];
+        for (int k = 0; k < ny; k++)
+            yt[k] = y[k] + h_s * k3[k];
         rhs(&S, t + h_s, yt, k4);
-        for (int k = 0; k < ny; k++) y[k] += h_s / 6 * (k1[k] + 2 * k2[k] + 2 * k3[k] + k4[k]);
+        for (int k = 0; k < ny; k++)
+            y[k] += h_s / 6 * (k1[k] + 2 * k2[k] + 2 * k3[k] + k4[k]);
         /* store step st+1: its acceleration from the equations at the new state */
         S.newest = st + 1;
         int slot = (int)((st + 1) % S.cap);
@@ -268,7 +280,8 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
         S.newest = st; /* rhs at t+h reads history up to step st only */
         rhs(&S, t + h_s, y, k1);
         S.newest = st + 1;
-        for (int k = 0; k < ni; k++) S.ha[slot * ni + k] = k1[2 * ph + nn + k];
+        for (int k = 0; k < ni; k++)
+            S.ha[slot * ni + k] = k1[2 * ph + nn + k];
     }
     if (winmax[wi] > 0) {
         wint[wi] = wstart + 0.5 * (out->end_time_s - wstart);
@@ -284,7 +297,8 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
         for (long k = 0; k < nwin; k++) {
             if (wint[k] < t_half) continue;
             double env = 0;
-            for (long q = k; q >= 0 && wint[q] >= wint[k] - span; q--) env = fmax(env, winmax[q]);
+            for (long q = k; q >= 0 && wint[q] >= wint[k] - span; q--)
+                env = fmax(env, winmax[q]);
             if (!(env > 0) || !isfinite(env)) continue;
             double lx = wint[k], ly = log(env);
             sx += lx, sy += ly, sxx += lx * lx, sxy += lx * ly;

@@ -111,11 +111,11 @@ static int polish(const mdbm_ctx *m, double *x, double *res) {
 /* Recursive bisection of one coarse cell on a (2^R + 1)^3 lattice of lazily evaluated values. */
 typedef struct cell_work {
     const mdbm_ctx *m;
-    int R, L;             /* levels, lattice points per side = 2^R + 1 */
-    int ci, cj, ck;       /* coarse cell */
-    rths_dde *dd;         /* DDE per lattice p index (L of them, built lazily) */
+    int R, L;       /* levels, lattice points per side = 2^R + 1 */
+    int ci, cj, ck; /* coarse cell */
+    rths_dde *dd;   /* DDE per lattice p index (L of them, built lazily) */
     int *dd_ok;
-    double complex *val;  /* L^3 */
+    double complex *val; /* L^3 */
     unsigned char *have;
     bvec *out;
     int fail;
@@ -147,7 +147,8 @@ static void refine(cell_work *w, int a0, int b0, int c0, int size) {
     int bs = w->m->pdeg ? 0 : size;
     for (int da = 0; da <= size; da += size)
         for (int db = 0; db <= bs; db += (bs ? bs : 1))
-            for (int dc = 0; dc <= size; dc += size) v[nv++] = lattice(w, a0 + da, b0 + db, c0 + dc);
+            for (int dc = 0; dc <= size; dc += size)
+                v[nv++] = lattice(w, a0 + da, b0 + db, c0 + dc);
     if (!sign_change(v, nv)) return;
     if (size == 1) {
         double s = (double)(w->L - 1);
@@ -157,7 +158,8 @@ static void refine(cell_work *w, int a0, int b0, int c0, int size) {
         double res;
         if (polish(w->m, x, &res) != 0) return;
         double dist = 0;
-        for (int k = 0; k < 3; k++) dist = fmax(dist, fabs(x[k] - c0x[k]) * s);
+        for (int k = 0; k < 3; k++)
+            dist = fmax(dist, fabs(x[k] - c0x[k]) * s);
         if (dist > 2.0 || !isfinite(res)) return; /* wandered off: another cell's point */
         bpoint pt = {w->m->t0 + x[0] * w->m->dt, w->m->p0 + x[1] * w->m->dp,
                      w->m->w0 + x[2] * w->m->dw, res};
@@ -167,7 +169,8 @@ static void refine(cell_work *w, int a0, int b0, int c0, int size) {
     int h = size / 2;
     for (int da = 0; da <= h; da += h)
         for (int db = 0; db <= (w->m->pdeg ? 0 : h); db += (w->m->pdeg ? 1 : h))
-            for (int dc = 0; dc <= h; dc += h) refine(w, a0 + da, b0 + db, c0 + dc, h);
+            for (int dc = 0; dc <= h; dc += h)
+                refine(w, a0 + da, b0 + db, c0 + dc, h);
 }
 
 /* Greedy chaining: points in coarse-cell units, a link only between points closer than `gap`. */
@@ -175,15 +178,16 @@ static void chain(const bpoint *pts, int n, const mdbm_ctx *m, double gap, int *
     unsigned char *used = calloc((size_t)n, 1);
     int *tmp = malloc((size_t)(2 * n + 1) * sizeof(int));
     if (!used || !tmp) {
-        for (int k = 0; k < n; k++) order[k] = k, curve[k] = 0;
+        for (int k = 0; k < n; k++)
+            order[k] = k, curve[k] = 0;
         free(used);
         free(tmp);
         return;
     }
     int pos = 0, cid = 0;
-#define DIST(a, b)                                                                   \
-    sqrt(pow((pts[a].tau - pts[b].tau) / m->dt, 2) +                                 \
-         (m->pdeg ? 0.0 : pow((pts[a].p - pts[b].p) / m->dp, 2)) +                   \
+#define DIST(a, b)                                                                                 \
+    sqrt(pow((pts[a].tau - pts[b].tau) / m->dt, 2) +                                               \
+         (m->pdeg ? 0.0 : pow((pts[a].p - pts[b].p) / m->dp, 2)) +                                 \
          pow((pts[a].omega - pts[b].omega) / m->dw, 2))
     for (int s = 0; s < n; s++) {
         if (used[s]) continue;
@@ -203,8 +207,10 @@ static void chain(const bpoint *pts, int n, const mdbm_ctx *m, double gap, int *
                 }
                 if (best < 0) break;
                 used[best] = 1;
-                if (dir == 0) tmp[++hi] = best;
-                else tmp[--lo] = best;
+                if (dir == 0)
+                    tmp[++hi] = best;
+                else
+                    tmp[--lo] = best;
                 end = best;
             }
         }
@@ -225,9 +231,15 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
     int T = o->mdbm_tau_points > 1 ? o->mdbm_tau_points : o->tau_points;
     int P = o->mdbm_p_points > 1 ? o->mdbm_p_points : o->p_points;
     int W = o->omega_points;
-    mdbm_ctx m = {family, ctx, o->tau_min_s, o->p_min, o->omega_min_rad_s,
-                  (o->tau_max_s - o->tau_min_s) / (T - 1), 0,
-                  (o->omega_max_rad_s - o->omega_min_rad_s) / (W - 1), 0};
+    mdbm_ctx m = {family,
+                  ctx,
+                  o->tau_min_s,
+                  o->p_min,
+                  o->omega_min_rad_s,
+                  (o->tau_max_s - o->tau_min_s) / (T - 1),
+                  0,
+                  (o->omega_max_rad_s - o->omega_min_rad_s) / (W - 1),
+                  0};
     if (o->p_max > o->p_min && P > 1) {
         m.dp = (o->p_max - o->p_min) / (P - 1);
     } else {
@@ -250,7 +262,8 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
         rths_error e;
         if ((rcs[j] = family(ctx, m.p0 + j * m.dp, &d, &e))) continue;
         for (int k = 0; k < W; k++)
-            for (int i = 0; i < T; i++) G(i, j, k) = eval_at(&m, &d, i, k);
+            for (int i = 0; i < T; i++)
+                G(i, j, k) = eval_at(&m, &d, i, k);
         rths_dde_free(&d);
     }
     for (int j = 0; j < P; j++)
@@ -271,7 +284,8 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
                 int nv = 0;
                 for (int a = 0; a <= 1; a++)
                     for (int b = 0; b <= (m.pdeg ? 0 : 1); b++)
-                        for (int e = 0; e <= 1; e++) v[nv++] = G(i + a, j + b, k + e);
+                        for (int e = 0; e <= 1; e++)
+                            v[nv++] = G(i + a, j + b, k + e);
                 if (!sign_change(v, nv)) continue;
                 if (ncell == capc) {
                     capc *= 2;
@@ -300,11 +314,22 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
 #pragma omp parallel for schedule(dynamic)
     for (int q = 0; q < ncell; q++) {
         size_t l3 = (size_t)L * L * L;
-        cell_work w = {&m, R, L, cells[3 * q], cells[3 * q + 1], cells[3 * q + 2],
-                       calloc((size_t)L, sizeof(rths_dde)), calloc((size_t)L, sizeof(int)),
-                       malloc(l3 * sizeof(double complex)), calloc(l3, 1), &outs[q], 0};
-        if (!w.dd || !w.dd_ok || !w.val || !w.have) w.fail = 1;
-        else refine(&w, 0, 0, 0, L - 1);
+        cell_work w = {&m,
+                       R,
+                       L,
+                       cells[3 * q],
+                       cells[3 * q + 1],
+                       cells[3 * q + 2],
+                       calloc((size_t)L, sizeof(rths_dde)),
+                       calloc((size_t)L, sizeof(int)),
+                       malloc(l3 * sizeof(double complex)),
+                       calloc(l3, 1),
+                       &outs[q],
+                       0};
+        if (!w.dd || !w.dd_ok || !w.val || !w.have)
+            w.fail = 1;
+        else
+            refine(&w, 0, 0, 0, L - 1);
         if (w.dd)
             for (int b = 0; b < L; b++)
                 if (w.dd_ok[b]) rths_dde_free(&w.dd[b]);
@@ -312,7 +337,8 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
         fails[q] = w.fail;
     }
     int total = 0, fail = 0;
-    for (int q = 0; q < ncell; q++) total += outs[q].n, fail |= fails[q];
+    for (int q = 0; q < ncell; q++)
+        total += outs[q].n, fail |= fails[q];
     bpoint *all = malloc((size_t)(total ? total : 1) * sizeof *all);
     int *order = malloc((size_t)(total ? total : 1) * sizeof(int));
     int *curve = malloc((size_t)(total ? total : 1) * sizeof(int));
@@ -326,7 +352,8 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
     } else {
         int pos = 0;
         for (int q = 0; q < ncell; q++)
-            for (int k = 0; k < outs[q].n; k++) all[pos++] = outs[q].v[k];
+            for (int k = 0; k < outs[q].n; k++)
+                all[pos++] = outs[q].v[k];
         chain(all, total, &m, 2.5 * sqrt(3.0) / (L - 1), order, curve);
         c->n_boundary = total;
         c->b_max_residual = 0;
@@ -339,7 +366,8 @@ int rths_mdbm_boundaries(rths_dde_family_fn family, void *ctx, const rths_chart_
             c->b_max_residual = fmax(c->b_max_residual, b->res);
         }
     }
-    for (int q = 0; q < ncell; q++) free(outs[q].v);
+    for (int q = 0; q < ncell; q++)
+        free(outs[q].v);
     free(outs), free(fails), free(cells), free(all), free(order), free(curve);
     return rc;
 }

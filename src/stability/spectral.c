@@ -1,10 +1,10 @@
 /* Rightmost characteristic roots by Chebyshev collocation of the infinitesimal generator
  * (Breda-Maset-Vermiglio style), on the DAE form of SPEC §4:
- *   q' = u,  w' = -C_0 u - K_0 q - K_tau q(t-tau),  0 = w - M_0 u - M_tau u(t-tau) - C_tau q(t-tau).
- * The state is y = (q, u, w) on nodes theta_k = tau (x_k - 1) / 2, x_k = cos(k pi / N), k = 0..N.
- * Rows k >= 1 say lambda y_k = (D y)_k (the history is an exponential); rows k = 0 are the DAE with
- * the delayed values taken at theta_N = -tau. The DAE form keeps the neutral term M_tau u(t-tau)
- * algebraic, so no differentiation of the history is needed at theta = 0. */
+ *   q' = u,  w' = -C_0 u - K_0 q - K_tau q(t-tau),  0 = w - M_0 u - M_tau u(t-tau) - C_tau
+ * q(t-tau). The state is y = (q, u, w) on nodes theta_k = tau (x_k - 1) / 2, x_k = cos(k pi / N), k
+ * = 0..N. Rows k >= 1 say lambda y_k = (D y)_k (the history is an exponential); rows k = 0 are the
+ * DAE with the delayed values taken at theta_N = -tau. The DAE form keeps the neutral term M_tau
+ * u(t-tau) algebraic, so no differentiation of the history is needed at theta = 0. */
 #include "rths/stability.h"
 
 #include <lapacke.h>
@@ -14,7 +14,8 @@
 
 static void cheb_diff(int N, double *x, double *D) {
     int m = N + 1;
-    for (int j = 0; j <= N; j++) x[j] = cos(M_PI * j / N);
+    for (int j = 0; j <= N; j++)
+        x[j] = cos(M_PI * j / N);
     for (int i = 0; i <= N; i++) {
         double ci = (i == 0 || i == N) ? 2.0 : 1.0;
         double rs = 0;
@@ -68,8 +69,8 @@ int rths_dde_spectral_roots(const rths_dde *d, double tau, int nodes, double acc
     if (first) {
         /* offsets in y_0: q at 0, w at n */
         for (int i = 0; i < n; i++) {
-            BB(i, n + i) = 1.0;       /* lambda w = -K_0 q - K_tau q_N */
-            AA(n + i, n + i) = 1.0;   /* 0 = w - C_0 q - C_tau q_N */
+            BB(i, n + i) = 1.0;     /* lambda w = -K_0 q - K_tau q_N */
+            AA(n + i, n + i) = 1.0; /* 0 = w - C_0 q - C_tau q_N */
             for (int j = 0; j < n; j++) {
                 AA(i, j) = -RTHS_AT(d->k0, n, i, j);
                 AA(i, qN + j) += -RTHS_AT(d->kt, n, i, j);
@@ -99,13 +100,14 @@ int rths_dde_spectral_roots(const rths_dde *d, double tau, int nodes, double acc
     for (int k = 1; k <= N; k++)
         for (int r = 0; r < s; r++) {
             BB(k * s + r, k * s + r) = 1.0;
-            for (int j = 0; j <= N; j++) AA(k * s + r, j * s + r) = sc * Dm[k + j * m];
+            for (int j = 0; j <= N; j++)
+                AA(k * s + r, j * s + r) = sc * Dm[k + j * m];
         }
 #undef AA
 #undef BB
     double *ai = ar + dim, *be = ar + 2 * dim;
-    lapack_int info =
-        LAPACKE_dggev3(LAPACK_COL_MAJOR, 'N', 'N', dim, A, dim, B, dim, ar, ai, be, NULL, 1, NULL, 1);
+    lapack_int info = LAPACKE_dggev3(LAPACK_COL_MAJOR, 'N', 'N', dim, A, dim, B, dim, ar, ai, be,
+                                     NULL, 1, NULL, 1);
     free(A), free(B), free(x), free(Dm);
     if (info != 0) {
         free(ar), free(out);

@@ -8,9 +8,9 @@ typedef struct rths_tracker {
     const rths_dde *d;
     double tau;
     int nodes;
-    int n;                /* roots followed (Im >= 0, one per conjugate pair) */
+    int n; /* roots followed (Im >= 0, one per conjugate pair) */
     double complex *roots;
-    int reseeds;          /* spectral computations so far */
+    int reseeds; /* spectral computations so far */
 } rths_tracker;
 
 int rths_tracker_seed(rths_tracker *t, const rths_dde *d, double tau, int nodes, rths_error *err);
