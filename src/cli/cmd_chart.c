@@ -177,7 +177,12 @@ static double essential_limit(const rths_chart *c) {
     return NAN;
 }
 
-static int plot(rths_report *rep, const rths_chart *c, double p_ess, rths_error *err) {
+static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_split *sp,
+                rths_error *err) {
+    char ifaces[128] = "";
+    for (int i = 0; i < sp->n_int && strlen(ifaces) < 100; i++)
+        snprintf(ifaces + strlen(ifaces), sizeof ifaces - strlen(ifaces), "%s%d", i ? ", " : "",
+                 sp->int_dofs[i] + 1);
     char ess_line[512] = "";
     if (isfinite(p_ess))
         snprintf(ess_line, sizeof ess_line,
@@ -189,7 +194,8 @@ static int plot(rths_report *rep, const rths_chart *c, double p_ess, rths_error 
     char body[4096];
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
-             "set title 'Delayed-feedback hybrid test: stability chart (green: stable)'\n"
+             "set title 'Delayed-feedback hybrid test of the %d-DoF structure, interface DoF %s: "
+             "stability chart (green: stable)'\n"
              "set xlabel 'feedback delay {/Symbol t} (s)'\n"
              "set ylabel 'mass ratio p = numerical share of the interface mass'\n"
              "set format x '%%.1e'\n"
@@ -208,8 +214,8 @@ static int plot(rths_report *rep, const rths_chart *c, double p_ess, rths_error 
              "  'critical.csv' skip 1 using ($2 > 0 ? $2 : 1/0):1 with lines lw 1.5 dt 3 lc rgb "
              "'#000000' title "
              "'critical delay'%s\n",
-             c->tau[0] - 0.5 * dtau, c->tau[c->nt - 1] + 0.5 * dtau, c->p[0] - 0.5 * dp,
-             c->p[c->np - 1] + 0.5 * dp, ess_line);
+             sp->n, ifaces, c->tau[0] - 0.5 * dtau, c->tau[c->nt - 1] + 0.5 * dtau,
+             c->p[0] - 0.5 * dp, c->p[c->np - 1] + 0.5 * dp, ess_line);
     return rths_plot(rep, rths_report_dir(rep), "chart", 1000, 800, body, err);
 }
 
@@ -378,7 +384,7 @@ int rths_cmd_chart(int argc, char **argv) {
                    chart.boundary_unexplained);
     rths_report_log(rep, "chart %dx%d in %.3f s, %d stable, %d boundary points", chart.nt, chart.np,
                     seconds, n_stable, chart.n_boundary);
-    rc = plot(rep, &chart, p_ess, &err);
+    rc = plot(rep, &chart, p_ess, &setup.split, &err);
 done:
     if (summary) json_object_put(summary);
     if (have_chart) rths_chart_free(&chart);
