@@ -1,0 +1,73 @@
+#!/usr/bin/env bash
+# make demo: the seed's frequency-response test on the virtual rig, figures and CSV in OUT.
+#   1. the true assembly (modes, analytic FRF)                      -> OUT/model
+#   2. the linear hybrid test for p = 0.33, 0.5, 0.67 (12-14 Hz)     -> OUT/linear_p*, one figure
+#   3. the bilinear (nonlinear) hybrid test through both folds       -> OUT/bilinear
+# Usage: tools/demo.sh RTHS_BINARY OUT_DIR
+set -euo pipefail
+bin=${1:?usage: tools/demo.sh RTHS_BINARY OUT_DIR}
+out=${2:?usage: tools/demo.sh RTHS_BINARY OUT_DIR}
+here=$(cd "$(dirname "$0")/.." && pwd)
+mkdir -p "$out"
+
+# value of a top-level number/string in a summary.json written by rths
+json() { sed -n "s/^ *\"$2\": *\"\{0,1\}\([^\",]*\)\"\{0,1\},\{0,1\}$/\1/p" "$1" | head -n 1; }
+
+echo "== 1. the true assembly: modes and analytic FRF -> $out/model"
+rm -rf "$out/model"
+"$bin" model "$here/examples/four_storey.yaml" --out "$out/model"
+
+echo
+echo "== 2. linear hybrid test, three mass ratios p (numerical share of storey 3's mass)"
+for p in 0.33 0.5 0.67; do
+    rm -rf "$out/linear_p$p"
+    "$bin" frf "$here/examples/four_storey_linear.yaml" --out "$out/linear_p$p" --quiet \
+        --set split.mass_ratio=$p
+    s="$out/linear_p$p/summary.json"
+    printf '   p = %-5s %3s points, %3s converged, %4s evaluations (median %s per point), %6.1f s rig time, max deviation from the true FRF %.3f %%\n' \
+        "$p" "$(json "$s" points)" "$(json "$s" converged_points)" "$(json "$s" evaluations_total)" \
+        "$(json "$s" evaluations_per_point_median)" "$(json "$s" rig_time_s)" \
+        "$(awk -v e="$(json "$s" max_relative_error_vs_truth)" 'BEGIN { print 100 * e }')"
+done
+cat >"$out/frf_mass_ratios.gp.tmp" <<'GP'
+set datafile separator ','
+set title 'Hybrid test of the seed building around its second mode, three mass ratios p'
+set xlabel 'Forcing frequency (Hz)'
+set ylabel 'Storey 3 (interface) displacement amplitude (m)'
+set format y '%.1e'
+set grid
+set key top left box opaque
+plot 'linear_p0.5/truth.csv' using 1:2 skip 1 with lines lw 2 lc rgb 'black' title 'true assembly (analytic)', \
+     'linear_p0.33/frf.csv' using 2:3 skip 1 with points pt 7 ps 1.0 lc rgb '#1f77b4' title 'hybrid, p = 0.33', \
+     'linear_p0.5/frf.csv' using 2:3 skip 1 with points pt 5 ps 0.9 lc rgb '#ff7f0e' title 'hybrid, p = 0.5', \
+     'linear_p0.67/frf.csv' using 2:3 skip 1 with points pt 9 ps 1.1 lc rgb '#2ca02c' title 'hybrid, p = 0.67'
+GP
+{
+    echo "set terminal pngcairo size 1200,800 font 'DejaVu Sans,12' enhanced"
+    echo "set output 'frf_mass_ratios.png'"
+    cat "$out/frf_mass_ratios.gp.tmp"
+    echo "set terminal svg size 1200,800 font 'DejaVu Sans,12' enhanced background rgb 'white'"
+    echo "set output 'frf_mass_ratios.svg'"
+    echo "replot"
+    echo "unset output"
+} >"$out/frf_mass_ratios.gp"
+rm -f "$out/frf_mass_ratios.gp.tmp"
+if command -v gnuplot >/dev/null; then
+    (cd "$out" && gnuplot frf_mass_ratios.gp) || echo "warning: gnuplot failed on $out/frf_mass_ratios.gp" >&2
+else
+    echo "warning: gnuplot not installed; $out/frf_mass_ratios.gp kept" >&2
+fi
+
+echo
+echo "== 3. nonlinear hybrid test: bilinear leg with preload, 3 N, pseudo-arclength through the folds"
+rm -rf "$out/bilinear"
+"$bin" frf "$here/examples/four_storey_bilinear.yaml" --out "$out/bilinear" --quiet
+s="$out/bilinear/summary.json"
+printf '   %s points, %s converged, %s evaluations, folds at: %s Hz; max deviation from the shooting solution %.3f %%\n' \
+    "$(json "$s" points)" "$(json "$s" converged_points)" "$(json "$s" evaluations_total)" \
+    "$(grep -A1 '"frequency_hz"' "$s" | sed -n 's/.*"frequency_hz": *\([0-9.]*\).*/\1/p' | tr '\n' ' ')" \
+    "$(awk -v e="$(json "$s" max_relative_error_vs_truth)" 'BEGIN { print 100 * e }')"
+
+echo
+echo "Figures: $out/model/true_frf.png, $out/frf_mass_ratios.png, $out/bilinear/frf.png,"
+echo "         $out/bilinear/iterations.png, $out/linear_p0.5/lissajous.png (CSV and .gp beside each)"
