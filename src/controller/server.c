@@ -140,6 +140,7 @@ struct rths_server {
 
     /* network thread only */
     client c;
+    int note_armed, note_fault; /* state last announced on stderr */
     rths_proto_period latest;
     int have_latest;
     _Atomic uint64_t periods_dropped;
@@ -718,6 +719,44 @@ static void pump_streams(rths_server *s) {
     }
 }
 
+static const char *disarm_reason_name(int r) {
+    switch (r) {
+    case RTHS_DISARM_COMMAND:
+        return "host command";
+    case RTHS_DISARM_FAULT:
+        return "fault";
+    case RTHS_DISARM_WATCHDOG:
+        return "watchdog: host silent";
+    case RTHS_DISARM_LINK:
+        return "host connection lost";
+    case RTHS_DISARM_SHUTDOWN:
+        return "shutdown";
+    }
+    return "never armed";
+}
+
+/* Operator notices on stderr for every change of the armed state or the fault (network thread:
+ * the loop never prints). */
+static void announce(rths_server *s) {
+    int armed = atomic_load(&s->armed), fault = atomic_load(&s->fault);
+    if (s->opt.quiet || (armed == s->note_armed && fault == s->note_fault)) return;
+    double ramp = s->info.ramp_time_s;
+    if (fault && fault != s->note_fault)
+        fprintf(stderr,
+                "rths controller: t = %.3f s: %s fault latched; demand, forcing and target ramp "
+                "to zero over %g s (RESET_FAULT, then ARM, to resume)\n",
+                ctl_time(s), fault_name(fault), ramp);
+    if (armed && !s->note_armed)
+        fprintf(stderr, "rths controller: t = %.3f s: armed by %s\n", ctl_time(s), s->c.peer);
+    if (!armed && s->note_armed)
+        fprintf(stderr,
+                "rths controller: t = %.3f s: disarmed (%s); forcing and target ramp to zero over "
+                "%g s\n",
+                ctl_time(s), disarm_reason_name(atomic_load(&s->last_disarm)), ramp);
+    s->note_armed = armed;
+    s->note_fault = fault;
+}
+
 static void *net_main(void *arg) {
     rths_server *s = arg;
     while (!atomic_load(&s->stop)) {
@@ -730,6 +769,7 @@ static void *net_main(void *arg) {
             read_client(s);
         pump_streams(s);
         if (flush_tx(s)) drop_client(s, "send failed");
+        announce(s);
     }
     drop_client(s, "controller stopping");
     return NULL;

@@ -68,9 +68,28 @@ expect_exit 1 "port in use" "$RTHS" controller --config "$CFG" --listen "127.0.0
     --set server.realtime=false
 grep -q "cannot listen" "$tmp/x.err" || fail "port-in-use message"
 
+wait_for() { # pattern file what
+    for _ in $(seq 1 400); do
+        grep -q "$1" "$2" && return 0
+        kill -0 "$pid" 2>/dev/null || fail "controller exited while waiting for $3"
+        sleep 0.05
+    done
+    fail "no $3"
+}
+
 # rths frf over TCP against the same run on the in-process virtual rig: the same points, the
 # same solution (both converge to 1e-6 relative; agreement asked: 1e-4 relative).
 if "$RTHS" frf --help 2>/dev/null | grep -q -- "--rig"; then
+    # A host killed mid-run (SIGKILL: no goodbye). The controller disarms (forcing and target
+    # ramp to zero), keeps running, and serves the next host.
+    "$RTHS" frf "$CFG" --out "$tmp/killed" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" \
+        "${HOST[@]}" --quiet >"$tmp/killed.out" 2>"$tmp/killed.err" &
+    hpid=$!
+    wait_for "armed by" "$tmp/ctl.err" "'armed' notice"
+    kill -KILL "$hpid"
+    wait "$hpid" 2>/dev/null
+    wait_for "disarmed (host connection lost)" "$tmp/ctl.err" "disarm after the host was killed"
+
     "$RTHS" frf "$CFG" --out "$tmp/remote" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" "${HOST[@]}" \
         --quiet >"$tmp/frf_remote.out" 2>"$tmp/frf_remote.err" || fail "rths frf over tcp failed"
     "$RTHS" frf "$CFG" --out "$tmp/local" "${PHYS[@]}" "${HOST[@]}" --quiet \
