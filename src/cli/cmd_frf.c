@@ -288,6 +288,11 @@ static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t, 
         double decade = pow(10, floor(log10(mag)));
         mag = mag >= 1 ? floor(mag / decade) * decade : 1;
     }
+    int any_unstable = 0, any_fold = 0;
+    for (int j = 0; j < t->n; j++)
+        any_unstable |= !t->stable[j];
+    for (int i = 0; i < run->n; i++)
+        any_fold |= run->pts[i].fold;
     char body[4096];
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
@@ -296,16 +301,19 @@ static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t, 
              "set ylabel 'Interface displacement amplitude, fundamental (m)'\n"
              "set format y '%%.1e'\n"
              "set grid\n"
-             "set key top left box opaque\n"
+             "set key below\n"
              "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
-             "'black' title 'true assembly%s', \\\n"
-             "     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with lines lw 2 dt 2 lc rgb "
-             "'gray40' title 'true assembly, unstable', \\\n"
+             "'black' title 'true assembly%s'%s, \\\n"
              "     'frf.csv' using 2:3:($6 * %g) skip 1 with yerrorbars pt 7 ps 0.8 lc rgb "
-             "'#1f77b4' title 'hybrid test (bars: interface error x %g)', \\\n"
-             "     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points pt 6 ps 3 lw 2 "
-             "lc rgb '#d62728' title 'fold located after this point'\n",
-             title, t->n && !t->stable[0] ? "" : ", stable", mag, mag);
+             "'#1f77b4' title 'hybrid test (bars: interface error x %g)'%s\n",
+             title, any_unstable ? ", stable" : "",
+             any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
+                            "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
+                          : "",
+             mag, mag,
+             any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
+                        "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
+                      : "");
     int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
     if (rc) return rc;
     snprintf(body, sizeof body,
@@ -368,21 +376,21 @@ static int trace_point(rths_report *rep, rths_rig *rig, const rths_settle_option
              "set multiplot layout 1,2 title 'Converged point %d at %.4f Hz: interface "
              "displacements'\n"
              "set xlabel 'Time (s)'\n"
-             "set ylabel 'Displacement (m)'\n"
-             "set format y '%%.1e'\n"
+             "set ylabel 'Displacement ({/Symbol m}m)'\n"
              "set grid\n"
-             "set key bottom right box opaque\n"
-             "plot 'trace.csv' using 1:2 skip 1 with lines lw 2 title 'physical x_3', \\\n"
-             "     'trace.csv' using 1:3 skip 1 with lines lw 2 dt 2 title 'numerical {/Symbol "
-             "x}_3', \\\n"
-             "     'trace.csv' using 1:4 skip 1 with lines lw 1 lc rgb 'gray50' title 'target "
-             "x^*'\n"
-             "set xlabel 'Physical x_3 (m)'\n"
-             "set ylabel 'Numerical {/Symbol x}_3 (m)'\n"
-             "set format x '%%.1e'\n"
+             "set key below\n"
+             "plot 'trace.csv' using 1:($2 * 1e6) skip 1 with lines lw 2 title 'physical x_3', "
+             "\\\n"
+             "     'trace.csv' using 1:($3 * 1e6) skip 1 with lines lw 2 dt 2 title 'numerical "
+             "{/Symbol x}_3', \\\n"
+             "     'trace.csv' using 1:($4 * 1e6) skip 1 with lines lw 1 lc rgb 'gray50' title "
+             "'target x^*'\n"
+             "set xlabel 'Physical x_3 ({/Symbol m}m)'\n"
+             "set ylabel 'Numerical {/Symbol x}_3 ({/Symbol m}m)'\n"
              "set size square\n"
              "unset key\n"
-             "plot 'trace.csv' using 2:3 skip 1 with lines lw 2 lc rgb '#1f77b4'\n"
+             "plot 'trace.csv' using ($2 * 1e6):($3 * 1e6) skip 1 with lines lw 2 lc rgb "
+             "'#1f77b4'\n"
              "unset multiplot\n",
              pt->index, f_hz);
     return rths_plot(rep, rths_report_dir(rep), "lissajous", 1400, 650, body, err);
