@@ -19,21 +19,38 @@
 #define RTHS_CONTROLLER_H
 
 #include "rths/config.h"
-#include "rths/rig.h"
+#include "rths/plant.h"
 #include "rths/setup.h"
 
-#define RTHS_MAX_SENSED_DOFS 16
+#define RTHS_MAX_HARMONICS 5
 
-/* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
- * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
- * physical DoFs, then the interface DoF), m; acceleration of the interface storey, m/s^2; load
- * cell between actuator and interface storey, N (force on the storey, positive along x). */
-typedef struct rths_sensor_sample {
-    int n;
-    double displacement_m[RTHS_MAX_SENSED_DOFS];
-    double interface_acceleration_m_s2;
-    double interface_force_n;
-} rths_sensor_sample;
+/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
+ * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
+ * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
+ * numerical sides, target and forcing are all referred to the same phase. */
+typedef struct rths_fourier {
+    double a[RTHS_MAX_HARMONICS + 1];
+    double b[RTHS_MAX_HARMONICS + 1];
+} rths_fourier;
+
+typedef struct rths_period {
+    double frequency_hz;  /* forcing frequency during this period */
+    double end_time_s;    /* rig time at the end of the period */
+    int samples;          /* controller samples in this period (sets the coefficients' noise) */
+    rths_fourier phys;    /* physical interface displacement, m */
+    rths_fourier num;     /* numerical interface displacement, m */
+    rths_fourier force;   /* measured interface force (load cell), N */
+} rths_period;
+
+typedef enum {
+    RTHS_RIG_OK = 0,
+    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
+    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
+    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
+    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
+    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
+    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
+} rths_rig_fault;
 
 /* What the step computed this sample (for traces). */
 typedef struct rths_controller_output {

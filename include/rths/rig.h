@@ -12,37 +12,9 @@
 #ifndef RTHS_RIG_H
 #define RTHS_RIG_H
 
-#include "rths/core.h"
-
-#define RTHS_MAX_HARMONICS 5
-
-/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
- * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
- * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
- * numerical sides, target and forcing are all referred to the same phase. */
-typedef struct rths_fourier {
-    double a[RTHS_MAX_HARMONICS + 1];
-    double b[RTHS_MAX_HARMONICS + 1];
-} rths_fourier;
-
-typedef struct rths_period {
-    double frequency_hz;  /* forcing frequency during this period */
-    double end_time_s;    /* rig time at the end of the period */
-    int samples;          /* controller samples in this period (sets the coefficients' noise) */
-    rths_fourier phys;    /* physical interface displacement, m */
-    rths_fourier num;     /* numerical interface displacement, m */
-    rths_fourier force;   /* measured interface force (load cell), N */
-} rths_period;
-
-typedef enum {
-    RTHS_RIG_OK = 0,
-    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
-    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
-    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
-    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
-    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
-    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
-} rths_rig_fault;
+/* The per-period data (rths_fourier, rths_period) and fault codes are the controller's: it
+ * produces them every period (controller.h). */
+#include "rths/controller.h"
 
 const char *rths_rig_fault_name(rths_rig_fault f);
 

@@ -3,7 +3,9 @@
 #ifndef RTHS_RIG_VIRTUAL_H
 #define RTHS_RIG_VIRTUAL_H
 
+#include "rths/controller.h"
 #include "rths/plant.h"
+#include "rths/rig.h"
 
 /* From the configuration: controller and rig sections (rths_controller_config_read,
  * rths_plant_config_read). seed_override: when has_seed, replaces rig.seed. */
