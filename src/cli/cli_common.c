@@ -220,7 +220,7 @@ void rths_cli_unload(rths_config *cfg, rths_setup *setup) {
 
 int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err) {
     static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
-                                           "stability", "fidelity",   "output"};
+                                           "stability", "fidelity",   "output",    "server"};
     for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
         int mine = 0;
         for (int j = 0; own && own[j] && !mine; j++)

@@ -54,7 +54,10 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->kp_v_per_m = 100.0;
     opt->kd_v_s_per_m = 10.0;
     opt->grounding_kp_n_per_m = 50000.0;
-    opt->grounding_kd_n_s_per_m = 200.0;
+    /* 5x the seed's 200 N s/m: the grounding force vanishes at a match, so it cannot change a
+     * converged result, but it damps the numerical side's transients after every new target,
+     * which cuts the settling time per evaluation about threefold (bench frf) */
+    opt->grounding_kd_n_s_per_m = 1000.0;
     opt->velocity_cutoff_hz = 1000.0;
     opt->demand_limit_v = 10.0;
     opt->displacement_limit_m = 0.01;
