@@ -36,6 +36,11 @@ static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ide
     rths_settle_options so;
     rths_newton_options no;
     rths_settle_defaults(&so, 0);
+    /* judge steady state far below the amplitudes compared (the default 3e-4 is the host's
+     * trade-off for speed; here it would be the error floor) */
+    so.rel_tolerance = 1e-6;
+    so.abs_tolerance_m = 1e-14;
+    so.max_wait_periods = 4000;
     rths_newton_defaults(&no, 0);
     no.rel_tolerance = 1e-7;
     no.abs_tolerance_m = 1e-14;
@@ -56,9 +61,10 @@ static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ide
 }
 
 /* Ideal shaker (continuous force), noise off: every scheme's time-domain steady state at the
- * matched target equals the frequency-domain fidelity model to 2e-4 (what remains: the Fourier
- * sums' O((w h)^2) and the plant's RK4 substeps); the default scheme equals the analytic FRF to
- * 0.05 % at the second mode's peak, implicit Euler is about a quarter low (SPEC §8). */
+ * matched target equals the frequency-domain fidelity model to 5e-5 (measured <= 8e-6: what
+ * remains is the corrector's and the steady-state test's floors); the default scheme equals the
+ * analytic FRF to 1e-4 at the second mode's peak (measured 5e-6), implicit Euler is about a
+ * quarter low (SPEC §8). */
 static void test_matched_equals_fidelity(void **state) {
     (void)state;
     rths_config *cfg;
@@ -76,8 +82,8 @@ static void test_matched_equals_fidelity(void **state) {
         double a = matched_amplitude(&s, (rths_scheme)sc, 1, f);
         print_message("%-15s time domain %.6e m, fidelity model %.6e m, truth %.6e m\n",
                       rths_scheme_name((rths_scheme)sc), a, cabs(x[2]), truth);
-        assert_close(a, cabs(x[2]), 2e-4 * cabs(x[2]));
-        if (sc == RTHS_SCHEME_EXACT_FOH) assert_close(a, truth, 5e-4 * truth);
+        assert_close(a, cabs(x[2]), 5e-5 * cabs(x[2]));
+        if (sc == RTHS_SCHEME_EXACT_FOH) assert_close(a, truth, 1e-4 * truth);
         if (sc == RTHS_SCHEME_IMPLICIT_EULER) assert_true(a / truth > 0.70 && a / truth < 0.78);
     }
     rths_fidelity_free(fid);
@@ -87,7 +93,7 @@ static void test_matched_equals_fidelity(void **state) {
 
 /* The default rig (250 us delay, 1 kHz lag, armature mass, amplifier reconstruction), noise off,
  * at its matched target: within 0.2 % of the analytic FRF at the second mode's peak (measured
- * -0.006 %) and 0.1 % off it (measured -0.003 % at 13 Hz); the delay and lag act only inside the control loop, which the
+ * -0.0008 %) and 0.1 % off it (measured -0.0015 % at 13 Hz); the delay and lag act only inside the control loop, which the
  * iteration removes. With a bare DAC step (rig.shaker.hold: step) the peak is 0.55 % low: the
  * numerical side sees the staircase force only at the samples. */
 static void test_default_rig_close_to_truth(void **state) {
@@ -108,6 +114,39 @@ static void test_default_rig_close_to_truth(void **state) {
                       cabs(x[2]), 100 * (a / cabs(x[2]) - 1));
         assert_close(a, cabs(x[2]), tol[i] * cabs(x[2]));
     }
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* Forcing on a physical storey (storey 2): the virtual rig's plant applies it in continuous
+ * time, the controller keeps only its phase. At the matched target (ideal shaker, exact FOH)
+ * the interface amplitude equals the analytic FRF of the assembly forced at storey 2 to 1e-4
+ * (the same bound as for forcing on the numerical side; measured 3e-6), off and at the second
+ * mode. A
+ * controller created without plant_applies_forcing refuses such a split. */
+static void test_forcing_on_physical_dof(void **state) {
+    (void)state;
+    const char *ov[] = {"forcing.dof=2"};
+    rths_config *cfg;
+    rths_setup s;
+    load(ov, 1, &cfg, &s);
+    const double freqs[2] = {9.0, 13.47};
+    for (int i = 0; i < 2; i++) {
+        double complex x[4];
+        rths_error err;
+        assert_int_equal(rths_frf(4, s.assembly.mass, s.assembly.damping, s.assembly.stiffness,
+                                  s.force, 2 * M_PI * freqs[i], x, &err),
+                         RTHS_OK);
+        double a = matched_amplitude(&s, RTHS_SCHEME_EXACT_FOH, 1, freqs[i]);
+        print_message("forcing on storey 2, %.2f Hz: %.6e m, analytic %.6e m\n", freqs[i], a,
+                      cabs(x[2]));
+        assert_close(a, cabs(x[2]), 1e-4 * cabs(x[2]));
+    }
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    rths_controller *c;
+    rths_error err;
+    assert_int_equal(rths_controller_create(&s, &co, &c, &err), RTHS_EINPUT);
     rths_setup_free(&s);
     rths_config_free(cfg);
 }
@@ -184,6 +223,7 @@ int main(void) {
         cmocka_unit_test(test_default_rig_close_to_truth),
         cmocka_unit_test(test_deterministic_for_a_seed),
         cmocka_unit_test(test_bilinear_static_slopes),
+        cmocka_unit_test(test_forcing_on_physical_dof),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -76,6 +76,9 @@ typedef struct rths_controller_options {
     double ramp_time_s;            /* demand, forcing and target ramp to zero in this time */
     int track_static;              /* target's static term = the measured mean of the last
                                       period (the actuator carries no static load) */
+    int plant_applies_forcing;     /* 1: forcing on an internal physical DoF is accepted and left
+                                      to the plant (rths_controller_forcing gives its phase);
+                                      0 (default): such a forcing DoF is refused at create */
 } rths_controller_options;
 
 void rths_controller_defaults(rths_controller_options *opt);
@@ -103,6 +106,11 @@ void rths_controller_trip(rths_controller *c, rths_rig_fault fault);
 void rths_controller_reset_fault(rths_controller *c);
 double rths_controller_time_s(const rths_controller *c);
 double rths_controller_frequency_hz(const rths_controller *c);
+/* The forcing as of the last step: amplitude (ramp included), N, the phase theta of that sample
+ * and omega, rad/s, so that the force over the next sample is amplitude cos(theta + omega tau),
+ * 0 <= tau <= h. For a plant that applies forcing on a physical DoF. */
+void rths_controller_forcing(const rths_controller *c, double *amplitude_n, double *theta,
+                             double *omega_rad_s);
 /* 1 when the forcing phase is at a period boundary (the last step closed a period). */
 int rths_controller_at_period_boundary(const rths_controller *c);
 

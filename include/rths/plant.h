@@ -62,6 +62,10 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
 void rths_plant_destroy(rths_plant *p);
 /* Sensor readings at the current time (noise drawn here). */
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out);
+/* Forcing on an internal physical DoF (the setup's forcing DoF, when it is one; ignored
+ * otherwise) over the next sample: amplitude_n cos(theta + omega tau), 0 <= tau <= h, continuous
+ * in time (rths_controller_forcing gives the arguments). */
+void rths_plant_set_forcing(rths_plant *p, double amplitude_n, double theta, double omega_rad_s);
 /* Advances one sample with the demand held. */
 void rths_plant_advance(rths_plant *p, double demand_v);
 double rths_plant_time_s(const rths_plant *p);

@@ -31,6 +31,7 @@ struct rths_controller {
     int feedback, armed;
     rths_rig_fault fault;
     double ramp;          /* 0..1: scales demand, forcing and target */
+    double forcing_now;   /* forcing amplitude of the last step (ramp included), N */
     double static_offset; /* mean physical interface displacement of the last period, m */
     /* signal state */
     double time_s, theta;
@@ -64,6 +65,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->force_limit_n = 500.0;
     opt->ramp_time_s = 0.1;
     opt->track_static = 1;
+    opt->plant_applies_forcing = 0;
 }
 
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
@@ -77,11 +79,13 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     if (s->np > RTHS_MAX_SENSED_DOFS || s->nn > RTHS_MAX_SENSED_DOFS)
         return rths_error_set(err, RTHS_EINPUT, "at most %d DoFs per substructure",
                               RTHS_MAX_SENSED_DOFS);
+    int forcing_physical = 0;
     if (setup->split.int_dofs[0] != setup->forcing_dof) {
         int numerical = 0;
         for (int i = 0; i < s->n_num; i++)
             numerical |= s->num_dofs[i] == setup->forcing_dof;
-        if (!numerical)
+        forcing_physical = !numerical;
+        if (forcing_physical && !opt->plant_applies_forcing)
             return rths_error_set(err, RTHS_EINPUT,
                                   "forcing.dof %d is on the physical side; the virtual rig "
                                   "applies the forcing in the numerical substructure (or at the "
@@ -103,7 +107,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
     double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
     input[0] = 1.0;                        /* column 0: interface force */
-    input[s->nn + c->forcing_index] = 1.0; /* column 1: external forcing */
+    /* column 1: external forcing on the model; none when the plant applies it */
+    if (!forcing_physical) input[s->nn + c->forcing_index] = 1.0;
     double *a = NULL, *b = NULL;
     rths_discrete d = {0};
     int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS, input,
@@ -180,6 +185,12 @@ double rths_controller_time_s(const rths_controller *c) {
 }
 double rths_controller_frequency_hz(const rths_controller *c) {
     return c->omega / (2 * M_PI);
+}
+void rths_controller_forcing(const rths_controller *c, double *amplitude_n, double *theta,
+                             double *omega_rad_s) {
+    *amplitude_n = c->forcing_now;
+    *theta = c->theta;
+    *omega_rad_s = c->omega;
 }
 int rths_controller_at_period_boundary(const rths_controller *c) {
     return c->at_boundary;
@@ -295,7 +306,8 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->x_last = x;
     c->xi_last_prev = xi;
     c->grounding_have = 1;
-    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->ramp * c->amplitude_n * cos(theta1)};
+    c->forcing_now = c->ramp * c->amplitude_n;
+    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->forcing_now * cos(theta1)};
     for (int i = 0; i < nx; i++) {
         double v = 0;
         for (int j = 0; j < nx; j++)

@@ -25,6 +25,8 @@ struct rths_plant {
     double lag_rate;          /* 2 pi f_c, 0: no lag */
     double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
+    int forcing_index;                  /* internal physical forcing DoF, -1: none */
+    double forcing_amplitude, forcing_theta, forcing_omega, forcing_now;
     rths_rng rng;
 };
 
@@ -104,6 +106,9 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
     for (int i = 0; i < setup->assembly.n; i++)
         if (to_phys[i] >= 0 && setup->static_force)
             p->static_force[to_phys[i]] = setup->static_force[i];
+    p->forcing_index = -1;
+    for (int i = 0; i < s->n_phys; i++)
+        if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
     p->leg_upper = -1;
     if (setup->has_bilinear) {
         p->leg_upper = to_phys[setup->leg.upper_dof];
@@ -153,9 +158,22 @@ double rths_plant_leg_force_n(const rths_plant *p, double delta) {
     return delta >= 0 ? k * delta : p->leg_ratio * k * delta;
 }
 
-/* accelerations for state (q, v) with shaker force fs */
+/* forcing on the physical DoF at tau into the current sample */
+static double forcing_at(const rths_plant *p, double tau) {
+    return p->forcing_index < 0 || p->forcing_amplitude == 0
+               ? 0.0
+               : p->forcing_amplitude * cos(p->forcing_theta + p->forcing_omega * tau);
+}
+
+void rths_plant_set_forcing(rths_plant *p, double amplitude_n, double theta, double omega_rad_s) {
+    p->forcing_amplitude = amplitude_n;
+    p->forcing_theta = theta;
+    p->forcing_omega = omega_rad_s;
+}
+
+/* accelerations for state (q, v) with shaker force fs and external forcing fe */
 static void accelerations(const rths_plant *p, const double *q, const double *v, double fs,
-                          double *a) {
+                          double fe, double *a) {
     int n = p->n;
     double f[MAXN] = {0};
     for (int i = 0; i < n; i++) {
@@ -165,6 +183,7 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
         f[i] = s;
     }
     f[n - 1] += fs;
+    if (p->forcing_index >= 0) f[p->forcing_index] += fe;
     if (p->leg_upper >= 0) {
         double delta = q[p->leg_upper] - (p->leg_lower >= 0 ? q[p->leg_lower] : 0);
         if (delta < 0) {
@@ -192,7 +211,7 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, double value)
 
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     double a[MAXN];
-    accelerations(p, p->q, p->v, p->fs, a);
+    accelerations(p, p->q, p->v, p->fs, p->forcing_now, a);
     out->n = p->n;
     for (int i = 0; i < p->n; i++)
         out->displacement_m[i] = measure(p, &p->opt.laser, p->q[i]);
@@ -233,28 +252,30 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
             g1 = 0;
         }
         f1 = p->fs;
-        accelerations(p, p->q, p->v, f1, a1);
+        double e1 = forcing_at(p, t0 * p->h), e2 = forcing_at(p, 0.5 * (t0 + t1) * p->h),
+               e3 = forcing_at(p, t1 * p->h);
+        accelerations(p, p->q, p->v, f1, e1, a1);
         f2 = p->lag_rate > 0 ? f1 + 0.5 * dt * g1 : target_h;
         g2 = p->lag_rate > 0 ? p->lag_rate * (target_h - f2) : 0;
         for (int i = 0; i < n; i++) {
             q1[i] = p->q[i] + 0.5 * dt * p->v[i];
             v1[i] = p->v[i] + 0.5 * dt * a1[i];
         }
-        accelerations(p, q1, v1, f2, a2);
+        accelerations(p, q1, v1, f2, e2, a2);
         f3 = p->lag_rate > 0 ? f1 + 0.5 * dt * g2 : target_h;
         g3 = p->lag_rate > 0 ? p->lag_rate * (target_h - f3) : 0;
         for (int i = 0; i < n; i++) {
             q2[i] = p->q[i] + 0.5 * dt * v1[i];
             v2[i] = p->v[i] + 0.5 * dt * a2[i];
         }
-        accelerations(p, q2, v2, f3, a3);
+        accelerations(p, q2, v2, f3, e2, a3);
         double f4 = p->lag_rate > 0 ? f1 + dt * g3 : target_1;
         g4 = p->lag_rate > 0 ? p->lag_rate * (target_1 - f4) : 0;
         for (int i = 0; i < n; i++) {
             q3[i] = p->q[i] + dt * v2[i];
             v3[i] = p->v[i] + dt * a3[i];
         }
-        accelerations(p, q3, v3, f4, a4);
+        accelerations(p, q3, v3, f4, e3, a4);
         for (int i = 0; i < n; i++) {
             p->q[i] += dt / 6 * (p->v[i] + 2 * v1[i] + 2 * v2[i] + v3[i]);
             p->v[i] += dt / 6 * (a1[i] + 2 * a2[i] + 2 * a3[i] + a4[i]);
@@ -264,6 +285,7 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
         else
             p->fs = target_1;
     }
+    p->forcing_now = forcing_at(p, p->h);
     p->time_s += p->h;
 }
 

@@ -16,6 +16,9 @@ static void sample(virtual_rig *v, rths_controller_output *out) {
     rths_sensor_sample s;
     rths_plant_read(v->plant, &s);
     double demand = rths_controller_step(v->ctrl, &s, out);
+    double amplitude, theta, omega;
+    rths_controller_forcing(v->ctrl, &amplitude, &theta, &omega);
+    rths_plant_set_forcing(v->plant, amplitude, theta, omega);
     rths_plant_advance(v->plant, demand);
 }
 
@@ -134,7 +137,10 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     virtual_rig *v = calloc(1, sizeof *v);
     if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     v->sample_rate_hz = copt->sample_rate_hz;
-    int rc = rths_controller_create(setup, copt, &v->ctrl, err);
+    /* forcing on a physical DoF: the plant applies it, in continuous time */
+    rths_controller_options co = *copt;
+    co.plant_applies_forcing = 1;
+    int rc = rths_controller_create(setup, &co, &v->ctrl, err);
     if (!rc) rc = rths_plant_create(setup, popt, copt->sample_rate_hz, &v->plant, err);
     char description[200];
     snprintf(description, sizeof description,
