@@ -92,7 +92,7 @@ static double harmonic_error(const rths_point *pt, int k) {
                  pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
 }
 
-enum { FRF_COLUMNS = 20 };
+enum { FRF_COLUMNS = 21 };
 
 static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) {
     static const char *const header[FRF_COLUMNS] = {"point",
@@ -114,7 +114,8 @@ static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) 
                                                     "rig_time_s",
                                                     "converged",
                                                     "fold",
-                                                    "segment"};
+                                                    "segment",
+                                                    "amplitude_se_m"};
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
     int rc = path ? rths_csv_open(path, FRF_COLUMNS, header, &csv, err)
@@ -130,7 +131,10 @@ static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) 
             harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
             pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
             pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold,
-            pt->segment};
+            pt->segment,
+            /* standard error of the amplitude from those of a1, b1 (first-order propagation) */
+            hypot(ph->a[1] * pt->sol.eval.phys_se.a[1], ph->b[1] * pt->sol.eval.phys_se.b[1]) /
+                fmax(hypot(ph->a[1], ph->b[1]), 1e-300)};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     if (csv) {
