@@ -199,11 +199,12 @@ long rths_controller_dropped_periods(const rths_controller *c) {
     return atomic_load(&c->dropped);
 }
 
-/* Adds the trapezoid of y(theta) cos/sin(k theta) over [t0, t1] to the sums. */
-static void accumulate(sums *s, double t0, double y0, double t1, double y1) {
-    double w = 0.5 * (t1 - t0) / M_PI;
-    double c0 = cos(t0), s0 = sin(t0), c1 = cos(t1), s1 = sin(t1);
-    s->a[0] += 0.25 * (t1 - t0) / M_PI * (y0 + y1);
+/* Adds the trapezoid of y(theta) cos/sin(k theta) over [t0, t1] to the sums, given cos and sin
+ * of both ends (computed once per sample for all three signals). */
+static void accumulate(sums *s, double dtheta, double c0, double s0, double y0, double c1,
+                       double s1, double y1) {
+    double w = 0.5 * dtheta / M_PI;
+    s->a[0] += 0.5 * w * (y0 + y1);
     /* cos/sin of k theta by the angle-addition recurrence */
     double ck0 = c0, sk0 = s0, ck1 = c1, sk1 = s1;
     for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
@@ -306,8 +307,10 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->x_last = x;
     c->xi_last_prev = xi;
     c->grounding_have = 1;
+    /* the only trigonometry of the step: both ends of this sample's phase interval */
+    const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
     c->forcing_now = c->ramp * c->amplitude_n;
-    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->forcing_now * cos(theta1)};
+    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->forcing_now * cos1};
     for (int i = 0; i < nx; i++) {
         double v = 0;
         for (int j = 0; j < nx; j++)
@@ -334,10 +337,13 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         target_dot = xi_dot;
     } else {
         target = target_dot = 0;
+        double ck = cos1, sk = sin1;
         for (int k = 1; k <= c->harmonics; k++) {
-            double ck = cos(k * theta1), sk = sin(k * theta1);
             target += c->target_a[k - 1] * ck + c->target_b[k - 1] * sk;
             target_dot += k * c->omega * (-c->target_a[k - 1] * sk + c->target_b[k - 1] * ck);
+            double next = ck * cos1 - sk * sin1;
+            sk = sk * cos1 + ck * sin1;
+            ck = next;
         }
         target *= c->ramp;
         target_dot *= c->ramp;
@@ -360,10 +366,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->at_boundary = 0;
     c->time_s += h;
     if (c->omega > 0) {
+        const double dth = theta1 - theta0;
         if (theta1 < 2 * M_PI) {
-            accumulate(&c->acc_phys, theta0, c->y_prev[0], theta1, y[0]);
-            accumulate(&c->acc_num, theta0, c->y_prev[1], theta1, y[1]);
-            accumulate(&c->acc_force, theta0, c->y_prev[2], theta1, y[2]);
+            accumulate(&c->acc_phys, dth, cos0, sin0, c->y_prev[0], cos1, sin1, y[0]);
+            accumulate(&c->acc_num, dth, cos0, sin0, c->y_prev[1], cos1, sin1, y[1]);
+            accumulate(&c->acc_force, dth, cos0, sin0, c->y_prev[2], cos1, sin1, y[2]);
             c->period_samples++;
             c->theta = theta1;
         } else {
@@ -371,9 +378,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
             double yb[3];
             for (int i = 0; i < 3; i++)
                 yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
-            accumulate(&c->acc_phys, theta0, c->y_prev[0], 2 * M_PI, yb[0]);
-            accumulate(&c->acc_num, theta0, c->y_prev[1], 2 * M_PI, yb[1]);
-            accumulate(&c->acc_force, theta0, c->y_prev[2], 2 * M_PI, yb[2]);
+            /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
+            const double d0 = 2 * M_PI - theta0;
+            accumulate(&c->acc_phys, d0, cos0, sin0, c->y_prev[0], 1.0, 0.0, yb[0]);
+            accumulate(&c->acc_num, d0, cos0, sin0, c->y_prev[1], 1.0, 0.0, yb[1]);
+            accumulate(&c->acc_force, d0, cos0, sin0, c->y_prev[2], 1.0, 0.0, yb[2]);
             c->period_samples++;
             c->static_offset = c->acc_phys.a[0];
             publish(c, c->time_s - (1 - alpha) * h);
@@ -381,10 +390,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
                 c->omega = c->pending_omega;
                 c->pending_frequency = 0;
             }
+            /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
             double rest = theta1 - 2 * M_PI;
-            accumulate(&c->acc_phys, 0, yb[0], rest, y[0]);
-            accumulate(&c->acc_num, 0, yb[1], rest, y[1]);
-            accumulate(&c->acc_force, 0, yb[2], rest, y[2]);
+            accumulate(&c->acc_phys, rest, 1.0, 0.0, yb[0], cos1, sin1, y[0]);
+            accumulate(&c->acc_num, rest, 1.0, 0.0, yb[1], cos1, sin1, y[1]);
+            accumulate(&c->acc_force, rest, 1.0, 0.0, yb[2], cos1, sin1, y[2]);
             c->theta = rest;
             c->at_boundary = 1;
         }
