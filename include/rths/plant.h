@@ -6,10 +6,15 @@
  * pure transport delay and a first-order lag, armature mass moving with the interface storey);
  * a load cell between shaker and storey; lasers on every physical DoF and an accelerometer on
  * the interface, each with gain error, offset, white noise and quantisation from a seeded RNG.
- * The demand is held over a sample (zero-order hold) and the plant is integrated with classical
- * Runge-Kutta at substeps_per_sample substeps, so its own error is far below the effects
- * studied (see tests). The preload is a static external force on the interface storey that the
- * load cell does not see (the seed's shaker offset). */
+ * The demand is held over a sample (linear reconstruction by default, or a DAC's step; see
+ * linear_hold) and the plant is integrated with classical Runge-Kutta at substeps_per_sample
+ * substeps, so its own error is far below the effects studied (tests/test_plant.c: 1e-10 of
+ * the analytic forced response). The preload is a static external force on the interface storey
+ * that the load cell does not see (the seed's shaker offset). Forcing on an internal physical
+ * DoF, when the setup has it there, is applied here (rths_plant_set_forcing).
+ *
+ * A lab's DAQ backend replaces this module at the same seam: read the sensors, apply the
+ * demand, once per sample. */
 #ifndef RTHS_PLANT_H
 #define RTHS_PLANT_H
 
