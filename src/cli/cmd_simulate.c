@@ -4,6 +4,7 @@
 #include "cli/commands.h"
 #include "rths/controller.h"
 #include "rths/rig.h"
+#include "rths/rig_remote.h"
 #include "rths/rig_virtual.h"
 #include "rths/stability.h"
 
@@ -16,7 +17,8 @@
 static const char usage[] =
     "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...] "
     "--periods N --out DIR\n"
-    "                     [--trace-periods K] [--seed S] [--set KEY=VALUE]... "
+    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] "
+    "[--set KEY=VALUE]... "
     "[--quiet]\n"
     "       rths simulate CONFIG --mode feedback [--delay TAU] --frequency F "
     "--periods N --out DIR\n"
@@ -58,6 +60,9 @@ static const char usage[] =
     "(iterative mode; an even\n"
     "                       count, at most 2 x 5 harmonics)\n"
     "  --periods N          forcing periods to run (>= 1)\n"
+    "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
+    "controller)\n"
+    "                       instead of the in-process virtual rig (iterative mode)\n"
     "  --trace-periods K    periods in the recorded trace (iterative mode; "
     "default min(N, 5))\n"
     "  --mode MODE          iterative (default) or feedback\n"
@@ -73,7 +78,7 @@ static const char usage[] =
     "result), 1 failure,\n"
     "2 bad usage or input (nothing written).\n";
 
-enum { OPT_FREQ, OPT_TARGET, OPT_PERIODS, OPT_TRACE, OPT_MODE, OPT_DELAY, OPT_COUNT };
+enum { OPT_FREQ, OPT_TARGET, OPT_PERIODS, OPT_TRACE, OPT_MODE, OPT_DELAY, OPT_RIG, OPT_COUNT };
 
 typedef struct {
     int feedback;
@@ -541,6 +546,7 @@ int rths_cmd_simulate(int argc, char **argv) {
         [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
         [OPT_PERIODS] = {"--periods", "N", NULL}, [OPT_TRACE] = {"--trace-periods", "K", NULL},
         [OPT_MODE] = {"--mode", "MODE", NULL},    [OPT_DELAY] = {"--delay", "TAU", NULL},
+        [OPT_RIG] = {"--rig", "URI", NULL},
     };
     rths_cli cli;
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
@@ -562,8 +568,19 @@ int rths_cmd_simulate(int argc, char **argv) {
     int n_shown = 0;
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
     int pure_delay = a.feedback && a.has_delay;
-    if (!pure_delay && (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err)))
+    const char *rig_uri = opts[OPT_RIG].value;
+    if (rig_uri && a.feedback) {
+        rc = rths_error_set(&err, RTHS_EINPUT,
+                            "option --rig: feedback mode runs only on the in-process virtual rig");
         goto done;
+    }
+    if (rig_uri) {
+        /* a controller process: its own rig and controller sections apply there */
+        if ((rc = rths_remote_rig_create(rig_uri, NULL, &rig, &err))) goto done;
+    } else if (!pure_delay &&
+               (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err))) {
+        goto done;
+    }
     if (rig) {
         /* everything the rig can refuse is checked here, before the output folder exists */
         rths_controller_options copt;
@@ -591,7 +608,8 @@ int rths_cmd_simulate(int argc, char **argv) {
     }
     /* the virtual rig read the rig and controller sections: a misspelt key there is an error */
     static const char *const rig_sections[] = {"rig", "controller", NULL};
-    if ((rc = rths_cli_check_config_own(cfg, rig ? rig_sections : NULL, &err))) goto done;
+    if ((rc = rths_cli_check_config_own(cfg, rig && !rig_uri ? rig_sections : NULL, &err)))
+        goto done;
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
     rths_report_log(rep, "simulate: mode %s, %g Hz, %ld periods",
                     a.feedback ? "feedback" : "iterative", a.frequency_hz, a.periods);

@@ -111,6 +111,23 @@ if "$RTHS" frf --help 2>/dev/null | grep -q -- "--rig"; then
     ' || fail "frf over tcp differs from the in-process run"
 fi
 
+# rths simulate over TCP: same files as in-process; the coefficients of the last period agree
+# with the in-process run (same config, noise off) to 1e-4 relative.
+SIM=(--frequency 16 --target 2e-5,-1e-5 --periods 40 --trace-periods 2 --quiet)
+"$RTHS" simulate "$CFG" --out "$tmp/sim_remote" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" "${SIM[@]}" \
+    >"$tmp/sim_remote.out" 2>"$tmp/sim_remote.err" || fail "rths simulate over tcp: $(cat "$tmp/sim_remote.err")"
+"$RTHS" simulate "$CFG" --out "$tmp/sim_local" "${PHYS[@]}" "${SIM[@]}" || fail "rths simulate in-process"
+for f in coefficients.csv trace.csv summary.json; do
+    [ -s "$tmp/sim_remote/$f" ] || fail "simulate over tcp: no $f"
+done
+paste -d, <(tail -n 1 "$tmp/sim_remote/coefficients.csv") <(tail -n 1 "$tmp/sim_local/coefficients.csv") |
+    awk -F, -v h="$(head -n 1 "$tmp/sim_local/coefficients.csv")" '
+    BEGIN { n = split(h, names, ",") }
+    { for (i = 1; i <= n; i++) if (names[i] ~ /_a1_m$|_b1_m$/) {
+          r = $i; l = $(n + i); d = r - l; if (d < 0) d = -d; s = l < 0 ? -l : l
+          if (d > 1e-4 * s + 1e-12) { print names[i] ": " r " over tcp vs " l; bad = 1 } }
+      exit bad }' || fail "simulate over tcp differs from the in-process run"
+
 # SIGTERM: disarm, ramp down, statistics on stderr, exit 0.
 kill -TERM "$pid"
 wait "$pid"
