@@ -1,8 +1,9 @@
 /* rths report: the output folder of a run. CSV (C locale, full precision, SI units in the header),
  * JSON summary (json-c), figures (gnuplot scripts saved beside the data, PNG + SVG), run.log.
  *
- * Every file is written to a temporary name in the same folder and renamed into place when complete,
- * so a crash never leaves a half-written result. The folder is created (with parents) on open. */
+ * Every file is written to a temporary name in the same folder and renamed into place when
+ * complete, so a crash never leaves a half-written result. The folder is created (with parents) on
+ * open. */
 #ifndef RTHS_REPORT_H
 #define RTHS_REPORT_H
 
@@ -18,8 +19,8 @@ typedef struct rths_report rths_report;
 
 /* Creates dir (mkdir -p) and opens run.log (appended, so a resumed run keeps its history).
  * command/argc/argv are logged as the first line. */
-int rths_report_open(const char *dir, const char *command, int argc, char **argv,
-                     rths_report **out, rths_error *err);
+int rths_report_open(const char *dir, const char *command, int argc, char **argv, rths_report **out,
+                     rths_error *err);
 void rths_report_close(rths_report *rep);
 const char *rths_report_dir(const rths_report *rep);
 /* dir/name, malloc'ed (caller frees). */
@@ -47,6 +48,9 @@ int rths_csv_open(const char *path, int n_columns, const char *const *header, rt
 int rths_csv_row(rths_csv *csv, const double *values);
 int rths_csv_close(rths_csv *csv, rths_error *err); /* commit (rename into place) */
 void rths_csv_abort(rths_csv *csv);
+/* Ends a CSV the way a writer loop wants: rc != 0 (the loop failed) aborts it and returns rc,
+ * rc == 0 commits it and returns the commit's status. csv may be NULL (returns rc). */
+int rths_csv_finish(rths_csv *csv, int rc, rths_error *err);
 
 /* ---- JSON ---- */
 

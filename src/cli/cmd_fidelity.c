@@ -119,12 +119,7 @@ static int write_csv(rths_report *rep, const rths_fidelity *f, const fidelity_op
         if (!rc && rths_csv_row(csv, row))
             rc = rths_error_set(err, RTHS_EFAIL, "writing %s failed", path);
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(path);
     free(x);
     return rc;

@@ -137,12 +137,7 @@ static int write_frf_csv(rths_report *rep, const frf_run *run, rths_error *err) 
                 fmax(hypot(ph->a[1], ph->b[1]), 1e-300)};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
 }
@@ -269,12 +264,7 @@ static int write_truth_csv(rths_report *rep, const truth_curve *t, rths_error *e
         double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
 }
@@ -369,12 +359,7 @@ static int trace_point(rths_report *rep, rths_rig *rig, const rths_settle_option
                          tr[i].demand};
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing trace.csv");
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(path);
     free(tr);
     if (rc) return rc;

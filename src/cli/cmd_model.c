@@ -64,12 +64,7 @@ static int write_modes(rths_report *rep, const rths_modes *m, rths_error *err) {
         rc = rths_csv_row(csv, row);
         if (rc) rths_error_set(err, RTHS_EFAIL, "writing modes.csv failed");
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(header);
     free(names);
     free(row);
@@ -118,12 +113,7 @@ static int write_frf(rths_report *rep, const rths_setup *s, const double *freqs,
         }
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing true_frf.csv");
     }
-    if (csv) {
-        if (rc)
-            rths_csv_abort(csv);
-        else
-            rc = rths_csv_close(csv, err);
-    }
+    rc = rths_csv_finish(csv, rc, err);
     free(header);
     free(names);
     free(row);

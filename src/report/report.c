@@ -266,6 +266,15 @@ void rths_csv_abort(rths_csv *csv) {
     free(csv);
 }
 
+int rths_csv_finish(rths_csv *csv, int rc, rths_error *err) {
+    if (!csv) return rc;
+    if (rc) {
+        rths_csv_abort(csv);
+        return rc;
+    }
+    return rths_csv_close(csv, err);
+}
+
 /* ---- JSON ---- */
 
 int rths_json_write(const char *path, struct json_object *obj, rths_error *err) {
