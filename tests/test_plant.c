@@ -38,8 +38,8 @@ static double complex rig_frf(const rths_setup *s, double armature_kg, double om
     double m[RTHS_MAX_SENSED_DOFS * RTHS_MAX_SENSED_DOFS], f[RTHS_MAX_SENSED_DOFS] = {0};
     memcpy(m, sp->mass_phys, sizeof(double) * (size_t)(n * n));
     int iface = sp->int_dofs[0];
-    RTHS_AT(m, n, n - 1, n - 1) = RTHS_AT(s->assembly.mass, s->assembly.n, iface, iface) +
-                                  armature_kg;
+    RTHS_AT(m, n, n - 1, n - 1) =
+        RTHS_AT(s->assembly.mass, s->assembly.n, iface, iface) + armature_kg;
     f[n - 1] = 1.0;
     double complex x[RTHS_MAX_SENSED_DOFS];
     rths_error err;
@@ -256,8 +256,7 @@ static void test_sensors(void **state) {
     assert_true(b.displacement_m[2] == rths_plant_interface_displacement_m(q));
     for (int i = 0; i < 3; i++)
         assert_close(a.displacement_m[i], 1.02 * b.displacement_m[i] + 3e-6, 1e-18);
-    assert_close(a.interface_acceleration_m_s2, 0.99 * b.interface_acceleration_m_s2 + 0.05,
-                 1e-12);
+    assert_close(a.interface_acceleration_m_s2, 0.99 * b.interface_acceleration_m_s2 + 0.05, 1e-12);
     assert_close(a.interface_force_n, 1.03 * b.interface_force_n - 0.2, 1e-12);
     assert_true(rths_plant_noise_level_m(q) == 0);
     rths_plant_destroy(p);
@@ -378,10 +377,13 @@ static void test_bilinear_leg(void **state) {
 
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_forced_response_ideal), cmocka_unit_test(test_forced_response_shaker),
+        cmocka_unit_test(test_forced_response_ideal),
+        cmocka_unit_test(test_forced_response_shaker),
         cmocka_unit_test(test_integration_converged),
-        cmocka_unit_test(test_integration_converged_bilinear), cmocka_unit_test(test_sensors),
-        cmocka_unit_test(test_seeded),                cmocka_unit_test(test_bilinear_leg),
+        cmocka_unit_test(test_integration_converged_bilinear),
+        cmocka_unit_test(test_sensors),
+        cmocka_unit_test(test_seeded),
+        cmocka_unit_test(test_bilinear_leg),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -93,9 +93,9 @@ static void test_matched_equals_fidelity(void **state) {
 
 /* The default rig (250 us delay, 1 kHz lag, armature mass, amplifier reconstruction), noise off,
  * at its matched target: within 0.2 % of the analytic FRF at the second mode's peak (measured
- * -0.0008 %) and 0.1 % off it (measured -0.0015 % at 13 Hz); the delay and lag act only inside the control loop, which the
- * iteration removes. With a bare DAC step (rig.shaker.hold: step) the peak is 0.55 % low: the
- * numerical side sees the staircase force only at the samples. */
+ * -0.0008 %) and 0.1 % off it (measured -0.0015 % at 13 Hz); the delay and lag act only inside the
+ * control loop, which the iteration removes. With a bare DAC step (rig.shaker.hold: step) the peak
+ * is 0.55 % low: the numerical side sees the staircase force only at the samples. */
 static void test_default_rig_close_to_truth(void **state) {
     (void)state;
     rths_config *cfg;

@@ -34,12 +34,12 @@ typedef struct rths_fourier {
 } rths_fourier;
 
 typedef struct rths_period {
-    double frequency_hz;  /* forcing frequency during this period */
-    double end_time_s;    /* rig time at the end of the period */
-    int samples;          /* controller samples in this period (sets the coefficients' noise) */
-    rths_fourier phys;    /* physical interface displacement, m */
-    rths_fourier num;     /* numerical interface displacement, m */
-    rths_fourier force;   /* measured interface force (load cell), N */
+    double frequency_hz; /* forcing frequency during this period */
+    double end_time_s;   /* rig time at the end of the period */
+    int samples;         /* controller samples in this period (sets the coefficients' noise) */
+    rths_fourier phys;   /* physical interface displacement, m */
+    rths_fourier num;    /* numerical interface displacement, m */
+    rths_fourier force;  /* measured interface force (load cell), N */
 } rths_period;
 
 typedef enum {

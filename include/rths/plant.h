@@ -34,22 +34,22 @@ typedef struct rths_sensor_sample {
 } rths_sensor_sample;
 
 typedef struct rths_sensor_spec {
-    double gain_error;  /* relative: reading = (1 + gain_error) x true + offset + noise */
-    double offset;      /* in the sensor's unit (m, m/s^2, N) */
-    double noise_std;   /* white noise standard deviation, sensor's unit */
-    double quantum;     /* quantisation step (0: none) */
+    double gain_error; /* relative: reading = (1 + gain_error) x true + offset + noise */
+    double offset;     /* in the sensor's unit (m, m/s^2, N) */
+    double noise_std;  /* white noise standard deviation, sensor's unit */
+    double quantum;    /* quantisation step (0: none) */
 } rths_sensor_spec;
 
 typedef struct rths_plant_options {
-    double gain_n_per_v;      /* shaker force per demand volt */
-    double delay_s;           /* pure transport delay (rounded to whole samples) */
-    double lag_cutoff_hz;     /* first-order lag; 0: none */
-    double armature_mass_kg;  /* moves with the interface storey */
-    int noise;                /* 0: every sensor exact (gain error, offset, noise, quantum off) */
-    uint64_t seed;            /* noise generator seed */
-    int substeps_per_sample;  /* Runge-Kutta substeps per controller sample */
-    int linear_hold;          /* 1: the demand ramps linearly from the last sample's value over
-                                 the sample (a reconstruction filter) instead of a DAC's step */
+    double gain_n_per_v;     /* shaker force per demand volt */
+    double delay_s;          /* pure transport delay (rounded to whole samples) */
+    double lag_cutoff_hz;    /* first-order lag; 0: none */
+    double armature_mass_kg; /* moves with the interface storey */
+    int noise;               /* 0: every sensor exact (gain error, offset, noise, quantum off) */
+    uint64_t seed;           /* noise generator seed */
+    int substeps_per_sample; /* Runge-Kutta substeps per controller sample */
+    int linear_hold;         /* 1: the demand ramps linearly from the last sample's value over
+                                the sample (a reconstruction filter) instead of a DAC's step */
     rths_sensor_spec laser, accelerometer, load_cell;
 } rths_plant_options;
 
@@ -62,8 +62,8 @@ int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error
 
 typedef struct rths_plant rths_plant;
 
-int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt,
-                      double sample_rate_hz, rths_plant **out, rths_error *err);
+int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, double sample_rate_hz,
+                      rths_plant **out, rths_error *err);
 void rths_plant_destroy(rths_plant *p);
 /* Sensor readings at the current time (noise drawn here). */
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out);

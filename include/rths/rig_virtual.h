@@ -13,8 +13,7 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
                             uint64_t seed_override, rths_rig **out, rths_error *err);
 /* From parsed options (tests, benches). The rig starts armed, at rest, without forcing. */
 int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,
-                                 const rths_plant_options *popt, rths_rig **out,
-                                 rths_error *err);
+                                 const rths_plant_options *popt, rths_rig **out, rths_error *err);
 /* The controller inside a virtual rig (feedback mode, direct inspection); NULL for other rigs. */
 rths_controller *rths_virtual_rig_controller(rths_rig *rig);
 rths_plant *rths_virtual_rig_plant(rths_rig *rig);

@@ -106,7 +106,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
     double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
-    input[0] = 1.0;                        /* column 0: interface force */
+    input[0] = 1.0; /* column 0: interface force */
     /* column 1: external forcing on the model; none when the plant applies it */
     if (!forcing_physical) input[s->nn + c->forcing_index] = 1.0;
     double *a = NULL, *b = NULL;

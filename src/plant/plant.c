@@ -25,7 +25,7 @@ struct rths_plant {
     double lag_rate;          /* 2 pi f_c, 0: no lag */
     double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
-    int forcing_index;                  /* internal physical forcing DoF, -1: none */
+    int forcing_index; /* internal physical forcing DoF, -1: none */
     double forcing_amplitude, forcing_theta, forcing_omega, forcing_now;
     rths_rng rng;
 };
