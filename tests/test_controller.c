@@ -172,6 +172,54 @@ static void test_fourier_sums_exact(void **state) {
     rths_config_free(cfg);
 }
 
+/* A forcing change (frequency and amplitude) waits for the period boundary; a second change
+ * before then replaces the first. */
+static void test_forcing_changes_at_boundary(void **state) {
+    (void)state;
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    seed_setup(&s, &cfg);
+    rths_controller_defaults(&o);
+    o.ramp_time_s = 0; /* full amplitude at once */
+    rths_controller *c;
+    rths_error err;
+    if (rths_controller_create(&s, &o, &c, &err)) fail_msg("%s", err.msg);
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 10.0, 1.0); /* at rest: starts now */
+    rths_sensor_sample in = {.n = 3};
+    double amp, theta, omega;
+    for (int i = 0; i < 300; i++) /* 0.03 s: inside the first 0.1 s period */
+        rths_controller_step(c, &in, NULL);
+    rths_controller_forcing(c, &amp, &theta, &omega);
+    assert_close(amp, 1.0, 0);
+    assert_close(omega, 2 * M_PI * 10.0, 1e-12);
+    assert_close(theta, 2 * M_PI * 10.0 * 0.03, 1e-9);
+    rths_controller_set_forcing(c, 20.0, 5.0);
+    rths_controller_set_forcing(c, 12.5, 2.0); /* replaces the pending 20 Hz, 5 N */
+    rths_period p;
+    int boundary = 0;
+    for (int i = 0; i < 800; i++) {
+        rths_controller_step(c, &in, NULL);
+        rths_controller_forcing(c, &amp, &theta, &omega);
+        if (rths_controller_pop_period(c, &p)) {
+            boundary = 1;
+            assert_close(p.frequency_hz, 10.0, 1e-12);
+        }
+        /* before the boundary the old forcing, from the boundary on the last requested one */
+        assert_close(amp, boundary ? 2.0 : 1.0, 0);
+        assert_close(omega, 2 * M_PI * (boundary ? 12.5 : 10.0), 1e-12);
+    }
+    assert_true(boundary);
+    while (!rths_controller_pop_period(c, &p))
+        rths_controller_step(c, &in, NULL);
+    assert_close(p.frequency_hz, 12.5, 1e-12);
+    assert_int_equal(p.samples, 800);
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 static void run_until_fault(rths_controller *c, rths_sensor_sample *in, rths_rig_fault expect,
                             double ramp_time) {
     rths_controller_output out;
@@ -221,6 +269,7 @@ int main(void) {
         cmocka_unit_test(test_step_allocates_nothing),
         cmocka_unit_test(test_step_source_is_clean),
         cmocka_unit_test(test_fourier_sums_exact),
+        cmocka_unit_test(test_forcing_changes_at_boundary),
         cmocka_unit_test(test_limits_latch),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

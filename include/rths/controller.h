@@ -91,8 +91,9 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                            rths_controller **out, rths_error *err);
 void rths_controller_destroy(rths_controller *c);
 
-/* Commands (step thread). Forcing changes take effect at the next period boundary, so every
- * published period has one frequency; the phase theta is continuous across changes. */
+/* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
+ * period boundary, so every published period has one forcing; the phase theta is continuous
+ * across changes. The first forcing of a controller at rest starts at once. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);

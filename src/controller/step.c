@@ -24,8 +24,8 @@ struct rths_controller {
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * N_INPUTS], b_curr[MAX_STATE * N_INPUTS];
     double z[MAX_STATE], z_next[MAX_STATE], u_prev[N_INPUTS];
     /* commands */
-    double omega, pending_omega, amplitude_n;
-    int pending_frequency;
+    double omega, pending_omega, amplitude_n, pending_amplitude;
+    int pending_forcing;
     int harmonics;
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
     int feedback, armed;
@@ -141,13 +141,18 @@ void rths_controller_destroy(rths_controller *c) {
 }
 
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
-    c->amplitude_n = amplitude_n;
     double w = 2 * M_PI * frequency_hz;
     if (c->omega == 0) {
-        c->omega = w; /* nothing running yet: start now */
-    } else if (w != c->omega) {
+        /* nothing running yet: start now */
+        c->omega = w;
+        c->amplitude_n = amplitude_n;
+        c->pending_forcing = 0;
+    } else {
+        /* frequency and amplitude change together at the next period boundary, so every
+         * published period has one forcing; a later call before then replaces this one */
         c->pending_omega = w;
-        c->pending_frequency = 1;
+        c->pending_amplitude = amplitude_n;
+        c->pending_forcing = 1;
     }
 }
 
@@ -309,6 +314,9 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->grounding_have = 1;
     /* the only trigonometry of the step: both ends of this sample's phase interval */
     const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
+    /* a sample past the period boundary belongs to the next period: its forcing amplitude */
+    if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
+        c->amplitude_n = c->pending_amplitude;
     c->forcing_now = c->ramp * c->amplitude_n;
     double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->forcing_now * cos1};
     for (int i = 0; i < nx; i++) {
@@ -386,9 +394,10 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
             c->period_samples++;
             c->static_offset = c->acc_phys.a[0];
             publish(c, c->time_s - (1 - alpha) * h);
-            if (c->pending_frequency) {
+            if (c->pending_forcing) {
                 c->omega = c->pending_omega;
-                c->pending_frequency = 0;
+                c->amplitude_n = c->pending_amplitude;
+                c->pending_forcing = 0;
             }
             /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
             double rest = theta1 - 2 * M_PI;
