@@ -26,12 +26,22 @@ typedef struct {
 } mock;
 
 /* Linear mock: phys = G x* + g, num = H phys + h, with mild frequency dependence. */
-static double complex lin_G(int k, double w) { return (0.9 + 0.02 * k) * cexp(-I * 0.1 * k) * (1 + 0.001 * w); }
-static double complex lin_g(int k, double w) { return 1e-5 * k * cexp(I * 0.01 * w); }
-static double complex lin_H(int k, double w) { return (0.3 + 0.05 * k) * cexp(I * (0.5 + 0.002 * w)); }
-static double complex lin_h(int k, double w) { return 2e-4 / k * cexp(-I * 0.003 * w); }
+static double complex lin_G(int k, double w) {
+    return (0.9 + 0.02 * k) * cexp(-I * 0.1 * k) * (1 + 0.001 * w);
+}
+static double complex lin_g(int k, double w) {
+    return 1e-5 * k * cexp(I * 0.01 * w);
+}
+static double complex lin_H(int k, double w) {
+    return (0.3 + 0.05 * k) * cexp(I * (0.5 + 0.002 * w));
+}
+static double complex lin_h(int k, double w) {
+    return 2e-4 / k * cexp(-I * 0.003 * w);
+}
 
-static double complex lin_solution_phys(int k, double w) { return lin_h(k, w) / (1.0 - lin_H(k, w)); }
+static double complex lin_solution_phys(int k, double w) {
+    return lin_h(k, w) / (1.0 - lin_H(k, w));
+}
 
 /* Duffing mock (N = 1): phys = x*, num = phys + (F - D(w, |phys|) phys) / (c w0). Dividing by the
  * damping force scale makes a relative tolerance on the mismatch a relative tolerance on x at the
@@ -90,14 +100,27 @@ static int m_run(void *self, int count, rths_period *out, rths_error *err) {
     }
     return 0;
 }
-static double m_time(void *self) { return ((mock *)self)->time; }
-static rths_rig_fault m_fault(void *self) { (void)self; return RTHS_RIG_OK; }
-static double m_noise(void *self) { return ((mock *)self)->noise_m; }
-static void m_destroy(void *self) { free(self); }
+static double m_time(void *self) {
+    return ((mock *)self)->time;
+}
+static rths_rig_fault m_fault(void *self) {
+    (void)self;
+    return RTHS_RIG_OK;
+}
+static double m_noise(void *self) {
+    return ((mock *)self)->noise_m;
+}
+static void m_destroy(void *self) {
+    free(self);
+}
 
-static const rths_rig_ops mock_ops = {.set_forcing = m_set_forcing, .set_target = m_set_target,
-                                      .run_periods = m_run, .time_s = m_time, .fault = m_fault,
-                                      .noise_level_m = m_noise, .destroy = m_destroy};
+static const rths_rig_ops mock_ops = {.set_forcing = m_set_forcing,
+                                      .set_target = m_set_target,
+                                      .run_periods = m_run,
+                                      .time_s = m_time,
+                                      .fault = m_fault,
+                                      .noise_level_m = m_noise,
+                                      .destroy = m_destroy};
 
 static rths_rig *mock_rig(int duffing, double ratio, double noise_m) {
     mock *mk = calloc(1, sizeof *mk);
@@ -111,7 +134,8 @@ static rths_rig *mock_rig(int duffing, double ratio, double noise_m) {
 }
 
 /* The steady-state test must wait out a slow transient: with r = 0.9 per period, a fixed stop after
- * a few periods would leave ~e-1 of the initial offset; the adaptive wait leaves < rel tolerance. */
+ * a few periods would leave ~e-1 of the initial offset; the adaptive wait leaves < rel tolerance.
+ */
 static void test_evaluate_waits_for_steady_state(void **state) {
     (void)state;
     rths_rig *rig = mock_rig(0, 0.9, 0.0);
@@ -183,15 +207,27 @@ typedef struct {
 static int collect(void *user, const rths_point *pt, int is_update) {
     collector *c = user;
     if (getenv("RTHS_TEST_VERBOSE"))
-        fprintf(stderr, "pt %d upd %d f %.5f amp %.6g evals %d it %d fold %d seg %d step %.3g\n", pt->index, is_update,
-                pt->sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(pt), pt->evaluations,
-                pt->iterations, pt->fold, pt->segment, pt->step);
-    if (is_update) c->updates++;
+        fprintf(stderr, "pt %d upd %d f %.5f amp %.6g evals %d it %d fold %d seg %d step %.3g\n",
+                pt->index, is_update, pt->sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(pt),
+                pt->evaluations, pt->iterations, pt->fold, pt->segment, pt->step);
+    if (is_update)
+        c->updates++;
     else {
         assert_int_equal(pt->index, c->calls);
         c->calls++;
     }
     c->last = *pt;
+    return 0;
+}
+
+typedef struct {
+    rths_solution sol[256];
+    int n;
+} sweep;
+
+static int sweep_point(void *user, const rths_point *pt, int is_update) {
+    sweep *c = user;
+    if (!is_update && c->n < 256) c->sol[c->n++] = pt->sol;
     return 0;
 }
 
@@ -273,7 +309,8 @@ static void test_continuation_duffing_two_folds(void **state) {
     assert_true(res.reached_end);
     assert_int_equal(res.n_folds, 2);
     assert_int_equal(col.updates >= 2, 1);
-    double f_lo = fmin(truth[0], truth[1]) / (2 * M_PI), f_hi = fmax(truth[0], truth[1]) / (2 * M_PI);
+    double f_lo = fmin(truth[0], truth[1]) / (2 * M_PI),
+           f_hi = fmax(truth[0], truth[1]) / (2 * M_PI);
     double got_hi = fmax(res.folds[0].frequency_hz, res.folds[1].frequency_hz);
     double got_lo = fmin(res.folds[0].frequency_hz, res.folds[1].frequency_hz);
     /* parabolic location over steps of <= 0.02 scaled units (0.1 Hz): 0.02 Hz is generous */
@@ -282,6 +319,115 @@ static void test_continuation_duffing_two_folds(void **state) {
     rths_rig_destroy(rig);
 }
 
+/* Real 2N x 2N Jacobian of the map target -> c_k(w) * target, per harmonic, in the corrector's
+ * layout (cos rows/columns k-1, sin rows/columns N+k-1; x = Re(X e^{iwt}), X = A - iB). */
+static void complex_gain_jacobian(int N, double w, double complex (*c)(int, double), double *J) {
+    memset(J, 0, sizeof(double) * RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS);
+    for (int k = 1; k <= N; k++) {
+        double complex g = c(k, w);
+        int a = k - 1, b = N + k - 1;
+        J[a + a * RTHS_MAX_UNKNOWNS] = creal(g);
+        J[a + b * RTHS_MAX_UNKNOWNS] = cimag(g);
+        J[b + a * RTHS_MAX_UNKNOWNS] = -cimag(g);
+        J[b + b * RTHS_MAX_UNKNOWNS] = creal(g);
+    }
+}
+static double complex lin_residual_gain(int k, double w) {
+    return (1.0 - lin_H(k, w)) * lin_G(k, w);
+}
+
+/* The matched estimate x - R J^-1 Phi is exact for an affine map and its exact Jacobians: a point
+ * accepted 1 % off the solution under a loose tolerance reports the measured amplitude 1 % off and
+ * the matched one to rounding. With noise, along a sweep, every matched amplitude lies within
+ * three of its standard errors of the closed form (deterministic seed), and the errors are of
+ * the size the standard errors claim. */
+static void test_matched_estimate(void **state) {
+    (void)state;
+    for (int N = 1; N <= 2; N++) {
+        rths_rig *rig = mock_rig(0, 0.0, 0.0);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_settle_defaults(&st, 0);
+        rths_newton_defaults(&nw, 0);
+        nw.rel_tolerance = 0.05;
+        rths_corrector_state cs;
+        memset(&cs, 0, sizeof cs);
+        cs.harmonics = N;
+        cs.n = 2 * N;
+        cs.have_jacobian = 1;
+        double w = 2 * M_PI * 13.0;
+        complex_gain_jacobian(N, w, lin_residual_gain, cs.jacobian);
+        complex_gain_jacobian(N, w, lin_G, cs.response_jacobian);
+        rths_solution sol;
+        memset(&sol, 0, sizeof sol);
+        sol.harmonics = N;
+        sol.omega_rad_s = w;
+        for (int k = 1; k <= N; k++) {
+            double complex x = lin_solution_phys(k, w);
+            double complex t = (x - lin_g(k, w)) / lin_G(k, w) * (1.0 + 0.01 * cexp(I * k));
+            sol.target_a[k - 1] = creal(t);
+            sol.target_b[k - 1] = -cimag(t);
+        }
+        rths_error err;
+        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &cs, &sol, &err), RTHS_OK);
+        assert_int_equal(cs.evaluations, 1); /* accepted as guessed: the residual is ~1 % */
+        assert_true(sol.have_matched);
+        double truth = cabs(lin_solution_phys(1, w));
+        double measured = hypot(sol.eval.phys.a[1], sol.eval.phys.b[1]);
+        assert_true(fabs(measured - truth) > 3e-3 * truth);
+        assert_close(sol.matched_amplitude_m, truth, 1e-12 * truth);
+        assert_close(sol.amplitude_m, sol.matched_amplitude_m, 0);
+        for (int k = 1; k <= N; k++) {
+            double complex x = lin_solution_phys(k, w);
+            assert_close(sol.matched_a[k - 1], creal(x), 1e-12 * cabs(x));
+            assert_close(sol.matched_b[k - 1], -cimag(x), 1e-12 * cabs(x));
+        }
+        /* the seed's flowchart reports the measurement */
+        nw.report_matched = 0;
+        memset(&sol.eval, 0, sizeof sol.eval);
+        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &cs, &sol, &err), RTHS_OK);
+        assert_close(sol.amplitude_m, hypot(sol.eval.phys.a[1], sol.eval.phys.b[1]), 0);
+        rths_rig_destroy(rig);
+    }
+
+    rths_rig *rig = mock_rig(0, 0.4, 3e-6); /* per-period coefficient SE ~1.3e-7 m, ~1e-3 */
+    rths_settle_options st;
+    rths_newton_options nw;
+    rths_continuation_options co;
+    rths_settle_defaults(&st, 0);
+    rths_newton_defaults(&nw, 0);
+    rths_continuation_defaults(&co);
+    co.method = RTHS_CONT_NATURAL;
+    co.max_step_hz = 0.05;
+    sweep col = {0};
+    rths_continuation_result res;
+    rths_error err;
+    assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, 1.0, NULL, 0, sweep_point, NULL,
+                                           &col, &res, &err),
+                     RTHS_OK);
+    assert_true(col.n >= 20);
+    double z2 = 0, worst_measured = 0;
+    for (int i = 0; i < col.n; i++) {
+        const rths_solution *s = &col.sol[i];
+        double truth = cabs(lin_solution_phys(1, s->omega_rad_s));
+        assert_true(s->have_matched && s->amplitude_se_m > 0);
+        double z = (s->amplitude_m - truth) / s->amplitude_se_m;
+        assert_true(fabs(z) < 3.0);
+        z2 += z * z;
+        worst_measured =
+            fmax(worst_measured,
+                 fabs(hypot(s->eval.phys.a[1], s->eval.phys.b[1]) - truth) / s->amplitude_se_m);
+    }
+    /* standard errors neither hide the error nor pad it: RMS z between 0.4 and 1.5 */
+    double rms = sqrt(z2 / col.n);
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr, "matched: %d points, RMS z %.3f, worst measured z %.2f\n", col.n, rms,
+                worst_measured);
+    assert_true(rms > 0.4 && rms < 1.5);
+    /* ...and the raw measurement, off by the accepted mismatch, would not pass */
+    assert_true(worst_measured > 3.0);
+    rths_rig_destroy(rig);
+}
 
 typedef struct {
     rths_journal *j;
@@ -322,7 +468,8 @@ static void test_journal_resume(void **state) {
     rths_rig *rig = mock_rig(1, 0.3, 0.0);
     collector col = {0};
     assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL,
-                                           &col, &ref, &err), RTHS_OK);
+                                           &col, &ref, &err),
+                     RTHS_OK);
     rths_rig_destroy(rig);
 
     rths_journal *j;
@@ -331,7 +478,8 @@ static void test_journal_resume(void **state) {
     jc = (journaling){.j = j, .stop_after = 40};
     rig = mock_rig(1, 0.3, 0.0);
     assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, journal_point,
-                                           NULL, &jc, &part, &err), RTHS_EFAIL);
+                                           NULL, &jc, &part, &err),
+                     RTHS_EFAIL);
     rths_rig_destroy(rig);
     rths_journal_close(j);
     /* a torn record, as a SIGKILL mid-write would leave */
@@ -361,13 +509,15 @@ static void test_journal_resume(void **state) {
     f = fopen(path, "w");
     fclose(f);
     assert_int_equal(rths_journal_open(path, "default", &j, &err), RTHS_OK);
-    for (int i = 0; i < n; i++) assert_int_equal(rths_journal_append(j, &pts[i], 0, &err), RTHS_OK);
+    for (int i = 0; i < n; i++)
+        assert_int_equal(rths_journal_append(j, &pts[i], 0, &err), RTHS_OK);
     jc.j = j;
     jc.stop_after = -1;
     jc.seen = n;
     rig = mock_rig(1, 0.3, 0.0);
     assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, pts, n, journal_point,
-                                           NULL, &jc, &rest, &err), RTHS_OK);
+                                           NULL, &jc, &rest, &err),
+                     RTHS_OK);
     rths_rig_destroy(rig);
     rths_journal_close(j);
     free(pts);
@@ -380,7 +530,8 @@ static void test_journal_resume(void **state) {
     assert_close(rest.points, ref.points, 3);
     assert_int_equal(rths_journal_read(path, &pts, &n, NULL, &err), RTHS_OK);
     assert_int_equal(n, rest.points);
-    for (int i = 0; i < n; i++) assert_int_equal(pts[i].index, i);
+    for (int i = 0; i < n; i++)
+        assert_int_equal(pts[i].index, i);
     free(pts);
     unlink(path);
     rmdir(dir);
@@ -392,6 +543,7 @@ int main(void) {
         cmocka_unit_test(test_corrector_linear_harmonics),
         cmocka_unit_test(test_continuation_linear_both_methods),
         cmocka_unit_test(test_continuation_duffing_two_folds),
+        cmocka_unit_test(test_matched_estimate),
         cmocka_unit_test(test_journal_resume),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

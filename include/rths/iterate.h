@@ -36,33 +36,44 @@ typedef struct rths_evaluation {
 } rths_evaluation;
 
 /* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */
-int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics,
-                  double frequency_hz, double amplitude_n, const double *target_a,
-                  const double *target_b, rths_evaluation *out, rths_error *err);
+int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, double frequency_hz,
+                  double amplitude_n, const double *target_a, const double *target_b,
+                  rths_evaluation *out, rths_error *err);
 
 /* Residual Phi (length 2N: cos terms then sin terms) and its standard error per entry. */
 void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se);
 
 typedef struct rths_newton_options {
-    int max_iterations;    /* corrector iterations (each: one evaluation + line search) */
-    double rel_tolerance;  /* ||Phi|| < max(rel * ||numerical coefficients||, abs, noise floor) */
+    int max_iterations;   /* corrector iterations (each: one evaluation + line search) */
+    double rel_tolerance; /* ||Phi|| < max(rel * ||numerical coefficients||, abs, noise floor) */
     double abs_tolerance_m;
-    double noise_factor;   /* tolerance floor = noise_factor * ||standard error of Phi|| */
-    double fd_step_rel;    /* finite-difference step, relative to the coefficient scale */
-    double fd_step_min_m;  /* ... but never below this (above the noise) */
+    double noise_factor;      /* tolerance floor = noise_factor * ||standard error of Phi|| */
+    double fd_step_rel;       /* finite-difference step, relative to the coefficient scale */
+    double fd_step_min_m;     /* ... but never below this (above the noise) */
     double fd_step_omega_rel; /* FD step of the frequency (pseudo-arclength), relative */
-    double min_damping;    /* line search halves the step down to this factor */
-    int fresh_jacobian;    /* 1: FD Jacobian at every corrector start (the seed's flowchart) */
+    double min_damping;       /* line search halves the step down to this factor */
+    int fresh_jacobian;       /* 1: FD Jacobian at every corrector start (the seed's flowchart) */
+    /* 1: report the physical interface response extrapolated to zero mismatch (see
+     * rths_solution.matched_*); 0: report the last measurement, as the seed does */
+    int report_matched;
 } rths_newton_options;
 
 /* The state the corrector carries between continuation points. */
 typedef struct rths_corrector_state {
     int harmonics;
-    int n;                       /* 2N unknown target coefficients */
+    int n; /* 2N unknown target coefficients */
     int have_jacobian;
     /* dPhi/d(target, omega): 2N rows, 2N + 1 columns (last column: d/d omega, rad/s) */
     double jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
-    int evaluations;             /* counters for the current point */
+    /* d(physical interface coefficients)/d(target, omega), same layout, estimated alongside */
+    double response_jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
+    /* Per-period variance of each matched coefficient (physical, numerical side) pooled over
+     * evaluations: the noise is additive, so every evaluation estimates the same variance, and
+     * 4 periods alone give a standard error good to only +-40 %. Sums of squared deviations and
+     * their degrees of freedom; each new point halves the weight of the earlier ones. */
+    double noise_ss[2][RTHS_MAX_UNKNOWNS];
+    double noise_dof;
+    int evaluations; /* counters for the current point */
     int iterations;
     double rig_time_s;
 } rths_corrector_state;
@@ -85,6 +96,20 @@ typedef struct rths_solution {
     double residual_norm_m;
     double tolerance_m;
     int converged;
+    /* The physical interface response at zero mismatch, estimated by one linearised Newton step
+     * from the accepted measurement: x* = x - R J^-1 Phi, with J = dPhi/d(target) and
+     * R = d(physical coefficients)/d(target) from the corrector (on an arclength run the step
+     * includes the frequency and the arclength row, so it runs normal to the branch and is well
+     * posed at folds). The step is within tolerance, so its linearisation error is second order;
+     * what remains is the measurement noise of x and Phi, propagated into
+     * matched_amplitude_se_m. have_matched = 0 when no Jacobian exists. */
+    int have_matched;
+    double matched_a[RTHS_MAX_HARMONICS], matched_b[RTHS_MAX_HARMONICS]; /* m, harmonics 1..N */
+    double matched_omega_rad_s;
+    double matched_amplitude_m, matched_amplitude_se_m; /* fundamental */
+    /* What a report shows: matched_* when the options ask for it and it exists, else the
+     * measurement (frequency, fundamental amplitude and its averaging standard error). */
+    double frequency_hz, amplitude_m, amplitude_se_m;
 } rths_solution;
 
 /* Solves Phi = 0 (with the arclength row when arc->active, else at fixed omega) from the initial

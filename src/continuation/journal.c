@@ -11,6 +11,9 @@
 #include <string.h>
 #include <unistd.h>
 
+/* 2: points carry the response Jacobian and the matched estimate */
+enum { JOURNAL_FORMAT = 2 };
+
 struct rths_journal {
     int fd;
     char path[4096];
@@ -51,7 +54,7 @@ int rths_journal_open(const char *path, const char *strategy, rths_journal **out
     if (!existed) {
         json_object *h = json_object_new_object();
         json_object_object_add(h, "type", json_object_new_string("header"));
-        json_object_object_add(h, "format", json_object_new_int(1));
+        json_object_object_add(h, "format", json_object_new_int(JOURNAL_FORMAT));
         json_object_object_add(h, "strategy", json_object_new_string(strategy));
         json_object_object_add(h, "version", json_object_new_string(RTHS_VERSION));
         int rc = write_line(j, h, err);
@@ -119,6 +122,26 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "have_jacobian", json_object_new_int(pt->corrector.have_jacobian));
     json_object_object_add(
         o, "jacobian", dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
+    json_object_object_add(
+        o, "response_jacobian",
+        dbl_array(pt->corrector.response_jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
+    json_object_object_add(o, "noise_ss_phys",
+                           dbl_array(pt->corrector.noise_ss[0], RTHS_MAX_UNKNOWNS));
+    json_object_object_add(o, "noise_ss_num",
+                           dbl_array(pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS));
+    json_object_object_add(o, "noise_dof", json_object_new_double(pt->corrector.noise_dof));
+    json_object_object_add(o, "have_matched", json_object_new_int(s->have_matched));
+    json_object_object_add(o, "matched_a_m", dbl_array(s->matched_a, N));
+    json_object_object_add(o, "matched_b_m", dbl_array(s->matched_b, N));
+    json_object_object_add(o, "matched_amplitude_m",
+                           json_object_new_double(s->matched_amplitude_m));
+    json_object_object_add(o, "matched_amplitude_se_m",
+                           json_object_new_double(s->matched_amplitude_se_m));
+    json_object_object_add(o, "matched_omega_rad_s",
+                           json_object_new_double(s->matched_omega_rad_s));
+    json_object_object_add(o, "reported_frequency_hz", json_object_new_double(s->frequency_hz));
+    json_object_object_add(o, "amplitude_m", json_object_new_double(s->amplitude_m));
+    json_object_object_add(o, "amplitude_se_m", json_object_new_double(s->amplitude_se_m));
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -192,7 +215,20 @@ static int parse_point(json_object *o, rths_point *pt) {
         get_int(o, "segment", &pt->segment) || get_dbl(o, "step", &pt->step) ||
         get_dbl(o, "secant_omega", &pt->secant_omega) ||
         get_int(o, "have_jacobian", &pt->corrector.have_jacobian) ||
-        get_arr(o, "jacobian", pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS))
+        get_arr(o, "jacobian", pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
+        get_arr(o, "response_jacobian", pt->corrector.response_jacobian,
+                RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
+        get_arr(o, "noise_ss_phys", pt->corrector.noise_ss[0], RTHS_MAX_UNKNOWNS) ||
+        get_arr(o, "noise_ss_num", pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS) ||
+        get_dbl(o, "noise_dof", &pt->corrector.noise_dof) ||
+        get_int(o, "have_matched", &s->have_matched) ||
+        get_arr(o, "matched_a_m", s->matched_a, N) || get_arr(o, "matched_b_m", s->matched_b, N) ||
+        get_dbl(o, "matched_amplitude_m", &s->matched_amplitude_m) ||
+        get_dbl(o, "matched_amplitude_se_m", &s->matched_amplitude_se_m) ||
+        get_dbl(o, "matched_omega_rad_s", &s->matched_omega_rad_s) ||
+        get_dbl(o, "reported_frequency_hz", &s->frequency_hz) ||
+        get_dbl(o, "amplitude_m", &s->amplitude_m) ||
+        get_dbl(o, "amplitude_se_m", &s->amplitude_se_m))
         return -1;
     return 0;
 }
@@ -226,6 +262,15 @@ int rths_journal_read(const char *path, rths_point **points, int *n_points, char
         }
         if (!strcmp(type, "header")) {
             json_object *s;
+            int format = 0;
+            if (get_int(o, "format", &format) || format != JOURNAL_FORMAT) {
+                json_object_put(o);
+                rc = rths_error_set(err, RTHS_EINPUT,
+                                    "%s:%d: journal format %d, this rths reads format %d: start a "
+                                    "new run in another folder",
+                                    path, lineno, format, JOURNAL_FORMAT);
+                break;
+            }
             if (strategy && json_object_object_get_ex(o, "strategy", &s)) {
                 free(*strategy);
                 *strategy = strdup(json_object_get_string(s));

@@ -28,6 +28,7 @@ void rths_newton_defaults(rths_newton_options *opt, int paper) {
     opt->fd_step_omega_rel = 2e-3;
     opt->min_damping = 1.0 / 16.0;
     opt->fresh_jacobian = paper ? 1 : 0;
+    opt->report_matched = paper ? 0 : 1;
 }
 
 /* ---- one evaluation ---- */
@@ -198,21 +199,46 @@ static void unpack(const corrector *c, const double *u, rths_solution *s) {
     s->omega_rad_s = u[c->n] * c->scale[c->n];
 }
 
-/* Evaluates at scaled u: fills the physical residual (scaled by the amplitude scale), the
- * extended residual norm and the measurement. */
+/* Physical interface coefficients in the residual's order (cos terms, then sin terms). */
+static void response_vector(const rths_evaluation *ev, double *x) {
+    int N = ev->harmonics;
+    for (int k = 1; k <= N; k++) {
+        x[k - 1] = ev->phys.a[k];
+        x[N + k - 1] = ev->phys.b[k];
+    }
+}
+
+/* Evaluates at scaled u: fills the physical residual and response (both scaled by the amplitude
+ * scale), the extended residual norm and the measurement. */
 static int eval_at(corrector *c, const double *u, rths_solution *s, double *phi_scaled,
-                   double *ext_norm, rths_error *err) {
+                   double *resp_scaled, double *ext_norm, rths_error *err) {
     unpack(c, u, s);
     int rc = rths_evaluate(c->rig, c->settle, s->harmonics, s->omega_rad_s / (2 * M_PI),
                            c->amplitude_n, s->target_a, s->target_b, &s->eval, err);
     c->st->evaluations++;
     c->st->rig_time_s += s->eval.rig_time_s;
     if (rc) return rc;
-    double phi[RTHS_MAX_UNKNOWNS], se[RTHS_MAX_UNKNOWNS];
+    double phi[RTHS_MAX_UNKNOWNS], se[RTHS_MAX_UNKNOWNS], x[RTHS_MAX_UNKNOWNS];
     rths_evaluation_residual(&s->eval, phi, se);
+    response_vector(&s->eval, x);
+    int n_avg = s->eval.average_periods, N = s->harmonics;
+    if (n_avg > 1) {
+        for (int k = 1; k <= N; k++) {
+            const rths_fourier *sd[2] = {&s->eval.phys_se, &s->eval.num_se};
+            for (int side = 0; side < 2; side++) {
+                /* se^2 n (n - 1) is the sum of squared deviations from the mean */
+                c->st->noise_ss[side][k - 1] +=
+                    sd[side]->a[k] * sd[side]->a[k] * n_avg * (n_avg - 1);
+                c->st->noise_ss[side][N + k - 1] +=
+                    sd[side]->b[k] * sd[side]->b[k] * n_avg * (n_avg - 1);
+            }
+        }
+        c->st->noise_dof += n_avg - 1;
+    }
     double sq = 0, num_sq = 0, se_sq = 0;
     for (int i = 0; i < c->n; i++) {
         phi_scaled[i] = phi[i] / c->scale[0];
+        resp_scaled[i] = x[i] / c->scale[0];
         sq += phi[i] * phi[i];
         se_sq += se[i] * se[i];
     }
@@ -239,11 +265,12 @@ static int arc_satisfied(const corrector *c, const double *phi_scaled) {
     return c->m == c->n || fabs(phi_scaled[c->n]) < 1e-6;
 }
 
-/* Finite-difference Jacobian columns 0..m-1 around u (Phi rows only, scaled variables). */
-static int fd_jacobian(corrector *c, const double *u, const double *phi0, rths_solution *s,
-                       rths_error *err) {
+/* Finite-difference Jacobian columns 0..m-1 around u, of Phi and of the physical response
+ * (scaled variables). */
+static int fd_jacobian(corrector *c, const double *u, const double *phi0, const double *resp0,
+                       rths_solution *s, rths_error *err) {
     int n = c->n;
-    double up[RTHS_MAX_UNKNOWNS], phi[RTHS_MAX_UNKNOWNS], ext;
+    double up[RTHS_MAX_UNKNOWNS], phi[RTHS_MAX_UNKNOWNS], resp[RTHS_MAX_UNKNOWNS], ext;
     rths_solution tmp = *s;
     for (int j = 0; j < c->m; j++) {
         memcpy(up, u, sizeof up);
@@ -256,10 +283,12 @@ static int fd_jacobian(corrector *c, const double *u, const double *phi0, rths_s
             h = c->opt->fd_step_omega_rel * fabs(u[j]);
         }
         up[j] += h;
-        int rc = eval_at(c, up, &tmp, phi, &ext, err);
+        int rc = eval_at(c, up, &tmp, phi, resp, &ext, err);
         if (rc) return rc;
-        for (int i = 0; i < n; i++)
+        for (int i = 0; i < n; i++) {
             c->st->jacobian[i + j * RTHS_MAX_UNKNOWNS] = (phi[i] - phi0[i]) / h;
+            c->st->response_jacobian[i + j * RTHS_MAX_UNKNOWNS] = (resp[i] - resp0[i]) / h;
+        }
     }
     c->st->have_jacobian = 1;
     return RTHS_OK;
@@ -298,6 +327,108 @@ static int solve_small(int m, double *a, int lda, double *b) {
     return 0;
 }
 
+/* Broyden's rank-one update of the n x m matrix J (leading dimension RTHS_MAX_UNKNOWNS) so that
+ * J s = y, with the erratum-6 denominator ||s||^2. */
+static void broyden_update(double *J, int n, int m, const double *s, const double *y, double ss) {
+    for (int i = 0; i < n; i++) {
+        double js = 0;
+        for (int j = 0; j < m; j++)
+            js += J[i + j * RTHS_MAX_UNKNOWNS] * s[j];
+        double f = (y[i] - js) / ss;
+        for (int j = 0; j < m; j++)
+            J[i + j * RTHS_MAX_UNKNOWNS] += f * s[j];
+    }
+}
+
+/* Fills sol's matched estimate and the amplitude a report shows (see rths_solution). */
+static void finish_solution(const corrector *c, rths_solution *sol) {
+    int n = c->n, N = sol->harmonics;
+    const rths_evaluation *ev = &sol->eval;
+    double phi[RTHS_MAX_UNKNOWNS], x[RTHS_MAX_UNKNOWNS], sp[RTHS_MAX_UNKNOWNS],
+        sn[RTHS_MAX_UNKNOWNS];
+    rths_evaluation_residual(ev, phi, NULL);
+    response_vector(ev, x);
+    for (int k = 1; k <= N; k++) {
+        sp[k - 1] = ev->phys_se.a[k];
+        sp[N + k - 1] = ev->phys_se.b[k];
+        sn[k - 1] = ev->num_se.a[k];
+        sn[N + k - 1] = ev->num_se.b[k];
+    }
+    const rths_corrector_state *st = c->st;
+    if (st->noise_dof > 0 && ev->average_periods > 0)
+        for (int i = 0; i < n; i++) {
+            sp[i] = sqrt(st->noise_ss[0][i] / st->noise_dof / ev->average_periods);
+            sn[i] = sqrt(st->noise_ss[1][i] / st->noise_dof / ev->average_periods);
+        }
+    double amp = hypot(x[0], x[N]);
+    double amp_se = hypot(x[0] * sp[0], x[N] * sp[N]) / fmax(amp, 1e-300);
+    sol->have_matched = 0;
+    /* The step to zero mismatch solves A d = -(Phi, 0), A being J over the unknowns in use plus,
+     * on an arclength run, the arclength row: the step then runs normal to the branch and stays
+     * well posed at folds, where the target block of J alone is singular. Columns 0..n-1 of
+     * A^-1, mapped by R, give K (x* = x - K Phi) and the frequency's share (w* = w - k_w . Phi). */
+    enum { L = RTHS_MAX_UNKNOWNS };
+    int m = c->m;
+    double K[L * L], kw[L] = {0};
+    int ok = st->have_jacobian;
+    for (int i = 0; i < n && ok; i++) {
+        double a[L * L], z[L] = {0};
+        for (int q = 0; q < m; q++) {
+            for (int p = 0; p < n; p++)
+                a[p + q * L] = st->jacobian[p + q * L];
+            if (m > n) a[n + q * L] = c->arc->tangent[q];
+        }
+        z[i] = 1;
+        if (solve_small(m, a, L, z) != 0) {
+            ok = 0;
+            break;
+        }
+        for (int p = 0; p < n; p++) {
+            double r = 0;
+            for (int q = 0; q < m; q++)
+                r += st->response_jacobian[p + q * L] * z[q];
+            if (!isfinite(r)) ok = 0;
+            K[p + i * L] = r;
+        }
+        if (m > n) kw[i] = z[n] * c->scale[n] / c->scale[0];
+    }
+    if (ok) {
+        double xm[L], wm = sol->omega_rad_s;
+        for (int i = 0; i < n; i++) {
+            xm[i] = x[i];
+            for (int p = 0; p < n; p++)
+                xm[i] -= K[i + p * L] * phi[p];
+            wm -= kw[i] * phi[i];
+        }
+        sol->matched_omega_rad_s = wm;
+        for (int k = 0; k < N; k++) {
+            sol->matched_a[k] = xm[k];
+            sol->matched_b[k] = xm[N + k];
+        }
+        double am = hypot(xm[0], xm[N]);
+        /* x* = (I - K) x_phys + K x_num with independent noise on the two sides; the amplitude's
+         * gradient g = (a1, b1) / |x*_1| maps the covariance to a variance */
+        double g0 = xm[0] / fmax(am, 1e-300), gN = xm[N] / fmax(am, 1e-300), var = 0;
+        for (int p = 0; p < n; p++) {
+            double w = g0 * K[0 + p * L] + gN * K[N + p * L];
+            double v = (p == 0 ? g0 : p == N ? gN : 0.0) - w;
+            var += v * v * sp[p] * sp[p] + w * w * sn[p] * sn[p];
+        }
+        sol->matched_amplitude_m = am;
+        sol->matched_amplitude_se_m = sqrt(var);
+        sol->have_matched = 1;
+    }
+    if (c->opt->report_matched && sol->have_matched) {
+        sol->frequency_hz = sol->matched_omega_rad_s / (2 * M_PI);
+        sol->amplitude_m = sol->matched_amplitude_m;
+        sol->amplitude_se_m = sol->matched_amplitude_se_m;
+    } else {
+        sol->frequency_hz = sol->omega_rad_s / (2 * M_PI);
+        sol->amplitude_m = amp;
+        sol->amplitude_se_m = amp_se;
+    }
+}
+
 int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
                  double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
                  rths_solution *sol, rths_error *err) {
@@ -323,23 +454,31 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
     state->evaluations = 0;
     state->iterations = 0;
     state->rig_time_s = 0;
+    /* earlier points' noise counts half per point: close in frequency, similar noise */
+    for (int i = 0; i < c.n; i++) {
+        state->noise_ss[0][i] *= 0.5;
+        state->noise_ss[1][i] *= 0.5;
+    }
+    state->noise_dof *= 0.5;
     sol->converged = 0;
 
-    double u[RTHS_MAX_UNKNOWNS] = {0}, phi[RTHS_MAX_UNKNOWNS] = {0}, ext;
+    double u[RTHS_MAX_UNKNOWNS] = {0}, phi[RTHS_MAX_UNKNOWNS] = {0}, resp[RTHS_MAX_UNKNOWNS] = {0},
+           ext;
     pack(&c, sol, u);
-    int rc = eval_at(&c, u, sol, phi, &ext, err);
+    int rc = eval_at(&c, u, sol, phi, resp, &ext, err);
     if (rc) return rc;
     if (sol->residual_norm_m < sol->tolerance_m && arc_satisfied(&c, phi)) {
         sol->converged = 1;
+        finish_solution(&c, sol);
         return RTHS_OK;
     }
     int fresh = 0;
     if (!state->have_jacobian || opt->fresh_jacobian) {
-        if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+        if ((rc = fd_jacobian(&c, u, phi, resp, sol, err))) return rc;
         fresh = 1;
     } else if (c.m > c.n && fabs(state->jacobian[c.n * RTHS_MAX_UNKNOWNS]) == 0.0) {
         /* carried Jacobian lacks the frequency column (natural sweep before): measure it once */
-        if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+        if ((rc = fd_jacobian(&c, u, phi, resp, sol, err))) return rc;
         fresh = 1;
     }
     while (state->iterations < opt->max_iterations) {
@@ -354,7 +493,7 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
             du[i] = -phi[i];
         if (solve_small(c.m, a, RTHS_MAX_UNKNOWNS, du) != 0) {
             if (fresh) return rths_error_set(err, RTHS_EFAIL, "singular Jacobian");
-            if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+            if ((rc = fd_jacobian(&c, u, phi, resp, sol, err))) return rc;
             fresh = 1;
             continue;
         }
@@ -380,7 +519,8 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
             for (int i = 0; i < c.m; i++)
                 du[i] *= limit / dnorm;
         /* Backtracking line search on the residual norm (erratum 5). */
-        double lambda = 1.0, ut[RTHS_MAX_UNKNOWNS] = {0}, phit[RTHS_MAX_UNKNOWNS] = {0}, extt = 0;
+        double lambda = 1.0, ut[RTHS_MAX_UNKNOWNS] = {0}, phit[RTHS_MAX_UNKNOWNS] = {0},
+               respt[RTHS_MAX_UNKNOWNS] = {0}, extt = 0;
         int accepted = 0;
         rths_solution trial = *sol;
         while (lambda >= opt->min_damping) {
@@ -388,7 +528,7 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
                 ut[i] = u[i] + lambda * du[i];
             for (int i = c.m; i < RTHS_MAX_UNKNOWNS; i++)
                 ut[i] = u[i];
-            if ((rc = eval_at(&c, ut, &trial, phit, &extt, err))) return rc;
+            if ((rc = eval_at(&c, ut, &trial, phit, respt, &extt, err))) return rc;
             if (extt < ext) {
                 accepted = 1;
                 break;
@@ -397,11 +537,11 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
         }
         if (!accepted) {
             if (fresh) break; /* a fresh Jacobian could not reduce the residual: give up */
-            if ((rc = fd_jacobian(&c, u, phi, sol, err))) return rc;
+            if ((rc = fd_jacobian(&c, u, phi, resp, sol, err))) return rc;
             fresh = 1;
             continue;
         }
-        /* Broyden update of the Phi rows (erratum 6: denominator ||s||^2), scaled variables. */
+        /* Broyden updates of the Phi and response rows, scaled variables. */
         double s[RTHS_MAX_UNKNOWNS], y[RTHS_MAX_UNKNOWNS], ss = 0;
         for (int j = 0; j < c.m; j++) {
             s[j] = ut[j] - u[j];
@@ -409,22 +549,21 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
         }
         for (int i = 0; i < c.n; i++)
             y[i] = phit[i] - phi[i];
-        if (ss > 0)
-            for (int i = 0; i < c.n; i++) {
-                double js = 0;
-                for (int j = 0; j < c.m; j++)
-                    js += state->jacobian[i + j * RTHS_MAX_UNKNOWNS] * s[j];
-                double f = (y[i] - js) / ss;
-                for (int j = 0; j < c.m; j++)
-                    state->jacobian[i + j * RTHS_MAX_UNKNOWNS] += f * s[j];
-            }
+        if (ss > 0) {
+            broyden_update(state->jacobian, c.n, c.m, s, y, ss);
+            for (int i = 0; i < c.n; i++)
+                y[i] = respt[i] - resp[i];
+            broyden_update(state->response_jacobian, c.n, c.m, s, y, ss);
+        }
         fresh = 0;
         memcpy(u, ut, sizeof u);
         memcpy(phi, phit, sizeof phi);
+        memcpy(resp, respt, sizeof resp);
         ext = extt;
         *sol = trial;
         if (sol->residual_norm_m < sol->tolerance_m && arc_satisfied(&c, phi)) {
             sol->converged = 1;
+            finish_solution(&c, sol);
             return RTHS_OK;
         }
     }

@@ -7,29 +7,31 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                              rths_newton_options *newton, int *harmonics, rths_error *err) {
     long v;
     int rc;
-    if ((rc = rths_config_get_int(cfg, "iteration.harmonics", 0, *harmonics, 1,
-                                  RTHS_MAX_HARMONICS, &v, err)))
+    if ((rc = rths_config_get_int(cfg, "iteration.harmonics", 0, *harmonics, 1, RTHS_MAX_HARMONICS,
+                                  &v, err)))
         return rc;
     *harmonics = (int)v;
     if ((rc = rths_config_get_int(cfg, "iteration.max_iterations", 0, newton->max_iterations, 1,
                                   1000, &v, err)))
         return rc;
     newton->max_iterations = (int)v;
-    if ((rc = rths_config_get_double(cfg, "iteration.rel_tolerance", 0, newton->rel_tolerance,
-                                     1e-9, 1.0, &newton->rel_tolerance, err)) ||
+    if ((rc = rths_config_get_double(cfg, "iteration.rel_tolerance", 0, newton->rel_tolerance, 1e-9,
+                                     1.0, &newton->rel_tolerance, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.abs_tolerance_m", 0, newton->abs_tolerance_m,
                                      0.0, 1.0, &newton->abs_tolerance_m, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.noise_factor", 0, newton->noise_factor, 0.0,
                                      100.0, &newton->noise_factor, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.fd_step_rel", 0, newton->fd_step_rel, 1e-6,
                                      1.0, &newton->fd_step_rel, err)) ||
-        (rc = rths_config_get_double(cfg, "iteration.fd_step_min_m", 0, newton->fd_step_min_m,
-                                     0.0, 1.0, &newton->fd_step_min_m, err)) ||
-        (rc = rths_config_get_double(cfg, "iteration.line_search_min", 0, newton->min_damping,
-                                     1e-6, 1.0, &newton->min_damping, err)))
+        (rc = rths_config_get_double(cfg, "iteration.fd_step_min_m", 0, newton->fd_step_min_m, 0.0,
+                                     1.0, &newton->fd_step_min_m, err)) ||
+        (rc = rths_config_get_double(cfg, "iteration.line_search_min", 0, newton->min_damping, 1e-6,
+                                     1.0, &newton->min_damping, err)))
         return rc;
     if ((rc = rths_config_get_bool(cfg, "iteration.fresh_jacobian", 0, newton->fresh_jacobian,
-                                   &newton->fresh_jacobian, err)))
+                                   &newton->fresh_jacobian, err)) ||
+        (rc = rths_config_get_bool(cfg, "iteration.report_matched", 0, newton->report_matched,
+                                   &newton->report_matched, err)))
         return rc;
     if ((rc = rths_config_get_int(cfg, "iteration.settle.fixed_wait_periods", 0,
                                   settle->fixed_wait_periods, 0, 100000, &v, err)))
@@ -51,15 +53,14 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                                   settle->average_periods, 1, 100000, &v, err)))
         return rc;
     settle->average_periods = (int)v;
-    if ((rc = rths_config_get_double(cfg, "iteration.settle.rel_tolerance", 0,
-                                     settle->rel_tolerance, 0.0, 1.0, &settle->rel_tolerance,
-                                     err)) ||
+    if ((rc =
+             rths_config_get_double(cfg, "iteration.settle.rel_tolerance", 0, settle->rel_tolerance,
+                                    0.0, 1.0, &settle->rel_tolerance, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.settle.abs_tolerance_m", 0,
                                      settle->abs_tolerance_m, 0.0, 1.0, &settle->abs_tolerance_m,
                                      err)) ||
-        (rc = rths_config_get_double(cfg, "iteration.settle.noise_factor", 0,
-                                     settle->noise_factor, 0.0, 100.0, &settle->noise_factor,
-                                     err)))
+        (rc = rths_config_get_double(cfg, "iteration.settle.noise_factor", 0, settle->noise_factor,
+                                     0.0, 100.0, &settle->noise_factor, err)))
         return rc;
     return RTHS_OK;
 }
