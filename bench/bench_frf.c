@@ -65,6 +65,7 @@ static int run(int paper, outcome *o) {
     rths_settle_defaults(&so, paper);
     rths_newton_defaults(&no, paper);
     rths_continuation_defaults(&co);
+    co.model_predictor = !paper;
     if (rths_iterate_config_read(cfg, &so, &no, &harmonics, &err) ||
         rths_continuation_config_read(cfg, &co, &err)) {
         fprintf(stderr, "bench frf: %s\n", err.msg);

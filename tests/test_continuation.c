@@ -227,6 +227,9 @@ typedef struct {
 
 static int sweep_point(void *user, const rths_point *pt, int is_update) {
     sweep *c = user;
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr, "  point %d: %d evaluations, lti %d\n", pt->index, pt->evaluations,
+                pt->corrector.lti);
     if (!is_update && c->n < 256) c->sol[c->n++] = pt->sol;
     return 0;
 }
@@ -336,11 +339,38 @@ static double complex lin_residual_gain(int k, double w) {
     return (1.0 - lin_H(k, w)) * lin_G(k, w);
 }
 
-/* The matched estimate x - R J^-1 Phi is exact for an affine map and its exact Jacobians: a point
- * accepted 1 % off the solution under a loose tolerance reports the measured amplitude 1 % off and
- * the matched one to rounding. With noise, along a sweep, every matched amplitude lies within
- * three of its standard errors of the closed form (deterministic seed), and the errors are of
- * the size the standard errors claim. */
+/* Records the mock's exact steady evaluation at (w, target) in the corrector's LTI history. */
+static void record_exact(rths_corrector_state *cs, int N, double w, const double complex *target) {
+    mock probe = {.omega = w, .duffing = 0};
+    int h = cs->history_next;
+    cs->history[h].omega_rad_s = w;
+    for (int k = 1; k <= N; k++) {
+        probe.target[k] = target[k];
+        double complex ps[RTHS_MAX_HARMONICS + 1], ns[RTHS_MAX_HARMONICS + 1];
+        steady(&probe, ps, ns, k);
+        cs->history[h].target[k - 1] = creal(target[k]); /* mock: X = A - iB */
+        cs->history[h].target[N + k - 1] = -cimag(target[k]);
+        cs->history[h].phi[k - 1] = creal(ps[k] - ns[k]);
+        cs->history[h].phi[N + k - 1] = -cimag(ps[k] - ns[k]);
+        cs->history[h].response[k - 1] = creal(ps[k]);
+        cs->history[h].response[N + k - 1] = -cimag(ps[k]);
+    }
+    cs->history_next = (h + 1) % RTHS_LTI_HISTORY;
+    if (cs->history_count < RTHS_LTI_HISTORY) cs->history_count++;
+}
+
+static double complex lin_solution_target(int k, double w) {
+    return (lin_solution_phys(k, w) - lin_g(k, w)) / lin_G(k, w);
+}
+
+/* The matched estimate x - (r/g) Phi from the fitted LTI model: a point accepted 1 % off the
+ * solution under a loose tolerance reports the measured amplitude about 1 % off and the matched
+ * one as exactly as the model's lines in w fit the mock: its gains turn by up to 0.01 rad per
+ * rad/s, so over the 1.3 rad/s window the quadratic remainder is ~1e-4 of r/g, times the 1 %
+ * residual ~1e-6 (asserted to 1e-5). Jacobians merely carried from an earlier
+ * point are no basis for it: then the measurement is reported. With noise, along a sweep, every
+ * matched amplitude lies within three of its standard errors of the closed form (deterministic
+ * seed), and the errors are of the size the standard errors claim. */
 static void test_matched_estimate(void **state) {
     (void)state;
     for (int N = 1; N <= 2; N++) {
@@ -355,16 +385,23 @@ static void test_matched_estimate(void **state) {
         cs.harmonics = N;
         cs.n = 2 * N;
         cs.have_jacobian = 1;
+        cs.lti = 1;
         double w = 2 * M_PI * 13.0;
         complex_gain_jacobian(N, w, lin_residual_gain, cs.jacobian);
         complex_gain_jacobian(N, w, lin_G, cs.response_jacobian);
+        for (int e = 0; e < 10; e++) { /* an earlier sweep 12.8-12.98 Hz, targets 2 % off */
+            double we = 2 * M_PI * (12.8 + 0.02 * e);
+            double complex t[RTHS_MAX_HARMONICS + 1];
+            for (int k = 1; k <= N; k++)
+                t[k] = lin_solution_target(k, we) * (1.0 + 0.02 * cexp(I * (e + k)));
+            record_exact(&cs, N, we, t);
+        }
         rths_solution sol;
         memset(&sol, 0, sizeof sol);
         sol.harmonics = N;
         sol.omega_rad_s = w;
         for (int k = 1; k <= N; k++) {
-            double complex x = lin_solution_phys(k, w);
-            double complex t = (x - lin_g(k, w)) / lin_G(k, w) * (1.0 + 0.01 * cexp(I * k));
+            double complex t = lin_solution_target(k, w) * (1.0 + 0.01 * cexp(I * k));
             sol.target_a[k - 1] = creal(t);
             sol.target_b[k - 1] = -cimag(t);
         }
@@ -375,13 +412,30 @@ static void test_matched_estimate(void **state) {
         double truth = cabs(lin_solution_phys(1, w));
         double measured = hypot(sol.eval.phys.a[1], sol.eval.phys.b[1]);
         assert_true(fabs(measured - truth) > 3e-3 * truth);
-        assert_close(sol.matched_amplitude_m, truth, 1e-12 * truth);
+        assert_close(sol.matched_amplitude_m, truth, 1e-5 * truth);
         assert_close(sol.amplitude_m, sol.matched_amplitude_m, 0);
         for (int k = 1; k <= N; k++) {
             double complex x = lin_solution_phys(k, w);
-            assert_close(sol.matched_a[k - 1], creal(x), 1e-12 * cabs(x));
-            assert_close(sol.matched_b[k - 1], -cimag(x), 1e-12 * cabs(x));
+            assert_close(sol.matched_a[k - 1], creal(x), 1e-5 * cabs(x));
+            assert_close(sol.matched_b[k - 1], -cimag(x), 1e-5 * cabs(x));
         }
+        /* the same point with exact but carried Jacobians and no model: the measurement */
+        rths_corrector_state bare;
+        memset(&bare, 0, sizeof bare);
+        bare.harmonics = N;
+        bare.n = 2 * N;
+        bare.have_jacobian = 1;
+        memcpy(bare.jacobian, cs.jacobian, sizeof bare.jacobian);
+        memcpy(bare.response_jacobian, cs.response_jacobian, sizeof bare.response_jacobian);
+        rths_solution again = sol;
+        for (int k = 1; k <= N; k++) {
+            double complex t = lin_solution_target(k, w) * (1.0 + 0.01 * cexp(I * k));
+            again.target_a[k - 1] = creal(t);
+            again.target_b[k - 1] = -cimag(t);
+        }
+        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &bare, &again, &err), RTHS_OK);
+        assert_false(again.have_matched);
+        assert_close(again.amplitude_m, hypot(again.eval.phys.a[1], again.eval.phys.b[1]), 0);
         /* the seed's flowchart reports the measurement */
         nw.report_matched = 0;
         memset(&sol.eval, 0, sizeof sol.eval);
@@ -407,19 +461,29 @@ static void test_matched_estimate(void **state) {
                      RTHS_OK);
     assert_true(col.n >= 20);
     double z2 = 0, worst_measured = 0;
+    int matched = 0;
     for (int i = 0; i < col.n; i++) {
         const rths_solution *s = &col.sol[i];
         double truth = cabs(lin_solution_phys(1, s->omega_rad_s));
-        assert_true(s->have_matched && s->amplitude_se_m > 0);
+        /* before the model has enough evaluations, a point accepted at once on carried
+         * Jacobians reports its measurement */
+        if (!s->have_matched) continue;
+        matched++;
+        assert_true(s->amplitude_se_m > 0);
         double z = (s->amplitude_m - truth) / s->amplitude_se_m;
+        if (getenv("RTHS_TEST_VERBOSE"))
+            fprintf(stderr, "  %.3f Hz z %.2f rel err %.2e se %.2e evals %d\n",
+                    s->omega_rad_s / (2 * M_PI), z, (s->amplitude_m - truth) / truth,
+                    s->amplitude_se_m / truth, s->eval.average_periods);
         assert_true(fabs(z) < 3.0);
         z2 += z * z;
         worst_measured =
             fmax(worst_measured,
                  fabs(hypot(s->eval.phys.a[1], s->eval.phys.b[1]) - truth) / s->amplitude_se_m);
     }
+    assert_true(matched >= col.n - 3);
     /* standard errors neither hide the error nor pad it: RMS z between 0.4 and 1.5 */
-    double rms = sqrt(z2 / col.n);
+    double rms = sqrt(z2 / matched);
     if (getenv("RTHS_TEST_VERBOSE"))
         fprintf(stderr, "matched: %d points, RMS z %.3f, worst measured z %.2f\n", col.n, rms,
                 worst_measured);
@@ -427,6 +491,44 @@ static void test_matched_estimate(void **state) {
     /* ...and the raw measurement, off by the accepted mismatch, would not pass */
     assert_true(worst_measured > 3.0);
     rths_rig_destroy(rig);
+}
+
+/* On an LTI rig the model predictor (local least-squares model of the residual, seeding the
+ * corrector's gains) predicts each point of a natural sweep to within the noise, where the seed's
+ * secant in the targets lags wherever the response curves. This mock has no resonance, so the
+ * secant already needs only ~1.6 evaluations per point (64 for 41 points); the model needs ~1.1
+ * (45): at most 80 % is asserted, with every solution still the closed form's. (On the virtual
+ * rig across the Q = 140 mode the ratio is 0.35 of the paper strategy: make bench.) */
+static void test_model_predictor_saves_evaluations(void **state) {
+    (void)state;
+    int evaluations[2];
+    for (int model = 0; model < 2; model++) {
+        rths_rig *rig = mock_rig(0, 0.4, 1e-7);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_continuation_options co;
+        rths_settle_defaults(&st, 0);
+        rths_newton_defaults(&nw, 0);
+        rths_continuation_defaults(&co);
+        co.method = RTHS_CONT_NATURAL;
+        co.max_step_hz = 0.05;
+        co.model_predictor = model;
+        sweep col = {0};
+        rths_continuation_result res;
+        rths_error err;
+        assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, 1.0, NULL, 0, sweep_point,
+                                               NULL, &col, &res, &err),
+                         RTHS_OK);
+        assert_true(res.reached_end);
+        for (int i = 0; i < col.n; i++)
+            check_linear_solution(&col.sol[i], 1, 1e-2);
+        evaluations[model] = res.evaluations;
+        if (getenv("RTHS_TEST_VERBOSE"))
+            fprintf(stderr, "%s predictor: %d points, %d evaluations\n", model ? "model" : "secant",
+                    col.n, res.evaluations);
+        rths_rig_destroy(rig);
+    }
+    assert_true(evaluations[1] <= 0.8 * evaluations[0]);
 }
 
 typedef struct {
@@ -544,6 +646,7 @@ int main(void) {
         cmocka_unit_test(test_continuation_linear_both_methods),
         cmocka_unit_test(test_continuation_duffing_two_folds),
         cmocka_unit_test(test_matched_estimate),
+        cmocka_unit_test(test_model_predictor_saves_evaluations),
         cmocka_unit_test(test_journal_resume),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

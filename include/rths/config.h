@@ -13,7 +13,8 @@
 typedef struct rths_config rths_config;
 
 /* Loads path (NULL: an empty document, so everything takes defaults), then applies each override
- * "dotted.key=value" in order; value is parsed as a YAML flow scalar/sequence ("0.33", "[1, 2]"). */
+ * "dotted.key=value" in order; value is parsed as a YAML flow scalar/sequence ("0.33", "[1, 2]").
+ */
 int rths_config_load(const char *path, const char *const *overrides, int n_overrides,
                      rths_config **out, rths_error *err);
 void rths_config_free(rths_config *cfg);
@@ -28,8 +29,8 @@ int rths_config_get_double(rths_config *cfg, const char *key, int required, doub
 enum { RTHS_CONFIG_LO_OPEN = 1, RTHS_CONFIG_HI_OPEN = 2 };
 int rths_config_get_double_ex(rths_config *cfg, const char *key, int required, double def,
                               double lo, double hi, unsigned flags, double *out, rths_error *err);
-int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo,
-                        long hi, long *out, rths_error *err);
+int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo, long hi,
+                        long *out, rths_error *err);
 int rths_config_get_bool(rths_config *cfg, const char *key, int required, int def, int *out,
                          rths_error *err);
 /* *out points into the config (valid until rths_config_free). */
@@ -41,11 +42,11 @@ int rths_config_get_choice(rths_config *cfg, const char *key, int required, int 
 /* Sequence of numbers; *out is malloc'ed (caller frees), *count its length (0 when absent). */
 int rths_config_get_double_list(rths_config *cfg, const char *key, int required, double **out,
                                 int *count, rths_error *err);
-int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out,
-                             int *count, rths_error *err);
+int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out, int *count,
+                             rths_error *err);
 /* Sequence of equal-length rows of numbers -> column-major matrix (caller frees). */
-int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out,
-                           int *rows, int *cols, rths_error *err);
+int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out, int *rows,
+                           int *cols, rths_error *err);
 /* Marks a whole subtree as known (for sections read by a component not linked in this command);
  * NULL or "" marks the whole document. */
 void rths_config_mark_known(rths_config *cfg, const char *key_prefix);

@@ -3,7 +3,8 @@
  * Natural-parameter sweep or pseudo-arclength continuation (frequency as an unknown) with the
  * seed's step policy (secant predictor u_pred = u_-1 + ds * (u_-1 - u_-2), ds = 1.1 after a
  * success, x0.5 and retry after a failure, erratum 4), bounded step lengths, fold detection and
- * location (sign change of the frequency component of the secant), branch segments between folds. */
+ * location (sign change of the frequency component of the secant), branch segments between folds.
+ */
 #ifndef RTHS_CONTINUATION_H
 #define RTHS_CONTINUATION_H
 
@@ -14,25 +15,29 @@ typedef enum { RTHS_CONT_NATURAL = 0, RTHS_CONT_ARCLENGTH = 1 } rths_cont_method
 typedef struct rths_continuation_options {
     double start_hz, end_hz;
     rths_cont_method method;
-    double initial_step_hz;   /* first frequency step (both methods seed with it) */
-    double max_step_hz;       /* natural: largest frequency step */
-    double min_step;          /* arclength: smallest step in scaled units before giving up */
-    double max_step;          /* arclength: largest step in scaled units */
-    double grow, shrink;      /* step multipliers after success / failure (1.1, 0.5) */
+    double initial_step_hz; /* first frequency step (both methods seed with it) */
+    double max_step_hz;     /* natural: largest frequency step */
+    double min_step;        /* arclength: smallest step in scaled units before giving up */
+    double max_step;        /* arclength: largest step in scaled units */
+    double grow, shrink;    /* step multipliers after success / failure (1.1, 0.5) */
     int max_points;
     int max_failures;         /* consecutive failed corrections before the run ends */
     double amplitude_scale_m; /* scaling of target coefficients; 0: from the first point */
+    /* natural sweep: 1 predicts from the residual model Phi = J(w) u - f(w) extrapolated from
+     * the last two points (and seeds the corrector with the extrapolated Jacobians); 0: the
+     * seed's secant in the targets */
+    int model_predictor;
 } rths_continuation_options;
 
 typedef struct rths_point {
-    int index;                  /* 0-based, in acceptance order */
-    rths_solution sol;          /* targets, omega, measurement, residual */
+    int index;         /* 0-based, in acceptance order */
+    rths_solution sol; /* targets, omega, measurement, residual */
     int evaluations, iterations;
-    double rig_time_s;          /* rig time spent on this point, including failed attempts */
-    int fold;                   /* 1 if a fold was located between this point and the next */
-    int segment;                /* branch segment (0, 1, ...): increments after each fold */
-    double step;                /* arclength: scaled step length used to reach this point */
-    double secant_omega;        /* frequency component of the secant that arrived here */
+    double rig_time_s;              /* rig time spent on this point, including failed attempts */
+    int fold;                       /* 1 if a fold was located between this point and the next */
+    int segment;                    /* branch segment (0, 1, ...): increments after each fold */
+    double step;                    /* arclength: scaled step length used to reach this point */
+    double secant_omega;            /* frequency component of the secant that arrived here */
     rths_corrector_state corrector; /* carried Jacobian after this point (for --resume) */
 } rths_point;
 
@@ -53,12 +58,12 @@ typedef void (*rths_progress_fn)(void *user, int points, double frequency_hz, do
 typedef struct rths_continuation_result {
     int points;
     int converged_points;
-    int failures;        /* failed corrections (each retried with a smaller step) */
-    int evaluations;     /* all evaluations, failed attempts included */
+    int failures;    /* failed corrections (each retried with a smaller step) */
+    int evaluations; /* all evaluations, failed attempts included */
     double rig_time_s;
     int n_folds;
     rths_fold folds[32];
-    int reached_end;     /* 1 if the end frequency was reached */
+    int reached_end; /* 1 if the end frequency was reached */
     char stop_reason[RTHS_ERROR_MSG_LEN + 256];
 } rths_continuation_result;
 
@@ -72,9 +77,9 @@ int rths_continuation_config_read(rths_config *cfg, rths_continuation_options *o
  * normally (result->stop_reason says why), RTHS_EFAIL on a rig fault or callback failure. */
 int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                           const rths_settle_options *settle, const rths_newton_options *newton,
-                          int harmonics, double amplitude_n, const rths_point *resume,
-                          int n_resume, rths_point_fn on_point, rths_progress_fn on_progress,
-                          void *user, rths_continuation_result *result, rths_error *err);
+                          int harmonics, double amplitude_n, const rths_point *resume, int n_resume,
+                          rths_point_fn on_point, rths_progress_fn on_progress, void *user,
+                          rths_continuation_result *result, rths_error *err);
 
 /* Physical interface fundamental amplitude of a point, m. */
 double rths_point_amplitude_m(const rths_point *pt);

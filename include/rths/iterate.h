@@ -11,6 +11,7 @@
 #include "rths/rig.h"
 
 #define RTHS_MAX_UNKNOWNS (2 * RTHS_MAX_HARMONICS + 1)
+#define RTHS_LTI_HISTORY 12
 
 /* How one evaluation waits for steady state and averages (SPEC §6). */
 typedef struct rths_settle_options {
@@ -63,6 +64,10 @@ typedef struct rths_corrector_state {
     int harmonics;
     int n; /* 2N unknown target coefficients */
     int have_jacobian;
+    /* 1: the last finite-difference Jacobians (natural sweep) were within 5 % of a linear
+     * time-invariant rig's form, one complex gain per harmonic and no coupling between harmonics,
+     * so the secant updates keep that form (each secant pair then fixes a gain exactly) */
+    int lti;
     /* dPhi/d(target, omega): 2N rows, 2N + 1 columns (last column: d/d omega, rad/s) */
     double jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
     /* d(physical interface coefficients)/d(target, omega), same layout, estimated alongside */
@@ -73,6 +78,16 @@ typedef struct rths_corrector_state {
      * their degrees of freedom; each new point halves the weight of the earlier ones. */
     double noise_ss[2][RTHS_MAX_UNKNOWNS];
     double noise_dof;
+    /* Natural sweep: the latest evaluations (ring), from which an LTI rig's local model
+     * Phi_k = g_k(w) z_k - f_k(w), x_k = r_k(w) z_k + e_k(w) (z_k = A*_k + i B*_k, g, f, r, e
+     * linear in w) is fitted by least squares: every evaluation informs the gains, not only
+     * secant pairs. Metres and rad/s; cos terms then sin terms. */
+    int history_count, history_next;
+    struct {
+        double omega_rad_s;
+        double target[2 * RTHS_MAX_HARMONICS], phi[2 * RTHS_MAX_HARMONICS],
+            response[2 * RTHS_MAX_HARMONICS];
+    } history[RTHS_LTI_HISTORY];
     int evaluations; /* counters for the current point */
     int iterations;
     double rig_time_s;
@@ -119,6 +134,13 @@ typedef struct rths_solution {
 int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
                  double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
                  rths_solution *sol, rths_error *err);
+
+/* LTI rig on a natural sweep (state->lti): the target at omega predicted by the local model fitted
+ * to the recorded evaluations, z_k = f_k / g_k, with the model's Jacobians written into the state
+ * to seed the corrector. Returns 0, or -1 when the evaluations do not determine the model (fewer
+ * than two frequencies or six evaluations, or a singular fit). */
+int rths_corrector_lti_predict(rths_corrector_state *state, int harmonics, double omega_rad_s,
+                               double *target_a, double *target_b);
 
 /* Defaults: the project's best ("default") and the seed's flowchart ("paper"). */
 void rths_settle_defaults(rths_settle_options *opt, int paper);

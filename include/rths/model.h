@@ -28,17 +28,21 @@ void rths_assembly_free(rths_assembly *a);
 
 /* ---- split into substructures ---- */
 
-typedef enum { RTHS_DOF_PHYSICAL = 0, RTHS_DOF_INTERFACE = 1, RTHS_DOF_NUMERICAL = 2 } rths_dof_role;
+typedef enum {
+    RTHS_DOF_PHYSICAL = 0,
+    RTHS_DOF_INTERFACE = 1,
+    RTHS_DOF_NUMERICAL = 2
+} rths_dof_role;
 
 typedef struct rths_split {
-    int n;                       /* DoFs of the assembly */
-    int n_phys, n_int, n_num;    /* internal physical, interface, internal numerical */
-    int *phys_dofs;              /* assembly indices of the internal physical DoFs */
-    int *int_dofs;               /* assembly indices of the interface DoFs */
-    int *num_dofs;               /* assembly indices of the internal numerical DoFs */
-    double mass_ratio;           /* p = numerical share of the interface mass (SPEC 3.1) */
-    int np;                      /* n_phys + n_int: physical substructure size, order (phys, int) */
-    int nn;                      /* n_int + n_num: numerical substructure size, order (int, num) */
+    int n;                    /* DoFs of the assembly */
+    int n_phys, n_int, n_num; /* internal physical, interface, internal numerical */
+    int *phys_dofs;           /* assembly indices of the internal physical DoFs */
+    int *int_dofs;            /* assembly indices of the interface DoFs */
+    int *num_dofs;            /* assembly indices of the internal numerical DoFs */
+    double mass_ratio;        /* p = numerical share of the interface mass (SPEC 3.1) */
+    int np;                   /* n_phys + n_int: physical substructure size, order (phys, int) */
+    int nn;                   /* n_int + n_num: numerical substructure size, order (int, num) */
     double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
     double *mass_num, *damping_num, *stiffness_num;    /* nn x nn */
 } rths_split;
@@ -138,8 +142,8 @@ typedef struct rths_bilinear_leg {
  * every DoF, and its stability from the Floquet multipliers. */
 typedef struct rths_periodic_point {
     double omega_rad_s;
-    double *cos_m;   /* n x (RTHS_PERIODIC_HARMONICS + 1): cos_m[i + k n] */
-    double *sin_m;   /* same layout */
+    double *cos_m;      /* n x (RTHS_PERIODIC_HARMONICS + 1): cos_m[i + k n] */
+    double *sin_m;      /* same layout */
     double max_floquet; /* largest Floquet multiplier modulus: > 1 unstable */
     int stable;
 } rths_periodic_point;

@@ -21,11 +21,11 @@ const char *rths_rig_fault_name(rths_rig_fault f);
 /* One decimated time trace sample. */
 typedef struct rths_trace_sample {
     double time_s;
-    double x_phys_m;   /* physical interface displacement (laser) */
-    double x_num_m;    /* numerical interface displacement */
-    double target_m;   /* control target x*(t) */
-    double force_n;    /* load cell */
-    double demand;     /* actuator demand (V) */
+    double x_phys_m; /* physical interface displacement (laser) */
+    double x_num_m;  /* numerical interface displacement */
+    double target_m; /* control target x*(t) */
+    double force_n;  /* load cell */
+    double demand;   /* actuator demand (V) */
 } rths_trace_sample;
 
 typedef struct rths_rig rths_rig;
@@ -40,10 +40,10 @@ typedef struct rths_rig_ops {
     /* Runs for duration_s recording a trace decimated to at most max_samples samples. */
     int (*record_trace)(void *self, double duration_s, int max_samples, rths_trace_sample *out,
                         int *n_out, rths_error *err);
-    double (*time_s)(void *self);         /* rig time since creation: simulated s or wall s */
-    rths_rig_fault (*fault)(void *self);  /* latched fault, RTHS_RIG_OK if none */
+    double (*time_s)(void *self);        /* rig time since creation: simulated s or wall s */
+    rths_rig_fault (*fault)(void *self); /* latched fault, RTHS_RIG_OK if none */
     int (*reset_fault)(void *self, rths_error *err);
-    double (*noise_level_m)(void *self);  /* displacement noise standard deviation, m (0: none) */
+    double (*noise_level_m)(void *self); /* displacement noise standard deviation, m (0: none) */
     void (*destroy)(void *self);
 } rths_rig_ops;
 
@@ -57,8 +57,8 @@ int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n,
 int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const double *b,
                         rths_error *err);
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err);
-int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples,
-                          rths_trace_sample *out, int *n_out, rths_error *err);
+int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,
+                          int *n_out, rths_error *err);
 double rths_rig_time_s(rths_rig *rig);
 rths_rig_fault rths_rig_get_fault(rths_rig *rig);
 int rths_rig_reset_fault(rths_rig *rig, rths_error *err);

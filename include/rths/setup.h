@@ -18,17 +18,17 @@
 
 typedef struct rths_setup {
     rths_assembly assembly;
-    rths_dof_role *roles;        /* per DoF */
+    rths_dof_role *roles; /* per DoF */
     rths_split split;
-    int forcing_dof;             /* 0-based */
+    int forcing_dof; /* 0-based */
     double forcing_amplitude_n;
-    double *force;               /* n: amplitude at forcing_dof, zero elsewhere, N */
-    int chain;                   /* 1 when the structure was given as a storey chain */
+    double *force; /* n: amplitude at forcing_dof, zero elsewhere, N */
+    int chain;     /* 1 when the structure was given as a storey chain */
     /* Bilinear leg below `leg.upper_dof` (physical side), extension stiffness from the chain. */
     int has_bilinear;
     rths_bilinear_leg leg;
-    double preload_n;            /* static force on the interface DoF (shaker preload), N */
-    double *static_force;        /* n: preload_n at the (first) interface DoF, N */
+    double preload_n;     /* static force on the interface DoF (shaker preload), N */
+    double *static_force; /* n: preload_n at the (first) interface DoF, N */
     double frf_start_hz, frf_end_hz;
     int frf_points;
 } rths_setup;

@@ -32,10 +32,13 @@ static const char usage[] =
     "Options:\n"
     "  --out DIR            output folder (created)\n"
     "  --strategy NAME      default: adaptive steady-state detection, Jacobian carried along the\n"
-    "                       branch, exact first-order-hold integrator, grounding damping\n"
+    "                       branch, targets and gains predicted from a model of the residual\n"
+    "                       fitted to recent evaluations, response reported at zero mismatch,\n"
+    "                       exact first-order-hold integrator, grounding damping\n"
     "                       1000 N s/m (the project's best);\n"
     "                       paper: the seed's flowchart (fixed waits, fresh finite-difference\n"
-    "                       Jacobian at every point, implicit Euler numerical substructure,\n"
+    "                       Jacobian at every point, secant predictor, the measured response,\n"
+    "                       implicit Euler numerical substructure,\n"
     "                       the seed's grounding damping 200 N s/m); --set overrides either\n"
     "  --harmonics N        harmonics matched at the interface, 1..3 (default: "
     "iteration.harmonics, 1)\n"
@@ -657,6 +660,7 @@ int rths_cmd_frf(int argc, char **argv) {
     rths_settle_defaults(&settle, paper);
     rths_newton_defaults(&newton, paper);
     rths_continuation_defaults(&cont);
+    cont.model_predictor = !paper;
     rc = rths_iterate_config_read(cfg, &settle, &newton, &harmonics, &err);
     if (!rc && harmonics_cli) harmonics = (int)harmonics_cli;
     if (!rc) rc = rths_continuation_config_read(cfg, &cont, &err);

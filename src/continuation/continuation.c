@@ -20,6 +20,7 @@ void rths_continuation_defaults(rths_continuation_options *opt) {
     opt->max_points = 500;
     opt->max_failures = 6;
     opt->amplitude_scale_m = 0.0;
+    opt->model_predictor = 1;
 }
 
 double rths_point_amplitude_m(const rths_point *pt) {
@@ -44,8 +45,86 @@ static int pack_point(const scaling *sc, const rths_solution *s, double *u) {
 
 static double dist(const double *a, const double *b, int m) {
     double s = 0;
-    for (int i = 0; i < m; i++) s += (a[i] - b[i]) * (a[i] - b[i]);
+    for (int i = 0; i < m; i++)
+        s += (a[i] - b[i]) * (a[i] - b[i]);
     return sqrt(s);
+}
+
+/* Model predictor of a natural sweep. Near a resonance the solution races but the residual map
+ * does not: Phi(u, w) = J(w) u - f(w) with J and f smooth in w; J passes close to zero at the
+ * resonance, and that is what makes u = J^-1 f peak (the carried Jacobian of a Q = 140 mode changes
+ * by its own size between points 0.05 Hz apart, while J itself is nearly linear in w). J, the
+ * response Jacobian R, and f = J u - Phi of the last few points (up to MODEL_POINTS), fitted by a
+ * least-squares line in w (which averages the secant updates' noise) and evaluated at the new w,
+ * predict the targets; J and R seed the corrector. Returns 0 with target_a/b filled and J, R
+ * written into *corr, or -1 (the caller keeps the secant). */
+enum { MODEL_POINTS = 4 };
+static int model_predict(const rths_point *pts, int n_pts, double omega, int harmonics,
+                         double *target_a, double *target_b, rths_corrector_state *corr) {
+    enum { L = RTHS_MAX_UNKNOWNS };
+    int n = 2 * harmonics, K = 0;
+    const rths_point *p[MODEL_POINTS];
+    for (int q = n_pts - 1; q >= 0 && K < MODEL_POINTS; q--) {
+        if (!pts[q].corrector.have_jacobian || pts[q].sol.harmonics != harmonics) break;
+        p[K++] = &pts[q];
+    }
+    if (K < 2) return -1;
+    /* weights of the fitted line's value at omega: w_q = 1/K + (x - xbar)(x_q - xbar) / Sxx */
+    double xbar = 0, sxx = 0, weight[MODEL_POINTS];
+    for (int q = 0; q < K; q++)
+        xbar += p[q]->sol.omega_rad_s / K;
+    for (int q = 0; q < K; q++)
+        sxx += (p[q]->sol.omega_rad_s - xbar) * (p[q]->sol.omega_rad_s - xbar);
+    if (!(sxx > 0)) return -1;
+    for (int q = 0; q < K; q++)
+        weight[q] = 1.0 / K + (omega - xbar) * (p[q]->sol.omega_rad_s - xbar) / sxx;
+    double jp[L * L] = {0}, rp[L * L] = {0}, fp[L] = {0}, u1[L];
+    for (int q = 0; q < K; q++) {
+        double u[L], phi[L];
+        for (int k = 0; k < harmonics; k++) {
+            u[k] = p[q]->sol.target_a[k];
+            u[harmonics + k] = p[q]->sol.target_b[k];
+        }
+        if (q == 0) memcpy(u1, u, sizeof u);
+        rths_evaluation_residual(&p[q]->sol.eval, phi, NULL);
+        const double *J = p[q]->corrector.jacobian, *R = p[q]->corrector.response_jacobian;
+        for (int i = 0; i < n; i++) {
+            double f = -phi[i];
+            for (int j = 0; j < n; j++) {
+                f += J[i + j * L] * u[j];
+                jp[i + j * L] += weight[q] * J[i + j * L];
+                rp[i + j * L] += weight[q] * R[i + j * L];
+            }
+            fp[i] += weight[q] * f;
+        }
+    }
+    double a[L * L], x[L];
+    for (int i = 0; i < n; i++) {
+        x[i] = fp[i];
+        for (int j = 0; j < n; j++)
+            a[i + j * n] = jp[i + j * L];
+    }
+    if (rths_mat_solve(n, 1, a, x) != 0) return -1;
+    /* a wild prediction (a stale Jacobian at a point) is worse than the secant: keep the move
+     * within twice the current target's size */
+    double move = 0, size = 0;
+    for (int i = 0; i < n; i++) {
+        if (!isfinite(x[i])) return -1;
+        move += (x[i] - u1[i]) * (x[i] - u1[i]);
+        size += u1[i] * u1[i];
+    }
+    if (move > 4 * size) return -1;
+    for (int k = 0; k < harmonics; k++) {
+        target_a[k] = x[k];
+        target_b[k] = x[harmonics + k];
+    }
+    if (corr->have_jacobian && corr->harmonics == harmonics)
+        for (int j = 0; j < n; j++)
+            for (int i = 0; i < n; i++) {
+                corr->jacobian[i + j * L] = jp[i + j * L];
+                corr->response_jacobian[i + j * L] = rp[i + j * L];
+            }
+    return 0;
 }
 
 /* Vertex of the parabola through (s_i, w_i), i = 0..2; returns 0 if not a proper extremum. */
@@ -60,9 +139,9 @@ static int parabola_vertex(const double *s, const double *w, double *s_star) {
 
 int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                           const rths_settle_options *settle, const rths_newton_options *newton,
-                          int harmonics, double amplitude_n, const rths_point *resume,
-                          int n_resume, rths_point_fn on_point, rths_progress_fn on_progress,
-                          void *user, rths_continuation_result *res, rths_error *err) {
+                          int harmonics, double amplitude_n, const rths_point *resume, int n_resume,
+                          rths_point_fn on_point, rths_progress_fn on_progress, void *user,
+                          rths_continuation_result *res, rths_error *err) {
     memset(res, 0, sizeof *res);
     int cap = opt->max_points + 1;
     rths_point *pts = calloc((size_t)cap, sizeof *pts);
@@ -72,7 +151,9 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
         return rths_error_set(err, RTHS_EFAIL, "out of memory for %d continuation points", cap);
     }
     double dir = opt->end_hz >= opt->start_hz ? 1.0 : -1.0;
-    scaling sc = {.opt = opt, .amp_scale = opt->amplitude_scale_m, .harmonics = harmonics,
+    scaling sc = {.opt = opt,
+                  .amp_scale = opt->amplitude_scale_m,
+                  .harmonics = harmonics,
                   .omega_scale = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
     rths_corrector_state corr;
     memset(&corr, 0, sizeof corr);
@@ -87,8 +168,9 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
             pack_point(&sc, &pts[n].sol, u1);
             svals[n] = svals[n - 1] + dist(u0, u1, m);
         }
-        if (pts[n].fold) res->folds[res->n_folds < 32 ? res->n_folds++ : 31] =
-            (rths_fold){pts[n].sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(&pts[n]), n};
+        if (pts[n].fold)
+            res->folds[res->n_folds < 32 ? res->n_folds++ : 31] = (rths_fold){
+                pts[n].sol.omega_rad_s / (2 * M_PI), rths_point_amplitude_m(&pts[n]), n};
         res->evaluations += pts[n].evaluations;
         res->rig_time_s += pts[n].rig_time_s;
         segment = pts[n].segment;
@@ -138,9 +220,16 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                 sol.target_a[k] = p1->target_a[k];
                 sol.target_b[k] = p1->target_b[k];
             }
-            if (n >= 2) { /* secant extrapolation of the targets in frequency */
+            if (n >= 2 && opt->model_predictor &&
+                (rths_corrector_lti_predict(&corr, harmonics, sol.omega_rad_s, sol.target_a,
+                                            sol.target_b) == 0 ||
+                 model_predict(pts, n, sol.omega_rad_s, harmonics, sol.target_a, sol.target_b,
+                               &corr) == 0)) {
+                /* targets and Jacobians predicted from the residual model */
+            } else if (n >= 2) { /* secant extrapolation of the targets in frequency */
                 const rths_solution *p0 = &pts[n - 2].sol;
-                double t = (sol.omega_rad_s - p1->omega_rad_s) / (p1->omega_rad_s - p0->omega_rad_s);
+                double t =
+                    (sol.omega_rad_s - p1->omega_rad_s) / (p1->omega_rad_s - p0->omega_rad_s);
                 for (int k = 0; k < harmonics; k++) {
                     sol.target_a[k] += t * (p1->target_a[k] - p0->target_a[k]);
                     sol.target_b[k] += t * (p1->target_b[k] - p0->target_b[k]);
@@ -196,8 +285,10 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
             }
             /* a carried Jacobian that misled the corrector is dropped, so the retry starts fresh */
             corr.have_jacobian = 0;
-            if (n == 1 || opt->method == RTHS_CONT_NATURAL) step_hz *= opt->shrink;
-            else ds *= opt->shrink;
+            if (n == 1 || opt->method == RTHS_CONT_NATURAL)
+                step_hz *= opt->shrink;
+            else
+                ds *= opt->shrink;
             if (opt->method == RTHS_CONT_ARCLENGTH && n >= 2 && step_used <= opt->min_step) {
                 snprintf(res->stop_reason, sizeof res->stop_reason,
                          "step fell below the minimum %.3g near %.6g Hz", opt->min_step,
@@ -248,7 +339,8 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                 double s3[3] = {svals[e - 1], svals[e], svals[e + 1]};
                 double w3[3] = {pts[e - 1].sol.omega_rad_s, pts[e].sol.omega_rad_s,
                                 pts[e + 1].sol.omega_rad_s};
-                double a3[3] = {rths_point_amplitude_m(&pts[e - 1]), rths_point_amplitude_m(&pts[e]),
+                double a3[3] = {rths_point_amplitude_m(&pts[e - 1]),
+                                rths_point_amplitude_m(&pts[e]),
                                 rths_point_amplitude_m(&pts[e + 1])};
                 double s_star = s3[1];
                 if (!parabola_vertex(s3, w3, &s_star)) s_star = s3[1];
@@ -263,7 +355,8 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                 int after = s_star < s3[1] ? e - 1 : e;
                 pts[after].fold = 1;
                 segment++;
-                for (int q = after + 1; q <= n; q++) pts[q].segment = segment;
+                for (int q = after + 1; q <= n; q++)
+                    pts[q].segment = segment;
                 if (res->n_folds < 32)
                     res->folds[res->n_folds++] = (rths_fold){w_star / (2 * M_PI), a_star, after};
                 if (on_point)
@@ -272,7 +365,8 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                 wdir = -wdir;
                 ext_idx = n;
                 for (int q = e + 1; q <= n; q++)
-                    if (wdir * (pts[q].sol.omega_rad_s - pts[ext_idx].sol.omega_rad_s) > 0) ext_idx = q;
+                    if (wdir * (pts[q].sol.omega_rad_s - pts[ext_idx].sol.omega_rad_s) > 0)
+                        ext_idx = q;
             }
         }
         n++;
@@ -283,8 +377,10 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
             snprintf(res->stop_reason, sizeof res->stop_reason, "stopped by the point handler");
             break;
         }
-        if (n >= 2 && opt->method == RTHS_CONT_ARCLENGTH) ds = opt->grow;
-        else if (n >= 2) step_hz = fmin(step_hz * opt->grow, opt->max_step_hz);
+        if (n >= 2 && opt->method == RTHS_CONT_ARCLENGTH)
+            ds = opt->grow;
+        else if (n >= 2)
+            step_hz = fmin(step_hz * opt->grow, opt->max_step_hz);
         if (dir * (sol.omega_rad_s / (2 * M_PI) - opt->end_hz) >= -1e-12) {
             res->reached_end = 1;
             snprintf(res->stop_reason, sizeof res->stop_reason, "reached the end frequency %.6g Hz",

@@ -5,7 +5,8 @@ int rths_continuation_config_read(rths_config *cfg, rths_continuation_options *o
                                   rths_error *err) {
     int rc;
     static const char *const methods[] = {"natural", "arclength", NULL};
-    int method = (int)opt->method;
+    static const char *const predictors[] = {"secant", "model", NULL};
+    int method = (int)opt->method, predictor = opt->model_predictor ? 1 : 0;
     long v;
     if ((rc = rths_config_get_double(cfg, "continuation.start_hz", 0, opt->start_hz, 1e-3, 1e5,
                                      &opt->start_hz, err)) ||
@@ -13,17 +14,18 @@ int rths_continuation_config_read(rths_config *cfg, rths_continuation_options *o
                                      &opt->end_hz, err)) ||
         (rc = rths_config_get_choice(cfg, "continuation.method", 0, method, methods, &method,
                                      err)) ||
-        (rc = rths_config_get_double(cfg, "continuation.initial_step_hz", 0,
-                                     opt->initial_step_hz, 1e-6, 1e3, &opt->initial_step_hz,
-                                     err)) ||
+        (rc = rths_config_get_choice(cfg, "continuation.predictor", 0, predictor, predictors,
+                                     &predictor, err)) ||
+        (rc = rths_config_get_double(cfg, "continuation.initial_step_hz", 0, opt->initial_step_hz,
+                                     1e-6, 1e3, &opt->initial_step_hz, err)) ||
         (rc = rths_config_get_double(cfg, "continuation.max_step_hz", 0, opt->max_step_hz, 1e-6,
                                      1e3, &opt->max_step_hz, err)) ||
         (rc = rths_config_get_double(cfg, "continuation.min_step", 0, opt->min_step, 1e-12, 1.0,
                                      &opt->min_step, err)) ||
         (rc = rths_config_get_double(cfg, "continuation.max_step", 0, opt->max_step, 1e-9, 10.0,
                                      &opt->max_step, err)) ||
-        (rc = rths_config_get_double(cfg, "continuation.grow", 0, opt->grow, 1.0, 10.0,
-                                     &opt->grow, err)) ||
+        (rc = rths_config_get_double(cfg, "continuation.grow", 0, opt->grow, 1.0, 10.0, &opt->grow,
+                                     err)) ||
         (rc = rths_config_get_double(cfg, "continuation.shrink", 0, opt->shrink, 0.01, 0.99,
                                      &opt->shrink, err)) ||
         (rc = rths_config_get_double(cfg, "continuation.amplitude_scale_m", 0,
@@ -31,8 +33,9 @@ int rths_continuation_config_read(rths_config *cfg, rths_continuation_options *o
                                      err)))
         return rc;
     opt->method = (rths_cont_method)method;
-    if ((rc = rths_config_get_int(cfg, "continuation.max_points", 0, opt->max_points, 2, 100000,
-                                  &v, err)))
+    opt->model_predictor = predictor;
+    if ((rc = rths_config_get_int(cfg, "continuation.max_points", 0, opt->max_points, 2, 100000, &v,
+                                  err)))
         return rc;
     opt->max_points = (int)v;
     if ((rc = rths_config_get_int(cfg, "continuation.max_failures", 0, opt->max_failures, 0, 1000,

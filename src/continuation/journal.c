@@ -120,6 +120,7 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "step", json_object_new_double(pt->step));
     json_object_object_add(o, "secant_omega", json_object_new_double(pt->secant_omega));
     json_object_object_add(o, "have_jacobian", json_object_new_int(pt->corrector.have_jacobian));
+    json_object_object_add(o, "lti", json_object_new_int(pt->corrector.lti));
     json_object_object_add(
         o, "jacobian", dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
     json_object_object_add(
@@ -215,6 +216,7 @@ static int parse_point(json_object *o, rths_point *pt) {
         get_int(o, "segment", &pt->segment) || get_dbl(o, "step", &pt->step) ||
         get_dbl(o, "secant_omega", &pt->secant_omega) ||
         get_int(o, "have_jacobian", &pt->corrector.have_jacobian) ||
+        get_int(o, "lti", &pt->corrector.lti) ||
         get_arr(o, "jacobian", pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
         get_arr(o, "response_jacobian", pt->corrector.response_jacobian,
                 RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
