@@ -531,6 +531,36 @@ static void test_model_predictor_saves_evaluations(void **state) {
     assert_true(evaluations[1] <= 0.8 * evaluations[0]);
 }
 
+/* A first point that fails (the cold start from a zero target on the Duffing curve's large
+ * branch, with only two corrector iterations per attempt) is retried from the corrector's last
+ * iterate instead of ending the run, and the run goes on to the end. */
+static void test_first_point_retried(void **state) {
+    (void)state;
+    rths_rig *rig = mock_rig(1, 0.3, 0.0);
+    rths_settle_options st;
+    rths_newton_options nw;
+    rths_continuation_options co;
+    rths_settle_defaults(&st, 0);
+    rths_newton_defaults(&nw, 0);
+    nw.max_iterations = 2;
+    rths_continuation_defaults(&co);
+    co.start_hz = 10.5;
+    co.end_hz = 11.0;
+    co.amplitude_scale_m = 0.01;
+    collector col = {0};
+    rths_continuation_result res;
+    rths_error err;
+    assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL,
+                                           &col, &res, &err),
+                     RTHS_OK);
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr, "first point: %d failures, %d points, %s\n", res.failures, res.points,
+                res.stop_reason);
+    assert_true(res.failures >= 1);
+    assert_true(res.reached_end);
+    rths_rig_destroy(rig);
+}
+
 typedef struct {
     rths_journal *j;
     int stop_after;
@@ -647,6 +677,7 @@ int main(void) {
         cmocka_unit_test(test_continuation_duffing_two_folds),
         cmocka_unit_test(test_matched_estimate),
         cmocka_unit_test(test_model_predictor_saves_evaluations),
+        cmocka_unit_test(test_first_point_retried),
         cmocka_unit_test(test_journal_resume),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -159,6 +159,9 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
     memset(&corr, 0, sizeof corr);
     int n = 0, segment = 0, consecutive = 0, status = RTHS_OK, wdir = 0, ext_idx = 0;
     double ds = opt->grow, step_hz = opt->initial_step_hz;
+    /* a failed first point is retried from the corrector's last iterate (there is no step to
+     * shrink): the cold start from a zero target may simply need more iterations */
+    double first_a[RTHS_MAX_HARMONICS] = {0}, first_b[RTHS_MAX_HARMONICS] = {0};
     for (int i = 0; i < n_resume && i < cap; i++) {
         pts[n] = resume[i];
         if (n > 0) {
@@ -211,6 +214,8 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
         double step_used = 0;
         if (n == 0) {
             sol.omega_rad_s = 2 * M_PI * opt->start_hz; /* zero target as the first guess */
+            memcpy(sol.target_a, first_a, sizeof first_a);
+            memcpy(sol.target_b, first_b, sizeof first_b);
         } else if (n == 1 || opt->method == RTHS_CONT_NATURAL) {
             const rths_solution *p1 = &pts[n - 1].sol;
             double f = p1->omega_rad_s / (2 * M_PI) + dir * step_hz;
@@ -277,7 +282,7 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
             /* a failed attempt's rig time is charged to the next accepted point */
             pts[n].rig_time_s += corr.rig_time_s;
             pts[n].evaluations += corr.evaluations;
-            if (n == 0 || consecutive > opt->max_failures) {
+            if (consecutive > opt->max_failures) {
                 snprintf(res->stop_reason, sizeof res->stop_reason,
                          "stopped after %d failed corrections in a row near %.6g Hz: %s",
                          consecutive, sol.omega_rad_s / (2 * M_PI), err->msg);
@@ -285,6 +290,14 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
             }
             /* a carried Jacobian that misled the corrector is dropped, so the retry starts fresh */
             corr.have_jacobian = 0;
+            if (n == 0) {
+                for (int k = 0; k < harmonics; k++)
+                    if (isfinite(sol.target_a[k]) && isfinite(sol.target_b[k])) {
+                        first_a[k] = sol.target_a[k];
+                        first_b[k] = sol.target_b[k];
+                    }
+                continue;
+            }
             if (n == 1 || opt->method == RTHS_CONT_NATURAL)
                 step_hz *= opt->shrink;
             else
