@@ -42,6 +42,9 @@ static double complex lin_h(int k, double w) {
 static double complex lin_solution_phys(int k, double w) {
     return lin_h(k, w) / (1.0 - lin_H(k, w));
 }
+static double complex lin_solution_target(int k, double w) {
+    return (lin_solution_phys(k, w) - lin_g(k, w)) / lin_G(k, w);
+}
 
 /* Duffing mock (N = 1): phys = x*, num = phys + (F - D(w, |phys|) phys) / (c w0). Dividing by the
  * damping force scale makes a relative tolerance on the mismatch a relative tolerance on x at the
@@ -133,6 +136,14 @@ static rths_rig *mock_rig(int duffing, double ratio, double noise_m) {
     return rths_rig_create(&mock_ops, mk, "mock");
 }
 
+/* The default strategy's options, as rths frf starts from them. */
+static void default_options(rths_settle_options *st, rths_newton_options *nw,
+                            rths_continuation_options *co) {
+    rths_settle_defaults(st, 0);
+    rths_newton_defaults(nw, 0);
+    rths_continuation_defaults(co);
+}
+
 /* The steady-state test must wait out a slow transient: with r = 0.9 per period, a fixed stop after
  * a few periods would leave ~e-1 of the initial offset; the adaptive wait leaves < rel tolerance.
  */
@@ -160,8 +171,7 @@ static void test_evaluate_waits_for_steady_state(void **state) {
 
 static void check_linear_solution(const rths_solution *sol, int N, double tol_rel) {
     for (int k = 1; k <= N; k++) {
-        double complex x = lin_solution_phys(k, sol->omega_rad_s);
-        double complex target = (x - lin_g(k, sol->omega_rad_s)) / lin_G(k, sol->omega_rad_s);
+        double complex target = lin_solution_target(k, sol->omega_rad_s);
         assert_close(sol->target_a[k - 1], creal(target), tol_rel * cabs(target));
         assert_close(sol->target_b[k - 1], -cimag(target), tol_rel * cabs(target));
     }
@@ -241,9 +251,7 @@ static void test_continuation_linear_both_methods(void **state) {
         rths_settle_options st;
         rths_newton_options nw;
         rths_continuation_options co;
-        rths_settle_defaults(&st, 0);
-        rths_newton_defaults(&nw, 0);
-        rths_continuation_defaults(&co);
+        default_options(&st, &nw, &co);
         co.method = (rths_cont_method)method;
         collector col = {0};
         rths_continuation_result res;
@@ -261,6 +269,27 @@ static void test_continuation_linear_both_methods(void **state) {
         check_linear_solution(&col.last.sol, 1, 1e-2);
         rths_rig_destroy(rig);
     }
+}
+
+/* Pseudo-arclength continuation over the Duffing mock (steps up to 0.02 scaled units) with the
+ * default options, and at most max_iterations corrector iterations per attempt when > 0. */
+static int run_duffing(double start_hz, double end_hz, int max_iterations, collector *col,
+                       rths_continuation_result *res) {
+    rths_rig *rig = mock_rig(1, 0.3, 0.0);
+    rths_settle_options st;
+    rths_newton_options nw;
+    rths_continuation_options co;
+    default_options(&st, &nw, &co);
+    if (max_iterations > 0) nw.max_iterations = max_iterations;
+    co.start_hz = start_hz;
+    co.end_hz = end_hz;
+    co.max_step = 0.02;
+    co.amplitude_scale_m = 0.01;
+    rths_error err;
+    int rc =
+        rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL, col, res, &err);
+    rths_rig_destroy(rig);
+    return rc;
 }
 
 /* Fold frequencies of the Duffing curve by a dense scan of the amplitude along both branches. */
@@ -292,23 +321,9 @@ static void test_continuation_duffing_two_folds(void **state) {
     double truth[4];
     int nt = duffing_folds(truth, 4);
     assert_int_equal(nt, 2);
-    rths_rig *rig = mock_rig(1, 0.3, 0.0);
-    rths_settle_options st;
-    rths_newton_options nw;
-    rths_continuation_options co;
-    rths_settle_defaults(&st, 0);
-    rths_newton_defaults(&nw, 0);
-    rths_continuation_defaults(&co);
-    co.start_hz = 8.0;
-    co.end_hz = 13.0;
-    co.max_step = 0.02;
-    co.amplitude_scale_m = 0.01;
     collector col = {0};
     rths_continuation_result res;
-    rths_error err;
-    assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL,
-                                           &col, &res, &err),
-                     RTHS_OK);
+    assert_int_equal(run_duffing(8.0, 13.0, 0, &col, &res), RTHS_OK);
     assert_true(res.reached_end);
     assert_int_equal(res.n_folds, 2);
     assert_int_equal(col.updates >= 2, 1);
@@ -319,7 +334,6 @@ static void test_continuation_duffing_two_folds(void **state) {
     /* parabolic location over steps of <= 0.02 scaled units (0.1 Hz): 0.02 Hz is generous */
     assert_close(got_hi, f_hi, 0.02);
     assert_close(got_lo, f_lo, 0.02);
-    rths_rig_destroy(rig);
 }
 
 /* Real 2N x 2N Jacobian of the map target -> c_k(w) * target, per harmonic, in the corrector's
@@ -357,10 +371,6 @@ static void record_exact(rths_corrector_state *cs, int N, double w, const double
     }
     cs->history_next = (h + 1) % RTHS_LTI_HISTORY;
     if (cs->history_count < RTHS_LTI_HISTORY) cs->history_count++;
-}
-
-static double complex lin_solution_target(int k, double w) {
-    return (lin_solution_phys(k, w) - lin_g(k, w)) / lin_G(k, w);
 }
 
 /* The matched estimate x - (r/g) Phi from the fitted LTI model: a point accepted 1 % off the
@@ -448,9 +458,7 @@ static void test_matched_estimate(void **state) {
     rths_settle_options st;
     rths_newton_options nw;
     rths_continuation_options co;
-    rths_settle_defaults(&st, 0);
-    rths_newton_defaults(&nw, 0);
-    rths_continuation_defaults(&co);
+    default_options(&st, &nw, &co);
     co.method = RTHS_CONT_NATURAL;
     co.max_step_hz = 0.05;
     sweep col = {0};
@@ -507,9 +515,7 @@ static void test_model_predictor_saves_evaluations(void **state) {
         rths_settle_options st;
         rths_newton_options nw;
         rths_continuation_options co;
-        rths_settle_defaults(&st, 0);
-        rths_newton_defaults(&nw, 0);
-        rths_continuation_defaults(&co);
+        default_options(&st, &nw, &co);
         co.method = RTHS_CONT_NATURAL;
         co.max_step_hz = 0.05;
         co.model_predictor = model;
@@ -536,29 +542,14 @@ static void test_model_predictor_saves_evaluations(void **state) {
  * iterate instead of ending the run, and the run goes on to the end. */
 static void test_first_point_retried(void **state) {
     (void)state;
-    rths_rig *rig = mock_rig(1, 0.3, 0.0);
-    rths_settle_options st;
-    rths_newton_options nw;
-    rths_continuation_options co;
-    rths_settle_defaults(&st, 0);
-    rths_newton_defaults(&nw, 0);
-    nw.max_iterations = 2;
-    rths_continuation_defaults(&co);
-    co.start_hz = 10.5;
-    co.end_hz = 11.0;
-    co.amplitude_scale_m = 0.01;
     collector col = {0};
     rths_continuation_result res;
-    rths_error err;
-    assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, collect, NULL,
-                                           &col, &res, &err),
-                     RTHS_OK);
+    assert_int_equal(run_duffing(10.5, 11.0, 2, &col, &res), RTHS_OK);
     if (getenv("RTHS_TEST_VERBOSE"))
         fprintf(stderr, "first point: %d failures, %d points, %s\n", res.failures, res.points,
                 res.stop_reason);
     assert_true(res.failures >= 1);
     assert_true(res.reached_end);
-    rths_rig_destroy(rig);
 }
 
 typedef struct {
@@ -589,9 +580,7 @@ static void test_journal_resume(void **state) {
     rths_settle_options st;
     rths_newton_options nw;
     rths_continuation_options co;
-    rths_settle_defaults(&st, 0);
-    rths_newton_defaults(&nw, 0);
-    rths_continuation_defaults(&co);
+    default_options(&st, &nw, &co);
     co.start_hz = 9.0;
     co.end_hz = 12.0;
     co.amplitude_scale_m = 0.01;
