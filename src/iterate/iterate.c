@@ -447,6 +447,26 @@ static void lti_update(double *J, int N, const double *s, const double *y, const
     }
 }
 
+/* Noise of each harmonic's change between two evaluations, in the corrector's scaled units:
+ * of the mismatch (both sides of both evaluations) and of the physical response. */
+static void secant_noise(const rths_evaluation *e0, const rths_evaluation *e1, double scale,
+                         double *noise_phi, double *noise_resp) {
+    double se0[RTHS_MAX_UNKNOWNS], se1[RTHS_MAX_UNKNOWNS], unused[RTHS_MAX_UNKNOWNS];
+    int N = e0->harmonics;
+    rths_evaluation_residual(e0, unused, se0);
+    rths_evaluation_residual(e1, unused, se1);
+    for (int k = 0; k < N; k++) {
+        double v = 0;
+        for (int h = 0; h < 2; h++)
+            v += se0[h * N + k] * se0[h * N + k] + se1[h * N + k] * se1[h * N + k];
+        noise_phi[k] = sqrt(v) / scale;
+        const rths_fourier *p0 = &e0->phys_se, *p1 = &e1->phys_se;
+        noise_resp[k] = sqrt(p0->a[k + 1] * p0->a[k + 1] + p0->b[k + 1] * p0->b[k + 1] +
+                             p1->a[k + 1] * p1->a[k + 1] + p1->b[k + 1] * p1->b[k + 1]) /
+                        scale;
+    }
+}
+
 /* Finite-difference Jacobian columns 0..m-1 around u, of Phi and of the physical response
  * (scaled variables). */
 static int fd_jacobian(corrector *c, const double *u, const double *phi0, const double *resp0,
@@ -777,35 +797,21 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
         }
         for (int i = 0; i < c.n; i++)
             y[i] = phit[i] - phi[i];
-        if (ss > 0 && state->lti && c.m == c.n) {
-            /* noise of each harmonic's change, scaled like y: both evaluations' standard errors */
-            double se0[RTHS_MAX_UNKNOWNS], se1[RTHS_MAX_UNKNOWNS], tmp[RTHS_MAX_UNKNOWNS];
-            double noise_phi[RTHS_MAX_HARMONICS], noise_resp[RTHS_MAX_HARMONICS];
-            rths_evaluation_residual(&sol->eval, tmp, se0);
-            rths_evaluation_residual(&trial.eval, tmp, se1);
+        double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
+        if (ss > 0 && state->lti && c.m == c.n &&
+            lti_fit(state, N, trial.omega_rad_s, g, r, z, NULL) == 0) {
+            /* every recorded evaluation informs the gains, not only this secant pair */
             for (int k = 0; k < N; k++) {
-                double v = 0;
-                for (int h = 0; h < 2; h++)
-                    v += se0[h * N + k] * se0[h * N + k] + se1[h * N + k] * se1[h * N + k];
-                noise_phi[k] = sqrt(v) / c.scale[0];
-                const rths_fourier *e0 = &sol->eval.phys_se, *e1 = &trial.eval.phys_se;
-                noise_resp[k] = sqrt(e0->a[k + 1] * e0->a[k + 1] + e0->b[k + 1] * e0->b[k + 1] +
-                                     e1->a[k + 1] * e1->a[k + 1] + e1->b[k + 1] * e1->b[k + 1]) /
-                                c.scale[0];
+                lti_block(state->jacobian, N, k, g[k]);
+                lti_block(state->response_jacobian, N, k, r[k]);
             }
-            double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-            if (lti_fit(state, N, trial.omega_rad_s, g, r, z, NULL) == 0) {
-                /* every recorded evaluation informs the gains, not only this secant pair */
-                for (int k = 0; k < N; k++) {
-                    lti_block(state->jacobian, N, k, g[k]);
-                    lti_block(state->response_jacobian, N, k, r[k]);
-                }
-            } else {
-                lti_update(state->jacobian, N, s, y, noise_phi);
-                for (int i = 0; i < c.n; i++)
-                    y[i] = respt[i] - resp[i];
-                lti_update(state->response_jacobian, N, s, y, noise_resp);
-            }
+        } else if (ss > 0 && state->lti && c.m == c.n) {
+            double noise_phi[RTHS_MAX_HARMONICS], noise_resp[RTHS_MAX_HARMONICS];
+            secant_noise(&sol->eval, &trial.eval, c.scale[0], noise_phi, noise_resp);
+            lti_update(state->jacobian, N, s, y, noise_phi);
+            for (int i = 0; i < c.n; i++)
+                y[i] = respt[i] - resp[i];
+            lti_update(state->response_jacobian, N, s, y, noise_resp);
         } else if (ss > 0) {
             broyden_update(state->jacobian, c.n, c.m, s, y, ss);
             for (int i = 0; i < c.n; i++)
