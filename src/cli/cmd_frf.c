@@ -321,6 +321,11 @@ static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t, 
                       : "");
     int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
     if (rc) return rc;
+    int max_iterations = 0;
+    for (int i = 0; i < run->n; i++)
+        max_iterations =
+            run->pts[i].iterations > max_iterations ? run->pts[i].iterations : max_iterations;
+    /* the range hugs the bars: no empty tick left of 0 */
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
              "set title 'Newton iterations per accepted point'\n"
@@ -329,11 +334,12 @@ static int plot_frf(rths_report *rep, const frf_run *run, const truth_curve *t, 
              "set boxwidth 0.8\n"
              "set style fill solid 0.6\n"
              "set xtics 1\n"
-             "set offsets 0.6, 0.6, 0, 0\n"
+             "set xrange [-0.6:%g]\n"
              "set grid ytics\n"
              "set yrange [0:*]\n"
              "plot 'frf.csv' using 16:(1) skip 1 smooth frequency with boxes lc rgb '#1f77b4' "
-             "title 'points'\n");
+             "title 'points'\n",
+             max_iterations + 0.6);
     return rths_plot(rep, rths_report_dir(rep), "iterations", 900, 600, body, err);
 }
 
