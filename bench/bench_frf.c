@@ -88,7 +88,7 @@ static int run(int paper, outcome *o) {
         rig_s += c->pts[i].rig_time_s;
         double complex x[4];
         rths_frf(4, s.assembly.mass, s.assembly.damping, s.assembly.stiffness, s.force,
-                 c->pts[i].sol.omega_rad_s, x, &err);
+                 2 * M_PI * c->pts[i].sol.frequency_hz, x, &err);
         double truth = cabs(x[2]);
         o->max_error = fmax(o->max_error, fabs(c->pts[i].sol.amplitude_m - truth) / truth);
     }

@@ -552,6 +552,35 @@ static void test_first_point_retried(void **state) {
     assert_true(res.reached_end);
 }
 
+/* The LTI model needs data that determine it: five evaluations at one frequency and one at
+ * another cannot tell g from f at the second, so no prediction is made; a second evaluation
+ * there (another target) makes the fit exact for this affine mock, and the prediction at the
+ * first frequency is the closed-form solution's target. */
+static void test_lti_fit_needs_rank(void **state) {
+    (void)state;
+    rths_corrector_state cs;
+    memset(&cs, 0, sizeof cs);
+    cs.harmonics = 1;
+    cs.n = 2;
+    cs.have_jacobian = 1;
+    cs.lti = 1;
+    double w0 = 2 * M_PI * 13.0, w1 = 2 * M_PI * 13.05;
+    for (int e = 0; e < 5; e++) {
+        double complex t[RTHS_MAX_HARMONICS + 1] = {0, lin_solution_target(1, w0) * (1 + 0.03 * e)};
+        record_exact(&cs, 1, w0, t);
+    }
+    double complex t1[RTHS_MAX_HARMONICS + 1] = {0, lin_solution_target(1, w1) * 1.02};
+    record_exact(&cs, 1, w1, t1);
+    double a[RTHS_MAX_HARMONICS], b[RTHS_MAX_HARMONICS];
+    assert_int_equal(rths_corrector_lti_predict(&cs, 1, w0, a, b), -1);
+    t1[1] = lin_solution_target(1, w1) * (0.97 + 0.02 * I);
+    record_exact(&cs, 1, w1, t1);
+    assert_int_equal(rths_corrector_lti_predict(&cs, 1, w0, a, b), 0);
+    double complex want = lin_solution_target(1, w0); /* mock: target = A - iB */
+    assert_close(a[0], creal(want), 1e-9 * cabs(want));
+    assert_close(b[0], -cimag(want), 1e-9 * cabs(want));
+}
+
 typedef struct {
     rths_journal *j;
     int stop_after;
@@ -625,6 +654,10 @@ static void test_journal_resume(void **state) {
         assert_int_equal(pts[i].segment, jc.kept[i].segment);
         assert_memory_equal(pts[i].corrector.jacobian, jc.kept[i].corrector.jacobian,
                             sizeof pts[i].corrector.jacobian);
+        assert_memory_equal(pts[i].corrector.history, jc.kept[i].corrector.history,
+                            sizeof pts[i].corrector.history);
+        assert_int_equal(pts[i].corrector.history_count, jc.kept[i].corrector.history_count);
+        assert_int_equal(pts[i].corrector.history_next, jc.kept[i].corrector.history_next);
     }
     /* resume: truncate the torn tail the way the CLI does (reopen for append after rewrite) */
     f = fopen(path, "w");
@@ -667,6 +700,7 @@ int main(void) {
         cmocka_unit_test(test_matched_estimate),
         cmocka_unit_test(test_model_predictor_saves_evaluations),
         cmocka_unit_test(test_first_point_retried),
+        cmocka_unit_test(test_lti_fit_needs_rank),
         cmocka_unit_test(test_journal_resume),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -34,7 +34,8 @@ static void test_seed_natural_frequencies(void **state) {
         assert_close(m.damping_ratio[r], expect_zeta[r], 0.00005 + 0.05 * expect_zeta[r]);
         /* mass normalisation phi^T M phi = 1 */
         double mm = 0;
-        for (int i = 0; i < 4; i++) mm += seed_m[i] * pow(m.shapes[r * 4 + i], 2);
+        for (int i = 0; i < 4; i++)
+            mm += seed_m[i] * pow(m.shapes[r * 4 + i], 2);
         assert_close(mm, 1.0, 1e-12);
     }
     rths_modes_free(&m);
@@ -127,7 +128,8 @@ static void test_assembly_validation(void **state) {
 }
 
 /* Random chains, random interface position and p: recombination must return the assembly, the
- * interface mass must divide as (1-p, p), and for a chain the leg below the interface is physical. */
+ * interface mass must divide as (1-p, p), and for a chain the leg below the interface is physical.
+ */
 static void test_split_recombine_random(void **state) {
     (void)state;
     rths_rng rng;
@@ -144,7 +146,8 @@ static void test_split_recombine_random(void **state) {
         double p = 0.01 + 0.98 * rths_rng_uniform(&rng);
         rths_dof_role role[9];
         for (int i = 0; i < n; i++)
-            role[i] = i < s ? RTHS_DOF_PHYSICAL : (i == s ? RTHS_DOF_INTERFACE : RTHS_DOF_NUMERICAL);
+            role[i] =
+                i < s ? RTHS_DOF_PHYSICAL : (i == s ? RTHS_DOF_INTERFACE : RTHS_DOF_NUMERICAL);
         rths_assembly a;
         rths_split sp;
         rths_error err;
@@ -164,7 +167,8 @@ static void test_split_recombine_random(void **state) {
         assert_close(RTHS_AT(sp.mass_phys, sp.np, ip, ip), (1 - p) * m[s], 1e-12 * m[s]);
         assert_close(RTHS_AT(sp.stiffness_phys, sp.np, ip, ip), k[s], 1e-9 * k[s]);
         assert_close(RTHS_AT(sp.damping_phys, sp.np, ip, ip), c[s], 1e-9 * (c[s] + 1));
-        if (s + 1 < n) assert_close(RTHS_AT(sp.stiffness_num, sp.nn, 0, 0), k[s + 1], 1e-9 * k[s + 1]);
+        if (s + 1 < n)
+            assert_close(RTHS_AT(sp.stiffness_num, sp.nn, 0, 0), k[s + 1], 1e-9 * k[s + 1]);
         free(rm), free(rc), free(rk);
         rths_split_free(&sp);
         rths_assembly_free(&a);
@@ -216,10 +220,10 @@ static void test_expm_rotation(void **state) {
 static void oscillator_expm_closed_form(double w, double z, double t, double out[4]) {
     double wd = w * sqrt(1 - z * z), s = z * w, ex = exp(-s * t);
     double cw = cos(wd * t), sw = sin(wd * t);
-    out[0] = ex * (cw + s / wd * sw);       /* x from x0 */
-    out[1] = ex * (-w * w / wd * sw);       /* v from x0 */
-    out[2] = ex * (sw / wd);                /* x from v0 */
-    out[3] = ex * (cw - s / wd * sw);       /* v from v0 */
+    out[0] = ex * (cw + s / wd * sw); /* x from x0 */
+    out[1] = ex * (-w * w / wd * sw); /* v from x0 */
+    out[2] = ex * (sw / wd);          /* x from v0 */
+    out[3] = ex * (cw - s / wd * sw); /* v from v0 */
 }
 
 static void test_expm_damped_oscillator(void **state) {
@@ -233,7 +237,8 @@ static void test_expm_damped_oscillator(void **state) {
         oscillator_expm_closed_form(w, z, t, ref);
         /* relative to the largest entry, with a factor for the squarings (||A t|| up to ~1e4) */
         double scale = fabs(ref[1]) + 1;
-        for (int i = 0; i < 4; i++) assert_close(e[i], ref[i], 1e-11 * scale * (1 + w * t));
+        for (int i = 0; i < 4; i++)
+            assert_close(e[i], ref[i], 1e-11 * scale * (1 + w * t));
     }
 }
 
@@ -253,9 +258,15 @@ static void test_discretisation_scalar_transfer_functions(void **state) {
         for (double w = 1.0; w < 3000.0; w *= 2.1) {
             double complex zz = cexp(I * w * h), expect;
             switch (s) {
-            case RTHS_SCHEME_IMPLICIT_EULER: expect = 1.0 / ((zz - 1) / (h * zz) + a); break;
-            case RTHS_SCHEME_TRAPEZOIDAL: expect = 1.0 / (2.0 / h * (zz - 1) / (zz + 1) + a); break;
-            case RTHS_SCHEME_EXACT_ZOH: expect = (1 - exp(-a * h)) / a / (zz - exp(-a * h)); break;
+            case RTHS_SCHEME_IMPLICIT_EULER:
+                expect = 1.0 / ((zz - 1) / (h * zz) + a);
+                break;
+            case RTHS_SCHEME_TRAPEZOIDAL:
+                expect = 1.0 / (2.0 / h * (zz - 1) / (zz + 1) + a);
+                break;
+            case RTHS_SCHEME_EXACT_ZOH:
+                expect = (1 - exp(-a * h)) / a / (zz - exp(-a * h));
+                break;
             default: /* triangle hold: (z-1)^2/(z h) Z[G(s)/s^2] */
                 expect = 1.0 / a - (zz - 1) / (a * a * h) +
                          (zz - 1) * (zz - 1) / (a * a * h * (zz - exp(-a * h)));
@@ -285,7 +296,8 @@ static void test_discretisation_oscillator(void **state) {
         if (s == RTHS_SCHEME_EXACT_ZOH || s == RTHS_SCHEME_EXACT_FOH) {
             double ref[4];
             oscillator_expm_closed_form(w0, z, h, ref);
-            for (int i = 0; i < 4; i++) assert_close(d.ad[i], ref[i], 1e-12 * (1 + fabs(ref[i])));
+            for (int i = 0; i < 4; i++)
+                assert_close(d.ad[i], ref[i], 1e-12 * (1 + fabs(ref[i])));
         }
         for (double w = 10; w < 3000; w *= 1.9) {
             double complex zz = cexp(I * w * h), sv;
@@ -294,8 +306,10 @@ static void test_discretisation_oscillator(void **state) {
             double complex m00 = zz - d.ad[0], m10 = -d.ad[1], m01 = -d.ad[2], m11 = zz - d.ad[3];
             double complex det = m00 * m11 - m01 * m10;
             double complex got = (m11 * r0 - m01 * r1) / det;
-            if (s == RTHS_SCHEME_IMPLICIT_EULER) sv = (zz - 1) / (h * zz);
-            else if (s == RTHS_SCHEME_TRAPEZOIDAL) sv = 2 / h * (zz - 1) / (zz + 1);
+            if (s == RTHS_SCHEME_IMPLICIT_EULER)
+                sv = (zz - 1) / (h * zz);
+            else if (s == RTHS_SCHEME_TRAPEZOIDAL)
+                sv = 2 / h * (zz - 1) / (zz + 1);
             else {
                 /* Well below resonance the exact schemes' only error is the hold's: the ZOH lags
                  * by half a sample (|e^{-iwh/2} - 1| ~ wh/2); the triangle hold's gain is
@@ -312,6 +326,19 @@ static void test_discretisation_oscillator(void **state) {
         rths_discrete_free(&d);
     }
     free(A), free(B);
+}
+
+/* Hermitian eigenvalue ratio: [[2, i], [-i, 2]] has eigenvalues 1 and 3; a rank-one matrix has
+ * ratio 0 (to rounding). */
+static void test_hermitian_eigen_ratio(void **state) {
+    (void)state;
+    double complex a[4] = {2, -I, I, 2}; /* column-major: a(1,0) = -i, a(0,1) = i */
+    assert_close(rths_cmat_hermitian_eigen_ratio(2, a), 1.0 / 3.0, 1e-14);
+    double complex v[2] = {1, 2 * I}, r1[4];
+    for (int j = 0; j < 2; j++)
+        for (int i = 0; i < 2; i++)
+            r1[i + 2 * j] = v[i] * conj(v[j]);
+    assert_true(fabs(rths_cmat_hermitian_eigen_ratio(2, r1)) < 1e-15);
 }
 
 static void test_scheme_names(void **state) {
@@ -339,6 +366,7 @@ int main(void) {
         cmocka_unit_test(test_discretisation_scalar_transfer_functions),
         cmocka_unit_test(test_discretisation_oscillator),
         cmocka_unit_test(test_scheme_names),
+        cmocka_unit_test(test_hermitian_eigen_ratio),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -4,6 +4,8 @@
  * seed's step policy (secant predictor u_pred = u_-1 + ds * (u_-1 - u_-2), ds = 1.1 after a
  * success, x0.5 and retry after a failure, erratum 4), bounded step lengths, fold detection and
  * location (sign change of the frequency component of the secant), branch segments between folds.
+ * Natural sweeps may instead predict from a model of the residual (model_predictor). A failed
+ * first point, having no step to shrink, is retried from the corrector's last iterate.
  */
 #ifndef RTHS_CONTINUATION_H
 #define RTHS_CONTINUATION_H
@@ -23,9 +25,11 @@ typedef struct rths_continuation_options {
     int max_points;
     int max_failures;         /* consecutive failed corrections before the run ends */
     double amplitude_scale_m; /* scaling of target coefficients; 0: from the first point */
-    /* natural sweep: 1 predicts from the residual model Phi = J(w) u - f(w) extrapolated from
-     * the last two points (and seeds the corrector with the extrapolated Jacobians); 0: the
-     * seed's secant in the targets */
+    /* natural sweep: 1 predicts from the residual model Phi = J(w) u - f(w): on an LTI rig the
+     * per-harmonic gains fitted to the last RTHS_LTI_HISTORY evaluations
+     * (rths_corrector_lti_predict), else a least-squares line through the Jacobians and
+     * f = J u - Phi of the last 4 points; either seeds the corrector's Jacobians. 0: the seed's
+     * secant in the targets */
     int model_predictor;
 } rths_continuation_options;
 
@@ -58,7 +62,8 @@ typedef void (*rths_progress_fn)(void *user, int points, double frequency_hz, do
 typedef struct rths_continuation_result {
     int points;
     int converged_points;
-    int failures;    /* failed corrections (each retried with a smaller step) */
+    int failures;    /* failed corrections (each retried with a smaller step; the first point
+                      * from the last iterate) */
     int evaluations; /* all evaluations, failed attempts included */
     double rig_time_s;
     int n_folds;

@@ -47,6 +47,9 @@ int rths_mat_is_symmetric(const double *a, int n, double rel_tol);
 int rths_mat_is_spd(const double *a, int n);
 /* Complex solve A x = b (zgesv) with A column-major n x n; a and b overwritten. */
 int rths_cmat_solve(int n, int nrhs, double complex *a, double complex *b);
+/* Ratio of the smallest to the largest eigenvalue of a Hermitian n x n matrix (zheev, lower
+ * triangle read; a is left unchanged): a normal matrix's conditioning. -1 on failure. */
+double rths_cmat_hermitian_eigen_ratio(int n, const double complex *a);
 
 /* Matrix exponential e^A of a real n x n matrix: scaling and squaring with a [13/13] Pade
  * approximant (Higham 2005), linear solves through LAPACK. out may not alias a. */

@@ -64,9 +64,11 @@ typedef struct rths_corrector_state {
     int harmonics;
     int n; /* 2N unknown target coefficients */
     int have_jacobian;
-    /* 1: the last finite-difference Jacobians (natural sweep) were within 5 % of a linear
-     * time-invariant rig's form, one complex gain per harmonic and no coupling between harmonics,
-     * so the secant updates keep that form (each secant pair then fixes a gain exactly) */
+    /* 1: the last finite-difference Jacobians (natural sweep) were of a linear time-invariant
+     * rig's form, one complex gain per harmonic and no coupling between harmonics, within 5 %
+     * plus what their noise explains. The gains are then refitted to the evaluation history after
+     * every step (or, while the history cannot determine them, fixed by each secant pair), and
+     * the Jacobians always keep that form. */
     int lti;
     /* dPhi/d(target, omega): 2N rows, 2N + 1 columns (last column: d/d omega, rad/s) */
     double jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
@@ -75,7 +77,7 @@ typedef struct rths_corrector_state {
     /* Per-period variance of each matched coefficient (physical, numerical side) pooled over
      * evaluations: the noise is additive, so every evaluation estimates the same variance, and
      * 4 periods alone give a standard error good to only +-40 %. Sums of squared deviations and
-     * their degrees of freedom; each new point halves the weight of the earlier ones. */
+     * their degrees of freedom; each correction attempt halves the weight of the earlier ones. */
     double noise_ss[2][RTHS_MAX_UNKNOWNS];
     double noise_dof;
     /* Natural sweep: the latest evaluations (ring), from which an LTI rig's local model
@@ -117,7 +119,9 @@ typedef struct rths_solution {
      * includes the frequency and the arclength row, so it runs normal to the branch and is well
      * posed at folds). The step is within tolerance, so its linearisation error is second order;
      * what remains is the measurement noise of x and Phi, propagated into
-     * matched_amplitude_se_m. have_matched = 0 when no Jacobian exists. */
+     * matched_amplitude_se_m. have_matched = 0 when no Jacobian exists, when without a fitted
+     * LTI model the Jacobians were only carried from earlier points (not measured or updated at
+     * this one), or when the step would exceed 50 times the mismatch. */
     int have_matched;
     double matched_a[RTHS_MAX_HARMONICS], matched_b[RTHS_MAX_HARMONICS]; /* m, harmonics 1..N */
     double matched_omega_rad_s;
@@ -141,6 +145,11 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
  * than two frequencies or six evaluations, or a singular fit). */
 int rths_corrector_lti_predict(rths_corrector_state *state, int harmonics, double omega_rad_s,
                                double *target_a, double *target_b);
+
+/* Replaces the target columns of the state's Jacobians (2N x 2N, leading dimension
+ * RTHS_MAX_UNKNOWNS) with a predictor's, projected onto the LTI form when the state is LTI. */
+void rths_corrector_seed_jacobians(rths_corrector_state *state, const double *jacobian,
+                                   const double *response_jacobian);
 
 /* Defaults: the project's best ("default") and the seed's flowchart ("paper"). */
 void rths_settle_defaults(rths_settle_options *opt, int paper);

@@ -241,8 +241,6 @@ static double truth_relative_error(const truth_curve *t, double f_hz, double amp
     return best;
 }
 
-/* Linear: the exact relative amplitude error at the point's own frequency (analytic FRF).
- * Bilinear: the distance to the shooting curve (truth_relative_error). */
 /* Linear structure: the analytic interface amplitude at the point's frequency (NAN if none). */
 static double linear_truth_m(const rths_setup *s, const rths_point *pt) {
     double complex x[RTHS_MAX_SENSED_DOFS];
@@ -254,6 +252,8 @@ static double linear_truth_m(const rths_setup *s, const rths_point *pt) {
     return cabs(x[s->split.int_dofs[0]]);
 }
 
+/* Linear: the exact relative amplitude error at the point's own frequency (analytic FRF).
+ * Bilinear: the distance to the shooting curve (truth_relative_error). */
 static double point_truth_error(const rths_setup *s, const truth_curve *t, const rths_point *pt) {
     double amp = pt->sol.amplitude_m;
     if (s->has_bilinear) return truth_relative_error(t, pt->sol.frequency_hz, amp);

@@ -119,11 +119,7 @@ static int model_predict(const rths_point *pts, int n_pts, double omega, int har
         target_b[k] = x[harmonics + k];
     }
     if (corr->have_jacobian && corr->harmonics == harmonics)
-        for (int j = 0; j < n; j++)
-            for (int i = 0; i < n; i++) {
-                corr->jacobian[i + j * L] = jp[i + j * L];
-                corr->response_jacobian[i + j * L] = rp[i + j * L];
-            }
+        rths_corrector_seed_jacobians(corr, jp, rp);
     return 0;
 }
 
@@ -314,8 +310,11 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
         if (n == 0 && sc.amp_scale <= 0) {
             /* scaling fixed from the first solution; only the frequency column depends on it */
             double amp = fmax(hypot(sol.target_a[0], sol.target_b[0]), 1e-9);
-            for (int i = 0; i < 2 * harmonics; i++)
+            for (int i = 0; i < 2 * harmonics; i++) {
                 corr.jacobian[i + 2 * harmonics * RTHS_MAX_UNKNOWNS] *= arc.amplitude_scale_m / amp;
+                corr.response_jacobian[i + 2 * harmonics * RTHS_MAX_UNKNOWNS] *=
+                    arc.amplitude_scale_m / amp;
+            }
             sc.amp_scale = amp;
         }
         rths_point *pt = &pts[n];

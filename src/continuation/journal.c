@@ -89,6 +89,28 @@ static void add_fourier(json_object *o, const char *name, const rths_fourier *f,
     json_object_object_add(o, key, dbl_array(f->b, harmonics + 1));
 }
 
+/* The corrector's evaluation history (the LTI model's data), oldest entries included, so a
+ * resumed run predicts exactly as the uninterrupted one would. */
+enum { HISTORY_WIDTH = 2 * RTHS_MAX_HARMONICS };
+static void add_history(json_object *o, const rths_corrector_state *c) {
+    double omega[RTHS_LTI_HISTORY], target[RTHS_LTI_HISTORY * HISTORY_WIDTH],
+        phi[RTHS_LTI_HISTORY * HISTORY_WIDTH], response[RTHS_LTI_HISTORY * HISTORY_WIDTH];
+    for (int e = 0; e < RTHS_LTI_HISTORY; e++) {
+        omega[e] = c->history[e].omega_rad_s;
+        memcpy(target + e * HISTORY_WIDTH, c->history[e].target, sizeof c->history[e].target);
+        memcpy(phi + e * HISTORY_WIDTH, c->history[e].phi, sizeof c->history[e].phi);
+        memcpy(response + e * HISTORY_WIDTH, c->history[e].response, sizeof c->history[e].response);
+    }
+    json_object_object_add(o, "history_count", json_object_new_int(c->history_count));
+    json_object_object_add(o, "history_next", json_object_new_int(c->history_next));
+    json_object_object_add(o, "history_omega_rad_s", dbl_array(omega, RTHS_LTI_HISTORY));
+    json_object_object_add(o, "history_target_m",
+                           dbl_array(target, RTHS_LTI_HISTORY * HISTORY_WIDTH));
+    json_object_object_add(o, "history_phi_m", dbl_array(phi, RTHS_LTI_HISTORY * HISTORY_WIDTH));
+    json_object_object_add(o, "history_response_m",
+                           dbl_array(response, RTHS_LTI_HISTORY * HISTORY_WIDTH));
+}
+
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err) {
     const rths_solution *s = &pt->sol;
     const rths_evaluation *e = &s->eval;
@@ -131,6 +153,7 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "noise_ss_num",
                            dbl_array(pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS));
     json_object_object_add(o, "noise_dof", json_object_new_double(pt->corrector.noise_dof));
+    add_history(o, &pt->corrector);
     json_object_object_add(o, "have_matched", json_object_new_int(s->have_matched));
     json_object_object_add(o, "matched_a_m", dbl_array(s->matched_a, N));
     json_object_object_add(o, "matched_b_m", dbl_array(s->matched_b, N));
@@ -188,6 +211,27 @@ static int get_fourier(json_object *o, const char *name, rths_fourier *f, int ha
     return get_arr(o, key, f->b, harmonics + 1);
 }
 
+static int get_history(json_object *o, rths_corrector_state *c) {
+    double omega[RTHS_LTI_HISTORY], target[RTHS_LTI_HISTORY * HISTORY_WIDTH],
+        phi[RTHS_LTI_HISTORY * HISTORY_WIDTH], response[RTHS_LTI_HISTORY * HISTORY_WIDTH];
+    if (get_int(o, "history_count", &c->history_count) ||
+        get_int(o, "history_next", &c->history_next) || c->history_count < 0 ||
+        c->history_count > RTHS_LTI_HISTORY || c->history_next < 0 ||
+        c->history_next >= RTHS_LTI_HISTORY ||
+        get_arr(o, "history_omega_rad_s", omega, RTHS_LTI_HISTORY) ||
+        get_arr(o, "history_target_m", target, RTHS_LTI_HISTORY * HISTORY_WIDTH) ||
+        get_arr(o, "history_phi_m", phi, RTHS_LTI_HISTORY * HISTORY_WIDTH) ||
+        get_arr(o, "history_response_m", response, RTHS_LTI_HISTORY * HISTORY_WIDTH))
+        return -1;
+    for (int e = 0; e < RTHS_LTI_HISTORY; e++) {
+        c->history[e].omega_rad_s = omega[e];
+        memcpy(c->history[e].target, target + e * HISTORY_WIDTH, sizeof c->history[e].target);
+        memcpy(c->history[e].phi, phi + e * HISTORY_WIDTH, sizeof c->history[e].phi);
+        memcpy(c->history[e].response, response + e * HISTORY_WIDTH, sizeof c->history[e].response);
+    }
+    return 0;
+}
+
 static int parse_point(json_object *o, rths_point *pt) {
     memset(pt, 0, sizeof *pt);
     rths_solution *s = &pt->sol;
@@ -222,7 +266,7 @@ static int parse_point(json_object *o, rths_point *pt) {
                 RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
         get_arr(o, "noise_ss_phys", pt->corrector.noise_ss[0], RTHS_MAX_UNKNOWNS) ||
         get_arr(o, "noise_ss_num", pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS) ||
-        get_dbl(o, "noise_dof", &pt->corrector.noise_dof) ||
+        get_dbl(o, "noise_dof", &pt->corrector.noise_dof) || get_history(o, &pt->corrector) ||
         get_int(o, "have_matched", &s->have_matched) ||
         get_arr(o, "matched_a_m", s->matched_a, N) || get_arr(o, "matched_b_m", s->matched_b, N) ||
         get_dbl(o, "matched_amplitude_m", &s->matched_amplitude_m) ||

@@ -38,11 +38,14 @@ double *rths_mat_dup(const double *a, int rows, int cols) {
     return c;
 }
 
-void rths_mat_free(double *a) { free(a); }
+void rths_mat_free(double *a) {
+    free(a);
+}
 
 void rths_mat_identity(double *a, int n) {
     memset(a, 0, (size_t)n * (size_t)n * sizeof(double));
-    for (int i = 0; i < n; i++) RTHS_AT(a, n, i, i) = 1.0;
+    for (int i = 0; i < n; i++)
+        RTHS_AT(a, n, i, i) = 1.0;
 }
 
 void rths_mat_mul(int m, int n, int k, double alpha, const double *a, int trans_a, const double *b,
@@ -80,7 +83,8 @@ double rths_mat_norm1(const double *a, int n) {
     double best = 0.0;
     for (int j = 0; j < n; j++) {
         double s = 0.0;
-        for (int i = 0; i < n; i++) s += fabs(RTHS_AT(a, n, i, j));
+        for (int i = 0; i < n; i++)
+            s += fabs(RTHS_AT(a, n, i, j));
         if (s > best) best = s;
     }
     return best;
@@ -105,10 +109,26 @@ int rths_mat_is_spd(const double *a, int n) {
 int rths_cmat_solve(int n, int nrhs, double complex *a, double complex *b) {
     lapack_int *ipiv = malloc((size_t)n * sizeof *ipiv);
     if (!ipiv) return -1;
-    lapack_int info = LAPACKE_zgesv(LAPACK_COL_MAJOR, n, nrhs, (lapack_complex_double *)a, n,
-                                    ipiv, (lapack_complex_double *)b, n);
+    lapack_int info = LAPACKE_zgesv(LAPACK_COL_MAJOR, n, nrhs, (lapack_complex_double *)a, n, ipiv,
+                                    (lapack_complex_double *)b, n);
     free(ipiv);
     return (int)info;
+}
+
+double rths_cmat_hermitian_eigen_ratio(int n, const double complex *a) {
+    double complex *work = malloc((size_t)n * (size_t)n * sizeof *work);
+    double *w = malloc((size_t)n * sizeof *w);
+    double ratio = -1;
+    if (work && w) {
+        memcpy(work, a, (size_t)n * (size_t)n * sizeof *work);
+        if (LAPACKE_zheev(LAPACK_COL_MAJOR, 'N', 'L', n, (lapack_complex_double *)work, n, w) ==
+                0 &&
+            w[n - 1] > 0)
+            ratio = w[0] / w[n - 1]; /* ascending order */
+    }
+    free(work);
+    free(w);
+    return ratio;
 }
 
 /* Higham (2005), "The scaling and squaring method for the matrix exponential revisited":
@@ -140,21 +160,24 @@ int rths_expm(int n, const double *a, double *out) {
     if (!buf) return -1;
     double *A = buf, *A2 = buf + nn, *A4 = buf + 2 * nn, *A6 = buf + 3 * nn, *U = buf + 4 * nn,
            *V = buf + 5 * nn, *T = buf + 6 * nn, *Id = buf + 7 * nn;
-    for (size_t i = 0; i < nn; i++) A[i] = a[i] * scale;
+    for (size_t i = 0; i < nn; i++)
+        A[i] = a[i] * scale;
     rths_mat_identity(Id, n);
     rths_mat_mul(n, n, n, 1.0, A, 0, A, 0, 0.0, A2);
     rths_mat_mul(n, n, n, 1.0, A2, 0, A2, 0, 0.0, A4);
     rths_mat_mul(n, n, n, 1.0, A4, 0, A2, 0, 0.0, A6);
     const double *b = pade13;
     /* U = A [A6 (b13 A6 + b11 A4 + b9 A2) + b7 A6 + b5 A4 + b3 A2 + b1 I] */
-    for (size_t i = 0; i < nn; i++) T[i] = b[13] * A6[i] + b[11] * A4[i] + b[9] * A2[i];
+    for (size_t i = 0; i < nn; i++)
+        T[i] = b[13] * A6[i] + b[11] * A4[i] + b[9] * A2[i];
     rths_mat_mul(n, n, n, 1.0, A6, 0, T, 0, 0.0, U);
     for (size_t i = 0; i < nn; i++)
         U[i] += b[7] * A6[i] + b[5] * A4[i] + b[3] * A2[i] + b[1] * Id[i];
     memcpy(T, U, nn * sizeof(double));
     rths_mat_mul(n, n, n, 1.0, A, 0, T, 0, 0.0, U);
     /* V = A6 (b12 A6 + b10 A4 + b8 A2) + b6 A6 + b4 A4 + b2 A2 + b0 I */
-    for (size_t i = 0; i < nn; i++) T[i] = b[12] * A6[i] + b[10] * A4[i] + b[8] * A2[i];
+    for (size_t i = 0; i < nn; i++)
+        T[i] = b[12] * A6[i] + b[10] * A4[i] + b[8] * A2[i];
     rths_mat_mul(n, n, n, 1.0, A6, 0, T, 0, 0.0, V);
     for (size_t i = 0; i < nn; i++)
         V[i] += b[6] * A6[i] + b[4] * A4[i] + b[2] * A2[i] + b[0] * Id[i];
@@ -172,6 +195,10 @@ int rths_expm(int n, const double *a, double *out) {
     return info;
 }
 
-int rths_is_finite(double x) { return isfinite(x); }
+int rths_is_finite(double x) {
+    return isfinite(x);
+}
 
-double rths_clamp(double x, double lo, double hi) { return x < lo ? lo : (x > hi ? hi : x); }
+double rths_clamp(double x, double lo, double hi) {
+    return x < lo ? lo : (x > hi ? hi : x);
+}

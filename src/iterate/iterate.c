@@ -391,6 +391,10 @@ static int lti_fit(const rths_corrector_state *st, int N, double omega, double c
                 atb[U + p] += conj(rows[e][p]) * x; /* e's terms come out negated, unused */
             }
         }
+        /* Two frequencies are not enough when one has a single evaluation: g and f there cannot
+         * be told apart, the normal matrix is rank deficient, and zgesv would still answer with
+         * made-up gains (and a tiny scatter). Demand a well-conditioned fit. */
+        if (!(rths_cmat_hermitian_eigen_ratio(U, ata) > 1e-10)) return -1;
         if (rths_cmat_solve(U, 3, ata, atb) != 0) return -1;
         double complex g0 = atb[0] / zs, f0 = atb[LTI_TERMS], r0 = atb[U] / zs;
         if (!isfinite(creal(g0)) || !isfinite(cimag(g0)) || !(cabs(g0) > 0) ||
@@ -434,6 +438,20 @@ int rths_corrector_lti_predict(rths_corrector_state *state, int harmonics, doubl
         lti_block(state->response_jacobian, harmonics, k, r[k]);
     }
     return 0;
+}
+
+void rths_corrector_seed_jacobians(rths_corrector_state *state, const double *jacobian,
+                                   const double *response_jacobian) {
+    enum { L = RTHS_MAX_UNKNOWNS };
+    for (int j = 0; j < state->n; j++)
+        for (int i = 0; i < state->n; i++) {
+            state->jacobian[i + j * L] = jacobian[i + j * L];
+            state->response_jacobian[i + j * L] = response_jacobian[i + j * L];
+        }
+    if (state->lti) {
+        lti_project(state->jacobian, state->harmonics);
+        lti_project(state->response_jacobian, state->harmonics);
+    }
 }
 
 /* Secant update in the LTI form: one pair (s, y) fixes each harmonic's gain, g_k = y_k / s_k,
@@ -702,7 +720,7 @@ int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_ne
     state->evaluations = 0;
     state->iterations = 0;
     state->rig_time_s = 0;
-    /* earlier points' noise counts half per point: close in frequency, similar noise */
+    /* earlier attempts' noise counts half per attempt: close in frequency, similar noise */
     for (int i = 0; i < c.n; i++) {
         state->noise_ss[0][i] *= 0.5;
         state->noise_ss[1][i] *= 0.5;
