@@ -10,7 +10,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 typedef struct {
     rths_point pts[512];
@@ -29,12 +28,6 @@ static int collect(void *user, const rths_point *pt, int is_update) {
 
 static int cmp_int(const void *a, const void *b) {
     return (*(const int *)a > *(const int *)b) - (*(const int *)a < *(const int *)b);
-}
-
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
 typedef struct {
@@ -73,10 +66,10 @@ static int run(int paper, outcome *o) {
     }
     collected *c = calloc(1, sizeof *c);
     rths_continuation_result res;
-    double t0 = now_s();
+    double t0 = rths_monotonic_s();
     int rc = rths_continuation_run(rig, &co, &so, &no, harmonics, s.forcing_amplitude_n, NULL, 0,
                                    collect, NULL, c, &res, &err);
-    o->wall = now_s() - t0;
+    o->wall = rths_monotonic_s() - t0;
     if (rc) fprintf(stderr, "bench frf: %s\n", err.msg);
     int evals[512];
     double rig_s = 0;

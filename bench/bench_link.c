@@ -13,15 +13,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/utsname.h>
-#include <time.h>
 
 void rths_bench_link(void);
-
-static double mono_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 static int cmp_double(const void *a, const void *b) {
     double x = *(const double *)a, y = *(const double *)b;
@@ -103,13 +96,13 @@ static void bench_step_cost(void) {
         rths_plant_advance(plant, rths_controller_step(ctl, &in, &o));
     }
     for (int i = 0; i < N; i++) {
-        double t0 = mono_s();
+        double t0 = rths_monotonic_s();
         rths_plant_read(plant, &in);
-        double t1 = mono_s();
+        double t1 = rths_monotonic_s();
         double u = rths_controller_step(ctl, &in, &o);
-        double t2 = mono_s();
+        double t2 = rths_monotonic_s();
         rths_plant_advance(plant, u);
-        double t3 = mono_s();
+        double t3 = rths_monotonic_s();
         c_step[i] = t2 - t1;
         c_plant[i] = (t1 - t0) + (t3 - t2);
     }
@@ -153,11 +146,11 @@ static void bench_paced_loop(double seconds) {
     const double f = 13.47;
     int periods = (int)ceil(seconds * f);
     rths_period *per = malloc((size_t)periods * sizeof *per);
-    double t0 = mono_s();
+    double t0 = rths_monotonic_s();
     int ok = !rths_remote_rig_create(uri, NULL, &rig, &err) &&
              !rths_rig_set_forcing(rig, f, 1.0, &err) && !rths_rig_set_target(rig, 1, a, b, &err) &&
              !rths_rig_run_periods(rig, periods, per, &err);
-    double wall = mono_s() - t0;
+    double wall = rths_monotonic_s() - t0;
     rths_server_stats st;
     rths_server_get_stats(s, &st);
     if (!ok) printf("link: host run failed: %s\n", err.msg);

@@ -5,16 +5,9 @@
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
-#include <time.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
-
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
 
 void rths_bench_stability(void) {
     static const double m[4] = {5.37, 5.37, 5.37, 10.74};
@@ -41,9 +34,9 @@ void rths_bench_stability(void) {
 #else
         if (threads[r] > 1) continue;
 #endif
-        double t0 = now_s();
+        double t0 = rths_monotonic_s();
         ok[r] = rths_chart_compute(rths_split_family_build, &fam, &o, &ch[r], &err) == RTHS_OK;
-        secs[r] = now_s() - t0;
+        secs[r] = rths_monotonic_s() - t0;
         if (!ok[r]) printf("stability: chart failed: %s\n", err.msg);
     }
     int pts = o.tau_points * o.p_points;

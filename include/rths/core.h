@@ -25,6 +25,9 @@ int rths_error_set(rths_error *err, int code, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 void rths_error_clear(rths_error *err);
 
+/* Seconds on the monotonic clock (CLOCK_MONOTONIC): for intervals, timeouts and benchmarks. */
+double rths_monotonic_s(void);
+
 /* ---- dense matrices: column-major double arrays, element (i, j) at a[i + j*ld] ---- */
 
 #define RTHS_AT(a, ld, i, j) ((a)[(size_t)(i) + (size_t)(j) * (size_t)(ld)])

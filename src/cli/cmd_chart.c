@@ -9,7 +9,6 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <time.h>
 
 static const char usage[] =
     "Usage: rths chart CONFIG --out DIR [--set KEY=VALUE]... [--quiet]\n"
@@ -219,12 +218,6 @@ static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_
     return rths_plot(rep, rths_report_dir(rep), "chart", 1000, 800, body, err);
 }
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return ts.tv_sec + 1e-9 * ts.tv_nsec;
-}
-
 int rths_cmd_chart(int argc, char **argv) {
     static const char *const own_sections[] = {"stability", NULL};
     rths_cli cli;
@@ -260,10 +253,10 @@ int rths_cmd_chart(int argc, char **argv) {
         }
     rths_split_family fam = {&setup.assembly, setup.roles, cint, kint};
     o.progress = rths_progress_enabled(cli.quiet);
-    double t0 = now_s();
+    double t0 = rths_monotonic_s();
     if ((rc = rths_chart_compute(rths_split_family_build, &fam, &o, &chart, &err))) goto done;
     have_chart = 1;
-    double seconds = now_s() - t0;
+    double seconds = rths_monotonic_s() - t0;
     double p_ess = essential_limit(&chart);
 
     /* critical delays at a few p of interest and at the configured one, located stand-alone */

@@ -18,7 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <time.h>
 
 static const char usage[] =
     "Usage: rths frf CONFIG --out DIR [--strategy paper|default] [--harmonics N] [--seed S]\n"
@@ -561,12 +560,6 @@ static int load_resume(const char *journal_path, const char *strategy, int harmo
     return rc;
 }
 
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
-
 /* Fills the run's memory with the journal's points (already durable: not journaled again). */
 static int remember(frf_run *run, const rths_point *pt) {
     if (pt->index >= run->cap) {
@@ -716,7 +709,7 @@ int rths_cmd_frf(int argc, char **argv) {
 
     rths_continuation_result result;
     memset(&result, 0, sizeof result);
-    double t_start = now_s();
+    double t_start = rths_monotonic_s();
     int run_rc = RTHS_OK;
     rths_error run_err = {0};
     if (!rc) {
@@ -732,7 +725,7 @@ int rths_cmd_frf(int argc, char **argv) {
         rths_report_log(rep, "continuation ended: %s%s%s", result.stop_reason, run_rc ? "; " : "",
                         run_rc ? run_err.msg : "");
     }
-    double wall = now_s() - t_start;
+    double wall = rths_monotonic_s() - t_start;
     /* Whatever ended the run, everything accepted is written out. A rig fault makes the trace
      * impossible, so it is skipped then. */
     double trace_rig_time = 0, max_truth_error = 0;

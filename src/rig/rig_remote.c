@@ -18,7 +18,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
-#include <time.h>
 #include <unistd.h>
 
 _Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
@@ -59,12 +58,6 @@ typedef struct remote {
     int trace_max, trace_n;
     double trace_t0, trace_t1;
 } remote;
-
-static double now_s(void) {
-    struct timespec ts;
-    clock_gettime(CLOCK_MONOTONIC, &ts);
-    return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
-}
 
 void rths_remote_options_defaults(rths_remote_options *opt) {
     opt->connect_timeout_s = 5.0;
@@ -143,7 +136,7 @@ static int send_msg(remote *r, rths_msg *m, rths_error *err) {
         if (k <= 0) return link_fail(r, err, "send: %s", strerror(errno));
         off += (size_t)k;
     }
-    r->last_sent_s = now_s();
+    r->last_sent_s = rths_monotonic_s();
     return RTHS_OK;
 }
 
@@ -199,7 +192,7 @@ static void absorb(remote *r, const rths_msg *m) {
 
 /* Reads one frame, waiting at most timeout_s. RTHS_OK with *got = 1 (frame in m) or 0 (timeout). */
 static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_error *err) {
-    double deadline = now_s() + timeout_s;
+    double deadline = rths_monotonic_s() + timeout_s;
     *got = 0;
     for (;;) {
         size_t used = 0;
@@ -213,7 +206,7 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
         if (st != RTHS_PROTO_INCOMPLETE)
             return link_fail(r, err, "bad frame from the controller: %s",
                              rths_proto_status_name(st));
-        double left = deadline - now_s();
+        double left = deadline - rths_monotonic_s();
         if (left <= 0) return RTHS_OK;
         struct pollfd pfd = {r->fd, POLLIN, 0};
         int pr = poll(&pfd, 1, (int)ceil(left * 1000.0));
@@ -238,10 +231,10 @@ static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rth
     req->seq = r->seq;
     int rc = send_msg(r, req, err);
     if (rc) return rc;
-    double deadline = now_s() + r->opt.reply_timeout_s;
+    double deadline = rths_monotonic_s() + r->opt.reply_timeout_s;
     for (;;) {
         int got;
-        double left = deadline - now_s();
+        double left = deadline - rths_monotonic_s();
         if (left <= 0)
             return link_fail(r, err, "no reply to %s within %.3g s", rths_msg_type_name(req->type),
                              r->opt.reply_timeout_s);
@@ -421,7 +414,7 @@ static double ping_interval(const remote *r) {
 static int pump(remote *r, double wait, rths_error *err) {
     rths_msg m;
     int got, rc;
-    if (now_s() - r->last_sent_s >= ping_interval(r)) {
+    if (rths_monotonic_s() - r->last_sent_s >= ping_interval(r)) {
         rths_msg reply;
         if ((rc = simple(r, RTHS_MSG_PING, &reply, err))) return rc;
     }
@@ -481,7 +474,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
     if (rc) return rc;
     if (!r->have_forcing) return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
     if ((rc = ensure_armed(r, err))) return rc;
-    double last_progress = now_s();
+    double last_progress = rths_monotonic_s();
     double stall = r->opt.stall_timeout_s + 2.0 / r->frequency_hz;
     int n = 0;
     while (n < count) {
@@ -496,10 +489,10 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
             to_fourier(&p->force, &o->force);
             r->q_head = (r->q_head + 1) % r->q_cap;
             r->q_len--;
-            last_progress = now_s();
+            last_progress = rths_monotonic_s();
             continue;
         }
-        if (now_s() - last_progress > stall)
+        if (rths_monotonic_s() - last_progress > stall)
             return link_fail(r, err, "no whole period from the controller for %.3g s", stall);
         if ((rc = pump(r, ping_interval(r), err))) return rc;
     }
@@ -530,9 +523,9 @@ static int r_record_trace(void *self, double duration_s, int max_samples, rths_t
     r->trace_n = 0;
     r->trace_t0 = reply.u.ack.time_s;
     r->trace_t1 = reply.u.ack.time_s + duration_s;
-    double start = now_s();
+    double start = rths_monotonic_s();
     while (r->trace_n < max_samples && r->last_time_s < r->trace_t1) {
-        if (now_s() - start > duration_s + r->opt.stall_timeout_s) {
+        if (rths_monotonic_s() - start > duration_s + r->opt.stall_timeout_s) {
             r->tracing = 0;
             return link_fail(r, err, "trace did not arrive within %.3g s",
                              duration_s + r->opt.stall_timeout_s);
