@@ -5,10 +5,7 @@
 set -u
 bin=$1
 src=$2
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-failures=0
-fail() { echo "FAIL $*"; failures=$((failures + 1)); }
+. "$(dirname "$0")/lib/common.sh"
 cfg="$src/examples/four_storey.yaml"
 
 # --- a short sweep (the peaks are refined beyond the grid, so 101 points suffice) ---
@@ -77,17 +74,7 @@ assert abs(s["time_step_s"] - 5e-05) < 1e-18
 PY
 
 # --- bad input: exit 2, a message naming the problem, nothing written ---
-bad() { # name, regex, args...
-    local name=$1 re=$2
-    shift 2
-    local o="$work/bad_$RANDOM"
-    "$bin" fidelity "$@" --out "$o" >"$work/bstdout" 2>"$work/bstderr"
-    local rc=$?
-    [ "$rc" -eq 2 ] || { fail "$name: exit $rc, expected 2"; cat "$work/bstderr"; return; }
-    grep -Eq -- "$re" "$work/bstderr" || { fail "$name: message /$re/ not in: $(cat "$work/bstderr")"; return; }
-    [ -e "$o" ] && { fail "$name: $o was created"; return; }
-    echo "ok   $name: $(head -n 1 "$work/bstderr")"
-}
+bad() { refused fidelity "$@"; } # name, regex, args...
 bad "end below start" "fidelity.end_hz" "$cfg" --set fidelity.start_hz=20 --set fidelity.end_hz=10
 bad "too few points" "fidelity.points" "$cfg" --set fidelity.points=2
 bad "zero sample rate" "controller.sample_rate_hz" "$cfg" --set controller.sample_rate_hz=0

@@ -6,10 +6,7 @@
 set -u
 bin=$1
 src=$2
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-failures=0
-fail() { echo "FAIL $*"; failures=$((failures + 1)); }
+. "$(dirname "$0")/lib/common.sh"
 cfg="$src/examples/four_storey.yaml"
 quiet_rig=(--set rig.noise=false)
 
@@ -124,17 +121,7 @@ fb p067_50us 0.67 5e-5 40 false
 fb p067_1ms 0.67 1e-3 200 true
 
 # --- bad arguments: exit 2, a message naming the problem, nothing written ---
-bad() { # name, regex, args...
-    local name=$1 re=$2
-    shift 2
-    local o="$work/bad_$RANDOM"
-    "$bin" simulate "$@" --out "$o" >"$work/bstdout" 2>"$work/bstderr"
-    local rc=$?
-    [ "$rc" -eq 2 ] || { fail "$name: exit $rc, expected 2"; cat "$work/bstderr"; return; }
-    grep -Eq -- "$re" "$work/bstderr" || { fail "$name: message /$re/ not in: $(cat "$work/bstderr")"; return; }
-    [ -e "$o" ] && { fail "$name: $o was created"; return; }
-    echo "ok   $name: $(head -n 1 "$work/bstderr")"
-}
+bad() { refused simulate "$@"; } # name, regex, args...
 ok=(--frequency 13 --target 1e-4,0 --periods 3)
 bad "frequency not a number" "--frequency.*not a number" "$cfg" --frequency abc --target 1e-4,0 --periods 3
 bad "frequency zero" "--frequency.*> 0" "$cfg" --frequency 0 --target 1e-4,0 --periods 3
