@@ -210,6 +210,20 @@ static double row_scale(const rths_dde *d, int i, double r) {
     return s > 0 ? s : 1.0;
 }
 
+/* D(lambda) with each row divided by its row_scale at |lambda|: the form both the scaled
+ * determinant and the residual work on. */
+static void scaled_char_matrix(const rths_dde *d, double tau, double complex lambda,
+                               double complex *a) {
+    int n = d->n;
+    char_matrix(d, tau, lambda, a, NULL, NULL);
+    double r = cabs(lambda);
+    for (int i = 0; i < n; i++) {
+        double s = 1.0 / row_scale(d, i, r);
+        for (int j = 0; j < n; j++)
+            a[i + (size_t)j * n] *= s;
+    }
+}
+
 double complex rths_dde_char_scaled(const rths_dde *d, double tau, double complex lambda) {
     int n = d->n;
     size_t nn = (size_t)n * (size_t)n;
@@ -226,13 +240,7 @@ double complex rths_dde_char_scaled(const rths_dde *d, double tau, double comple
             return NAN;
         }
     }
-    char_matrix(d, tau, lambda, a, NULL, NULL);
-    double r = cabs(lambda);
-    for (int i = 0; i < n; i++) {
-        double s = 1.0 / row_scale(d, i, r);
-        for (int j = 0; j < n; j++)
-            a[i + (size_t)j * n] *= s;
-    }
+    scaled_char_matrix(d, tau, lambda, a);
     double complex det = clu(n, a, piv);
     if (a != sa) free(a);
     if (piv != spiv) free(piv);
@@ -252,13 +260,7 @@ double rths_dde_residual(const rths_dde *d, double tau, double complex lambda) {
         return INFINITY;
     }
     double complex *col = a + nn;
-    char_matrix(d, tau, lambda, a, NULL, NULL);
-    double r = cabs(lambda);
-    for (int i = 0; i < n; i++) {
-        double s = 1.0 / row_scale(d, i, r);
-        for (int j = 0; j < n; j++)
-            a[i + (size_t)j * n] *= s;
-    }
+    scaled_char_matrix(d, tau, lambda, a);
     double complex det = clu(n, a, piv);
     double res = 0.0;
     if (det != 0.0 && isfinite(creal(det)) && isfinite(cimag(det))) {
