@@ -108,8 +108,12 @@ int rths_report_add_table(rths_report *rep, const rths_table *table, rths_error 
  * file without .csv, one field per column, named as the column, a column vector each), the tables
  * added by rths_report_add_table likewise, `summary` (summary.json as a struct: numbers, strings,
  * booleans as 0/1, lists, nested objects) and `summary_json` (its text), `config_yaml` (config.yaml
- * as text). Written to a temporary name and renamed. Does nothing when the run wrote neither a CSV
- * file nor summary.json. */
+ * as text), and for a folder with a journal.jsonl (an FRF run) `harmonics`: per accepted point the
+ * measured Fourier coefficients phys_a<k>_m, phys_b<k>_m, num_..., their standard errors
+ * phys_se_..., num_se_... (k = 0..RTHS_MAX_HARMONICS) and the target's target_a<k>_m, target_b<k>_m
+ * (k = 1..RTHS_MAX_HARMONICS, 0 beyond the harmonics matched), unless the run added its own table
+ * called harmonics. Written to a temporary name and renamed. Does nothing when the run wrote
+ * neither a CSV file nor summary.json. */
 int rths_report_write_mat(rths_report *rep, rths_error *err);
 /* The same for any folder, from the named CSV files (NULL: every *.csv in dir) and extra tables. */
 int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,

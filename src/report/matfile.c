@@ -2,6 +2,7 @@
  * MATLAB loads it with `load`, Python with h5py and Julia with MAT.jl. The content is what the run
  * wrote as text (CSV tables, summary.json, config.yaml) plus tables that have no CSV; see
  * rths_report_write_mat in report.h for the layout. */
+#include "rths/continuation.h"
 #include "rths/report.h"
 
 #include <ctype.h>
@@ -241,6 +242,81 @@ static int write_tables(mat_t *mat, const char *dir, const char *const *csv_name
     return rc;
 }
 
+/* Per-point harmonic coefficients of an FRF run, from its journal (the record of every accepted
+ * point): one row per point; the measured Fourier coefficients a<k>, b<k> (k = 0..5; b0 is always
+ * 0) of the physical and numerical interface displacements with their standard errors, and the
+ * control target's a<k>, b<k> (k = 1..harmonics matched; 0 beyond). */
+enum { H = RTHS_MAX_HARMONICS, HARMONIC_COLUMNS = 4 + 8 * (H + 1) + 2 * H };
+
+static void harmonic_names(char (*names)[40]) {
+    static const char *const sides[4] = {"phys", "num", "phys_se", "num_se"};
+    int c = 0;
+    snprintf(names[c++], 40, "point");
+    snprintf(names[c++], 40, "frequency_hz");
+    snprintf(names[c++], 40, "omega_rad_s");
+    snprintf(names[c++], 40, "harmonics_matched");
+    for (int s = 0; s < 4; s++)
+        for (int k = 0; k <= H; k++) {
+            snprintf(names[c++], 40, "%s_a%d_m", sides[s], k);
+            snprintf(names[c++], 40, "%s_b%d_m", sides[s], k);
+        }
+    for (int k = 1; k <= H; k++) {
+        snprintf(names[c++], 40, "target_a%d_m", k);
+        snprintf(names[c++], 40, "target_b%d_m", k);
+    }
+}
+
+static void harmonic_row(const rths_point *pt, rths_table *t, int i) {
+    const rths_evaluation *e = &pt->sol.eval;
+    const rths_fourier *sides[4] = {&e->phys, &e->num, &e->phys_se, &e->num_se};
+    int c = 0;
+    t->data[c++][i] = pt->index;
+    t->data[c++][i] = pt->sol.frequency_hz;
+    t->data[c++][i] = pt->sol.omega_rad_s;
+    t->data[c++][i] = pt->sol.harmonics;
+    for (int s = 0; s < 4; s++)
+        for (int k = 0; k <= H; k++) {
+            t->data[c++][i] = sides[s]->a[k];
+            t->data[c++][i] = sides[s]->b[k];
+        }
+    for (int k = 0; k < H; k++) {
+        t->data[c++][i] = k < pt->sol.harmonics ? pt->sol.target_a[k] : 0;
+        t->data[c++][i] = k < pt->sol.harmonics ? pt->sol.target_b[k] : 0;
+    }
+}
+
+static int harmonics_from_journal(const char *path, rths_table *t, rths_error *err) {
+    rths_point *pts = NULL;
+    char *strategy = NULL;
+    int n = 0;
+    int rc = rths_journal_read(path, &pts, &n, &strategy, err);
+    free(strategy);
+    char names[HARMONIC_COLUMNS][40];
+    const char *ptrs[HARMONIC_COLUMNS];
+    harmonic_names(names);
+    for (int c = 0; c < HARMONIC_COLUMNS; c++)
+        ptrs[c] = names[c];
+    if (!rc) rc = rths_table_create("harmonics", n, HARMONIC_COLUMNS, ptrs, t, err);
+    for (int i = 0; i < n && !rc; i++)
+        harmonic_row(&pts[i], t, i);
+    free(pts);
+    return rc;
+}
+
+static int write_journal_harmonics(mat_t *mat, const char *dir, const rths_table *extra,
+                                   int n_extra, rths_error *err) {
+    for (int i = 0; i < n_extra; i++)
+        if (!strcmp(extra[i].name, "harmonics")) return RTHS_OK; /* given by the run itself */
+    char path[4096];
+    snprintf(path, sizeof path, "%s/journal.jsonl", dir);
+    if (access(path, R_OK)) return RTHS_OK;
+    rths_table t;
+    int rc = harmonics_from_journal(path, &t, err);
+    if (!rc) rc = write_var(mat, table_var(&t), "harmonics", err);
+    rths_table_free(&t);
+    return rc;
+}
+
 int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
                        const rths_table *extra, int n_extra, rths_error *err) {
     char path[4096], tmp[4096 + 32];
@@ -254,6 +330,7 @@ int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
     int rc = write_tables(mat, dir, csv_names, n_csv, err);
     for (int i = 0; i < n_extra && !rc; i++)
         rc = write_var(mat, table_var(&extra[i]), extra[i].name, err);
+    if (!rc) rc = write_journal_harmonics(mat, dir, extra, n_extra, err);
     if (!rc) rc = write_texts(mat, dir, err);
     Mat_Close(mat);
     if (!rc) {
