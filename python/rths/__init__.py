@@ -15,20 +15,27 @@ import json
 import signal
 import threading
 
-import numpy as np
-
 from . import _lib
+
+# librths before numpy when rths is imported first: the BLAS both use then starts from the same
+# state as in the CLI, so LAPACK-heavy results (the chart) usually match it to the last bit (import
+# order or heap layout can otherwise move them by an ulp or so). A library that is not found is
+# reported on first use, so `import rths` itself always works.
+try:
+    _LIB = _lib.load()
+    _LOAD_ERROR = None
+except OSError as e:
+    _LIB, _LOAD_ERROR = None, e
+
+import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
            "model", "chart", "frf", "frf_available", "read_run", "library_release"]
 
-_LIB = None
-
-
 def _c():
     global _LIB
     if _LIB is None:
-        _LIB = _lib.load()
+        _LIB = _lib.load()  # raises OSError naming every place tried
     return _LIB
 
 
