@@ -255,8 +255,11 @@ int rths_report_write_mat(rths_report *rep, rths_error *err) {
     int rc = RTHS_OK, wanted = n_csv || has_summary || rep->n_extra;
     if (wanted) rc = rths_matfile_write(rep->dir, csv, n_csv, rep->extra, rep->n_extra, err);
     free(csv);
+    if (!rc && wanted) {
+        names_add(rep->files, "results.mat"); /* for .rths-files */
+        rths_report_log(rep, "wrote results.mat");
+    }
     if (!rc) rep->files->changed = 0;
-    if (!rc && wanted) rths_report_log(rep, "wrote results.mat");
     return rc;
 }
 
