@@ -8,8 +8,8 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The stability.* keys, ranges and messages as `rths chart` reads them (src/cli/cmd_chart.c). */
-static int read_options(rths_config *cfg, rths_chart_options *o, rths_error *err) {
+/* The stability.* keys, with the ranges and messages `rths chart` has always used. */
+int rths_api_chart_options_read(rths_config *cfg, rths_chart_options *o, rths_error *err) {
     rths_chart_options_default(o);
     long tp, pp, wp, mt, mp, mr, cn;
     int rc;
@@ -64,7 +64,7 @@ static int read_options(rths_config *cfg, rths_chart_options *o, rths_error *err
 
 /* p where the essential bound changes sign along the chart's rows (linear interpolation of
  * ln-rates), NaN when it does not. */
-static double essential_limit(const rths_chart *c) {
+double rths_api_chart_essential_limit(const rths_chart *c) {
     for (int j = 0; j + 1 < c->np; j++) {
         double a = c->essential_rate_times_tau[j], b = c->essential_rate_times_tau[j + 1];
         if (!isfinite(a) || !isfinite(b)) continue;
@@ -106,7 +106,7 @@ static struct json_object *chart_summary(const rths_chart_options *o, const rths
     int n_stable = 0;
     for (int k = 0; k < c->nt * c->np; k++)
         n_stable += c->stable[k];
-    double p_ess = essential_limit(c);
+    double p_ess = rths_api_chart_essential_limit(c);
     json_object_object_add(root, "tau_points", json_object_new_int(o->tau_points));
     json_object_object_add(root, "p_points", json_object_new_int(o->p_points));
     json_object_object_add(root, "stable_points", json_object_new_int(n_stable));
@@ -145,7 +145,7 @@ int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result 
     double *cint = NULL, *kint = NULL;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (rc) return rc;
-    if (!(rc = read_options(c, &o, err))) rc = rths_api_check_config(c, own, err);
+    if (!(rc = rths_api_chart_options_read(c, &o, err))) rc = rths_api_check_config(c, own, err);
     if (!rc) rc = interface_shares(&setup.split, &cint, &kint, err);
     if (!rc) {
         rths_split_family fam = {&setup.assembly, setup.roles, cint, kint};
