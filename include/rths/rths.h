@@ -93,9 +93,9 @@ int rths_api_read_run(const char *dir, rths_result **out, rths_error *err);
  * header). Return 0 to go on, anything else to stop the run: it ends as if cancelled. */
 typedef int (*rths_api_point_fn)(void *user, int n_columns, const char *const *column_names,
                                  const double *row);
-/* Polled between rig evaluations; nonzero cancels the run cleanly: the current point is dropped,
- * everything accepted is saved (journal.jsonl, frf.csv, summary.json with stop_reason
- * "cancelled"), and the run can be resumed. */
+/* Polled before the run and after every accepted point (a point in progress is finished first);
+ * nonzero ends the run cleanly: everything accepted is saved (journal.jsonl, frf.csv,
+ * summary.json whose stop_reason says "cancelled by the caller"), and the run can be resumed. */
 typedef int (*rths_api_cancel_fn)(void *user);
 
 typedef struct rths_api_frf_options {
