@@ -163,15 +163,23 @@ class MatFile(unittest.TestCase):
                     self.assertEqual(f["summary"][key][()].ravel()[0], value, key)
                 elif isinstance(value, str):
                     self.assertEqual(mat_text(f["summary"], key), value, key)
-            return {k: f[k] for k in f.keys()} and list(f.keys())
+            return list(f.keys())
 
-    def test_model_chart_frf_folders(self):
+    def test_every_command_folder(self):
         out = folder("mat_model")
         self.assertEqual(cli("model", SEED_CFG, "--out", out, "--quiet")[0], 0)
         self.check_folder(out)
         out = folder("mat_chart")
         sets = [a for k, v in COARSE.items() for a in ("--set", f"{k}={v}")]
         self.assertEqual(cli("chart", SEED_CFG, "--out", out, "--quiet", *sets)[0], 0)
+        self.check_folder(out)
+        out = folder("mat_simulate")
+        rc, err = cli("simulate", SEED_CFG, "--frequency", "13", "--target", "1e-5,0", "--periods",
+                      "20", "--out", out, "--quiet")
+        self.assertEqual(rc, 0, err)
+        self.assertIn("coefficients", self.check_folder(out))
+        out = folder("mat_fidelity")
+        self.assertEqual(cli("fidelity", SEED_CFG, "--out", out, "--quiet")[0], 0)
         self.check_folder(out)
         out = folder("mat_frf")
         rc, err = cli("frf", LINEAR_CFG, "--out", out, "--quiet", "--seed", "7")
