@@ -116,7 +116,8 @@ void rths_api_frf_options_default(rths_api_frf_options *o);
 int rths_api_frf_available(void);
 /* Runs the test into o->out_dir and returns the folder read back (rths_api_read_run): table "frf"
  * equals frf.csv. A run that stopped on a callback or a cancellation returns RTHS_OK with the
- * result (summary.json's stop_reason says why). */
+ * result (summary.json's stop_reason says why). A rig fault or I/O error returns RTHS_EFAIL and no
+ * result, but the folder still holds everything accepted (rths_api_read_run reads it). */
 int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
                  rths_error *err);
 
