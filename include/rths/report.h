@@ -18,12 +18,23 @@ struct json_object;
 typedef struct rths_report rths_report;
 
 /* Creates dir (mkdir -p) and opens run.log (appended, so a resumed run keeps its history).
- * command/argc/argv are logged as the first line. */
+ * command/argc/argv are logged as the first line.
+ *
+ * A run folder belongs to one command. A folder whose run.log shows an earlier run of another
+ * command is refused (RTHS_EINPUT, nothing written): the two runs' files would mix. An earlier run
+ * of the same command is replaced: the files it wrote (listed in its .rths-files, see
+ * rths_report_close) are removed first, unless argv holds "--resume" (the run continues the earlier
+ * one). Files the command did not write (a user's notes, say) are never touched. */
 int rths_report_open(const char *dir, const char *command, int argc, char **argv, rths_report **out,
                      rths_error *err);
+/* Writes results.mat (rths_report_write_mat) unless already written and nothing changed since,
+ * lists the files this run wrote in DIR/.rths-files (what a later run of the same command removes),
+ * closes run.log and frees rep. A results.mat that cannot be written costs a warning on stderr and
+ * in run.log, not the run: the CSV files are the data. */
 void rths_report_close(rths_report *rep);
 const char *rths_report_dir(const rths_report *rep);
-/* dir/name, malloc'ed (caller frees). */
+/* dir/name, malloc'ed (caller frees). The name is remembered as one of this run's files (for
+ * results.mat and .rths-files). */
 char *rths_report_path(const rths_report *rep, const char *name);
 /* One timestamped line in run.log, flushed. */
 void rths_report_log(rths_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
@@ -69,6 +80,44 @@ struct json_object *rths_json_summary_new(const char *command);
  * matter more than pictures. */
 int rths_plot(rths_report *rep, const char *dir, const char *basename, int width_px, int height_px,
               const char *body, rths_error *err);
+
+/* ---- tables read back from CSV ---- */
+
+/* A CSV file written by rths_csv_*: named columns of doubles ("nan" reads as NaN). */
+typedef struct rths_table {
+    char *name; /* file name without ".csv" */
+    int rows, columns;
+    char **column_names; /* columns */
+    double **data;       /* columns arrays of rows values */
+} rths_table;
+
+/* Reads path (header line of names, then rows of numbers, all of the same length). */
+int rths_csv_read(const char *path, rths_table *out, rths_error *err);
+/* A table of rows x columns zeros with copies of the names (for arrays that have no CSV). */
+int rths_table_create(const char *name, int rows, int columns, const char *const *column_names,
+                      rths_table *out, rths_error *err);
+void rths_table_free(rths_table *t);
+
+/* ---- results.mat (MAT 7.3, libmatio over HDF5): the run folder for MATLAB, h5py, Julia ---- */
+
+/* Adds a table that has no CSV file to this run's results.mat (copied): e.g. the per-point
+ * harmonic coefficients of an FRF run, one row per (point, harmonic). Its name must not be one of
+ * the run's CSV names. */
+int rths_report_add_table(rths_report *rep, const rths_table *table, rths_error *err);
+/* Writes DIR/results.mat from what this run wrote into DIR: one struct per CSV file (named as the
+ * file without .csv, one field per column, named as the column, a column vector each), the tables
+ * added by rths_report_add_table likewise, `summary` (summary.json as a struct: numbers, strings,
+ * booleans as 0/1, lists, nested objects) and `summary_json` (its text), `config_yaml` (config.yaml
+ * as text), and for a folder with a journal.jsonl (an FRF run) `harmonics`: per accepted point the
+ * measured Fourier coefficients phys_a<k>_m, phys_b<k>_m, num_..., their standard errors
+ * phys_se_..., num_se_... (k = 0..RTHS_MAX_HARMONICS) and the target's target_a<k>_m, target_b<k>_m
+ * (k = 1..RTHS_MAX_HARMONICS, 0 beyond the harmonics matched), unless the run added its own table
+ * called harmonics. Written to a temporary name and renamed. Does nothing when the run wrote
+ * neither a CSV file nor summary.json. */
+int rths_report_write_mat(rths_report *rep, rths_error *err);
+/* The same for any folder, from the named CSV files (NULL: every *.csv in dir) and extra tables. */
+int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
+                       const rths_table *extra, int n_extra, rths_error *err);
 
 /* ---- progress on stderr ---- */
 

@@ -16,10 +16,45 @@
 
 extern char **environ;
 
+/* The names of the files a run wrote (rths_report_path, rths_plot), in order, without repeats. */
+typedef struct {
+    char **names;
+    int n, cap;
+    int changed; /* since results.mat was last written */
+} name_list;
+
 struct rths_report {
     char *dir;
     FILE *log;
+    name_list *files; /* behind a pointer: rths_report_path takes a const report */
+    rths_table *extra;
+    int n_extra;
 };
+
+static void names_add(name_list *l, const char *name) {
+    for (int i = 0; i < l->n; i++)
+        if (!strcmp(l->names[i], name)) {
+            l->changed = 1;
+            return;
+        }
+    if (l->n == l->cap) {
+        int cap = l->cap ? 2 * l->cap : 16;
+        char **p = realloc(l->names, (size_t)cap * sizeof *p);
+        if (!p) return;
+        l->names = p;
+        l->cap = cap;
+    }
+    if ((l->names[l->n] = strdup(name))) l->n++;
+    l->changed = 1;
+}
+
+static void names_free(name_list *l) {
+    if (!l) return;
+    for (int i = 0; i < l->n; i++)
+        free(l->names[i]);
+    free(l->names);
+    free(l);
+}
 
 static int mkdir_p(const char *dir, rths_error *err) {
     char *path = strdup(dir);
@@ -52,13 +87,66 @@ static void utc_now(char *buf, size_t size) {
     strftime(buf, size, "%Y-%m-%dT%H:%M:%SZ", &tm);
 }
 
+/* The command named by the first line of dir/run.log ("<time> rths <version> <command>:"), into
+ * buf; 0 when there is no such line. */
+static int earlier_command(const char *dir, char *buf, size_t size) {
+    char path[4096], line[512];
+    snprintf(path, sizeof path, "%s/run.log", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    int found = 0;
+    char version[64], name[512];
+    if (fgets(line, sizeof line, f) && sscanf(line, "%*s rths %63s %511[^:]", version, name) == 2 &&
+        strlen(name) < size) {
+        snprintf(buf, size, "%s", name);
+        found = 1;
+    }
+    fclose(f);
+    return found;
+}
+
+/* An earlier run of the same command is replaced: the files it listed in .rths-files go. */
+static void remove_earlier_files(const char *dir) {
+    char path[4096], name[1024];
+    snprintf(path, sizeof path, "%s/.rths-files", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) return;
+    while (fgets(name, sizeof name, f)) {
+        name[strcspn(name, "\n")] = 0;
+        /* only plain names inside the folder */
+        if (!name[0] || strchr(name, '/') || !strcmp(name, "run.log")) continue;
+        char file[4096 + 1024 + 2];
+        snprintf(file, sizeof file, "%s/%s", dir, name);
+        remove(file);
+    }
+    fclose(f);
+    remove(path);
+}
+
+static int check_folder(const char *dir, const char *command, int argc, char **argv,
+                        rths_error *err) {
+    char earlier[512];
+    if (!earlier_command(dir, earlier, sizeof earlier)) return RTHS_OK;
+    if (strcmp(earlier, command))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s holds an earlier 'rths %s' run (run.log): a '%s' run would mix "
+                              "its files with it; choose another folder",
+                              dir, earlier, command);
+    for (int i = 1; i < argc; i++)
+        if (argv[i] && !strcmp(argv[i], "--resume")) return RTHS_OK;
+    remove_earlier_files(dir);
+    return RTHS_OK;
+}
+
 int rths_report_open(const char *dir, const char *command, int argc, char **argv, rths_report **out,
                      rths_error *err) {
     *out = NULL;
-    int rc = mkdir_p(dir, err);
+    int rc = check_folder(dir, command, argc, argv, err);
+    if (!rc) rc = mkdir_p(dir, err);
     if (rc) return rc;
     rths_report *rep = calloc(1, sizeof *rep);
-    if (!rep || !(rep->dir = strdup(dir))) {
+    if (!rep || !(rep->dir = strdup(dir)) || !(rep->files = calloc(1, sizeof *rep->files))) {
+        if (rep) free(rep->dir);
         free(rep);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
@@ -84,9 +172,40 @@ int rths_report_open(const char *dir, const char *command, int argc, char **argv
     return RTHS_OK;
 }
 
+/* .rths-files: this run's files, one name a line, for the next run of the same command. */
+static void write_file_list(const rths_report *rep) {
+    if (!rep->files->n) return;
+    size_t len = 1;
+    for (int i = 0; i < rep->files->n; i++)
+        len += strlen(rep->files->names[i]) + 1;
+    char *text = malloc(len), *p = text;
+    char *path = rths_report_path(rep, ".rths-files");
+    if (text && path) {
+        for (int i = 0; i < rep->files->n; i++)
+            p += sprintf(p, "%s\n", rep->files->names[i]);
+        rths_error err;
+        (void)rths_write_file_atomic(path, text, (size_t)(p - text), &err);
+    }
+    free(text);
+    free(path);
+}
+
 void rths_report_close(rths_report *rep) {
     if (!rep) return;
+    if (rep->files && rep->files->changed) {
+        rths_error err;
+        rths_error_clear(&err);
+        if (rths_report_write_mat(rep, &err)) {
+            fprintf(stderr, "rths: warning: no results.mat: %s\n", err.msg);
+            rths_report_log(rep, "warning: no results.mat: %s", err.msg);
+        }
+    }
+    if (rep->files) write_file_list(rep);
     if (rep->log) fclose(rep->log);
+    for (int i = 0; i < rep->n_extra; i++)
+        rths_table_free(&rep->extra[i]);
+    free(rep->extra);
+    names_free(rep->files);
     free(rep->dir);
     free(rep);
 }
@@ -99,7 +218,49 @@ char *rths_report_path(const rths_report *rep, const char *name) {
     size_t len = strlen(rep->dir) + strlen(name) + 2;
     char *p = malloc(len);
     if (p) snprintf(p, len, "%s/%s", rep->dir, name);
+    if (rep->files && strcmp(name, ".rths-files") && strcmp(name, "results.mat"))
+        names_add(rep->files, name);
     return p;
+}
+
+int rths_report_add_table(rths_report *rep, const rths_table *table, rths_error *err) {
+    rths_table *p = realloc(rep->extra, (size_t)(rep->n_extra + 1) * sizeof *p);
+    if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rep->extra = p;
+    int rc = rths_table_create(table->name, table->rows, table->columns,
+                               (const char *const *)table->column_names, &p[rep->n_extra], err);
+    if (rc) return rc;
+    for (int c = 0; c < table->columns; c++)
+        memcpy(p[rep->n_extra].data[c], table->data[c], (size_t)table->rows * sizeof(double));
+    rep->n_extra++;
+    rep->files->changed = 1;
+    return RTHS_OK;
+}
+
+int rths_report_write_mat(rths_report *rep, rths_error *err) {
+    int n_csv = 0, has_summary = 0;
+    const char **csv = calloc((size_t)rep->files->n + 1, sizeof *csv);
+    if (!csv) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < rep->files->n; i++) {
+        const char *name = rep->files->names[i];
+        size_t len = strlen(name);
+        struct stat st;
+        char *path = rths_report_path(rep, name);
+        /* a name handed out but never written (a failed step) is not part of the run */
+        int exists = path && stat(path, &st) == 0 && S_ISREG(st.st_mode);
+        free(path);
+        if (exists && len > 4 && !strcmp(name + len - 4, ".csv")) csv[n_csv++] = name;
+        has_summary |= exists && !strcmp(name, "summary.json");
+    }
+    int rc = RTHS_OK, wanted = n_csv || has_summary || rep->n_extra;
+    if (wanted) rc = rths_matfile_write(rep->dir, csv, n_csv, rep->extra, rep->n_extra, err);
+    free(csv);
+    if (!rc && wanted) {
+        names_add(rep->files, "results.mat"); /* for .rths-files */
+        rths_report_log(rep, "wrote results.mat");
+    }
+    if (!rc) rep->files->changed = 0;
+    return rc;
 }
 
 void rths_report_log(rths_report *rep, const char *fmt, ...) {
@@ -275,6 +436,131 @@ int rths_csv_finish(rths_csv *csv, int rc, rths_error *err) {
     return rths_csv_close(csv, err);
 }
 
+/* ---- tables read back ---- */
+
+void rths_table_free(rths_table *t) {
+    if (!t) return;
+    for (int c = 0; c < t->columns; c++) {
+        if (t->column_names) free(t->column_names[c]);
+        if (t->data) free(t->data[c]);
+    }
+    free(t->column_names);
+    free(t->data);
+    free(t->name);
+    memset(t, 0, sizeof *t);
+}
+
+int rths_table_create(const char *name, int rows, int columns, const char *const *column_names,
+                      rths_table *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    out->name = strdup(name);
+    out->column_names = calloc((size_t)columns + 1, sizeof *out->column_names);
+    out->data = calloc((size_t)columns + 1, sizeof *out->data);
+    int ok = out->name && out->column_names && out->data;
+    out->columns = ok ? columns : 0;
+    out->rows = rows;
+    for (int c = 0; c < out->columns && ok; c++) {
+        out->column_names[c] = strdup(column_names[c]);
+        out->data[c] = calloc((size_t)rows + 1, sizeof(double));
+        ok = out->column_names[c] && out->data[c];
+    }
+    if (ok) return RTHS_OK;
+    rths_table_free(out);
+    return rths_error_set(err, RTHS_EFAIL, "out of memory");
+}
+
+/* Splits line at commas in place (no quoting: rths never writes commas inside a field). */
+static int split_fields(char *line, char **fields, int max) {
+    int n = 0;
+    line[strcspn(line, "\r\n")] = 0;
+    for (char *p = line;; p++) {
+        if (n < max) fields[n] = p;
+        n++;
+        p += strcspn(p, ",");
+        if (!*p) break;
+        *p = 0;
+    }
+    return n;
+}
+
+static int table_grow(rths_table *t, int *cap, rths_error *err) {
+    int want = *cap ? 2 * *cap : 256;
+    for (int c = 0; c < t->columns; c++) {
+        double *p = realloc(t->data[c], (size_t)want * sizeof *p);
+        if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        t->data[c] = p;
+    }
+    *cap = want;
+    return RTHS_OK;
+}
+
+static int read_rows(FILE *f, const char *path, rths_table *t, char **fields, rths_error *err) {
+    char *line = NULL;
+    size_t size = 0;
+    int cap = 0, rc = RTHS_OK, line_no = 1;
+    locale_t c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
+    locale_t previous = c_locale ? uselocale(c_locale) : (locale_t)0;
+    while (!rc && getline(&line, &size, f) > 0) {
+        line_no++;
+        if (line[0] == '\n' || line[0] == '\r') continue;
+        int n = split_fields(line, fields, t->columns);
+        if (n != t->columns) {
+            rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: %d fields, the header has %d", path,
+                                line_no, n, t->columns);
+            break;
+        }
+        if (t->rows == cap && (rc = table_grow(t, &cap, err))) break;
+        for (int c = 0; c < n && !rc; c++) {
+            char *end;
+            double v = strtod(fields[c], &end);
+            if (end == fields[c] || *end)
+                rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: column %s: '%s' is not a number",
+                                    path, line_no, t->column_names[c], fields[c]);
+            else
+                t->data[c][t->rows] = v;
+        }
+        if (!rc) t->rows++;
+    }
+    if (c_locale) {
+        uselocale(previous);
+        freelocale(c_locale);
+    }
+    free(line);
+    return rc;
+}
+
+int rths_csv_read(const char *path, rths_table *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    FILE *f = fopen(path, "r");
+    if (!f) return rths_error_set(err, RTHS_EFAIL, "cannot read %s: %s", path, strerror(errno));
+    char *header = NULL, **fields = NULL;
+    size_t size = 0;
+    int rc = RTHS_OK;
+    if (getline(&header, &size, f) <= 0) {
+        rc = rths_error_set(err, RTHS_EINPUT, "%s is empty (no header line)", path);
+    } else {
+        int n = split_fields(header, NULL, 0);
+        fields = calloc((size_t)n, sizeof *fields);
+        /* the header was cut in place: rebuild the field pointers */
+        char *p = header;
+        for (int c = 0; fields && c < n; c++, p += strlen(p) + 1)
+            fields[c] = p;
+        const char *base = strrchr(path, '/') ? strrchr(path, '/') + 1 : path;
+        char *stem = strndup(base, strlen(base) > 4 && !strcmp(base + strlen(base) - 4, ".csv")
+                                       ? strlen(base) - 4
+                                       : strlen(base));
+        rc = fields && stem ? rths_table_create(stem, 0, n, (const char *const *)fields, out, err)
+                            : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        free(stem);
+        if (!rc) rc = read_rows(f, path, out, fields, err);
+    }
+    free(fields);
+    free(header);
+    fclose(f);
+    if (rc) rths_table_free(out);
+    return rc;
+}
+
 /* ---- JSON ---- */
 
 int rths_json_write(const char *path, struct json_object *obj, rths_error *err) {
@@ -325,6 +611,14 @@ int rths_plot(rths_report *rep, const char *dir, const char *basename, int width
     char *gp = malloc(len);
     if (!gp) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     snprintf(gp, len, "%s/%s.gp", dir, basename);
+    if (rep && rep->files && !strcmp(dir, rep->dir)) {
+        static const char *const ext[] = {".gp", ".png", ".svg"};
+        for (int i = 0; i < 3; i++) {
+            char name[512];
+            snprintf(name, sizeof name, "%s%s", basename, ext[i]);
+            names_add(rep->files, name);
+        }
+    }
     rths_atomic_file *a;
     FILE *f;
     int rc = rths_atomic_open(gp, &a, &f, err);

@@ -1,0 +1,128 @@
+/* rths.h: the stable C API of librths (documented in docs/c-api.md), the one header a program or a
+ * language binding (python/rths) needs.
+ *
+ * Conventions
+ *  - Every function that can fail returns a status, RTHS_OK (0), RTHS_EFAIL (1: numerics, I/O, rig
+ *    fault) or RTHS_EINPUT (2: bad input), and fills *err (may be NULL) with the same code and a
+ *    message; configuration errors read "FILE:LINE:COL: key 'a.b': what is wrong" (or
+ *    "--set a.b=...: ..." for an override).
+ *  - Objects are opaque handles made by one function and freed by its *_free (NULL is accepted).
+ *  - Results are tables of named double columns, named exactly as the columns of the CSV files a
+ *    run folder holds (frf.csv, modes.csv, ...), plus the run's summary.json as text.
+ *  - SI units everywhere, as in the column names. Thread safety: one handle per thread.
+ *
+ * Adding functions keeps RTHS_API_VERSION; changing or removing one raises it (and the library's
+ * SONAME). */
+#ifndef RTHS_RTHS_H
+#define RTHS_RTHS_H
+
+#include "rths/core.h"
+
+#include <stdint.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define RTHS_API_VERSION 1
+
+/* RTHS_API_VERSION of the library actually loaded (compare with the header's). */
+int rths_api_version(void);
+/* The rths release, e.g. "0.1.0". */
+const char *rths_api_release(void);
+
+/* ---- configuration ---- */
+
+typedef struct rths_api_config rths_api_config;
+
+/* Reads the YAML test description at path (NULL: defaults only) with overrides "a.b=value" applied
+ * in order (as the CLI's --set), and checks its structural part (structure, split, forcing, model)
+ * at once. Every operation re-reads the file, checking the sections it uses and refusing unknown
+ * keys in them, as the command of the same name does. */
+int rths_api_config_load(const char *path, const char *const *overrides, int n_overrides,
+                         rths_api_config **out, rths_error *err);
+void rths_api_config_free(rths_api_config *cfg);
+/* Degrees of freedom of the configured assembly. */
+int rths_api_config_dofs(const rths_api_config *cfg);
+
+/* ---- results: named tables of doubles, a summary, a folder ---- */
+
+typedef struct rths_result rths_result;
+
+int rths_result_table_count(const rths_result *r);
+/* Name of table t (0 <= t < count): the CSV file's name without ".csv" ("frf", "modes"). */
+const char *rths_result_table_name(const rths_result *r, int t);
+/* Index of the table called name, or -1. */
+int rths_result_table_index(const rths_result *r, const char *name);
+int rths_result_rows(const rths_result *r, int t);
+int rths_result_columns(const rths_result *r, int t);
+const char *rths_result_column_name(const rths_result *r, int t, int column);
+/* rows values, valid until rths_result_free. */
+const double *rths_result_column(const rths_result *r, int t, int column);
+/* summary.json's text ("" when there is none). */
+const char *rths_result_summary_json(const rths_result *r);
+/* config.yaml's text, the configuration as resolved ("" when the result has no folder). */
+const char *rths_result_config_yaml(const rths_result *r);
+/* The run folder, or NULL when the result was not written to one. */
+const char *rths_result_dir(const rths_result *r);
+void rths_result_free(rths_result *r);
+
+/* ---- operations ---- */
+
+/* rths model: modes and analytic FRF of the true assembly. Tables "modes" (mode, frequency_hz,
+ * omega_rad_s, damping_ratio, phi<i>_per_sqrt_kg) and "true_frf" (frequency_hz,
+ * x<i>_amplitude_m, x<i>_phase_rad), equal to the CLI's modes.csv and true_frf.csv. out_dir (may
+ * be NULL) also writes them there as a run folder (CSV, summary.json, config.yaml, results.mat). */
+int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result **out,
+                   rths_error *err);
+
+/* rths chart: stability chart of the delayed-feedback test over (tau, p) with the stability.*
+ * keys. Tables "chart" (tau_s, p, max_real_part_per_s, stable; p outer, tau inner), "boundary"
+ * (tau_s, p, omega_rad_s), "critical" (p, critical_delay_s, crossing_omega_rad_s), equal to the
+ * CLI's CSV files. out_dir as for rths_api_model. */
+int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result **out,
+                   rths_error *err);
+
+/* Reads a finished (or interrupted) run folder: every *.csv as a table, summary.json and
+ * config.yaml as text. */
+int rths_api_read_run(const char *dir, rths_result **out, rths_error *err);
+
+/* ---- the FRF test (rths frf) ---- */
+
+/* Called for every accepted point with its frf.csv row (n_columns values named as frf.csv's
+ * header). Return 0 to go on, anything else to stop the run: it ends as if cancelled. */
+typedef int (*rths_api_point_fn)(void *user, int n_columns, const char *const *column_names,
+                                 const double *row);
+/* Polled before the run and after every accepted point (a point in progress is finished first);
+ * nonzero ends the run cleanly: everything accepted is saved (journal.jsonl, frf.csv,
+ * summary.json whose stop_reason says "cancelled by the caller"), and the run can be resumed. */
+typedef int (*rths_api_cancel_fn)(void *user);
+
+typedef struct rths_api_frf_options {
+    const char *out_dir;  /* run folder, required (as --out) */
+    const char *strategy; /* "default" (NULL) or "paper" (as --strategy) */
+    int harmonics;        /* 1..3, 0: iteration.harmonics (as --harmonics) */
+    int has_seed;         /* nonzero: seed replaces rig.seed (as --seed) */
+    uint64_t seed;
+    int resume;          /* continue the interrupted run in out_dir (as --resume) */
+    const char *rig_uri; /* "tcp://HOST:PORT" of a controller process; NULL: the virtual rig */
+    rths_api_point_fn on_point;       /* may be NULL */
+    rths_api_cancel_fn should_cancel; /* may be NULL */
+    void *user;                       /* passed to both */
+} rths_api_frf_options;
+
+void rths_api_frf_options_default(rths_api_frf_options *o);
+/* Nonzero when this library can run FRF tests (it is built with the run module). */
+int rths_api_frf_available(void);
+/* Runs the test into o->out_dir and returns the folder read back (rths_api_read_run): table "frf"
+ * equals frf.csv. A run that stopped on a callback or a cancellation returns RTHS_OK with the
+ * result (summary.json's stop_reason says why). A rig fault or I/O error returns RTHS_EFAIL and no
+ * result, but the folder still holds everything accepted (rths_api_read_run reads it). */
+int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
+                 rths_error *err);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

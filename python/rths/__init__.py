@@ -1,0 +1,307 @@
+"""rths from Python: the iterative real-time hybrid testing toolkit's C library (librths) through
+ctypes, with numpy arrays in and out (docs/python.md).
+
+    import rths
+    cfg = rths.Config.load("examples/four_storey.yaml", set={"split.mass_ratio": 0.33})
+    m = rths.model(cfg)                  # m.modes["frequency_hz"], m.true_frf["x3_amplitude_m"]
+    run = rths.read_run("out/demo/linear_p0.33")
+    run.frf["amplitude_m"]               # the columns of frf.csv, as numpy arrays
+
+Errors of the library raise rths.InputError (bad configuration or arguments; the message carries
+FILE:LINE:COL for a configuration) or rths.RunError (numerics, I/O, rig fault).
+"""
+import ctypes
+import json
+import signal
+import threading
+
+from . import _lib
+
+# librths before numpy when rths is imported first: the BLAS both use then starts from the same
+# state as in the CLI, so LAPACK-heavy results (the chart) usually match it to the last bit (import
+# order or heap layout can otherwise move them by an ulp or so). A library that is not found is
+# reported on first use, so `import rths` itself always works.
+try:
+    _LIB = _lib.load()
+    _LOAD_ERROR = None
+except OSError as e:
+    _LIB, _LOAD_ERROR = None, e
+
+import numpy as np  # noqa: E402
+
+__all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
+           "model", "chart", "frf", "frf_available", "read_run", "library_release"]
+
+def _c():
+    global _LIB
+    if _LIB is None:
+        _LIB = _lib.load()  # raises OSError naming every place tried
+    return _LIB
+
+
+class RthsError(Exception):
+    """An error reported by librths: .code is its status (1 failure, 2 bad input)."""
+
+    def __init__(self, code, message):
+        super().__init__(message)
+        self.code = code
+        self.message = message
+
+
+class InputError(RthsError, ValueError):
+    """Bad input (status 2): a configuration error says FILE:LINE:COL: key 'a.b': ..."""
+
+
+class RunError(RthsError, RuntimeError):
+    """The work could not be done (status 1): numerics, I/O, a rig fault."""
+
+
+class Cancelled(KeyboardInterrupt):
+    """Ctrl-C stopped an FRF test; .result is the run as saved (everything accepted is in it)."""
+
+    def __init__(self, result):
+        super().__init__("FRF test cancelled; accepted points saved in " + str(result.dir))
+        self.result = result
+
+
+def _check(rc, err):
+    if rc == 0:
+        return
+    message = err.msg.decode("utf-8", "replace")
+    raise (InputError if rc == 2 else RunError)(rc, message)
+
+
+def library_release():
+    """The rths release of the loaded librths, e.g. '0.1.0'."""
+    return _c().rths_api_release().decode()
+
+
+def _yaml_value(value):
+    """A Python value as the YAML flow text an override takes."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (list, tuple, np.ndarray)):
+        return "[" + ", ".join(_yaml_value(v) for v in value) + "]"
+    if isinstance(value, (float, np.floating)):
+        return repr(float(value))
+    return str(value)
+
+
+class Config:
+    """A test description (YAML) with overrides, checked on load. Use Config.load."""
+
+    def __init__(self, handle, path, overrides):
+        self._handle = handle
+        self.path = path
+        self.overrides = overrides
+
+    @classmethod
+    def load(cls, path=None, set=None):
+        """Reads path (None: defaults only) with overrides: a dict {"split.mass_ratio": 0.33} or
+        a list of "key=value" strings, applied in order, as the CLI's --set."""
+        if set is None:
+            overrides = []
+        elif isinstance(set, dict):
+            overrides = [f"{k}={_yaml_value(v)}" for k, v in set.items()]
+        else:
+            overrides = [str(s) for s in set]
+        array = (ctypes.c_char_p * max(1, len(overrides)))(*[s.encode() for s in overrides])
+        handle = ctypes.c_void_p()
+        err = _lib.Error()
+        rc = _c().rths_api_config_load(None if path is None else str(path).encode(), array,
+                                       len(overrides), ctypes.byref(handle), ctypes.byref(err))
+        _check(rc, err)
+        return cls(handle, path, overrides)
+
+    def with_set(self, set):
+        """A new Config: this one's file and overrides plus set (dict or list) applied after."""
+        more = ([f"{k}={_yaml_value(v)}" for k, v in set.items()] if isinstance(set, dict)
+                else [str(s) for s in set])
+        return Config.load(self.path, self.overrides + more)
+
+    @property
+    def dofs(self):
+        """Degrees of freedom of the configured assembly."""
+        return _c().rths_api_config_dofs(self._handle)
+
+    def __del__(self):
+        if getattr(self, "_handle", None) and _LIB is not None:
+            _LIB.rths_api_config_free(self._handle)
+            self._handle = None
+
+    def __repr__(self):
+        return f"rths.Config({self.path!r}, set={self.overrides!r})"
+
+
+class Table(dict):
+    """Columns of one CSV table as numpy arrays, in the file's order; also t.column_name."""
+
+    def __init__(self, name, columns):
+        super().__init__(columns)
+        self.name = name
+
+    @property
+    def columns(self):
+        return list(self.keys())
+
+    @property
+    def rows(self):
+        return len(next(iter(self.values()))) if self else 0
+
+    def __getattr__(self, name):
+        try:
+            return self[name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    def __repr__(self):
+        return f"<rths.Table {self.name}: {self.rows} rows, columns {', '.join(self.columns)}>"
+
+
+class Result:
+    """A run's tables (by CSV name: result.frf, result.modes, result["true_frf"]), its summary
+    (dict, from summary.json), config_yaml (text) and dir (the run folder or None)."""
+
+    def __init__(self, tables, summary, config_yaml, dir):
+        self.tables = tables
+        self.summary = summary
+        self.config_yaml = config_yaml
+        self.dir = dir
+
+    def __getitem__(self, name):
+        return self.tables[name]
+
+    def __getattr__(self, name):
+        tables = self.__dict__.get("tables", {})
+        if name in tables:
+            return tables[name]
+        raise AttributeError(name)
+
+    def __repr__(self):
+        return f"<rths.Result {self.dir or '(no folder)'}: tables {', '.join(self.tables)}>"
+
+
+def _take_result(handle):
+    """Copies a C rths_result into a Result and frees it."""
+    c = _c()
+    try:
+        tables = {}
+        for t in range(c.rths_result_table_count(handle)):
+            name = c.rths_result_table_name(handle, t).decode()
+            rows = c.rths_result_rows(handle, t)
+            columns = {}
+            for k in range(c.rths_result_columns(handle, t)):
+                data = c.rths_result_column(handle, t, k)
+                column = (np.ctypeslib.as_array(data, shape=(rows,)).copy() if rows
+                          else np.zeros(0))
+                columns[c.rths_result_column_name(handle, t, k).decode()] = column
+            tables[name] = Table(name, columns)
+        text = c.rths_result_summary_json(handle).decode()
+        summary = json.loads(text) if text.strip() else {}
+        config_yaml = c.rths_result_config_yaml(handle).decode()
+        folder = c.rths_result_dir(handle)
+        return Result(tables, summary, config_yaml, folder.decode() if folder else None)
+    finally:
+        c.rths_result_free(handle)
+
+
+def _run(fn, *args):
+    handle = ctypes.c_void_p()
+    err = _lib.Error()
+    rc = fn(*args, ctypes.byref(handle), ctypes.byref(err))
+    _check(rc, err)
+    return _take_result(handle)
+
+
+def _config(cfg):
+    if isinstance(cfg, Config):
+        return cfg
+    return Config.load(cfg)
+
+
+def model(cfg, out=None):
+    """Modes and analytic FRF of the true assembly (rths model): result.modes, result.true_frf,
+    equal to the CLI's modes.csv and true_frf.csv. out: also write a run folder there."""
+    cfg = _config(cfg)
+    return _run(_c().rths_api_model, cfg._handle, None if out is None else str(out).encode())
+
+
+def chart(cfg, out=None):
+    """Stability chart of the delayed-feedback test (rths chart): result.chart, .boundary,
+    .critical, equal to the CLI's CSV files. out: also write a run folder there."""
+    cfg = _config(cfg)
+    return _run(_c().rths_api_chart, cfg._handle, None if out is None else str(out).encode())
+
+
+def read_run(dir):
+    """A run folder: every CSV as a Table (result.frf["amplitude_m"]), summary, config_yaml."""
+    return _run(_c().rths_api_read_run, str(dir).encode())
+
+
+def frf_available():
+    """True when the loaded librths can run FRF tests."""
+    return bool(_c().rths_api_frf_available())
+
+
+class _Callbacks:
+    """The per-point callback and the cancel flag of one FRF run."""
+
+    def __init__(self, on_point):
+        self.on_point = on_point
+        self.error = None
+        self.cancelled = False
+
+    def point(self, user, n, names, row):
+        if self.on_point is None or self.error is not None:
+            return 0 if self.error is None else 1
+        try:
+            self.on_point({names[i].decode(): row[i] for i in range(n)})
+            return 0
+        except BaseException as e:  # noqa: B036 - re-raised after the run is saved
+            self.error = e
+            return 1
+
+    def should_cancel(self, user):
+        return 1 if self.cancelled or self.error is not None else 0
+
+
+def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=None,
+        on_point=None):
+    """The iterative hybrid test with continuation (rths frf) into the run folder out.
+
+    Returns a Result whose table frf holds frf.csv's columns. on_point(row) is called with each
+    accepted point's frf.csv row as a dict; if it raises, the run stops cleanly (everything
+    accepted saved) and the exception is raised again. Ctrl-C stops the run the same way and
+    raises rths.Cancelled carrying the saved result."""
+    cfg = _config(cfg)
+    c = _c()
+    o = _lib.FrfOptions()
+    c.rths_api_frf_options_default(ctypes.byref(o))
+    o.out_dir = str(out).encode()
+    if strategy is not None:
+        o.strategy = strategy.encode()
+    if harmonics is not None:
+        o.harmonics = int(harmonics)
+    if seed is not None:
+        o.has_seed, o.seed = 1, int(seed)
+    o.resume = 1 if resume else 0
+    if rig is not None:
+        o.rig_uri = rig.encode()
+    cb = _Callbacks(on_point)
+    o.on_point = _lib.POINT_FN(cb.point)
+    o.should_cancel = _lib.CANCEL_FN(cb.should_cancel)
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        def interrupt(signum, frame):
+            cb.cancelled = True
+        previous = signal.signal(signal.SIGINT, interrupt)
+    try:
+        result = _run(c.rths_api_frf, cfg._handle, ctypes.byref(o))
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+    if cb.error is not None:
+        raise cb.error
+    if cb.cancelled:
+        raise Cancelled(result)
+    return result

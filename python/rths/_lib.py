@@ -1,0 +1,91 @@
+"""ctypes declarations of librths's C API (include/rths/rths.h, docs/c-api.md)."""
+import ctypes
+import ctypes.util
+import os
+
+API_VERSION = 1  # RTHS_API_VERSION this package was written against
+ERROR_MSG_LEN = 1024  # RTHS_ERROR_MSG_LEN (include/rths/core.h)
+
+
+class Error(ctypes.Structure):
+    """rths_error: a status code and a message."""
+
+    _fields_ = [("code", ctypes.c_int), ("msg", ctypes.c_char * ERROR_MSG_LEN)]
+
+
+POINT_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int,
+                            ctypes.POINTER(ctypes.c_char_p), ctypes.POINTER(ctypes.c_double))
+CANCEL_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p)
+
+
+class FrfOptions(ctypes.Structure):
+    """rths_api_frf_options."""
+
+    _fields_ = [("out_dir", ctypes.c_char_p), ("strategy", ctypes.c_char_p),
+                ("harmonics", ctypes.c_int), ("has_seed", ctypes.c_int),
+                ("seed", ctypes.c_uint64), ("resume", ctypes.c_int),
+                ("rig_uri", ctypes.c_char_p), ("on_point", POINT_FN),
+                ("should_cancel", CANCEL_FN), ("user", ctypes.c_void_p)]
+
+
+def _candidates():
+    """Where librths is looked for: RTHS_LIBRARY, the build tree of this checkout, the loader."""
+    env = os.environ.get("RTHS_LIBRARY")
+    if env:
+        return [env]
+    here = os.path.dirname(os.path.abspath(__file__))
+    tree = os.path.join(os.path.dirname(os.path.dirname(here)), "build", "librths.so")
+    found = ctypes.util.find_library("rths")
+    return [p for p in (tree if os.path.exists(tree) else None, found, "librths.so.0") if p]
+
+
+def _declare(lib):
+    c_int, c_char_p, c_void_p = ctypes.c_int, ctypes.c_char_p, ctypes.c_void_p
+    err = ctypes.POINTER(Error)
+    handle = ctypes.POINTER(c_void_p)
+    signatures = {
+        "rths_api_version": (c_int, []),
+        "rths_api_release": (c_char_p, []),
+        "rths_api_config_load": (c_int, [c_char_p, ctypes.POINTER(c_char_p), c_int, handle, err]),
+        "rths_api_config_free": (None, [c_void_p]),
+        "rths_api_config_dofs": (c_int, [c_void_p]),
+        "rths_api_model": (c_int, [c_void_p, c_char_p, handle, err]),
+        "rths_api_chart": (c_int, [c_void_p, c_char_p, handle, err]),
+        "rths_api_read_run": (c_int, [c_char_p, handle, err]),
+        "rths_api_frf_options_default": (None, [ctypes.POINTER(FrfOptions)]),
+        "rths_api_frf_available": (c_int, []),
+        "rths_api_frf": (c_int, [c_void_p, ctypes.POINTER(FrfOptions), handle, err]),
+        "rths_result_table_count": (c_int, [c_void_p]),
+        "rths_result_table_name": (c_char_p, [c_void_p, c_int]),
+        "rths_result_rows": (c_int, [c_void_p, c_int]),
+        "rths_result_columns": (c_int, [c_void_p, c_int]),
+        "rths_result_column_name": (c_char_p, [c_void_p, c_int, c_int]),
+        "rths_result_column": (ctypes.POINTER(ctypes.c_double), [c_void_p, c_int, c_int]),
+        "rths_result_summary_json": (c_char_p, [c_void_p]),
+        "rths_result_config_yaml": (c_char_p, [c_void_p]),
+        "rths_result_dir": (c_char_p, [c_void_p]),
+        "rths_result_free": (None, [c_void_p]),
+    }
+    for name, (restype, argtypes) in signatures.items():
+        fn = getattr(lib, name)
+        fn.restype = restype
+        fn.argtypes = argtypes
+    return lib
+
+
+def load():
+    """The loaded librths with its functions declared; OSError naming every place tried."""
+    tried = []
+    for path in _candidates():
+        try:
+            lib = ctypes.CDLL(path)
+        except OSError as e:
+            tried.append(f"{path} ({e})")
+            continue
+        _declare(lib)
+        if lib.rths_api_version() != API_VERSION:
+            raise OSError(f"{path} has C API version {lib.rths_api_version()}, "
+                          f"this package needs {API_VERSION}")
+        return lib
+    raise OSError("librths not found: build it (make build) or set RTHS_LIBRARY; tried "
+                  + "; ".join(tried))

@@ -1,0 +1,366 @@
+/* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
+#include "api/api_internal.h"
+
+#include <dirent.h>
+#include <errno.h>
+#include <json-c/json.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+int rths_api_version(void) {
+    return RTHS_API_VERSION;
+}
+
+const char *rths_api_release(void) {
+    return RTHS_VERSION;
+}
+
+/* ---- configuration ---- */
+
+void rths_api_config_free(rths_api_config *cfg) {
+    if (!cfg) return;
+    for (int i = 0; i < cfg->n_overrides; i++)
+        free(cfg->overrides[i]);
+    free(cfg->overrides);
+    free(cfg->path);
+    free(cfg);
+}
+
+int rths_api_load(const rths_api_config *cfg, rths_config **out, rths_setup *setup,
+                  rths_error *err) {
+    *out = NULL;
+    memset(setup, 0, sizeof *setup);
+    int rc = rths_config_load(cfg->path, (const char *const *)cfg->overrides, cfg->n_overrides, out,
+                              err);
+    if (rc) {
+        *out = NULL;
+        return rc;
+    }
+    rc = rths_setup_read(*out, setup, err);
+    if (rc) {
+        rths_api_unload(*out, setup);
+        *out = NULL;
+        memset(setup, 0, sizeof *setup);
+    }
+    return rc;
+}
+
+void rths_api_unload(rths_config *c, rths_setup *setup) {
+    if (setup) rths_setup_free(setup);
+    if (c) rths_config_free(c);
+}
+
+int rths_api_check_config(rths_config *c, const char *const *own, rths_error *err) {
+    /* the sections of the rths configuration besides the setup's (docs/config.md) */
+    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
+                                           "stability", "fidelity",   "output",    "server"};
+    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
+        int mine = 0;
+        for (int j = 0; own && own[j] && !mine; j++)
+            mine = !strcmp(own[j], sections[k]);
+        if (!mine) rths_config_mark_known(c, sections[k]);
+    }
+    return rths_config_check_unknown(c, err);
+}
+
+int rths_api_config_load(const char *path, const char *const *overrides, int n_overrides,
+                         rths_api_config **out, rths_error *err) {
+    *out = NULL;
+    if (n_overrides < 0 || (n_overrides > 0 && !overrides))
+        return rths_error_set(err, RTHS_EINPUT, "overrides: %d given without a list", n_overrides);
+    for (int i = 0; i < n_overrides; i++)
+        if (!overrides[i] || !strchr(overrides[i], '=') || overrides[i][0] == '=')
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "override '%s': expected KEY=VALUE (e.g. split.mass_ratio=0.33)",
+                                  overrides[i] ? overrides[i] : "(null)");
+    rths_api_config *cfg = calloc(1, sizeof *cfg);
+    int ok = cfg && (!path || (cfg->path = strdup(path))) &&
+             (cfg->overrides = calloc((size_t)n_overrides + 1, sizeof *cfg->overrides));
+    for (int i = 0; ok && i < n_overrides; i++)
+        ok = (cfg->overrides[cfg->n_overrides++] = strdup(overrides[i])) != NULL;
+    if (!ok) {
+        rths_api_config_free(cfg);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    /* read once now, so a bad file or key is reported by the load */
+    rths_config *c;
+    rths_setup setup;
+    int rc = rths_api_load(cfg, &c, &setup, err);
+    if (rc) {
+        rths_api_config_free(cfg);
+        return rc;
+    }
+    cfg->dofs = setup.assembly.n;
+    rths_api_unload(c, &setup);
+    *out = cfg;
+    return RTHS_OK;
+}
+
+int rths_api_config_dofs(const rths_api_config *cfg) {
+    return cfg ? cfg->dofs : 0;
+}
+
+/* ---- results ---- */
+
+int rths_result_new(rths_result **out, rths_error *err) {
+    rths_result *r = calloc(1, sizeof *r);
+    if (r && (r->summary_json = strdup("")) && (r->config_yaml = strdup(""))) {
+        *out = r;
+        return RTHS_OK;
+    }
+    rths_result_free(r);
+    *out = NULL;
+    return rths_error_set(err, RTHS_EFAIL, "out of memory");
+}
+
+void rths_result_free(rths_result *r) {
+    if (!r) return;
+    for (int t = 0; t < r->n_tables; t++)
+        rths_table_free(&r->tables[t]);
+    free(r->tables);
+    free(r->summary_json);
+    free(r->config_yaml);
+    free(r->dir);
+    free(r);
+}
+
+int rths_result_take_table(rths_result *r, rths_table *t, rths_error *err) {
+    rths_table *p = realloc(r->tables, (size_t)(r->n_tables + 1) * sizeof *p);
+    if (!p) {
+        rths_table_free(t);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    r->tables = p;
+    r->tables[r->n_tables++] = *t;
+    memset(t, 0, sizeof *t);
+    return RTHS_OK;
+}
+
+int rths_result_add_columns(rths_result *r, const char *name, int rows, int columns,
+                            const char *const *names, const double *const *data, rths_error *err) {
+    rths_table t;
+    int rc = rths_table_create(name, rows, columns, names, &t, err);
+    if (rc) return rc;
+    for (int c = 0; c < columns; c++)
+        if (rows) memcpy(t.data[c], data[c], (size_t)rows * sizeof(double));
+    return rths_result_take_table(r, &t, err);
+}
+
+int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_error *err) {
+    if (!summary) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    json_c_set_serialization_double_format("%.17g", JSON_C_OPTION_THREAD);
+    const char *text =
+        json_object_to_json_string_ext(summary, JSON_C_TO_STRING_PRETTY | JSON_C_TO_STRING_SPACED |
+                                                    JSON_C_TO_STRING_NOSLASHESCAPE);
+    json_c_set_serialization_double_format(NULL, JSON_C_OPTION_THREAD);
+    char *copy = text ? strdup(text) : NULL;
+    json_object_put(summary);
+    if (!copy) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    free(r->summary_json);
+    r->summary_json = copy;
+    return RTHS_OK;
+}
+
+int rths_result_table_count(const rths_result *r) {
+    return r ? r->n_tables : 0;
+}
+
+static const rths_table *table_at(const rths_result *r, int t) {
+    return r && t >= 0 && t < r->n_tables ? &r->tables[t] : NULL;
+}
+
+const char *rths_result_table_name(const rths_result *r, int t) {
+    const rths_table *tab = table_at(r, t);
+    return tab ? tab->name : NULL;
+}
+
+int rths_result_table_index(const rths_result *r, const char *name) {
+    for (int t = 0; r && name && t < r->n_tables; t++)
+        if (!strcmp(r->tables[t].name, name)) return t;
+    return -1;
+}
+
+int rths_result_rows(const rths_result *r, int t) {
+    const rths_table *tab = table_at(r, t);
+    return tab ? tab->rows : 0;
+}
+
+int rths_result_columns(const rths_result *r, int t) {
+    const rths_table *tab = table_at(r, t);
+    return tab ? tab->columns : 0;
+}
+
+const char *rths_result_column_name(const rths_result *r, int t, int column) {
+    const rths_table *tab = table_at(r, t);
+    return tab && column >= 0 && column < tab->columns ? tab->column_names[column] : NULL;
+}
+
+const double *rths_result_column(const rths_result *r, int t, int column) {
+    const rths_table *tab = table_at(r, t);
+    return tab && column >= 0 && column < tab->columns ? tab->data[column] : NULL;
+}
+
+const char *rths_result_summary_json(const rths_result *r) {
+    return r ? r->summary_json : NULL;
+}
+
+const char *rths_result_config_yaml(const rths_result *r) {
+    return r ? r->config_yaml : NULL;
+}
+
+const char *rths_result_dir(const rths_result *r) {
+    return r ? r->dir : NULL;
+}
+
+/* ---- run folders ---- */
+
+static char *read_text(const char *dir, const char *name) {
+    size_t len = strlen(dir) + strlen(name) + 2;
+    char *path = malloc(len);
+    if (!path) return NULL;
+    snprintf(path, len, "%s/%s", dir, name);
+    FILE *f = fopen(path, "rb");
+    free(path);
+    if (!f) return strdup("");
+    char *buf = NULL;
+    size_t size = 0;
+    FILE *mem = open_memstream(&buf, &size);
+    char chunk[4096];
+    size_t got;
+    while (mem && (got = fread(chunk, 1, sizeof chunk, f)) > 0)
+        fwrite(chunk, 1, got, mem);
+    fclose(f);
+    if (mem) fclose(mem);
+    return buf;
+}
+
+static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *err) {
+    size_t len = strlen(t->name) + 5;
+    char *name = malloc(len);
+    double *row = calloc((size_t)t->columns + 1, sizeof *row);
+    char *path = NULL;
+    rths_csv *csv = NULL;
+    int rc = name && row ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        snprintf(name, len, "%s.csv", t->name);
+        path = rths_report_path(rep, name);
+        rc = path ? rths_csv_open(path, t->columns, (const char *const *)t->column_names, &csv, err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    for (int i = 0; i < t->rows && !rc; i++) {
+        for (int c = 0; c < t->columns; c++)
+            row[c] = t->data[c][i];
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing %s", path);
+    }
+    rc = rths_csv_finish(csv, rc, err);
+    free(name);
+    free(row);
+    free(path);
+    return rc;
+}
+
+int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
+                             const char *command, rths_error *err) {
+    char *argv[] = {(char *)command, "(C API)", NULL};
+    rths_report *rep;
+    int rc = rths_report_open(dir, command, 2, argv, &rep, err);
+    if (rc) return rc;
+    char *path = rths_report_path(rep, "config.yaml");
+    rc = path ? rths_config_write(c, path, err) : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    free(path);
+    for (int t = 0; t < r->n_tables && !rc; t++)
+        rc = write_table_csv(rep, &r->tables[t], err);
+    if (!rc) {
+        path = rths_report_path(rep, "summary.json");
+        rc = path ? rths_write_file_atomic(path, r->summary_json, strlen(r->summary_json), err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        free(path);
+    }
+    rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err->msg : "");
+    rths_report_close(rep); /* writes results.mat */
+    if (rc) return rc;
+    char *yaml = read_text(dir, "config.yaml");
+    free(r->dir);
+    r->dir = strdup(dir);
+    if (yaml) {
+        free(r->config_yaml);
+        r->config_yaml = yaml;
+    }
+    return r->dir && yaml ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+}
+
+static int compare_names(const void *a, const void *b) {
+    return strcmp(*(char *const *)a, *(char *const *)b);
+}
+
+/* The folder's *.csv names, sorted (a stable table order). */
+static int list_csv(const char *dir, char ***names, int *n, rths_error *err) {
+    *names = NULL;
+    *n = 0;
+    DIR *d = opendir(dir);
+    if (!d)
+        return rths_error_set(err, RTHS_EINPUT, "cannot read run folder %s: %s", dir,
+                              strerror(errno));
+    struct dirent *e;
+    int cap = 0, rc = RTHS_OK;
+    while (!rc && (e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (len <= 4 || strcmp(e->d_name + len - 4, ".csv")) continue;
+        if (*n == cap) {
+            cap = cap ? 2 * cap : 16;
+            char **p = realloc(*names, (size_t)cap * sizeof *p);
+            if (!p) {
+                rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+                break;
+            }
+            *names = p;
+        }
+        if (!((*names)[*n] = strdup(e->d_name)))
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        else
+            (*n)++;
+    }
+    closedir(d);
+    if (*n) qsort(*names, (size_t)*n, sizeof **names, compare_names);
+    return rc;
+}
+
+int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
+    *out = NULL;
+    if (!dir) return rths_error_set(err, RTHS_EINPUT, "no run folder given");
+    char **names;
+    int n;
+    rths_result *r = NULL;
+    int rc = list_csv(dir, &names, &n, err);
+    if (!rc) rc = rths_result_new(&r, err);
+    for (int i = 0; i < n && !rc; i++) {
+        size_t len = strlen(dir) + strlen(names[i]) + 2;
+        char *path = malloc(len);
+        rths_table t;
+        if (!path) {
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+            break;
+        }
+        snprintf(path, len, "%s/%s", dir, names[i]);
+        rc = rths_csv_read(path, &t, err);
+        free(path);
+        if (!rc) rc = rths_result_take_table(r, &t, err);
+    }
+    for (int i = 0; i < n; i++)
+        free(names[i]);
+    free(names);
+    if (!rc) {
+        char *summary = read_text(dir, "summary.json"), *yaml = read_text(dir, "config.yaml");
+        if (summary) free(r->summary_json), r->summary_json = summary;
+        if (yaml) free(r->config_yaml), r->config_yaml = yaml;
+        r->dir = strdup(dir);
+        if (!summary || !yaml || !r->dir) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    if (rc) {
+        rths_result_free(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
+}

@@ -1,0 +1,212 @@
+/* rths_api_frf: the FRF test (rths frf) behind the C API, a thin layer over the run module's
+ * rths_run_frf (include/rths/run.h), which holds the test's orchestration for the CLI and the API
+ * alike. A library built without that module answers rths_api_frf_available() == 0. */
+#include "api/api_internal.h"
+
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(__has_include)
+#if __has_include("rths/run.h")
+#define RTHS_API_HAVE_RUN 1
+#endif
+#endif
+
+void rths_api_frf_options_default(rths_api_frf_options *o) {
+    memset(o, 0, sizeof *o);
+    o->strategy = "default";
+}
+
+#ifndef RTHS_API_HAVE_RUN
+
+int rths_api_frf_available(void) {
+    return 0;
+}
+
+int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
+                 rths_error *err) {
+    *out = NULL;
+    if (!cfg || !o || !o->out_dir)
+        return rths_error_set(err, RTHS_EINPUT, "rths_api_frf needs a configuration and out_dir");
+    return rths_error_set(err, RTHS_EFAIL,
+                          "this librths has no FRF run (the run module, include/rths/run.h, is "
+                          "not built in)");
+}
+
+#else
+
+#include "rths/run.h"
+
+#include <inttypes.h>
+#include <math.h>
+
+int rths_api_frf_available(void) {
+    return 1;
+}
+
+/* frf.csv's columns for the point callback: the header and row of the run module's frf.csv
+ * (src/run/frf_outputs.c), which must stay the same. */
+enum { FRF_COLUMNS = 22 };
+static const char *const frf_columns[FRF_COLUMNS] = {"point",
+                                                     "frequency_hz",
+                                                     "amplitude_m",
+                                                     "numerical_amplitude_m",
+                                                     "phase_rad",
+                                                     "interface_error_m",
+                                                     "interface_error_h2_m",
+                                                     "interface_error_h3_m",
+                                                     "amplitude_h2_m",
+                                                     "amplitude_h3_m",
+                                                     "target_a1_m",
+                                                     "target_b1_m",
+                                                     "residual_norm_m",
+                                                     "tolerance_m",
+                                                     "evaluations",
+                                                     "iterations",
+                                                     "rig_time_s",
+                                                     "converged",
+                                                     "fold",
+                                                     "segment",
+                                                     "amplitude_se_m",
+                                                     "measured_amplitude_m"};
+
+static double harmonic_error(const rths_point *pt, int k) {
+    return hypot(pt->sol.eval.phys.a[k] - pt->sol.eval.num.a[k],
+                 pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
+}
+
+static void frf_row(const rths_point *pt, double *row) {
+    const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
+    const double values[FRF_COLUMNS] = {pt->index,
+                                        pt->sol.frequency_hz,
+                                        pt->sol.amplitude_m,
+                                        hypot(nu->a[1], nu->b[1]),
+                                        atan2(-ph->b[1], ph->a[1]),
+                                        harmonic_error(pt, 1),
+                                        harmonic_error(pt, 2),
+                                        harmonic_error(pt, 3),
+                                        hypot(ph->a[2], ph->b[2]),
+                                        hypot(ph->a[3], ph->b[3]),
+                                        pt->sol.target_a[0],
+                                        pt->sol.target_b[0],
+                                        pt->sol.residual_norm_m,
+                                        pt->sol.tolerance_m,
+                                        pt->evaluations,
+                                        pt->iterations,
+                                        pt->rig_time_s,
+                                        pt->sol.converged,
+                                        pt->fold,
+                                        pt->segment,
+                                        pt->sol.amplitude_se_m,
+                                        hypot(ph->a[1], ph->b[1])};
+    memcpy(row, values, sizeof values);
+}
+
+typedef struct {
+    const rths_api_frf_options *o;
+    int stop; /* the point callback asked to stop */
+} frf_context;
+
+/* The caller's callback gets each accepted point once (a later fold-flag update is not repeated).
+ * Its stop request ends the run through should_cancel, right after this point: a clean,
+ * resumable end with everything saved, not a failure. */
+static int point(void *user, const rths_point *pt, int is_update) {
+    frf_context *c = user;
+    if (is_update || !c->o->on_point || c->stop) return RTHS_OK;
+    double row[FRF_COLUMNS];
+    frf_row(pt, row);
+    c->stop = c->o->on_point(c->o->user, FRF_COLUMNS, frf_columns, row) != 0;
+    return RTHS_OK;
+}
+
+static int cancel(void *user) {
+    frf_context *c = user;
+    return c->stop || (c->o->should_cancel && c->o->should_cancel(c->o->user));
+}
+
+/* The configuration with the paper strategy's overrides first (later ones still win), as
+ * `rths frf --strategy paper` loads it. */
+static int load_for_strategy(const rths_api_config *cfg, int paper, rths_config **c,
+                             rths_setup *setup, rths_error *err) {
+    if (!paper) return rths_api_load(cfg, c, setup, err);
+    rths_api_config with = *cfg;
+    with.n_overrides = RTHS_RUN_PAPER_OVERRIDES + cfg->n_overrides;
+    with.overrides = calloc((size_t)with.n_overrides, sizeof *with.overrides);
+    if (!with.overrides) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < RTHS_RUN_PAPER_OVERRIDES; i++)
+        with.overrides[i] = (char *)rths_run_paper_overrides[i];
+    for (int i = 0; i < cfg->n_overrides; i++)
+        with.overrides[RTHS_RUN_PAPER_OVERRIDES + i] = cfg->overrides[i];
+    int rc = rths_api_load(&with, c, setup, err);
+    free(with.overrides);
+    return rc;
+}
+
+/* The command line `rths frf` would have had, for run.log (and "--resume", which tells the report
+ * module that the folder's earlier files belong to this run). */
+static char **command_line(const rths_api_config *cfg, const rths_api_frf_options *o, int *argc,
+                           char *seed_text, size_t seed_size) {
+    char **argv = calloc((size_t)(12 + 2 * cfg->n_overrides), sizeof *argv);
+    if (!argv) return NULL;
+    int n = 0;
+    argv[n++] = "frf";
+    if (cfg->path) argv[n++] = cfg->path;
+    argv[n++] = "--out";
+    argv[n++] = (char *)o->out_dir;
+    for (int i = 0; i < cfg->n_overrides; i++) {
+        argv[n++] = "--set";
+        argv[n++] = cfg->overrides[i];
+    }
+    if (o->has_seed) {
+        snprintf(seed_text, seed_size, "%" PRIu64, o->seed);
+        argv[n++] = "--seed";
+        argv[n++] = seed_text;
+    }
+    if (o->resume) argv[n++] = "--resume";
+    argv[n++] = "(C API)";
+    *argc = n;
+    return argv;
+}
+
+int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
+                 rths_error *err) {
+    *out = NULL;
+    if (!cfg || !o || !o->out_dir)
+        return rths_error_set(err, RTHS_EINPUT, "rths_api_frf needs a configuration and out_dir");
+    const char *strategy = o->strategy ? o->strategy : "default";
+    rths_config *c;
+    rths_setup setup;
+    int rc = load_for_strategy(cfg, !strcmp(strategy, "paper"), &c, &setup, err);
+    if (rc) return rc;
+    char seed_text[32];
+    int argc = 0;
+    char **argv = command_line(cfg, o, &argc, seed_text, sizeof seed_text);
+    if (!argv) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rths_run_frf_options ro = {.cfg = c,
+                               .setup = &setup,
+                               .out_dir = o->out_dir,
+                               .strategy = strategy,
+                               .harmonics = o->harmonics,
+                               .resume = o->resume,
+                               .rig_uri = o->rig_uri,
+                               .has_seed = o->has_seed,
+                               .seed = o->seed,
+                               .config_path = cfg->path,
+                               .overrides = (const char *const *)cfg->overrides,
+                               .n_overrides = cfg->n_overrides,
+                               .argc = argc,
+                               .argv = argv};
+    frf_context ctx = {o, 0};
+    rths_run_callbacks cb = {.on_point = point, .should_cancel = cancel, .user = &ctx};
+    rths_run_frf_result result;
+    if (!rc) rc = rths_run_frf(&ro, &cb, &result, err);
+    free(argv);
+    rths_api_unload(c, &setup);
+    /* the folder as written, however the run ended (a failure still saved what was accepted,
+     * but reports the failure) */
+    if (!rc) rc = rths_api_read_run(o->out_dir, out, err);
+    return rc;
+}
+
+#endif

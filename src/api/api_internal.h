@@ -1,0 +1,58 @@
+/* The C API's own plumbing (src/api): the handles behind rths.h and what the operations share. */
+#ifndef RTHS_API_INTERNAL_H
+#define RTHS_API_INTERNAL_H
+
+#include "rths/config.h"
+#include "rths/report.h"
+#include "rths/rths.h"
+#include "rths/setup.h"
+
+struct json_object;
+
+struct rths_api_config {
+    char *path;       /* NULL: defaults only */
+    char **overrides; /* "a.b=value" */
+    int n_overrides;
+    int dofs;
+};
+
+struct rths_result {
+    rths_table *tables;
+    int n_tables;
+    char *summary_json; /* never NULL once made */
+    char *config_yaml;  /* never NULL once made */
+    char *dir;          /* NULL: no folder */
+};
+
+/* The configuration read afresh (every getter unasked) with the structural setup: an operation
+ * reads its own sections from it, then checks it (rths_api_check_config). */
+int rths_api_load(const rths_api_config *cfg, rths_config **out, rths_setup *setup,
+                  rths_error *err);
+void rths_api_unload(rths_config *c, rths_setup *setup);
+/* Unknown keys refused in the setup's sections and in own (NULL-terminated), the other sections
+ * of the rths configuration accepted whole (as the CLI's commands do). */
+int rths_api_check_config(rths_config *c, const char *const *own, rths_error *err);
+
+int rths_result_new(rths_result **out, rths_error *err);
+/* Takes the table over (*t is emptied). */
+int rths_result_take_table(rths_result *r, rths_table *t, rths_error *err);
+/* A table from column arrays (copied). */
+int rths_result_add_columns(rths_result *r, const char *name, int rows, int columns,
+                            const char *const *names, const double *const *data, rths_error *err);
+/* summary (consumed: json_object_put) becomes r's summary text. */
+int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_error *err);
+/* Writes r as the run folder dir of command: config.yaml, one CSV per table, summary.json,
+ * results.mat (at close), run.log; then r->dir and r->config_yaml are set. */
+int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
+                             const char *command, rths_error *err);
+
+/* `rths chart`'s pieces, shared with the CLI (src/cli/cmd_chart.c can call these instead of its
+ * own copies): the stability.* keys into options (ranges and messages as documented in
+ * docs/config/stability.md), and the p where the essential-spectrum bound changes sign along the
+ * chart (linear interpolation of ln-rates; NaN when it does not). */
+struct rths_chart_options;
+struct rths_chart;
+int rths_api_chart_options_read(rths_config *cfg, struct rths_chart_options *o, rths_error *err);
+double rths_api_chart_essential_limit(const struct rths_chart *c);
+
+#endif

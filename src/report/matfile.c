@@ -1,0 +1,348 @@
+/* results.mat: a run folder's data as one MAT 7.3 file (HDF5 underneath, written by libmatio), so
+ * MATLAB loads it with `load`, Python with h5py and Julia with MAT.jl. The content is what the run
+ * wrote as text (CSV tables, summary.json, config.yaml) plus tables that have no CSV; see
+ * rths_report_write_mat in report.h for the layout. */
+#include "rths/continuation.h"
+#include "rths/report.h"
+
+#include <ctype.h>
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <json-c/json.h>
+#include <math.h>
+#include <matio.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+/* MATLAB names: a letter first, then letters, digits, '_'; at most 63 characters. */
+static void matlab_name(const char *in, char *out, size_t size) {
+    size_t n = 0;
+    if (!isalpha((unsigned char)in[0]) && size > 2) out[n++] = 'x';
+    for (const char *p = in; *p && n + 1 < size && n < 63; p++)
+        out[n++] = isalnum((unsigned char)*p) ? *p : '_';
+    out[n] = 0;
+}
+
+static matvar_t *double_var(const char *name, size_t rows, size_t cols, const double *data) {
+    size_t dims[2] = {rows, cols};
+    /* matio copies the data (no MAT_F_DONT_COPY_DATA) */
+    return Mat_VarCreate(name, MAT_C_DOUBLE, MAT_T_DOUBLE, 2, dims, (void *)data, 0);
+}
+
+static matvar_t *text_var(const char *name, const char *text) {
+    size_t dims[2] = {1, strlen(text)};
+    return Mat_VarCreate(name, MAT_C_CHAR, MAT_T_UTF8, 2, dims, (void *)text, 0);
+}
+
+/* A struct with one field per column, each a rows x 1 double vector. */
+static matvar_t *table_var(const rths_table *t) {
+    char name[64];
+    matlab_name(t->name, name, sizeof name);
+    const char **fields = calloc((size_t)t->columns + 1, sizeof *fields);
+    char(*names)[64] = calloc((size_t)t->columns + 1, sizeof *names);
+    matvar_t *s = NULL;
+    if (fields && names) {
+        for (int c = 0; c < t->columns; c++) {
+            matlab_name(t->column_names[c], names[c], sizeof names[c]);
+            fields[c] = names[c];
+        }
+        size_t dims[2] = {1, 1};
+        s = Mat_VarCreateStruct(name, 2, dims, fields, (unsigned)t->columns);
+    }
+    for (int c = 0; s && c < t->columns; c++) {
+        matvar_t *v = double_var(NULL, (size_t)t->rows, 1, t->data[c]);
+        if (!v) {
+            Mat_VarFree(s);
+            s = NULL;
+            break;
+        }
+        Mat_VarSetStructFieldByName(s, names[c], 0, v);
+    }
+    free(fields);
+    free(names);
+    return s;
+}
+
+static matvar_t *json_var(const char *name, json_object *o);
+
+static int is_number(json_object *o) {
+    return json_object_is_type(o, json_type_double) || json_object_is_type(o, json_type_int) ||
+           json_object_is_type(o, json_type_boolean) || json_object_is_type(o, json_type_null);
+}
+
+static double number_of(json_object *o) {
+    return json_object_is_type(o, json_type_null) ? NAN : json_object_get_double(o);
+}
+
+/* A list of numbers -> 1 x n; a list of equal-length lists of numbers -> n x m; anything else
+ * -> a 1 x n cell of converted elements. */
+static matvar_t *json_array_var(const char *name, json_object *a) {
+    size_t n = json_object_array_length(a), m = 0;
+    int numbers = 1, rows_of_numbers = n > 0;
+    for (size_t i = 0; i < n; i++) {
+        json_object *e = json_object_array_get_idx(a, i);
+        numbers &= is_number(e);
+        int row = json_object_is_type(e, json_type_array);
+        size_t len = row ? json_object_array_length(e) : 0;
+        if (i == 0) m = len;
+        for (size_t j = 0; row && j < len; j++)
+            row &= is_number(json_object_array_get_idx(e, j));
+        rows_of_numbers &= row && len == m && m > 0;
+    }
+    if (numbers || rows_of_numbers) {
+        size_t cols = numbers ? 1 : m;
+        double *v = calloc(n * cols + 1, sizeof *v);
+        if (!v) return NULL;
+        for (size_t i = 0; i < n; i++) {
+            json_object *e = json_object_array_get_idx(a, i);
+            for (size_t j = 0; j < cols; j++) /* column-major n x cols */
+                v[i + j * n] = numbers ? number_of(e) : number_of(json_object_array_get_idx(e, j));
+        }
+        matvar_t *var = numbers ? double_var(name, 1, n, v) : double_var(name, n, m, v);
+        free(v);
+        return var;
+    }
+    size_t dims[2] = {1, n};
+    matvar_t *cell = Mat_VarCreate(name, MAT_C_CELL, MAT_T_CELL, 2, dims, NULL, 0);
+    for (size_t i = 0; cell && i < n; i++) {
+        matvar_t *e = json_var(NULL, json_object_array_get_idx(a, i));
+        if (!e) {
+            Mat_VarFree(cell);
+            return NULL;
+        }
+        Mat_VarSetCell(cell, (int)i, e);
+    }
+    return cell;
+}
+
+static matvar_t *json_object_var(const char *name, json_object *o) {
+    int n = json_object_object_length(o), k = 0;
+    const char **fields = calloc((size_t)n + 1, sizeof *fields);
+    char(*names)[64] = calloc((size_t)n + 1, sizeof *names);
+    matvar_t *s = NULL;
+    if (fields && names) {
+        json_object_object_foreach(o, key, val) {
+            (void)val;
+            matlab_name(key, names[k], sizeof names[k]);
+            fields[k] = names[k];
+            k++;
+        }
+        size_t dims[2] = {1, 1};
+        s = Mat_VarCreateStruct(name, 2, dims, fields, (unsigned)n);
+    }
+    k = 0;
+    json_object_object_foreach(o, key2, val2) {
+        (void)key2;
+        if (!s) break;
+        matvar_t *v = json_var(NULL, val2);
+        if (!v) {
+            Mat_VarFree(s);
+            s = NULL;
+            break;
+        }
+        Mat_VarSetStructFieldByName(s, names[k++], 0, v);
+    }
+    free(fields);
+    free(names);
+    return s;
+}
+
+static matvar_t *json_var(const char *name, json_object *o) {
+    if (json_object_is_type(o, json_type_object)) return json_object_var(name, o);
+    if (json_object_is_type(o, json_type_array)) return json_array_var(name, o);
+    if (json_object_is_type(o, json_type_string)) return text_var(name, json_object_get_string(o));
+    if (json_object_is_type(o, json_type_null)) return double_var(name, 0, 0, NULL);
+    double v = json_object_get_double(o);
+    return double_var(name, 1, 1, &v);
+}
+
+static char *slurp(const char *path) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    char *buf = NULL;
+    size_t len = 0, cap = 0, got;
+    do {
+        if (len + 4096 + 1 > cap) {
+            cap = 2 * cap + 4096 + 1;
+            char *p = realloc(buf, cap);
+            if (!p) {
+                free(buf);
+                fclose(f);
+                return NULL;
+            }
+            buf = p;
+        }
+        got = fread(buf + len, 1, cap - len - 1, f);
+        len += got;
+    } while (got > 0);
+    fclose(f);
+    buf[len] = 0;
+    return buf;
+}
+
+static int write_var(mat_t *mat, matvar_t *v, const char *what, rths_error *err) {
+    if (!v) return rths_error_set(err, RTHS_EFAIL, "results.mat: cannot build %s", what);
+    int bad = Mat_VarWrite(mat, v, MAT_COMPRESSION_NONE);
+    Mat_VarFree(v);
+    return bad ? rths_error_set(err, RTHS_EFAIL, "results.mat: cannot write %s", what) : RTHS_OK;
+}
+
+/* summary.json as `summary` (struct) and `summary_json` (text); config.yaml as `config_yaml`. */
+static int write_texts(mat_t *mat, const char *dir, rths_error *err) {
+    char path[4096];
+    snprintf(path, sizeof path, "%s/summary.json", dir);
+    char *json = slurp(path);
+    int rc = RTHS_OK;
+    if (json) {
+        json_object *o = json_tokener_parse(json);
+        if (o) rc = write_var(mat, json_var("summary", o), "summary", err);
+        json_object_put(o);
+        if (!rc) rc = write_var(mat, text_var("summary_json", json), "summary_json", err);
+        free(json);
+    }
+    snprintf(path, sizeof path, "%s/config.yaml", dir);
+    char *yaml = rc ? NULL : slurp(path);
+    if (yaml) rc = write_var(mat, text_var("config_yaml", yaml), "config_yaml", err);
+    free(yaml);
+    return rc;
+}
+
+static int is_csv(const char *name) {
+    size_t len = strlen(name);
+    return len > 4 && !strcmp(name + len - 4, ".csv");
+}
+
+static int write_tables(mat_t *mat, const char *dir, const char *const *csv_names, int n_csv,
+                        rths_error *err) {
+    DIR *d = csv_names ? NULL : opendir(dir);
+    if (!csv_names && !d) return rths_error_set(err, RTHS_EFAIL, "cannot list %s", dir);
+    int rc = RTHS_OK;
+    for (int i = 0; !rc; i++) {
+        const char *name;
+        if (csv_names) {
+            if (i >= n_csv) break;
+            name = csv_names[i];
+        } else {
+            struct dirent *e = readdir(d);
+            if (!e) break;
+            name = e->d_name;
+            if (!is_csv(name)) continue;
+        }
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s", dir, name);
+        rths_table t;
+        rc = rths_csv_read(path, &t, err);
+        if (!rc) rc = write_var(mat, table_var(&t), name, err);
+        rths_table_free(&t);
+    }
+    if (d) closedir(d);
+    return rc;
+}
+
+/* Per-point harmonic coefficients of an FRF run, from its journal (the record of every accepted
+ * point): one row per point; the measured Fourier coefficients a<k>, b<k> (k = 0..5; b0 is always
+ * 0) of the physical and numerical interface displacements with their standard errors, and the
+ * control target's a<k>, b<k> (k = 1..harmonics matched; 0 beyond). */
+enum { H = RTHS_MAX_HARMONICS, HARMONIC_COLUMNS = 4 + 8 * (H + 1) + 2 * H };
+
+static void harmonic_names(char (*names)[40]) {
+    static const char *const sides[4] = {"phys", "num", "phys_se", "num_se"};
+    int c = 0;
+    snprintf(names[c++], 40, "point");
+    snprintf(names[c++], 40, "frequency_hz");
+    snprintf(names[c++], 40, "omega_rad_s");
+    snprintf(names[c++], 40, "harmonics_matched");
+    for (int s = 0; s < 4; s++)
+        for (int k = 0; k <= H; k++) {
+            snprintf(names[c++], 40, "%s_a%d_m", sides[s], k);
+            snprintf(names[c++], 40, "%s_b%d_m", sides[s], k);
+        }
+    for (int k = 1; k <= H; k++) {
+        snprintf(names[c++], 40, "target_a%d_m", k);
+        snprintf(names[c++], 40, "target_b%d_m", k);
+    }
+}
+
+static void harmonic_row(const rths_point *pt, rths_table *t, int i) {
+    const rths_evaluation *e = &pt->sol.eval;
+    const rths_fourier *sides[4] = {&e->phys, &e->num, &e->phys_se, &e->num_se};
+    int c = 0;
+    t->data[c++][i] = pt->index;
+    t->data[c++][i] = pt->sol.frequency_hz;
+    t->data[c++][i] = pt->sol.omega_rad_s;
+    t->data[c++][i] = pt->sol.harmonics;
+    for (int s = 0; s < 4; s++)
+        for (int k = 0; k <= H; k++) {
+            t->data[c++][i] = sides[s]->a[k];
+            t->data[c++][i] = sides[s]->b[k];
+        }
+    for (int k = 0; k < H; k++) {
+        t->data[c++][i] = k < pt->sol.harmonics ? pt->sol.target_a[k] : 0;
+        t->data[c++][i] = k < pt->sol.harmonics ? pt->sol.target_b[k] : 0;
+    }
+}
+
+static int harmonics_from_journal(const char *path, rths_table *t, rths_error *err) {
+    rths_point *pts = NULL;
+    char *strategy = NULL;
+    int n = 0;
+    int rc = rths_journal_read(path, &pts, &n, &strategy, err);
+    free(strategy);
+    char names[HARMONIC_COLUMNS][40];
+    const char *ptrs[HARMONIC_COLUMNS];
+    harmonic_names(names);
+    for (int c = 0; c < HARMONIC_COLUMNS; c++)
+        ptrs[c] = names[c];
+    if (!rc) rc = rths_table_create("harmonics", n, HARMONIC_COLUMNS, ptrs, t, err);
+    for (int i = 0; i < n && !rc; i++)
+        harmonic_row(&pts[i], t, i);
+    free(pts);
+    return rc;
+}
+
+static int write_journal_harmonics(mat_t *mat, const char *dir, const rths_table *extra,
+                                   int n_extra, rths_error *err) {
+    for (int i = 0; i < n_extra; i++)
+        if (!strcmp(extra[i].name, "harmonics")) return RTHS_OK; /* given by the run itself */
+    char path[4096];
+    snprintf(path, sizeof path, "%s/journal.jsonl", dir);
+    if (access(path, R_OK)) return RTHS_OK;
+    rths_table t;
+    int rc = harmonics_from_journal(path, &t, err);
+    if (!rc) rc = write_var(mat, table_var(&t), "harmonics", err);
+    rths_table_free(&t);
+    return rc;
+}
+
+int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
+                       const rths_table *extra, int n_extra, rths_error *err) {
+    char path[4096], tmp[4096 + 32];
+    snprintf(path, sizeof path, "%s/results.mat", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
+    remove(tmp);
+    mat_t *mat = Mat_CreateVer(tmp, NULL, MAT_FT_MAT73);
+    if (!mat)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "cannot create %s (libmatio without MAT 7.3 / HDF5 support?)", tmp);
+    int rc = write_tables(mat, dir, csv_names, n_csv, err);
+    for (int i = 0; i < n_extra && !rc; i++)
+        rc = write_var(mat, table_var(&extra[i]), extra[i].name, err);
+    if (!rc) rc = write_journal_harmonics(mat, dir, extra, n_extra, err);
+    if (!rc) rc = write_texts(mat, dir, err);
+    Mat_Close(mat);
+    if (!rc) {
+        /* the data must be on disk before the name points at them */
+        int fd = open(tmp, O_RDONLY | O_CLOEXEC);
+        if (fd >= 0) {
+            (void)fsync(fd);
+            close(fd);
+        }
+        if (rename(tmp, path))
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+    }
+    if (rc) remove(tmp);
+    return rc;
+}

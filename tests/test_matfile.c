@@ -1,0 +1,187 @@
+/* results.mat and the run folder's ownership (report module): what a run writes as CSV comes back
+ * from the MAT file bit for bit (read with libmatio, independently of the writer's reader), tables
+ * without a CSV are added, summary.json becomes a struct; a folder holding another command's run is
+ * refused with nothing touched, an earlier run of the same command is replaced, a user's file is
+ * kept. */
+#include "testlib.h"
+
+#include "rths/report.h"
+
+#include <math.h>
+#include <matio.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static char dir[256];
+
+static int setup_dir(void **state) {
+    (void)state;
+    snprintf(dir, sizeof dir, "/tmp/rths_test_matfile_XXXXXX");
+    return mkdtemp(dir) ? 0 : -1;
+}
+
+static int teardown_dir(void **state) {
+    (void)state;
+    char cmd[300];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    return system(cmd) == 0 ? 0 : -1;
+}
+
+static int exists(const char *folder, const char *name) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", folder, name);
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+static void write_text(const char *folder, const char *name, const char *text) {
+    char path[512];
+    snprintf(path, sizeof path, "%s/%s", folder, name);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+/* Values that a decimal round trip at fewer digits would change, and the specials. */
+static const double values[5] = {0.1, 1.0 / 3.0, -2.2250738585072014e-308, 6.02214076e23, NAN};
+
+static void write_run(const char *folder, const char *command) {
+    char *argv[] = {(char *)command, NULL};
+    rths_report *rep;
+    rths_error err;
+    assert_int_equal(rths_report_open(folder, command, 1, argv, &rep, &err), RTHS_OK);
+    static const char *const header[2] = {"time_s", "x_m"};
+    char *path = rths_report_path(rep, "trace.csv");
+    rths_csv *csv;
+    assert_int_equal(rths_csv_open(path, 2, header, &csv, &err), RTHS_OK);
+    for (int i = 0; i < 5; i++) {
+        double row[2] = {i * 1e-4, values[i]};
+        assert_int_equal(rths_csv_row(csv, row), RTHS_OK);
+    }
+    assert_int_equal(rths_csv_close(csv, &err), RTHS_OK);
+    free(path);
+    path = rths_report_path(rep, "summary.json");
+    static const char summary[] = "{\"points\": 5, \"stop_reason\": \"end\", \"seed\": [1, 2],"
+                                  " \"fold\": {\"frequency_hz\": 12.5}}\n";
+    assert_int_equal(rths_write_file_atomic(path, summary, strlen(summary), &err), RTHS_OK);
+    free(path);
+    /* a table without a CSV: 2 rows x 2 columns */
+    rths_table extra;
+    const char *names[2] = {"k", "phys_a_m"};
+    assert_int_equal(rths_table_create("coefficients", 2, 2, names, &extra, &err), RTHS_OK);
+    extra.data[0][0] = 1, extra.data[0][1] = 2;
+    extra.data[1][0] = 1e-3, extra.data[1][1] = -2.5e-6;
+    assert_int_equal(rths_report_add_table(rep, &extra, &err), RTHS_OK);
+    rths_table_free(&extra);
+    rths_report_close(rep);
+}
+
+static matvar_t *field(matvar_t *s, const char *name) {
+    matvar_t *f = Mat_VarGetStructFieldByName(s, name, 0);
+    assert_non_null(f);
+    assert_int_equal(f->class_type, MAT_C_DOUBLE);
+    return f;
+}
+
+static void test_mat_equals_csv(void **state) {
+    (void)state;
+    char run[300];
+    snprintf(run, sizeof run, "%s/run", dir);
+    write_run(run, "simulate");
+    char path[400];
+    snprintf(path, sizeof path, "%s/results.mat", run);
+    mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY);
+    assert_non_null(mat);
+    assert_int_equal(Mat_GetVersion(mat), MAT_FT_MAT73);
+    matvar_t *trace = Mat_VarRead(mat, "trace");
+    assert_non_null(trace);
+    assert_int_equal(trace->class_type, MAT_C_STRUCT);
+    matvar_t *x = field(trace, "x_m");
+    assert_int_equal(x->dims[0], 5);
+    assert_int_equal(x->dims[1], 1);
+    const double *xd = x->data;
+    for (int i = 0; i < 4; i++) /* bit for bit: %.17g round-trips every double */
+        assert_memory_equal(&xd[i], &values[i], sizeof(double));
+    assert_true(isnan(xd[4]));
+    assert_true(((const double *)field(trace, "time_s")->data)[2] == 2e-4);
+    Mat_VarFree(trace);
+    matvar_t *coef = Mat_VarRead(mat, "coefficients");
+    assert_non_null(coef);
+    assert_true(((const double *)field(coef, "phys_a_m")->data)[1] == -2.5e-6);
+    Mat_VarFree(coef);
+    matvar_t *summary = Mat_VarRead(mat, "summary");
+    assert_non_null(summary);
+    assert_true(*(const double *)field(summary, "points")->data == 5);
+    matvar_t *seed = field(summary, "seed");
+    assert_int_equal(seed->dims[1], 2);
+    assert_true(((const double *)seed->data)[1] == 2);
+    matvar_t *reason = Mat_VarGetStructFieldByName(summary, "stop_reason", 0);
+    assert_non_null(reason);
+    assert_int_equal(reason->class_type, MAT_C_CHAR);
+    matvar_t *fold = Mat_VarGetStructFieldByName(summary, "fold", 0);
+    assert_non_null(fold);
+    assert_true(*(const double *)field(fold, "frequency_hz")->data == 12.5);
+    Mat_VarFree(summary);
+    Mat_Close(mat);
+}
+
+static void test_csv_read_errors(void **state) {
+    (void)state;
+    write_text(dir, "ragged.csv", "a_m,b_m\n1,2\n3\n");
+    char path[400];
+    snprintf(path, sizeof path, "%s/ragged.csv", dir);
+    rths_table t;
+    rths_error err;
+    assert_int_equal(rths_csv_read(path, &t, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "ragged.csv:3: 1 fields, the header has 2"));
+    write_text(dir, "word.csv", "a_m\nabc\n");
+    snprintf(path, sizeof path, "%s/word.csv", dir);
+    assert_int_equal(rths_csv_read(path, &t, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "word.csv:2: column a_m: 'abc' is not a number"));
+}
+
+static void test_folder_ownership(void **state) {
+    (void)state;
+    char run[300];
+    snprintf(run, sizeof run, "%s/owned", dir);
+    write_run(run, "simulate");
+    write_text(run, "notes.txt", "mine\n");
+    /* another command: refused, nothing touched */
+    rths_report *rep;
+    rths_error err;
+    char *argv[] = {"model", NULL};
+    assert_int_equal(rths_report_open(run, "model", 1, argv, &rep, &err), RTHS_EINPUT);
+    assert_null(rep);
+    assert_non_null(strstr(err.msg, "earlier 'rths simulate' run"));
+    assert_true(exists(run, "trace.csv") && exists(run, "results.mat"));
+    /* the same command again: the earlier run's files go, the user's stays, run.log grows */
+    char *again[] = {"simulate", NULL};
+    assert_int_equal(rths_report_open(run, "simulate", 1, again, &rep, &err), RTHS_OK);
+    assert_false(exists(run, "trace.csv"));
+    assert_false(exists(run, "results.mat"));
+    assert_false(exists(run, "summary.json"));
+    assert_true(exists(run, "notes.txt"));
+    assert_true(exists(run, "run.log"));
+    rths_report_close(rep);
+    /* nothing written: no results.mat appears */
+    assert_false(exists(run, "results.mat"));
+    /* --resume keeps the earlier files */
+    write_run(run, "simulate");
+    char *resume[] = {"simulate", "--resume", NULL};
+    assert_int_equal(rths_report_open(run, "simulate", 2, resume, &rep, &err), RTHS_OK);
+    assert_true(exists(run, "trace.csv"));
+    rths_report_close(rep);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_mat_equals_csv),
+        cmocka_unit_test(test_csv_read_errors),
+        cmocka_unit_test(test_folder_ownership),
+    };
+    return cmocka_run_group_tests(tests, setup_dir, teardown_dir);
+}
