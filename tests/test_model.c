@@ -1,5 +1,6 @@
-/* Model library against independent truths: SPEC §2 seed facts, closed-form 1- and 2-DoF results,
- * matrix exponentials with known closed forms, z-domain transfer functions of each scheme. */
+/* Model library against independent truths: the seed facts (docs/method.md, "The seed structure"),
+ * closed-form 1- and 2-DoF results, matrix exponentials with known closed forms, z-domain transfer
+ * functions of each scheme. */
 #include "testlib.h"
 
 #include "rths/model.h"
@@ -18,7 +19,8 @@ static void seed_assembly(rths_assembly *a) {
     assert_int_equal(rths_assembly_from_chain(4, seed_m, seed_c, seed_k, a, &err), RTHS_OK);
 }
 
-/* SPEC §2: 4.339, 13.473, 21.819, 27.367 Hz (given to 3 decimals, so 1e-3 Hz covers rounding). */
+/* docs/method.md, "The seed structure": 4.339, 13.473, 21.819, 27.367 Hz (given to 3 decimals, so
+ * 1e-3 Hz covers rounding). */
 static void test_seed_natural_frequencies(void **state) {
     (void)state;
     rths_assembly a;
@@ -30,7 +32,7 @@ static void test_seed_natural_frequencies(void **state) {
     const double expect_zeta[4] = {0.0011, 0.0035, 0.0057, 0.0071};
     for (int r = 0; r < 4; r++) {
         assert_close(m.frequency_hz[r], expect_hz[r], 1e-3);
-        /* SPEC gives "about" two significant digits: half a unit in the last digit */
+        /* the seed gives "about" two significant digits: half a unit in the last digit */
         assert_close(m.damping_ratio[r], expect_zeta[r], 0.00005 + 0.05 * expect_zeta[r]);
         /* mass normalisation phi^T M phi = 1 */
         double mm = 0;
@@ -42,7 +44,8 @@ static void test_seed_natural_frequencies(void **state) {
     rths_assembly_free(&a);
 }
 
-/* SPEC §2: with 1 N on storey 4 the storey-3 amplitude peaks near 13.47 Hz at about 3.42e-4 m. */
+/* docs/method.md, "The seed structure": with 1 N on storey 4 the storey-3 amplitude peaks
+ * near 13.47 Hz at about 3.42e-4 m. */
 static void test_seed_storey3_peak(void **state) {
     (void)state;
     rths_assembly a;

@@ -114,7 +114,8 @@ static void coupling_rule_num_share(const rths_split *s, const double *a, double
     memset(num_block, 0, (size_t)ni * (size_t)ni * sizeof(double));
     for (int i = 0; i < ni; i++) {
         double sum = 0.0;
-        for (int j = 0; j < s->n_num; j++) sum += RTHS_AT(a, n, s->int_dofs[i], s->num_dofs[j]);
+        for (int j = 0; j < s->n_num; j++)
+            sum += RTHS_AT(a, n, s->int_dofs[i], s->num_dofs[j]);
         RTHS_AT(num_block, ni, i, i) = -sum;
     }
 }
@@ -163,9 +164,15 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
     if (!out->phys_dofs || !out->int_dofs || !out->num_dofs) goto oom;
     for (int i = 0; i < n; i++) {
         switch (role[i]) {
-        case RTHS_DOF_PHYSICAL: out->phys_dofs[out->n_phys++] = i; break;
-        case RTHS_DOF_INTERFACE: out->int_dofs[out->n_int++] = i; break;
-        case RTHS_DOF_NUMERICAL: out->num_dofs[out->n_num++] = i; break;
+        case RTHS_DOF_PHYSICAL:
+            out->phys_dofs[out->n_phys++] = i;
+            break;
+        case RTHS_DOF_INTERFACE:
+            out->int_dofs[out->n_int++] = i;
+            break;
+        case RTHS_DOF_NUMERICAL:
+            out->num_dofs[out->n_num++] = i;
+            break;
         default:
             rths_split_free(out);
             return rths_error_set(err, RTHS_EINPUT, "DoF %d has no valid role", i + 1);
@@ -225,7 +232,8 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
             }
         } else {
             coupling_rule_num_share(out, mats[m], num);
-            for (int k = 0; k < ni * ni; k++) phys[k] = full[k] - num[k];
+            for (int k = 0; k < ni * ni; k++)
+                phys[k] = full[k] - num[k];
         }
         fill_substructure(out, mats[m], phys, num, outs_phys[m], outs_num[m]);
     }
@@ -288,15 +296,17 @@ int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err
         rths_modes_free(out);
         return rths_error_set(err, RTHS_EFAIL, "out of memory in modal analysis");
     }
-    /* K phi = w^2 M phi; dsygv returns M-orthonormal eigenvectors with ascending eigenvalues. */
+    /* K phi = w^2 M phi; dsygvd returns M-orthonormal eigenvectors with ascending eigenvalues
+     * (the same reduction as dsygv, divide and conquer on the tridiagonal: several times faster
+     * for large n) */
     lapack_int info =
-        LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes, n, mass, n, out->omega_rad_s);
+        LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes, n, mass, n, out->omega_rad_s);
     rths_mat_free(mass);
     if (info != 0) {
         rths_mat_free(cphi);
         rths_modes_free(out);
         return rths_error_set(err, RTHS_EFAIL,
-                              "modal analysis failed (LAPACK dsygv info %d): is M positive "
+                              "modal analysis failed (LAPACK dsygvd info %d): is M positive "
                               "definite and K symmetric?",
                               (int)info);
     }
@@ -311,10 +321,12 @@ int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err
         for (int i = 1; i < n; i++)
             if (fabs(phi[i]) > fabs(phi[imax])) imax = i;
         if (phi[imax] < 0)
-            for (int i = 0; i < n; i++) out->shapes[(size_t)r * (size_t)n + (size_t)i] *= -1.0;
+            for (int i = 0; i < n; i++)
+                out->shapes[(size_t)r * (size_t)n + (size_t)i] *= -1.0;
         rths_mat_mul(n, 1, n, 1.0, a->damping, 0, phi, 0, 0.0, cphi);
         double modal_c = 0.0;
-        for (int i = 0; i < n; i++) modal_c += phi[i] * cphi[i];
+        for (int i = 0; i < n; i++)
+            modal_c += phi[i] * cphi[i];
         out->damping_ratio[r] = w > 0 ? modal_c / (2.0 * w) : 0.0;
     }
     rths_mat_free(cphi);
@@ -330,7 +342,8 @@ int rths_frf(int n, const double *mass, const double *damping, const double *sti
     double w = omega_rad_s;
     for (size_t k = 0; k < (size_t)n * (size_t)n; k++)
         dyn[k] = stiffness[k] - w * w * mass[k] + I * w * damping[k];
-    for (int i = 0; i < n; i++) x_out[i] = force[i];
+    for (int i = 0; i < n; i++)
+        x_out[i] = force[i];
     int info = rths_cmat_solve(n, 1, dyn, x_out);
     free(dyn);
     if (info != 0)
@@ -351,8 +364,7 @@ int rths_frf_grid(const rths_modes *modes, double start_hz, double end_hz, int p
     *count = 0;
     if (end_hz <= 0) end_hz = 1.25 * modes->frequency_hz[modes->n - 1];
     if (!(end_hz > start_hz) || start_hz < 0)
-        return rths_error_set(err, RTHS_EINPUT, "FRF range [%g, %g] Hz is empty", start_hz,
-                              end_hz);
+        return rths_error_set(err, RTHS_EINPUT, "FRF range [%g, %g] Hz is empty", start_hz, end_hz);
     enum { BACKGROUND = 400, PER_MODE = 81 };
     int cap = points > 1 ? points : BACKGROUND + PER_MODE * modes->n;
     double *f = malloc((size_t)cap * sizeof *f);
