@@ -91,7 +91,7 @@ int rths_frf(int n, const double *mass, const double *damping, const double *sti
  *   modal superposition (O(n n_out)) when the modes decouple C (proportional damping),
  *   banded complex LU (O(n b^2)) when M, C, K are banded with half-bandwidth b <= n / 8,
  *   complex modes of the state space (O(n n_out)) otherwise,
- *   dense solves only when those modes are near-defective (eigenvector matrix rcond < 1e-10).
+ *   dense solves only when those modes are near-defective (eigenvector matrix rcond < 1e-6).
  * Each equals rths_frf up to rounding. The sweep keeps a pointer to a: keep it alive. */
 typedef enum {
     RTHS_FRF_MODAL = 0,

@@ -12,13 +12,13 @@ typedef struct {
     int n, nx;
     const rths_assembly *a;
     const rths_bilinear_leg *leg;
-    double *minv;        /* M^{-1} */
-    double *minv_k;      /* M^{-1} K */
-    double *minv_c;      /* M^{-1} C */
-    double *minv_fs;     /* M^{-1} static force */
-    double *minv_f;      /* M^{-1} harmonic force amplitude */
-    double *minv_b;      /* M^{-1} (e_upper - e_lower) */
-    double extra_k;      /* (ratio - 1) k: added stiffness in compression */
+    double *minv;    /* M^{-1} */
+    double *minv_k;  /* M^{-1} K */
+    double *minv_c;  /* M^{-1} C */
+    double *minv_fs; /* M^{-1} static force */
+    double *minv_f;  /* M^{-1} harmonic force amplitude */
+    double *minv_b;  /* M^{-1} (e_upper - e_lower) */
+    double extra_k;  /* (ratio - 1) k: added stiffness in compression */
     int steps;
 } shooter;
 
@@ -98,27 +98,35 @@ static void integrate(const shooter *s, const double *x0, double omega, double *
         /* stage 1 */
         rhs(s, wt, x, k1);
         if (P) rhs_var(s, x, P, K1);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k1[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + 0.5 * h * k1[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K1[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + 0.5 * h * K1[i];
         /* stage 2 */
         rhs(s, wt + 0.5 * omega * h, tmp, k2);
         if (P) rhs_var(s, tmp, PT, K2);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k2[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + 0.5 * h * k2[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K2[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + 0.5 * h * K2[i];
         /* stage 3 */
         rhs(s, wt + 0.5 * omega * h, tmp, k3);
         if (P) rhs_var(s, tmp, PT, K3);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + h * k3[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + h * k3[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + h * K3[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + h * K3[i];
         /* stage 4 */
         rhs(s, wt + omega * h, tmp, k4);
         if (P) rhs_var(s, tmp, PT, K4);
-        for (int i = 0; i < nx; i++) x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+        for (int i = 0; i < nx; i++)
+            x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
         if (P)
-            for (size_t i = 0; i < pp; i++) P[i] += h / 6 * (K1[i] + 2 * K2[i] + 2 * K3[i] + K4[i]);
+            for (size_t i = 0; i < pp; i++)
+                P[i] += h / 6 * (K1[i] + 2 * K2[i] + 2 * K3[i] + K4[i]);
     }
     memcpy(xT, x, (size_t)nx * sizeof(double));
     free(pk);
@@ -175,14 +183,17 @@ static void shoot_residual(const shoot_problem *p, const double *y, const double
     shooter *s = p->s;
     int nx = s->nx, m = p->m;
     double x0[16], xT[16], x1[16];
-    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    for (int i = 0; i < nx; i++)
+        x0[i] = y[i] * p->sx[i];
     double w = y[nx] * p->sw;
     double *phi = jac ? malloc((size_t)nx * nx * sizeof(double)) : NULL;
     integrate(s, x0, w, xT, phi, NULL, NULL);
-    for (int i = 0; i < nx; i++) g[i] = (xT[i] - x0[i]) / p->sx[i];
+    for (int i = 0; i < nx; i++)
+        g[i] = (xT[i] - x0[i]) / p->sx[i];
     if (tangent) {
         double r = 0;
-        for (int j = 0; j < m; j++) r += tangent[j] * (y[j] - ypred[j]);
+        for (int j = 0; j < m; j++)
+            r += tangent[j] * (y[j] - ypred[j]);
         g[nx] = r;
     }
     if (jac) {
@@ -193,9 +204,11 @@ static void shoot_residual(const shoot_problem *p, const double *y, const double
         double hw = 1e-6 * w, xp[16];
         integrate(s, x0, w + hw, xp, NULL, NULL, NULL);
         integrate(s, x0, w - hw, x1, NULL, NULL, NULL);
-        for (int i = 0; i < nx; i++) jac[i + nx * m] = (xp[i] - x1[i]) / (2 * hw) * p->sw / p->sx[i];
+        for (int i = 0; i < nx; i++)
+            jac[i + nx * m] = (xp[i] - x1[i]) / (2 * hw) * p->sw / p->sx[i];
         if (tangent)
-            for (int j = 0; j < m; j++) jac[nx + j * m] = tangent[j];
+            for (int j = 0; j < m; j++)
+                jac[nx + j * m] = tangent[j];
         if (phi_out) memcpy(phi_out, phi, (size_t)nx * nx * sizeof(double));
     }
     free(phi);
@@ -209,12 +222,15 @@ static int shoot_newton(const shoot_problem *p, double *y, const double *tangent
     for (int it = 0; it < 15; it++) {
         shoot_residual(p, y, tangent, ypred, g, jac, phi_out);
         double norm = 0;
-        for (int i = 0; i < neq; i++) norm += g[i] * g[i];
+        for (int i = 0; i < neq; i++)
+            norm += g[i] * g[i];
         if (sqrt(norm) < 1e-10) return it;
         for (int j = 0; j < neq; j++)
-            for (int i = 0; i < neq; i++) a[i + j * neq] = jac[i + j * m];
+            for (int i = 0; i < neq; i++)
+                a[i + j * neq] = jac[i + j * m];
         lapack_int ipiv[17];
-        for (int i = 0; i < neq; i++) g[i] = -g[i];
+        for (int i = 0; i < neq; i++)
+            g[i] = -g[i];
         if (LAPACKE_dgesv(LAPACK_COL_MAJOR, neq, 1, a, neq, ipiv, g, neq) != 0) return -1;
         double step = 0;
         for (int i = 0; i < neq; i++) {
@@ -231,7 +247,8 @@ static int store_point(shoot_problem *p, const double *y, const double *phi,
     shooter *s = p->s;
     int n = s->n, nx = s->nx, H = RTHS_PERIODIC_HARMONICS;
     double x0[16], xT[16];
-    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    for (int i = 0; i < nx; i++)
+        x0[i] = y[i] * p->sx[i];
     pt->omega_rad_s = y[nx] * p->sw;
     pt->cos_m = calloc((size_t)n * (H + 1), sizeof(double));
     pt->sin_m = calloc((size_t)n * (H + 1), sizeof(double));
@@ -241,7 +258,8 @@ static int store_point(shoot_problem *p, const double *y, const double *phi,
     memcpy(a, phi, (size_t)nx * nx * sizeof(double));
     if (LAPACKE_dgeev(LAPACK_COL_MAJOR, 'N', 'N', nx, a, nx, wr, wi, vl, 1, vr, 1) != 0) return -1;
     double mx = 0;
-    for (int i = 0; i < nx; i++) mx = fmax(mx, hypot(wr[i], wi[i]));
+    for (int i = 0; i < nx; i++)
+        mx = fmax(mx, hypot(wr[i], wi[i]));
     pt->max_floquet = mx;
     pt->stable = mx < 1.0 + 1e-6;
     return 0;
@@ -255,7 +273,11 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
     *out = NULL;
     *n_out = 0;
     if (n > 8) return rths_error_set(err, RTHS_EINPUT, "shooting supports up to 8 DoFs");
-    shooter s = {.n = n, .nx = nx, .a = a, .leg = leg, .steps = opt->steps_per_period,
+    shooter s = {.n = n,
+                 .nx = nx,
+                 .a = a,
+                 .leg = leg,
+                 .steps = opt->steps_per_period,
                  .extra_k = (leg->ratio - 1) * leg->stiffness_n_per_m};
     double *rhsm = rths_mat_new(n, 2 * n + 3);
     double *mm = rths_mat_dup(a->mass, n, n);
@@ -303,8 +325,8 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
         amp = fmax(amp, cabs(X[i]));
         amp = fmax(amp, fabs(qs[i]));
     }
-    shoot_problem p = {.s = &s, .m = nx + 1,
-                       .sw = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
+    shoot_problem p = {
+        .s = &s, .m = nx + 1, .sw = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
     for (int i = 0; i < n; i++) {
         p.sx[i] = amp;
         p.sx[n + i] = amp * w0;
@@ -319,7 +341,8 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
         goto done;
     }
     double y[17];
-    for (int i = 0; i < nx; i++) y[i] = xlin[i] / p.sx[i];
+    for (int i = 0; i < nx; i++)
+        y[i] = xlin[i] / p.sx[i];
     y[nx] = w0 / p.sw;
     if (shoot_newton(&p, y, NULL, NULL, phi) < 0) {
         free(pts), free(ys);
