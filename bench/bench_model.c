@@ -82,7 +82,7 @@ static void bench_model_size(int n) {
     for (int j = 0; j < dense_runs; j++)
         rths_frf(n, a.mass, a.damping, a.stiffness, force, 2 * M_PI * (1.0 + j), full, &err);
     double dense_each = (rths_monotonic_s() - t3) / dense_runs;
-    printf("%6d %10.3f %10.3f %10.4f %10.3f   %-16s %12.1f\n", n, t1 - t0, t2 - t1, t3 - t2,
+    printf("%6d %10.4f %10.4f %10.4f %10.4f   %-16s %12.2f\n", n, t1 - t0, t2 - t1, t3 - t2,
            t3 - t0, n > 8 ? rths_frf_method_name(rths_frf_sweep_method(sw)) : "",
            dense_each * GRID_POINTS);
     free(full), free(force);

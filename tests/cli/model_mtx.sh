@@ -76,4 +76,12 @@ refused model "missing .mtx" "no_such.mtx: cannot open" "$work/rod_chain_1000.ya
 refused model "indefinite stiffness" "stiffness_n_per_m': must be positive definite" \
     "$src/tests/data/mtx/seed_matrices.yaml" \
     --set 'structure.matrices.stiffness_n_per_m=[[1, 2, 0, 0], [2, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]'
+# issue 18's extreme inputs: refused before anything is written
+refused model "1e308 kg storey" "storey 3: must be > 0 and <= 1e\\+15" "$src/examples/four_storey.yaml" \
+    --set 'structure.storeys.mass_kg=[5.37, 5.37, 1e308, 10.74]'
+refused model "singular stiffness" "rigid-body motion" "$src/tests/data/mtx/seed_matrices.yaml" \
+    --set 'structure.matrices.stiffness_n_per_m=[[1, -1, 0, 0], [-1, 1, 0, 0], [0, 0, 1, 0], [0, 0, 0, 1]]'
+refused model "negative-definite damping" "damping_n_s_per_m': must be positive semi-definite" \
+    "$src/tests/data/mtx/seed_matrices.yaml" \
+    --set 'structure.matrices.damping_n_s_per_m=[[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0], [0, 0, 0, -1]]'
 exit $((failures > 0))
