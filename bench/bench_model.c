@@ -6,7 +6,8 @@
  * the former dense complex solve per frequency (timed on a few frequencies, extrapolated).
  *
  * plant: the virtual rig on the seed (examples/four_storey.yaml, default rig with noise): the
- * plant alone (read + advance per sample) and the whole virtual rig (controller step + plant,
+ * plant alone (read + advance per sample; without noise too, which shows what the five sensors'
+ * normal draws cost) and the whole virtual rig (controller step + plant,
  * 200 forcing periods at 13.47 Hz), exact integrator against RK4 x 8, as samples per second and
  * real-time factor at the seed's 10 kHz. */
 #include "rths/rig_virtual.h"
@@ -118,10 +119,11 @@ static int load_seed(const char *const *ov, int n_ov, rths_config **cfg, rths_se
 }
 
 /* Plant alone: samples per second of read + advance under a 13.47 Hz demand. */
-static double plant_rate(const rths_setup *s, int substeps) {
+static double plant_rate(const rths_setup *s, int substeps, int noise) {
     rths_plant_options po;
     rths_plant_defaults(&po);
     po.substeps_per_sample = substeps;
+    po.noise = noise;
     rths_plant *p;
     rths_error err;
     if (rths_plant_create(s, &po, 1e4, &p, &err)) return 0;
@@ -174,10 +176,12 @@ void rths_bench_plant(void) {
     printf("%-34s %14s %18s\n", "", "samples_per_s", "real_time_factor");
     const struct {
         const char *name;
-        int substeps;
-    } plants[2] = {{"plant alone, exact", 0}, {"plant alone, RK4 x 8", 8}};
-    for (int i = 0; i < 2; i++) {
-        double r = plant_rate(&s, plants[i].substeps);
+        int substeps, noise;
+    } plants[3] = {{"plant alone, exact", 0, 1},
+                   {"plant alone, RK4 x 8", 8, 1},
+                   {"plant alone, exact, noise off", 0, 0}};
+    for (int i = 0; i < 3; i++) {
+        double r = plant_rate(&s, plants[i].substeps, plants[i].noise);
         printf("%-34s %14.0f %18.1f\n", plants[i].name, r, r / 1e4);
     }
     rths_setup_free(&s);
