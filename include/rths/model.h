@@ -25,6 +25,8 @@ int rths_assembly_from_chain(int n, const double *masses, const double *dampings
 int rths_assembly_from_matrices(int n, const double *mass, const double *damping,
                                 const double *stiffness, rths_assembly *out, rths_error *err);
 void rths_assembly_free(rths_assembly *a);
+/* Largest |i - j| of a nonzero entry of M, C or K: 1 for a storey chain or a rod. */
+int rths_assembly_half_bandwidth(const rths_assembly *a);
 
 /* ---- split into substructures ---- */
 
@@ -88,9 +90,9 @@ int rths_frf(int n, const double *mass, const double *damping, const double *sti
 
 /* The same steady state over many frequencies without n^3 work per frequency, for the DoFs
  * out_dofs (0-based, n_out of them): prepared once from the modes, then per frequency
- *   modal superposition (O(n n_out)) when the modes decouple C (proportional damping),
  *   banded complex LU (O(n b^2)) when M, C, K are banded with half-bandwidth b <= n / 8,
- *   complex modes of the state space (O(n n_out)) otherwise,
+ *   else modal superposition (O(n n_out)) when the modes decouple C (proportional damping),
+ *   else complex modes of the state space (O(n n_out)),
  *   dense solves only when those modes are near-defective (eigenvector matrix rcond < 1e-6).
  * Each equals rths_frf up to rounding. The sweep keeps a pointer to a: keep it alive. */
 typedef enum {

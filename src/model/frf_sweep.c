@@ -1,8 +1,8 @@
 /* The analytic FRF over many frequencies at a cost that does not grow as n^3 per frequency (see
- * model.h, rths_frf_sweep): modal superposition when the modes decouple C, banded complex solves
- * when the matrices are banded, complex (state-space) modes otherwise; the dense solve only when
- * the complex modes are too ill-conditioned to trust. Every path solves the same equation
- * exactly, up to rounding (tests/test_model.c checks each against the dense solve). */
+ * model.h, rths_frf_sweep): banded complex solves when the matrices are banded, modal
+ * superposition when the modes decouple C, complex (state-space) modes otherwise; the dense solve
+ * only when the complex modes are too ill-conditioned to trust. Every path solves the same
+ * equation exactly, up to rounding (tests/test_model.c checks each against the dense solve). */
 #include "rths/model.h"
 
 #include <lapacke.h>
@@ -53,18 +53,6 @@ void rths_frf_sweep_destroy(rths_frf_sweep *s) {
     free(s->w_out);
     free(s->z);
     free(s);
-}
-
-/* Half-bandwidth of the union of the three matrices' patterns. */
-static int half_bandwidth(const rths_assembly *a) {
-    int n = a->n, b = 0;
-    for (int j = 0; j < n; j++)
-        for (int i = 0; i < n; i++)
-            if (abs(i - j) > b &&
-                (RTHS_AT(a->mass, n, i, j) != 0 || RTHS_AT(a->damping, n, i, j) != 0 ||
-                 RTHS_AT(a->stiffness, n, i, j) != 0))
-                b = abs(i - j);
-    return b;
 }
 
 /* C~ = Phi^T C Phi (n x n, malloc'ed). */
@@ -212,19 +200,21 @@ int rths_frf_sweep_create(const rths_assembly *a, const rths_modes *modes, const
     s->a = a;
     s->out_dofs = malloc((size_t)n_out * sizeof(int));
     s->force = malloc((size_t)n * sizeof(double));
-    double *ct = modal_damping(a, modes);
-    int rc = s->out_dofs && s->force && ct ? 0 : -1;
+    s->band = rths_assembly_half_bandwidth(a);
+    /* a banded model goes straight to banded solves (O(n b^2) per frequency, as cheap as modal
+     * superposition), sparing the n^3 projection of C onto the modes */
+    int banded = n > 8 && s->band <= n / 8;
+    double *ct = banded ? NULL : modal_damping(a, modes);
+    int rc = s->out_dofs && s->force && (banded || ct) ? 0 : -1;
     if (!rc) {
         memcpy(s->out_dofs, out_dofs, (size_t)n_out * sizeof(int));
         memcpy(s->force, force, (size_t)n * sizeof(double));
-        s->band = half_bandwidth(a);
-        if (is_proportional(ct, n)) {
-            s->method = RTHS_FRF_MODAL;
-            rc = setup_modal(s, modes, ct);
-        } else if (n > 8 && s->band <= n / 8) {
-            /* banded LU costs ~ 8 n b^2 per frequency against the state space's 2 n n_out */
+        if (banded) {
             s->method = RTHS_FRF_BANDED;
             rc = setup_banded(s);
+        } else if (is_proportional(ct, n)) {
+            s->method = RTHS_FRF_MODAL;
+            rc = setup_modal(s, modes, ct);
         } else {
             s->method = RTHS_FRF_STATE_SPACE;
             rc = setup_state_space(s, modes, ct);

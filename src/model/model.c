@@ -279,14 +279,30 @@ void rths_modes_free(rths_modes *m) {
     memset(m, 0, sizeof *m);
 }
 
-/* diag(Phi^T A Phi) through one matrix product (work: n x n). */
-static void modal_diagonal(int n, const double *a, const double *shapes, double *work,
-                           double *out) {
-    rths_mat_mul(n, n, n, 1.0, a, 0, shapes, 0, 0.0, work);
-    for (int r = 0; r < n; r++) {
-        double acc = 0.0;
+int rths_assembly_half_bandwidth(const rths_assembly *a) {
+    int n = a->n, b = 0;
+    for (int j = 0; j < n; j++)
         for (int i = 0; i < n; i++)
-            acc += RTHS_AT(shapes, n, i, r) * RTHS_AT(work, n, i, r);
+            if (abs(i - j) > b &&
+                (RTHS_AT(a->mass, n, i, j) != 0 || RTHS_AT(a->damping, n, i, j) != 0 ||
+                 RTHS_AT(a->stiffness, n, i, j) != 0))
+                b = abs(i - j);
+    return b;
+}
+
+/* diag(Phi^T A Phi) for A with half-bandwidth b: O(n^2 b) for a banded A instead of a full
+ * matrix product. */
+static void modal_diagonal(int n, int b, const double *a, const double *shapes, double *out) {
+    for (int r = 0; r < n; r++) {
+        const double *phi = shapes + (size_t)r * (size_t)n;
+        double acc = 0.0;
+        for (int i = 0; i < n; i++) {
+            double row = 0.0;
+            int lo = i - b < 0 ? 0 : i - b, hi = i + b >= n ? n - 1 : i + b;
+            for (int j = lo; j <= hi; j++)
+                row += RTHS_AT(a, n, i, j) * phi[j];
+            acc += phi[i] * row;
+        }
         out[r] = acc;
     }
 }
@@ -296,14 +312,14 @@ static void modal_diagonal(int n, const double *a, const double *shapes, double 
  * model (w_max^2 / w_1^2 ~ 1e10) leaves 1e-8 .. 1e-6 relative error on the lowest mode; the
  * quotient's error is quadratic in the shape's (itself eps w_max^2 / gap), far below. */
 static int refine_and_normalise(const rths_assembly *a, rths_modes *out) {
-    int n = a->n;
-    double *work = rths_mat_new(n, n), *kd = calloc((size_t)n, sizeof(double)),
-           *md = calloc((size_t)n, sizeof(double)), *cd = calloc((size_t)n, sizeof(double));
-    int rc = work && kd && md && cd ? 0 : -1;
+    int n = a->n, b = rths_assembly_half_bandwidth(a);
+    double *kd = calloc((size_t)n, sizeof(double)), *md = calloc((size_t)n, sizeof(double)),
+           *cd = calloc((size_t)n, sizeof(double));
+    int rc = kd && md && cd ? 0 : -1;
     if (!rc) {
-        modal_diagonal(n, a->stiffness, out->shapes, work, kd);
-        modal_diagonal(n, a->mass, out->shapes, work, md);
-        modal_diagonal(n, a->damping, out->shapes, work, cd);
+        modal_diagonal(n, b, a->stiffness, out->shapes, kd);
+        modal_diagonal(n, b, a->mass, out->shapes, md);
+        modal_diagonal(n, b, a->damping, out->shapes, cd);
     }
     for (int r = 0; r < n && !rc; r++) {
         double w2 = kd[r] / md[r];
@@ -320,7 +336,6 @@ static int refine_and_normalise(const rths_assembly *a, rths_modes *out) {
             for (int i = 0; i < n; i++)
                 phi[i] = -phi[i];
     }
-    rths_mat_free(work);
     free(kd), free(md), free(cd);
     return rc;
 }
