@@ -273,12 +273,15 @@ int rths_cmd_model(int argc, char **argv) {
                        "%s/true_frf.csv\n",
                        setup.split.int_dofs[0] + 1, peak_amp, peak_hz, count, rths_report_dir(rep));
         rths_report_log(rep,
-                        "timing: %d DoFs; reading the configuration %.3f s, modes (dsygvd) %.3f s, "
+                        "timing: %d DoFs; reading the configuration %.3f s, modes (%s) %.3f s, "
                         "FRF preparation (%s) %.3f s, FRF at %d frequencies with %d DoFs written "
                         "%.3f s; total %.3f s",
-                        setup.assembly.n, t_read - t0, t_modes - t_read,
-                        rths_frf_method_name(rths_frf_sweep_method(sweep)), t_prepare - t_modes,
-                        count, n_out, t_frf, rths_monotonic_s() - t0);
+                        setup.assembly.n, t_read - t0,
+                        rths_assembly_half_bandwidth(&setup.assembly) <= setup.assembly.n / 8
+                            ? "banded, dsbgvd"
+                            : "dense, dsygvd",
+                        t_modes - t_read, rths_frf_method_name(rths_frf_sweep_method(sweep)),
+                        t_prepare - t_modes, count, n_out, t_frf, rths_monotonic_s() - t0);
     }
     if (rep)
         rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");

@@ -15,7 +15,7 @@ out="$work/rod"
 "$bin" model "$ex/rod_chain_1000.yaml" --out "$out" --quiet >"$work/stdout" 2>"$work/stderr"
 rc=$?
 [ "$rc" -eq 0 ] || { fail "rod chain: exit status $rc"; cat "$work/stderr"; }
-grep -Eq 'timing: 1000 DoFs; .*modes \(dsygvd\) [0-9.]+ s, FRF preparation \(banded solves\)' \
+grep -Eq 'timing: 1000 DoFs; .*modes \(banded, dsbgvd\) [0-9.]+ s, FRF preparation \(banded solves\)' \
     "$out/run.log" || fail "run.log has no timing line: $(cat "$out/run.log")"
 [ "$(wc -l <"$out/modes.csv")" -eq 1001 ] || fail "modes.csv: not 1000 modes"
 head -n 1 "$out/true_frf.csv" | grep -q '^frequency_hz,x1_amplitude_m,x1_phase_rad,.*x3_amplitude_m,x3_phase_rad,x1000_amplitude_m,x1000_phase_rad$' ||
