@@ -1,10 +1,11 @@
 /* The virtual plant alone against independent truths: its forced response equals the analytic
  * FRF of the physical substructure with the FULL interface mass (plus armature) through the
- * shaker's hold, delay and lag; its own integration error is negligible (self-convergence at the
- * seed's light damping); the load cell reads the shaker force minus the armature's inertia;
- * sensors apply gain error, offset, quantisation and noise of the configured size, all off with
- * rig.noise false; a seed repeats; the bilinear leg's static slopes, kink and preloaded static
- * point. */
+ * shaker's hold, delay and lag; the exact integrator (the default) equals RK4 at fine steps, with
+ * and without the bilinear leg, and a free bilinear oscillator's period, peak ratio and energy
+ * through 80 kink crossings; rig.plant_integrator selects RK4; the load cell reads the shaker force
+ * minus the armature's inertia; sensors apply gain error, offset, quantisation and noise of the
+ * configured size, all off with rig.noise false; a seed repeats; the bilinear leg's static slopes,
+ * kink and preloaded static point. */
 #include "testlib.h"
 
 #include "rths/plant.h"
@@ -146,81 +147,78 @@ static void test_forced_response_shaker(void **state) {
     rths_config_free(cfg);
 }
 
-/* The seed's light damping, a forced run through the second mode from rest: 8 RK4 substeps per
- * sample (the default) and 64 agree to 1e-9 of the response's size over 2 s, so the plant's own
- * discretisation error is negligible next to anything the hybrid test measures (>= 1e-4). */
-static void test_integration_converged(void **state) {
-    (void)state;
+/* Largest difference of the interface displacement between two integrators (substeps 0: exact)
+ * over 2 s of a 13.4 Hz demand of the given amplitude from rest, relative to the response's
+ * size; the leg extension's range on the second one. */
+static double integrator_difference(const char *const *ov, int n_ov, double demand_v, int sub_a,
+                                    int sub_b, double *dmin, double *dmax) {
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    load(ov, n_ov, &cfg, &s);
     rths_plant_options po;
     rths_plant_defaults(&po);
     po.noise = 0;
-    rths_plant *coarse = make(&s, &po);
-    po.substeps_per_sample = 64;
-    rths_plant *fine = make(&s, &po);
+    po.substeps_per_sample = sub_a;
+    rths_plant *a = make(&s, &po);
+    po.substeps_per_sample = sub_b;
+    rths_plant *b = make(&s, &po);
     const double w = 2 * M_PI * 13.4;
     double diff = 0, size = 0;
+    *dmin = 1, *dmax = -1;
     for (long k = 0; k < 20000; k++) {
-        double d = 0.05 * cos(w * k * H);
-        rths_plant_advance(coarse, d);
-        rths_plant_advance(fine, d);
-        double a = rths_plant_interface_displacement_m(coarse);
-        double b = rths_plant_interface_displacement_m(fine);
-        diff = fmax(diff, fabs(a - b));
-        size = fmax(size, fabs(b));
+        double d = demand_v * cos(w * k * H);
+        rths_plant_advance(a, d);
+        rths_plant_advance(b, d);
+        double xa = rths_plant_interface_displacement_m(a);
+        double xb = rths_plant_interface_displacement_m(b);
+        diff = fmax(diff, fabs(xa - xb));
+        size = fmax(size, fabs(xb));
+        rths_sensor_sample in;
+        rths_plant_read(b, &in);
+        double delta = in.displacement_m[2] - in.displacement_m[1];
+        *dmin = fmin(*dmin, delta);
+        *dmax = fmax(*dmax, delta);
     }
-    print_message("8 vs 64 substeps: max difference %.3e m of %.3e m\n", diff, size);
     assert_true(size > 1e-5);
-    assert_true(diff <= 1e-9 * size);
-    rths_plant_destroy(coarse);
-    rths_plant_destroy(fine);
+    rths_plant_destroy(a);
+    rths_plant_destroy(b);
     rths_setup_free(&s);
     rths_config_free(cfg);
+    return diff / size;
+}
+
+/* The seed's light damping, a forced run through the second mode from rest: the exact plant
+ * (the default) and RK4 at 64 substeps per sample (local error ~ (w_max h / 64)^5, w_max the
+ * shaker lag's 6283 rad/s: 1e-14) agree to 1e-11 of the response (measured 1e-13), and RK4 at
+ * 8 substeps (the former default) to 1e-9: the plant's own error is negligible next to
+ * anything the hybrid test measures (>= 1e-4). */
+static void test_exact_against_rk4(void **state) {
+    (void)state;
+    double dmin, dmax;
+    double fine = integrator_difference(NULL, 0, 0.05, 0, 64, &dmin, &dmax);
+    double coarse = integrator_difference(NULL, 0, 0.05, 0, 8, &dmin, &dmax);
+    print_message("exact vs RK4 x 64: %.3e, vs RK4 x 8: %.3e of the response\n", fine, coarse);
+    assert_true(fine <= 1e-11);
+    assert_true(coarse <= 1e-9);
 }
 
 /* The same with the bilinear leg and an oscillation that crosses the kink at every cycle: RK4
- * loses an order at each crossing (the stiffness jumps), yet 8 and 64 substeps still agree to
- * 1e-6 of the response (measured 7e-9), far below the nonlinear effects studied (the fold shifts
- * are percent). */
-static void test_integration_converged_bilinear(void **state) {
+ * loses an order at each crossing (the stiffness jumps; RK4 x 64's own error ~ 1e-10 of the
+ * response), the exact plant locates each crossing inside its sample; the two agree to 1e-9
+ * (measured 8e-11), RK4 x 8 to 1e-6 (measured 7e-9), far below the nonlinear effects studied
+ * (the fold shifts are percent). */
+static void test_exact_against_rk4_bilinear(void **state) {
     (void)state;
     const char *ov[] = {"structure.bilinear.enabled=true"};
-    rths_config *cfg;
-    rths_setup s;
-    load(ov, 1, &cfg, &s);
-    rths_plant_options po;
-    rths_plant_defaults(&po);
-    po.noise = 0;
-    rths_plant *coarse = make(&s, &po);
-    po.substeps_per_sample = 64;
-    rths_plant *fine = make(&s, &po);
-    const double w = 2 * M_PI * 13.4;
-    double diff = 0, size = 0, dmin = 1, dmax = -1;
-    for (long k = 0; k < 20000; k++) {
-        double d = 1.0 * cos(w * k * H);
-        rths_plant_advance(coarse, d);
-        rths_plant_advance(fine, d);
-        double a = rths_plant_interface_displacement_m(coarse);
-        double b = rths_plant_interface_displacement_m(fine);
-        diff = fmax(diff, fabs(a - b));
-        size = fmax(size, fabs(b));
-        rths_sensor_sample in;
-        rths_plant_read(fine, &in);
-        double delta = in.displacement_m[2] - in.displacement_m[1];
-        dmin = fmin(dmin, delta);
-        dmax = fmax(dmax, delta);
-    }
-    print_message("bilinear, 8 vs 64 substeps: max difference %.3e m of %.3e m; leg extension "
-                  "%.3e .. %.3e m\n",
-                  diff, size, dmin, dmax);
+    double dmin, dmax;
+    double fine = integrator_difference(ov, 1, 1.0, 0, 64, &dmin, &dmax);
+    double coarse = integrator_difference(ov, 1, 1.0, 0, 8, &dmin, &dmax);
+    print_message("bilinear, exact vs RK4 x 64: %.3e, vs RK4 x 8: %.3e of the response; leg "
+                  "extension %.3e .. %.3e m\n",
+                  fine, coarse, dmin, dmax);
     assert_true(dmin < 0 && dmax > 0); /* the kink is crossed */
-    assert_true(diff <= 1e-6 * size);
-    rths_plant_destroy(coarse);
-    rths_plant_destroy(fine);
-    rths_setup_free(&s);
-    rths_config_free(cfg);
+    assert_true(fine <= 1e-9);
+    assert_true(coarse <= 1e-6);
 }
 
 /* Gain error and offset exactly as specified (noise std 0, no quantum); rig.noise false turns
@@ -375,15 +373,124 @@ static void test_bilinear_leg(void **state) {
     rths_config_free(cfg);
 }
 
+/* A 1-DoF bilinear oscillator through the plant (storey 1 of a 2-storey chain is the interface,
+ * its leg to the ground bilinear, k = 53048 N/m in extension, 2 k in compression, no damping,
+ * no preload), set swinging by a one-sample demand pulse. Free motion is then a half sine on
+ * each side: period pi sqrt(m / k) + pi sqrt(m / 2k), compression peaks 1/sqrt(2) of the
+ * extension peaks, energy conserved through every kink crossing. The exact integrator meets all
+ * three to 1e-9 over 40 periods (80 crossings; measured 5e-11 .. 1.2e-10, while RK4 x 8 drifts
+ * 3e-8 in energy); zero crossings are linearly interpolated between
+ * samples (time error ~ h (w h)^2 / 6 = 1.6e-9 s), peaks by a parabola through three samples
+ * (relative error ~ (w h)^4 / 8 = 1e-9). RK4 x 8, which straddles the kink, is printed beside. */
+typedef struct {
+    double period_s, peak_ratio, energy_drift;
+} swing;
+
+static swing bilinear_swing(int substeps) {
+    const char *ov[] = {"structure.storeys.mass_kg=[5.37, 1]",
+                        "structure.storeys.damping_n_s_per_m=[0, 0]",
+                        "structure.storeys.stiffness_n_per_m=[53048, 1000]",
+                        "split.interface=[1]",
+                        "forcing.dof=2",
+                        "structure.bilinear.enabled=true",
+                        "structure.bilinear.storey=1",
+                        "structure.bilinear.preload_n=0"};
+    rths_config *cfg;
+    rths_setup s;
+    load(ov, 8, &cfg, &s);
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    rths_plant_ideal(&po);
+    po.substeps_per_sample = substeps;
+    rths_plant *p = make(&s, &po);
+    rths_plant_advance(p, 2.0); /* 100 N for one sample */
+    double prev = rths_plant_interface_displacement_m(p), x1 = prev, x0 = prev;
+    double first_up = -1, last_up = -1, first_ext = 0, last_ext = 0, first_comp = 0;
+    int ups = 0;
+    for (long k = 1; k < 23000; k++) {
+        rths_plant_advance(p, 0);
+        double x = rths_plant_interface_displacement_m(p);
+        if (prev < 0 && x >= 0) {
+            double t = (k - 1 + prev / (prev - x)) * H;
+            if (first_up < 0) first_up = t;
+            last_up = t, ups++;
+        }
+        if (x1 > x0 && x1 >= x) { /* a sampled maximum at k - 1: the parabola's vertex value */
+            double a = 0.5 * (x0 + x) - x1, b = 0.5 * (x - x0);
+            double peak = x1 - b * b / (4 * a);
+            if (first_ext == 0) first_ext = peak;
+            last_ext = peak;
+        }
+        if (x1 < x0 && x1 <= x && first_comp == 0) {
+            double a = 0.5 * (x0 + x) - x1, b = 0.5 * (x - x0);
+            first_comp = x1 - b * b / (4 * a);
+        }
+        x0 = x1, x1 = x, prev = x;
+    }
+    rths_plant_destroy(p);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    print_message("%d upward crossings\n", ups);
+    assert_true(ups >= 40 && first_ext > 0 && first_comp < 0);
+    return (swing){(last_up - first_up) / (ups - 1), -first_comp / first_ext,
+                   last_ext / first_ext - 1};
+}
+
+static void test_kink_crossing(void **state) {
+    (void)state;
+    const double m = 5.37, k = 53048;
+    const double period = M_PI * sqrt(m / k) + M_PI * sqrt(m / (2 * k));
+    swing exact = bilinear_swing(0), rk4 = bilinear_swing(8);
+    print_message("period: exact %.3e, RK4 x 8 %.3e relative error; compression/extension peak: "
+                  "exact %.3e, RK4 %.3e from 1/sqrt 2; energy drift over 40 periods: exact %.3e, "
+                  "RK4 %.3e\n",
+                  exact.period_s / period - 1, rk4.period_s / period - 1,
+                  exact.peak_ratio * sqrt(2) - 1, rk4.peak_ratio * sqrt(2) - 1, exact.energy_drift,
+                  rk4.energy_drift);
+    assert_rel(exact.period_s, period, 1e-9);
+    assert_rel(exact.peak_ratio, 1 / sqrt(2), 1e-9);
+    assert_close(exact.energy_drift, 0, 1e-9);
+}
+
+/* rig.plant_integrator picks the integrator; substeps belong to rk4 only. */
+static void test_integrator_config(void **state) {
+    (void)state;
+    const char *rk4[] = {"rig.plant_integrator=rk4"},
+               *rk4_16[] = {"rig.plant_integrator=rk4", "rig.substeps_per_sample=16"};
+    const char *bad[] = {"rig.substeps_per_sample=16"};
+    const char *const *ovs[4] = {NULL, rk4, rk4_16, bad};
+    const int counts[4] = {0, 1, 2, 1}, expect[4] = {0, 8, 16, -1};
+    for (int i = 0; i < 4; i++) {
+        rths_config *cfg;
+        rths_setup s;
+        load(ovs[i], counts[i], &cfg, &s);
+        rths_plant_options po;
+        rths_plant_defaults(&po);
+        rths_error err;
+        int rc = rths_plant_config_read(cfg, &po, &err);
+        if (expect[i] < 0) {
+            assert_int_equal(rc, RTHS_EINPUT);
+            assert_non_null(strstr(err.msg, "applies to rig.plant_integrator: rk4 only"));
+        } else {
+            assert_int_equal(rc, RTHS_OK);
+            assert_int_equal(po.substeps_per_sample, expect[i]);
+        }
+        rths_setup_free(&s);
+        rths_config_free(cfg);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_forced_response_ideal),
         cmocka_unit_test(test_forced_response_shaker),
-        cmocka_unit_test(test_integration_converged),
-        cmocka_unit_test(test_integration_converged_bilinear),
+        cmocka_unit_test(test_exact_against_rk4),
+        cmocka_unit_test(test_exact_against_rk4_bilinear),
         cmocka_unit_test(test_sensors),
         cmocka_unit_test(test_seeded),
         cmocka_unit_test(test_bilinear_leg),
+        cmocka_unit_test(test_kink_crossing),
+        cmocka_unit_test(test_integrator_config),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static void load_seed(const char *const *overrides, int n, rths_config **cfg, rths_setup *s) {
     rths_error err;
@@ -100,15 +101,116 @@ static void test_default_grid_resolves_peaks(void **state) {
     int count;
     assert_int_equal(rths_frf_grid(&m, 0, 0, 0, &f, &count, &err), RTHS_OK);
     assert_close(f[count - 1], 1.25 * m.frequency_hz[3], 1e-9);
-    for (int i = 1; i < count; i++) assert_true(f[i] >= f[i - 1]);
+    for (int i = 1; i < count; i++)
+        assert_true(f[i] >= f[i - 1]);
     for (int r = 0; r < 4; r++) {
         double half_bw = m.damping_ratio[r] * m.frequency_hz[r];
         double nearest = INFINITY;
-        for (int i = 0; i < count; i++) nearest = fmin(nearest, fabs(f[i] - m.frequency_hz[r]));
+        for (int i = 0; i < count; i++)
+            nearest = fmin(nearest, fabs(f[i] - m.frequency_hz[r]));
         assert_true(nearest <= 0.2 * half_bw);
     }
     free(f);
     rths_modes_free(&m);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+static int load_file(const char *rel, const char *const *ov, int n, rths_config **cfg,
+                     rths_setup *s, rths_error *err) {
+    int rc = rths_config_load(rths_test_source_path(rel), ov, n, cfg, err);
+    if (rc) return rc;
+    rc = rths_setup_read(*cfg, s, err);
+    if (rc) rths_config_free(*cfg);
+    return rc;
+}
+
+/* The seed as Matrix Market files (array general, coordinate symmetric, coordinate general),
+ * paths relative to the config's folder: the very assembly the storey chain builds, and with
+ * split.numerical left out every remaining DoF (4) is numerical. */
+static void test_matrix_market_seed(void **state) {
+    (void)state;
+    rths_config *cfg, *chain_cfg;
+    rths_setup s, chain;
+    rths_error err;
+    if (load_file("tests/data/mtx/seed_matrices.yaml", NULL, 0, &cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    load_seed(NULL, 0, &chain_cfg, &chain);
+    assert_int_equal(s.assembly.n, 4);
+    assert_int_equal(s.chain, 0);
+    assert_memory_equal(s.assembly.mass, chain.assembly.mass, 16 * sizeof(double));
+    assert_memory_equal(s.assembly.stiffness, chain.assembly.stiffness, 16 * sizeof(double));
+    for (int k = 0; k < 16; k++) /* the chain adds 4.4062 + 3.7979 in binary: last-bit rounding */
+        assert_close(s.assembly.damping[k], chain.assembly.damping[k], 1e-14);
+    assert_int_equal(s.roles[3], RTHS_DOF_NUMERICAL);
+    assert_int_equal(s.split.n_num, 1);
+    assert_int_equal(s.split.num_dofs[0], 3);
+    assert_int_equal(s.split.n_phys, 2);
+    rths_setup_free(&s);
+    rths_setup_free(&chain);
+    rths_config_free(cfg);
+    rths_config_free(chain_cfg);
+}
+
+/* A bad .mtx named in the config: the key's location, then the file's line and the problem. */
+static void test_matrix_market_bad_file(void **state) {
+    (void)state;
+    const char *ov[] = {"structure.matrices.damping_n_s_per_m=bad_too_few.mtx"};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    assert_int_equal(load_file("tests/data/mtx/seed_matrices.yaml", ov, 1, &cfg, &s, &err),
+                     RTHS_EINPUT);
+    print_message("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "structure.matrices.damping_n_s_per_m"));
+    assert_non_null(strstr(err.msg, "tests/data/mtx/bad_too_few.mtx:4: file ends after 2 of"));
+}
+
+/* Structures without physical sense are refused before any work (issue: a 1e308 kg storey gave
+ * NaN rows and exit 0, an indefinite K or negative-definite C passed, a singular K failed after
+ * writing files), each at its key. */
+static void expect_refused(const char *rel, const char *override, const char *fragment) {
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    const char *ov[] = {override};
+    int rc = load_file(rel, ov, 1, &cfg, &s, &err);
+    print_message("%s -> %s\n", override, err.msg);
+    assert_int_equal(rc, RTHS_EINPUT);
+    if (!strstr(err.msg, fragment)) fail_msg("'%s' not in '%s'", fragment, err.msg);
+}
+
+static void test_physical_sense(void **state) {
+    (void)state;
+    const char *seed = "examples/four_storey.yaml", *mtx = "tests/data/mtx/seed_matrices.yaml";
+    expect_refused(seed, "structure.storeys.mass_kg=[5.37, 5.37, 1e308, 10.74]",
+                   "storey 3: must be > 0 and <= 1e+15");
+    expect_refused(seed, "forcing.amplitude_n=1e300", "forcing.amplitude_n");
+    /* eigenvalues 3 and -1 */
+    expect_refused(mtx,
+                   "structure.matrices.stiffness_n_per_m=[[1, 2, 0, 0], [2, 1, 0, 0], [0, 0, 1, "
+                   "0], [0, 0, 0, 1]]",
+                   "stiffness_n_per_m': must be positive definite");
+    /* a free-floating pair: the rigid-body mode (1, 1) has zero stiffness */
+    expect_refused(mtx,
+                   "structure.matrices.stiffness_n_per_m=[[1, -1, 0, 0], [-1, 1, 0, 0], [0, 0, 1, "
+                   "0], [0, 0, 0, 1]]",
+                   "rigid-body motion");
+    expect_refused(mtx,
+                   "structure.matrices.damping_n_s_per_m=[[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, "
+                   "-1, 0], [0, 0, 0, -1]]",
+                   "damping_n_s_per_m': must be positive semi-definite");
+    expect_refused(mtx,
+                   "structure.matrices.mass_kg=[[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], "
+                   "[0, 0, 0, 1e300]]",
+                   "entry (4, 4) = 1e+300 is not a finite number of magnitude <= 1e+15");
+    /* the limits themselves pass: zero damping, a semi-definite (rank-deficient) C */
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    const char *ok[] = {"structure.matrices.damping_n_s_per_m=[[1, -1, 0, 0], [-1, 1, 0, 0], [0, "
+                        "0, 0, 0], [0, 0, 0, 0]]"};
+    if (load_file(mtx, ok, 1, &cfg, &s, &err)) fail_msg("%s", err.msg);
     rths_setup_free(&s);
     rths_config_free(cfg);
 }
@@ -119,6 +221,9 @@ int main(void) {
         cmocka_unit_test(test_overrides_and_bilinear),
         cmocka_unit_test(test_bilinear_ground_leg),
         cmocka_unit_test(test_default_grid_resolves_peaks),
+        cmocka_unit_test(test_matrix_market_seed),
+        cmocka_unit_test(test_matrix_market_bad_file),
+        cmocka_unit_test(test_physical_sense),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

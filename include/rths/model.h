@@ -25,6 +25,8 @@ int rths_assembly_from_chain(int n, const double *masses, const double *dampings
 int rths_assembly_from_matrices(int n, const double *mass, const double *damping,
                                 const double *stiffness, rths_assembly *out, rths_error *err);
 void rths_assembly_free(rths_assembly *a);
+/* Largest |i - j| of a nonzero entry of M, C or K: 1 for a storey chain or a rod. */
+int rths_assembly_half_bandwidth(const rths_assembly *a);
 
 /* ---- split into substructures ---- */
 
@@ -40,9 +42,10 @@ typedef struct rths_split {
     int *phys_dofs;           /* assembly indices of the internal physical DoFs */
     int *int_dofs;            /* assembly indices of the interface DoFs */
     int *num_dofs;            /* assembly indices of the internal numerical DoFs */
-    double mass_ratio;        /* p = numerical share of the interface mass (SPEC 3.1) */
-    int np;                   /* n_phys + n_int: physical substructure size, order (phys, int) */
-    int nn;                   /* n_int + n_num: numerical substructure size, order (int, num) */
+    double mass_ratio; /* p = numerical share of the interface mass (docs/method.md, "Errata of the
+                          seed paper") */
+    int np;            /* n_phys + n_int: physical substructure size, order (phys, int) */
+    int nn;            /* n_int + n_num: numerical substructure size, order (int, num) */
     double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
     double *mass_num, *damping_num, *stiffness_num;    /* nn x nn */
 } rths_split;
@@ -72,6 +75,9 @@ typedef struct rths_modes {
     double *shapes;        /* n x n, column r = mode r, mass-normalised (phi^T M phi = 1) */
 } rths_modes;
 
+/* Symmetric-definite generalised eigenproblem K phi = w^2 M phi: LAPACK dsbgvd on band storage
+ * when the half-bandwidth is at most n / 8, dsygvd otherwise (both divide and conquer; 0.3 s at
+ * n = 1000); eigenvalues refined as the shapes' Rayleigh quotients. */
 int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err);
 void rths_modes_free(rths_modes *m);
 
@@ -82,6 +88,31 @@ void rths_modes_free(rths_modes *m);
  * coefficients of q_i = A cos + B sin are A = Re X_i, B = -Im X_i. */
 int rths_frf(int n, const double *mass, const double *damping, const double *stiffness,
              const double *force, double omega_rad_s, double complex *x_out, rths_error *err);
+
+/* The same steady state over many frequencies without n^3 work per frequency, for the DoFs
+ * out_dofs (0-based, n_out of them): prepared once from the modes, then per frequency
+ *   banded complex LU (O(n b^2)) when M, C, K are banded with half-bandwidth b <= n / 8,
+ *   else modal superposition (O(n n_out)) when the modes decouple C (proportional damping),
+ *   else complex modes of the state space (O(n n_out)),
+ *   dense solves only when those modes are near-defective (eigenvector matrix rcond < 1e-6).
+ * Each equals rths_frf up to rounding. The sweep keeps a pointer to a: keep it alive. */
+typedef enum {
+    RTHS_FRF_MODAL = 0,
+    RTHS_FRF_BANDED,
+    RTHS_FRF_STATE_SPACE,
+    RTHS_FRF_DENSE
+} rths_frf_method;
+
+typedef struct rths_frf_sweep rths_frf_sweep;
+
+int rths_frf_sweep_create(const rths_assembly *a, const rths_modes *modes, const double *force,
+                          int n_out, const int *out_dofs, rths_frf_sweep **out, rths_error *err);
+/* x_out[o] = X at out_dofs[o] for circular frequency omega_rad_s. */
+int rths_frf_sweep_eval(rths_frf_sweep *s, double omega_rad_s, double complex *x_out,
+                        rths_error *err);
+rths_frf_method rths_frf_sweep_method(const rths_frf_sweep *s);
+const char *rths_frf_method_name(rths_frf_method m);
+void rths_frf_sweep_destroy(rths_frf_sweep *s);
 
 /* Frequencies (Hz, ascending, malloc'ed) for an FRF. With points > 1: uniform over [start, end].
  * With points == 0: a uniform background of 400 points plus 81 points across +-8 half-power

@@ -1,10 +1,12 @@
 /* rths setup: the structural part of a test configuration (model module), read from YAML.
  *
  *   structure:   storeys {mass_kg, damping_n_s_per_m, stiffness_n_per_m} (lists, ground up)
- *                or matrices {mass_kg, damping_n_s_per_m, stiffness_n_per_m} (n x n rows);
+ *                or matrices {mass_kg, damping_n_s_per_m, stiffness_n_per_m}, each n x n rows
+ *                or the path of a Matrix Market file (mtx.h), relative to the config's folder;
  *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
- *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (SPEC erratum 1),
- *                physical / numerical (1-based lists; for a chain default: below / above)
+ *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
+ *                the seed paper", erratum 1), physical / numerical (1-based lists; for a chain
+ *                default: below / above; with matrices the absent one takes every other DoF)
  *   forcing:     dof (1-based), amplitude_n
  *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
  *
@@ -34,7 +36,9 @@ typedef struct rths_setup {
 } rths_setup;
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
- * location. Does not call rths_config_check_unknown (the command does, after all sections). */
+ * location, including a structure without physical sense (non-finite or huge entries, M or K not
+ * positive definite, C not positive semi-definite): nothing downstream sees one. Does not call
+ * rths_config_check_unknown (the command does, after all sections). */
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err);
 void rths_setup_free(rths_setup *s);
 

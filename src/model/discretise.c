@@ -1,4 +1,5 @@
-/* Second-order models in state space and their discretisations (SPEC §8). */
+/* Second-order models in state space and their discretisations (docs/method.md, "Numerical
+ * substructure integration"). */
 #include "rths/model.h"
 
 #include <math.h>
@@ -48,7 +49,8 @@ int rths_state_space(int n, const double *mass, const double *damping, const dou
             RTHS_AT(a, nx, n + i, j) = -RTHS_AT(rhs, n, i, j);
             RTHS_AT(a, nx, n + i, n + j) = -RTHS_AT(rhs, n, i, n + j);
         }
-        for (int j = 0; j < n_inputs; j++) RTHS_AT(b, nx, n + i, j) = RTHS_AT(rhs, n, i, 2 * n + j);
+        for (int j = 0; j < n_inputs; j++)
+            RTHS_AT(b, nx, n + i, j) = RTHS_AT(rhs, n, i, 2 * n + j);
     }
     free(rhs);
     *a_out = a;
@@ -102,8 +104,10 @@ int rths_discretise(int nx, int nu, const double *a, const double *b, double h, 
         if (!rhs) goto oom;
         for (int j = 0; j < nx; j++)
             for (int i = 0; i < nx; i++)
-                RTHS_AT(rhs, nx, i, j) = (i == j ? 1.0 : 0.0) + (trap ? c * h : 0.0) * RTHS_AT(a, nx, i, j);
-        for (size_t k = 0; k < xu; k++) rhs[xx + k] = c * h * b[k];
+                RTHS_AT(rhs, nx, i, j) =
+                    (i == j ? 1.0 : 0.0) + (trap ? c * h : 0.0) * RTHS_AT(a, nx, i, j);
+        for (size_t k = 0; k < xu; k++)
+            rhs[xx + k] = c * h * b[k];
         info = solve_shifted(nx, a, c, h, nx + nu, rhs);
         memcpy(out->ad, rhs, xx * sizeof(double));
         memcpy(out->b_curr, rhs + xx, xu * sizeof(double));
@@ -124,14 +128,18 @@ int rths_discretise(int nx, int nu, const double *a, const double *b, double h, 
             goto oom;
         }
         for (int j = 0; j < nx; j++)
-            for (int i = 0; i < nx; i++) RTHS_AT(g, ng, i, j) = h * RTHS_AT(a, nx, i, j);
+            for (int i = 0; i < nx; i++)
+                RTHS_AT(g, ng, i, j) = h * RTHS_AT(a, nx, i, j);
         for (int j = 0; j < nu; j++)
-            for (int i = 0; i < nx; i++) RTHS_AT(g, ng, i, nx + j) = h * RTHS_AT(b, nx, i, j);
+            for (int i = 0; i < nx; i++)
+                RTHS_AT(g, ng, i, nx + j) = h * RTHS_AT(b, nx, i, j);
         if (foh)
-            for (int j = 0; j < nu; j++) RTHS_AT(g, ng, nx + j, nx + nu + j) = 1.0;
+            for (int j = 0; j < nu; j++)
+                RTHS_AT(g, ng, nx + j, nx + nu + j) = 1.0;
         info = rths_expm(ng, g, e);
         for (int j = 0; j < nx; j++)
-            for (int i = 0; i < nx; i++) RTHS_AT(out->ad, nx, i, j) = RTHS_AT(e, ng, i, j);
+            for (int i = 0; i < nx; i++)
+                RTHS_AT(out->ad, nx, i, j) = RTHS_AT(e, ng, i, j);
         for (int j = 0; j < nu; j++)
             for (int i = 0; i < nx; i++) {
                 double gamma0 = RTHS_AT(e, ng, i, nx + j);

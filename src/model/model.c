@@ -114,7 +114,8 @@ static void coupling_rule_num_share(const rths_split *s, const double *a, double
     memset(num_block, 0, (size_t)ni * (size_t)ni * sizeof(double));
     for (int i = 0; i < ni; i++) {
         double sum = 0.0;
-        for (int j = 0; j < s->n_num; j++) sum += RTHS_AT(a, n, s->int_dofs[i], s->num_dofs[j]);
+        for (int j = 0; j < s->n_num; j++)
+            sum += RTHS_AT(a, n, s->int_dofs[i], s->num_dofs[j]);
         RTHS_AT(num_block, ni, i, i) = -sum;
     }
 }
@@ -163,9 +164,15 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
     if (!out->phys_dofs || !out->int_dofs || !out->num_dofs) goto oom;
     for (int i = 0; i < n; i++) {
         switch (role[i]) {
-        case RTHS_DOF_PHYSICAL: out->phys_dofs[out->n_phys++] = i; break;
-        case RTHS_DOF_INTERFACE: out->int_dofs[out->n_int++] = i; break;
-        case RTHS_DOF_NUMERICAL: out->num_dofs[out->n_num++] = i; break;
+        case RTHS_DOF_PHYSICAL:
+            out->phys_dofs[out->n_phys++] = i;
+            break;
+        case RTHS_DOF_INTERFACE:
+            out->int_dofs[out->n_int++] = i;
+            break;
+        case RTHS_DOF_NUMERICAL:
+            out->num_dofs[out->n_num++] = i;
+            break;
         default:
             rths_split_free(out);
             return rths_error_set(err, RTHS_EINPUT, "DoF %d has no valid role", i + 1);
@@ -225,7 +232,8 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
             }
         } else {
             coupling_rule_num_share(out, mats[m], num);
-            for (int k = 0; k < ni * ni; k++) phys[k] = full[k] - num[k];
+            for (int k = 0; k < ni * ni; k++)
+                phys[k] = full[k] - num[k];
         }
         fill_substructure(out, mats[m], phys, num, outs_phys[m], outs_num[m]);
     }
@@ -271,6 +279,88 @@ void rths_modes_free(rths_modes *m) {
     memset(m, 0, sizeof *m);
 }
 
+int rths_assembly_half_bandwidth(const rths_assembly *a) {
+    int n = a->n, b = 0;
+    for (int j = 0; j < n; j++)
+        for (int i = 0; i < n; i++)
+            if (abs(i - j) > b &&
+                (RTHS_AT(a->mass, n, i, j) != 0 || RTHS_AT(a->damping, n, i, j) != 0 ||
+                 RTHS_AT(a->stiffness, n, i, j) != 0))
+                b = abs(i - j);
+    return b;
+}
+
+/* diag(Phi^T A Phi) for A with half-bandwidth b: O(n^2 b) for a banded A instead of a full
+ * matrix product. */
+static void modal_diagonal(int n, int b, const double *a, const double *shapes, double *out) {
+    for (int r = 0; r < n; r++) {
+        const double *phi = shapes + (size_t)r * (size_t)n;
+        double acc = 0.0;
+        for (int i = 0; i < n; i++) {
+            double row = 0.0;
+            int lo = i - b < 0 ? 0 : i - b, hi = i + b >= n ? n - 1 : i + b;
+            for (int j = lo; j <= hi; j++)
+                row += RTHS_AT(a, n, i, j) * phi[j];
+            acc += phi[i] * row;
+        }
+        out[r] = acc;
+    }
+}
+
+/* Eigenvalues as the Rayleigh quotients phi^T K phi / phi^T M phi of the computed shapes: the
+ * dense solver's eigenvalues are accurate to eps times the LARGEST one, which for a finely meshed
+ * model (w_max^2 / w_1^2 ~ 1e10) leaves 1e-8 .. 1e-6 relative error on the lowest mode; the
+ * quotient's error is quadratic in the shape's (itself eps w_max^2 / gap), far below. */
+static int refine_and_normalise(const rths_assembly *a, rths_modes *out) {
+    int n = a->n, b = rths_assembly_half_bandwidth(a);
+    double *kd = calloc((size_t)n, sizeof(double)), *md = calloc((size_t)n, sizeof(double)),
+           *cd = calloc((size_t)n, sizeof(double));
+    int rc = kd && md && cd ? 0 : -1;
+    if (!rc) {
+        modal_diagonal(n, b, a->stiffness, out->shapes, kd);
+        modal_diagonal(n, b, a->mass, out->shapes, md);
+        modal_diagonal(n, b, a->damping, out->shapes, cd);
+    }
+    for (int r = 0; r < n && !rc; r++) {
+        double w2 = kd[r] / md[r];
+        double w = w2 > 0 ? sqrt(w2) : 0.0;
+        out->omega_rad_s[r] = w;
+        out->frequency_hz[r] = w / (2.0 * M_PI);
+        out->damping_ratio[r] = w > 0 ? cd[r] / (2.0 * w) : 0.0;
+        double *phi = out->shapes + (size_t)r * (size_t)n;
+        /* Sign convention: largest-magnitude component positive, so shapes are reproducible. */
+        int imax = 0;
+        for (int i = 1; i < n; i++)
+            if (fabs(phi[i]) > fabs(phi[imax])) imax = i;
+        if (phi[imax] < 0)
+            for (int i = 0; i < n; i++)
+                phi[i] = -phi[i];
+    }
+    free(kd), free(md), free(cd);
+    return rc;
+}
+
+/* The same pencil in LAPACK's band storage (dsbgvd: split Cholesky of M, reduction to
+ * tridiagonal form in O(n^2 b), divide and conquer): a banded model's eigenproblem without the
+ * dense reduction's n^3 / 3 x several. */
+static lapack_int banded_eigen(const rths_assembly *a, int b, double *shapes, double *w2) {
+    int n = a->n, ld = b + 1;
+    double *kb = calloc((size_t)ld * (size_t)n, sizeof(double)),
+           *mb = calloc((size_t)ld * (size_t)n, sizeof(double));
+    lapack_int info = -1;
+    if (kb && mb) {
+        /* lower band: element (i, j), i >= j, at row i - j of column j */
+        for (int j = 0; j < n; j++)
+            for (int i = j; i <= j + b && i < n; i++) {
+                kb[(size_t)(i - j) + (size_t)j * ld] = RTHS_AT(a->stiffness, n, i, j);
+                mb[(size_t)(i - j) + (size_t)j * ld] = RTHS_AT(a->mass, n, i, j);
+            }
+        info = LAPACKE_dsbgvd(LAPACK_COL_MAJOR, 'V', 'L', n, b, b, kb, ld, mb, ld, w2, shapes, n);
+    }
+    free(kb), free(mb);
+    return info;
+}
+
 int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err) {
     int n = a->n;
     memset(out, 0, sizeof *out);
@@ -280,44 +370,30 @@ int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err
     out->damping_ratio = calloc((size_t)n, sizeof(double));
     out->shapes = rths_mat_dup(a->stiffness, n, n);
     double *mass = rths_mat_dup(a->mass, n, n);
-    double *cphi = rths_mat_new(n, 1);
-    if (!out->omega_rad_s || !out->frequency_hz || !out->damping_ratio || !out->shapes || !mass ||
-        !cphi) {
+    if (!out->omega_rad_s || !out->frequency_hz || !out->damping_ratio || !out->shapes || !mass) {
         rths_mat_free(mass);
-        rths_mat_free(cphi);
         rths_modes_free(out);
         return rths_error_set(err, RTHS_EFAIL, "out of memory in modal analysis");
     }
-    /* K phi = w^2 M phi; dsygv returns M-orthonormal eigenvectors with ascending eigenvalues. */
-    lapack_int info =
-        LAPACKE_dsygv(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes, n, mass, n, out->omega_rad_s);
+    /* K phi = w^2 M phi; dsygvd returns M-orthonormal eigenvectors with ascending eigenvalues
+     * (the same reduction as dsygv, divide and conquer on the tridiagonal: several times faster
+     * for large n) */
+    int band = rths_assembly_half_bandwidth(a);
+    lapack_int info = band <= n / 8 ? banded_eigen(a, band, out->shapes, out->omega_rad_s)
+                                    : LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes,
+                                                     n, mass, n, out->omega_rad_s);
     rths_mat_free(mass);
     if (info != 0) {
-        rths_mat_free(cphi);
         rths_modes_free(out);
         return rths_error_set(err, RTHS_EFAIL,
-                              "modal analysis failed (LAPACK dsygv info %d): is M positive "
+                              "modal analysis failed (LAPACK dsygvd/dsbgvd info %d): is M positive "
                               "definite and K symmetric?",
                               (int)info);
     }
-    for (int r = 0; r < n; r++) {
-        double w2 = out->omega_rad_s[r];
-        double w = w2 > 0 ? sqrt(w2) : 0.0;
-        out->omega_rad_s[r] = w;
-        out->frequency_hz[r] = w / (2.0 * M_PI);
-        const double *phi = out->shapes + (size_t)r * (size_t)n;
-        /* Sign convention: largest-magnitude component positive, so shapes are reproducible. */
-        int imax = 0;
-        for (int i = 1; i < n; i++)
-            if (fabs(phi[i]) > fabs(phi[imax])) imax = i;
-        if (phi[imax] < 0)
-            for (int i = 0; i < n; i++) out->shapes[(size_t)r * (size_t)n + (size_t)i] *= -1.0;
-        rths_mat_mul(n, 1, n, 1.0, a->damping, 0, phi, 0, 0.0, cphi);
-        double modal_c = 0.0;
-        for (int i = 0; i < n; i++) modal_c += phi[i] * cphi[i];
-        out->damping_ratio[r] = w > 0 ? modal_c / (2.0 * w) : 0.0;
+    if (refine_and_normalise(a, out)) {
+        rths_modes_free(out);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory in modal analysis");
     }
-    rths_mat_free(cphi);
     return RTHS_OK;
 }
 
@@ -330,7 +406,8 @@ int rths_frf(int n, const double *mass, const double *damping, const double *sti
     double w = omega_rad_s;
     for (size_t k = 0; k < (size_t)n * (size_t)n; k++)
         dyn[k] = stiffness[k] - w * w * mass[k] + I * w * damping[k];
-    for (int i = 0; i < n; i++) x_out[i] = force[i];
+    for (int i = 0; i < n; i++)
+        x_out[i] = force[i];
     int info = rths_cmat_solve(n, 1, dyn, x_out);
     free(dyn);
     if (info != 0)
@@ -351,8 +428,7 @@ int rths_frf_grid(const rths_modes *modes, double start_hz, double end_hz, int p
     *count = 0;
     if (end_hz <= 0) end_hz = 1.25 * modes->frequency_hz[modes->n - 1];
     if (!(end_hz > start_hz) || start_hz < 0)
-        return rths_error_set(err, RTHS_EINPUT, "FRF range [%g, %g] Hz is empty", start_hz,
-                              end_hz);
+        return rths_error_set(err, RTHS_EINPUT, "FRF range [%g, %g] Hz is empty", start_hz, end_hz);
     enum { BACKGROUND = 400, PER_MODE = 81 };
     int cap = points > 1 ? points : BACKGROUND + PER_MODE * modes->n;
     double *f = malloc((size_t)cap * sizeof *f);

@@ -12,14 +12,15 @@ typedef struct {
     int n, nx;
     const rths_assembly *a;
     const rths_bilinear_leg *leg;
-    double *minv;        /* M^{-1} */
-    double *minv_k;      /* M^{-1} K */
-    double *minv_c;      /* M^{-1} C */
-    double *minv_fs;     /* M^{-1} static force */
-    double *minv_f;      /* M^{-1} harmonic force amplitude */
-    double *minv_b;      /* M^{-1} (e_upper - e_lower) */
-    double extra_k;      /* (ratio - 1) k: added stiffness in compression */
+    double *minv;    /* M^{-1} */
+    double *minv_k;  /* M^{-1} K */
+    double *minv_c;  /* M^{-1} C */
+    double *minv_fs; /* M^{-1} static force */
+    double *minv_f;  /* M^{-1} harmonic force amplitude */
+    double *minv_b;  /* M^{-1} (e_upper - e_lower) */
+    double extra_k;  /* (ratio - 1) k: added stiffness in compression */
     int steps;
+    double *stages; /* 6 nx: integrate()'s state, RK4 stages and scratch */
 } shooter;
 
 static double leg_extension(const shooter *s, const double *q) {
@@ -69,7 +70,8 @@ static void integrate(const shooter *s, const double *x0, double omega, double *
                       double *cos_m, double *sin_m) {
     int n = s->n, nx = s->nx, N = s->steps;
     double T = 2 * M_PI / omega, h = T / N;
-    double x[16], k1[16], k2[16], k3[16], k4[16], tmp[16];
+    double *x = s->stages, *k1 = x + nx, *k2 = k1 + nx, *k3 = k2 + nx, *k4 = k3 + nx,
+           *tmp = k4 + nx;
     double *P = NULL, *pk = NULL;
     size_t pp = (size_t)nx * nx;
     memcpy(x, x0, (size_t)nx * sizeof(double));
@@ -98,27 +100,35 @@ static void integrate(const shooter *s, const double *x0, double omega, double *
         /* stage 1 */
         rhs(s, wt, x, k1);
         if (P) rhs_var(s, x, P, K1);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k1[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + 0.5 * h * k1[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K1[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + 0.5 * h * K1[i];
         /* stage 2 */
         rhs(s, wt + 0.5 * omega * h, tmp, k2);
         if (P) rhs_var(s, tmp, PT, K2);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + 0.5 * h * k2[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + 0.5 * h * k2[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + 0.5 * h * K2[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + 0.5 * h * K2[i];
         /* stage 3 */
         rhs(s, wt + 0.5 * omega * h, tmp, k3);
         if (P) rhs_var(s, tmp, PT, K3);
-        for (int i = 0; i < nx; i++) tmp[i] = x[i] + h * k3[i];
+        for (int i = 0; i < nx; i++)
+            tmp[i] = x[i] + h * k3[i];
         if (P)
-            for (size_t i = 0; i < pp; i++) PT[i] = P[i] + h * K3[i];
+            for (size_t i = 0; i < pp; i++)
+                PT[i] = P[i] + h * K3[i];
         /* stage 4 */
         rhs(s, wt + omega * h, tmp, k4);
         if (P) rhs_var(s, tmp, PT, K4);
-        for (int i = 0; i < nx; i++) x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
+        for (int i = 0; i < nx; i++)
+            x[i] += h / 6 * (k1[i] + 2 * k2[i] + 2 * k3[i] + k4[i]);
         if (P)
-            for (size_t i = 0; i < pp; i++) P[i] += h / 6 * (K1[i] + 2 * K2[i] + 2 * K3[i] + K4[i]);
+            for (size_t i = 0; i < pp; i++)
+                P[i] += h / 6 * (K1[i] + 2 * K2[i] + 2 * K3[i] + K4[i]);
     }
     memcpy(xT, x, (size_t)nx * sizeof(double));
     free(pk);
@@ -163,9 +173,14 @@ void rths_periodic_points_free(rths_periodic_point *pts, int n) {
 
 typedef struct {
     shooter *s;
-    double sx[16]; /* scale of each state entry */
-    double sw;     /* scale of omega */
-    int m;         /* unknowns: nx + 1 */
+    double *sx; /* nx: scale of each state entry */
+    /* workspace, allocated once for the whole curve (sizes in unknowns m = nx + 1) */
+    double *res_x;        /* 4 nx: shoot_residual's states */
+    double *g, *jac, *lu; /* m, m x m, m x m: shoot_newton */
+    lapack_int *ipiv;     /* m */
+    double *floquet;      /* nx x nx + 2 nx: store_point's monodromy copy, eigenvalues */
+    double sw;            /* scale of omega */
+    int m;                /* unknowns: nx + 1 */
 } shoot_problem;
 
 /* Residual in scaled unknowns y = (x0 / sx, omega / sw): G = (x(T) - x0) / sx, plus the arclength
@@ -174,15 +189,18 @@ static void shoot_residual(const shoot_problem *p, const double *y, const double
                            const double *ypred, double *g, double *jac, double *phi_out) {
     shooter *s = p->s;
     int nx = s->nx, m = p->m;
-    double x0[16], xT[16], x1[16];
-    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    double *x0 = p->res_x, *xT = x0 + nx, *x1 = xT + nx, *xp = x1 + nx;
+    for (int i = 0; i < nx; i++)
+        x0[i] = y[i] * p->sx[i];
     double w = y[nx] * p->sw;
     double *phi = jac ? malloc((size_t)nx * nx * sizeof(double)) : NULL;
     integrate(s, x0, w, xT, phi, NULL, NULL);
-    for (int i = 0; i < nx; i++) g[i] = (xT[i] - x0[i]) / p->sx[i];
+    for (int i = 0; i < nx; i++)
+        g[i] = (xT[i] - x0[i]) / p->sx[i];
     if (tangent) {
         double r = 0;
-        for (int j = 0; j < m; j++) r += tangent[j] * (y[j] - ypred[j]);
+        for (int j = 0; j < m; j++)
+            r += tangent[j] * (y[j] - ypred[j]);
         g[nx] = r;
     }
     if (jac) {
@@ -190,12 +208,14 @@ static void shoot_residual(const shoot_problem *p, const double *y, const double
             for (int i = 0; i < nx; i++)
                 jac[i + j * m] = (RTHS_AT(phi, nx, i, j) - (i == j)) * p->sx[j] / p->sx[i];
         /* d/d omega by a central difference: the period itself depends on omega */
-        double hw = 1e-6 * w, xp[16];
+        double hw = 1e-6 * w;
         integrate(s, x0, w + hw, xp, NULL, NULL, NULL);
         integrate(s, x0, w - hw, x1, NULL, NULL, NULL);
-        for (int i = 0; i < nx; i++) jac[i + nx * m] = (xp[i] - x1[i]) / (2 * hw) * p->sw / p->sx[i];
+        for (int i = 0; i < nx; i++)
+            jac[i + nx * m] = (xp[i] - x1[i]) / (2 * hw) * p->sw / p->sx[i];
         if (tangent)
-            for (int j = 0; j < m; j++) jac[nx + j * m] = tangent[j];
+            for (int j = 0; j < m; j++)
+                jac[nx + j * m] = tangent[j];
         if (phi_out) memcpy(phi_out, phi, (size_t)nx * nx * sizeof(double));
     }
     free(phi);
@@ -205,16 +225,19 @@ static void shoot_residual(const shoot_problem *p, const double *y, const double
 static int shoot_newton(const shoot_problem *p, double *y, const double *tangent,
                         const double *ypred, double *phi_out) {
     int nx = p->s->nx, m = p->m, neq = tangent ? m : nx;
-    double g[17], jac[17 * 17], a[17 * 17];
+    double *g = p->g, *jac = p->jac, *a = p->lu;
+    lapack_int *ipiv = p->ipiv;
     for (int it = 0; it < 15; it++) {
         shoot_residual(p, y, tangent, ypred, g, jac, phi_out);
         double norm = 0;
-        for (int i = 0; i < neq; i++) norm += g[i] * g[i];
+        for (int i = 0; i < neq; i++)
+            norm += g[i] * g[i];
         if (sqrt(norm) < 1e-10) return it;
         for (int j = 0; j < neq; j++)
-            for (int i = 0; i < neq; i++) a[i + j * neq] = jac[i + j * m];
-        lapack_int ipiv[17];
-        for (int i = 0; i < neq; i++) g[i] = -g[i];
+            for (int i = 0; i < neq; i++)
+                a[i + j * neq] = jac[i + j * m];
+        for (int i = 0; i < neq; i++)
+            g[i] = -g[i];
         if (LAPACKE_dgesv(LAPACK_COL_MAJOR, neq, 1, a, neq, ipiv, g, neq) != 0) return -1;
         double step = 0;
         for (int i = 0; i < neq; i++) {
@@ -230,21 +253,136 @@ static int store_point(shoot_problem *p, const double *y, const double *phi,
                        rths_periodic_point *pt) {
     shooter *s = p->s;
     int n = s->n, nx = s->nx, H = RTHS_PERIODIC_HARMONICS;
-    double x0[16], xT[16];
-    for (int i = 0; i < nx; i++) x0[i] = y[i] * p->sx[i];
+    double *x0 = p->res_x, *xT = x0 + nx;
+    for (int i = 0; i < nx; i++)
+        x0[i] = y[i] * p->sx[i];
     pt->omega_rad_s = y[nx] * p->sw;
     pt->cos_m = calloc((size_t)n * (H + 1), sizeof(double));
     pt->sin_m = calloc((size_t)n * (H + 1), sizeof(double));
     if (!pt->cos_m || !pt->sin_m) return -1;
     integrate(s, x0, pt->omega_rad_s, xT, NULL, pt->cos_m, pt->sin_m);
-    double wr[16], wi[16], a[256], vl[1], vr[1];
+    double *a = p->floquet, *wr = a + (size_t)nx * nx, *wi = wr + nx, vl[1], vr[1];
     memcpy(a, phi, (size_t)nx * nx * sizeof(double));
     if (LAPACKE_dgeev(LAPACK_COL_MAJOR, 'N', 'N', nx, a, nx, wr, wi, vl, 1, vr, 1) != 0) return -1;
     double mx = 0;
-    for (int i = 0; i < nx; i++) mx = fmax(mx, hypot(wr[i], wi[i]));
+    for (int i = 0; i < nx; i++)
+        mx = fmax(mx, hypot(wr[i], wi[i]));
     pt->max_floquet = mx;
     pt->stable = mx < 1.0 + 1e-6;
     return 0;
+}
+
+static void problem_free(shoot_problem *p) {
+    free(p->s->stages);
+    free(p->sx), free(p->res_x), free(p->g), free(p->ipiv), free(p->floquet);
+}
+
+/* Workspace for an nx-state shooting problem, sized once (no DoF limit). */
+static int problem_alloc(shoot_problem *p) {
+    size_t nx = (size_t)p->s->nx, m = nx + 1;
+    p->s->stages = malloc(6 * nx * sizeof(double));
+    p->sx = malloc(nx * sizeof(double));
+    p->res_x = malloc(4 * nx * sizeof(double));
+    p->g = malloc((m + 2 * m * m) * sizeof(double));
+    p->ipiv = malloc(m * sizeof *p->ipiv);
+    p->floquet = malloc((nx * nx + 2 * nx) * sizeof(double));
+    if (p->g) {
+        p->jac = p->g + m;
+        p->lu = p->jac + m * m;
+    }
+    return p->s->stages && p->sx && p->res_x && p->g && p->ipiv && p->floquet ? 0 : -1;
+}
+
+/* First guess x0 (nx) at start_hz: the linearisation about the static point; returns the
+ * response's size (for the unknowns' scales) or -1 with err set. */
+static double first_guess(const shooter *s, const double *static_force, const double *force,
+                          double w0, double *x0, rths_error *err) {
+    const rths_assembly *a = s->a;
+    const rths_bilinear_leg *leg = s->leg;
+    int n = s->n;
+    double *qs = malloc((size_t)n * sizeof *qs), *klin = rths_mat_dup(a->stiffness, n, n);
+    double complex *x = malloc((size_t)n * sizeof *x);
+    double amp = -1;
+    if (!qs || !klin || !x)
+        rths_error_set(err, RTHS_EFAIL, "out of memory");
+    else if (!rths_bilinear_static(a, leg, static_force, qs, err)) {
+        double d = qs[leg->upper_dof] - (leg->lower_dof >= 0 ? qs[leg->lower_dof] : 0.0);
+        double extra = d < 0 ? s->extra_k : 0.0;
+        int lo = leg->lower_dof, up = leg->upper_dof;
+        RTHS_AT(klin, n, up, up) += extra;
+        if (lo >= 0) {
+            RTHS_AT(klin, n, lo, lo) += extra;
+            RTHS_AT(klin, n, lo, up) -= extra;
+            RTHS_AT(klin, n, up, lo) -= extra;
+        }
+        if (!rths_frf(n, a->mass, a->damping, klin, force, w0, x, err)) {
+            amp = 0;
+            for (int i = 0; i < n; i++) {
+                x0[i] = qs[i] + creal(x[i]);
+                x0[n + i] = -w0 * cimag(x[i]);
+                amp = fmax(amp, fmax(cabs(x[i]), fabs(qs[i])));
+            }
+        }
+    }
+    free(qs), free(klin), free(x);
+    return amp;
+}
+
+/* Pseudo-arclength continuation from the converged y (m unknowns) to end_hz; points stored in
+ * pts (cap of them), their count returned in *np. */
+static int trace(shoot_problem *p, const rths_shooting_options *opt, double *y, double *phi,
+                 rths_periodic_point *pts, int cap, int *np, rths_error *err) {
+    int nx = p->s->nx, m = p->m, rc = RTHS_OK;
+    size_t bytes = (size_t)m * sizeof(double);
+    double *ys = calloc((size_t)cap * (size_t)m, sizeof(double));
+    double *ynew = malloc(3 * bytes), *tangent = ynew ? ynew + m : NULL,
+           *pred = ynew ? ynew + 2 * m : NULL;
+    if (!ys || !ynew) {
+        free(ys), free(ynew);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    double dir = opt->end_hz >= opt->start_hz ? 1 : -1;
+    double ds = fmin(opt->max_step, 0.01);
+    *np = 0;
+    while (*np < cap) {
+        if (store_point(p, y, phi, &pts[*np]) != 0) break;
+        memcpy(ys + (size_t)*np * m, y, bytes);
+        (*np)++;
+        if (dir * (y[nx] * p->sw / (2 * M_PI) - opt->end_hz) >= 0) break;
+        int it = -1;
+        while (ds > 1e-7) {
+            if (*np == 1) { /* natural first step */
+                memcpy(ynew, y, bytes);
+                ynew[nx] += dir * ds;
+                it = shoot_newton(p, ynew, NULL, NULL, phi);
+            } else {
+                const double *y0 = ys + (size_t)(*np - 2) * m;
+                double len = 0;
+                for (int i = 0; i <= nx; i++) {
+                    tangent[i] = y[i] - y0[i];
+                    len += tangent[i] * tangent[i];
+                }
+                len = sqrt(len);
+                for (int i = 0; i <= nx; i++) {
+                    tangent[i] /= len;
+                    pred[i] = y[i] + ds * tangent[i];
+                    ynew[i] = pred[i];
+                }
+                it = shoot_newton(p, ynew, tangent, pred, phi);
+            }
+            if (it >= 0) break;
+            ds *= 0.5;
+        }
+        if (it < 0) {
+            rc = rths_error_set(err, RTHS_EFAIL, "shooting continuation stalled near %g Hz",
+                                y[nx] * p->sw / (2 * M_PI));
+            break;
+        }
+        memcpy(y, ynew, bytes);
+        if (it <= 3) ds = fmin(ds * 1.3, opt->max_step);
+    }
+    free(ys), free(ynew);
+    return rc;
 }
 
 int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
@@ -254,11 +392,18 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
     int n = a->n, nx = 2 * n, rc = RTHS_OK;
     *out = NULL;
     *n_out = 0;
-    if (n > 8) return rths_error_set(err, RTHS_EINPUT, "shooting supports up to 8 DoFs");
-    shooter s = {.n = n, .nx = nx, .a = a, .leg = leg, .steps = opt->steps_per_period,
+    shooter s = {.n = n,
+                 .nx = nx,
+                 .a = a,
+                 .leg = leg,
+                 .steps = opt->steps_per_period,
                  .extra_k = (leg->ratio - 1) * leg->stiffness_n_per_m};
     double *rhsm = rths_mat_new(n, 2 * n + 3);
     double *mm = rths_mat_dup(a->mass, n, n);
+    if (!rhsm || !mm) {
+        free(rhsm), free(mm);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
     size_t nn = (size_t)n * n;
     memcpy(rhsm, a->stiffness, nn * sizeof(double));
     memcpy(rhsm + nn, a->damping, nn * sizeof(double));
@@ -277,103 +422,41 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
     s.minv_fs = rhsm + 2 * nn;
     s.minv_f = rhsm + 2 * nn + n;
     s.minv_b = rhsm + 2 * nn + 2 * n;
-
-    /* first guess: linearisation about the static point */
-    double qs[8], klin[64], xlin[16];
-    double complex X[8];
-    if ((rc = rths_bilinear_static(a, leg, static_force, qs, err))) goto done;
-    memcpy(klin, a->stiffness, nn * sizeof(double));
-    {
-        double d = qs[leg->upper_dof] - (leg->lower_dof >= 0 ? qs[leg->lower_dof] : 0.0);
-        double extra = d < 0 ? s.extra_k : 0.0;
-        int lo = leg->lower_dof, up = leg->upper_dof;
-        RTHS_AT(klin, n, up, up) += extra;
-        if (lo >= 0) {
-            RTHS_AT(klin, n, lo, lo) += extra;
-            RTHS_AT(klin, n, lo, up) -= extra;
-            RTHS_AT(klin, n, up, lo) -= extra;
-        }
+    shoot_problem p = {
+        .s = &s, .m = nx + 1, .sw = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
+    int cap = opt->max_points, np = 0;
+    rths_periodic_point *pts = calloc((size_t)cap, sizeof *pts);
+    double *y = malloc((size_t)(nx + 1) * sizeof *y), *phi = rths_mat_new(nx, nx);
+    if (problem_alloc(&p) || !pts || !y || !phi) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
     }
     double w0 = 2 * M_PI * opt->start_hz;
-    if ((rc = rths_frf(n, a->mass, a->damping, klin, force, w0, X, err))) goto done;
-    double amp = 0;
-    for (int i = 0; i < n; i++) {
-        xlin[i] = qs[i] + creal(X[i]);
-        xlin[n + i] = -w0 * cimag(X[i]);
-        amp = fmax(amp, cabs(X[i]));
-        amp = fmax(amp, fabs(qs[i]));
+    double amp = first_guess(&s, static_force, force, w0, y, err);
+    if (amp < 0) {
+        rc = err ? err->code : RTHS_EFAIL;
+        goto done;
     }
-    shoot_problem p = {.s = &s, .m = nx + 1,
-                       .sw = 2 * M_PI * fmax(fabs(opt->end_hz - opt->start_hz), 1e-3)};
     for (int i = 0; i < n; i++) {
         p.sx[i] = amp;
         p.sx[n + i] = amp * w0;
     }
-    int cap = opt->max_points, np = 0;
-    rths_periodic_point *pts = calloc((size_t)cap, sizeof *pts);
-    double *ys = calloc((size_t)cap * 17, sizeof(double));
-    double phi[256];
-    if (!pts || !ys) {
-        free(pts), free(ys);
-        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-        goto done;
-    }
-    double y[17];
-    for (int i = 0; i < nx; i++) y[i] = xlin[i] / p.sx[i];
+    for (int i = 0; i < nx; i++)
+        y[i] /= p.sx[i];
     y[nx] = w0 / p.sw;
     if (shoot_newton(&p, y, NULL, NULL, phi) < 0) {
-        free(pts), free(ys);
         rc = rths_error_set(err, RTHS_EFAIL, "shooting did not converge at %g Hz", opt->start_hz);
         goto done;
     }
-    double dir = opt->end_hz >= opt->start_hz ? 1 : -1;
-    double ds = fmin(opt->max_step, 0.01);
-    while (np < cap) {
-        if (store_point(&p, y, phi, &pts[np]) != 0) break;
-        memcpy(ys + (size_t)np * 17, y, sizeof y);
-        np++;
-        if (dir * (y[nx] * p.sw / (2 * M_PI) - opt->end_hz) >= 0) break;
-        double ynew[17], tangent[17], pred[17];
-        int it = -1;
-        while (ds > 1e-7) {
-            if (np == 1) { /* natural first step */
-                memcpy(ynew, y, sizeof y);
-                ynew[nx] += dir * ds;
-                it = shoot_newton(&p, ynew, NULL, NULL, phi);
-            } else {
-                const double *y0 = ys + (size_t)(np - 2) * 17;
-                double len = 0;
-                for (int i = 0; i <= nx; i++) {
-                    tangent[i] = y[i] - y0[i];
-                    len += tangent[i] * tangent[i];
-                }
-                len = sqrt(len);
-                for (int i = 0; i <= nx; i++) {
-                    tangent[i] /= len;
-                    pred[i] = y[i] + ds * tangent[i];
-                    ynew[i] = pred[i];
-                }
-                it = shoot_newton(&p, ynew, tangent, pred, phi);
-            }
-            if (it >= 0) break;
-            ds *= 0.5;
-        }
-        if (it < 0) {
-            rc = rths_error_set(err, RTHS_EFAIL, "shooting continuation stalled near %g Hz",
-                                y[nx] * p.sw / (2 * M_PI));
-            break;
-        }
-        memcpy(y, ynew, sizeof y);
-        if (it <= 3) ds = fmin(ds * 1.3, opt->max_step);
-    }
-    free(ys);
+    rc = trace(&p, opt, y, phi, pts, cap, &np, err);
+done:
     if (rc) {
         rths_periodic_points_free(pts, np);
-        goto done;
+    } else {
+        *out = pts;
+        *n_out = np;
     }
-    *out = pts;
-    *n_out = np;
-done:
-    free(rhsm);
+    problem_free(&p);
+    free(y), free(phi), free(rhsm);
     return rc;
 }

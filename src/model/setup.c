@@ -3,12 +3,17 @@
  * key for each mistake before any work starts. */
 #include "rths/setup.h"
 
+#include "rths/mtx.h"
+
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #define K_STOREYS "structure.storeys"
 #define K_MATRICES "structure.matrices"
+/* Entries beyond this magnitude (kg, N s/m, N/m) are no structure, and K - w^2 M would overflow
+ * (a 1e308 kg storey gave NaN rows). */
+#define MAX_ENTRY 1e15
 
 static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_STOREYS ".mass_kg", K_STOREYS ".damping_n_s_per_m",
@@ -28,9 +33,10 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
         else if (count[k] < 1)
             rc = rths_config_error_at(cfg, keys[k], err, "needs at least one storey");
         for (int i = 0; i < count[k] && !rc; i++) {
-            if (must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0))
-                rc = rths_config_error_at(cfg, keys[k], err, "storey %d: must be %s (got %g)",
-                                          i + 1, must_be_positive[k] ? "> 0" : ">= 0", v[k][i]);
+            if ((must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0)) || !(v[k][i] <= MAX_ENTRY))
+                rc = rths_config_error_at(cfg, keys[k], err,
+                                          "storey %d: must be %s and <= %g (got %g)", i + 1,
+                                          must_be_positive[k] ? "> 0" : ">= 0", MAX_ENTRY, v[k][i]);
         }
     }
     if (!rc) rc = rths_assembly_from_chain(count[0], v[0], v[1], v[2], &s->assembly, err);
@@ -40,14 +46,87 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+/* Path of a file named in the config: relative names are taken from the config file's folder. */
+static char *config_relative_path(const rths_config *cfg, const char *name) {
+    const char *cfg_path = rths_config_path(cfg);
+    const char *slash = cfg_path ? strrchr(cfg_path, '/') : NULL;
+    size_t dir_len = (name[0] == '/' || !slash) ? 0 : (size_t)(slash - cfg_path) + 1;
+    char *out = malloc(dir_len + strlen(name) + 1);
+    if (!out) return NULL;
+    memcpy(out, cfg_path, dir_len);
+    strcpy(out + dir_len, name);
+    return out;
+}
+
+/* One matrix key: a list of rows, or a string naming a Matrix Market file. */
+static int read_matrix_key(rths_config *cfg, const char *key, double **m, int *rows, int *cols,
+                           int *from_file, rths_error *err) {
+    const char *name = NULL;
+    rths_error local;
+    *from_file = 0;
+    if (rths_config_get_string(cfg, key, 1, NULL, &name, &local) != RTHS_OK || !name)
+        return rths_config_get_matrix(cfg, key, 1, m, rows, cols, err);
+    char *path = config_relative_path(cfg, name);
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = rths_mtx_read(path, m, rows, cols, &local);
+    free(path);
+    *from_file = 1;
+    if (rc == RTHS_EINPUT) return rths_config_error_at(cfg, key, err, "%s", local.msg);
+    if (rc) *err = local;
+    return rc;
+}
+
+/* Physical sense of (M, C, K), checked before any work so nothing is written for a structure
+ * that cannot be analysed: finite entries of plausible size, symmetric, M and K positive definite
+ * (K singular means a rigid-body mode: no static position, an infinite response at 0 Hz), C
+ * positive semi-definite (a negative eigenvalue feeds energy in). */
+static int check_physical(rths_config *cfg, const char *const *keys, double *const *m, int n,
+                          rths_error *err) {
+    for (int k = 0; k < 3; k++) {
+        for (size_t e = 0; e < (size_t)n * (size_t)n; e++)
+            if (!(fabs(m[k][e]) <= MAX_ENTRY))
+                return rths_config_error_at(cfg, keys[k], err,
+                                            "entry (%zu, %zu) = %g is not a finite number of "
+                                            "magnitude <= %g",
+                                            e % (size_t)n + 1, e / (size_t)n + 1, m[k][e],
+                                            MAX_ENTRY);
+        if (!rths_mat_is_symmetric(m[k], n, 1e-12))
+            return rths_config_error_at(cfg, keys[k], err, "must be symmetric");
+    }
+    if (!rths_mat_is_spd(m[0], n))
+        return rths_config_error_at(cfg, keys[0], err,
+                                    "must be positive definite (a mass matrix with a zero or "
+                                    "negative mode has no dynamics)");
+    if (!rths_mat_is_spd(m[2], n))
+        return rths_config_error_at(cfg, keys[2], err,
+                                    "must be positive definite: a zero or negative stiffness mode "
+                                    "(rigid-body motion, an unsupported structure) has no static "
+                                    "position and an unbounded response at low frequency");
+    /* C >= 0: Cholesky of C + delta I, delta far above rounding and far below any real damping */
+    double cmax = rths_mat_max_abs(m[1], n, n);
+    if (cmax > 0) {
+        double *shifted = rths_mat_dup(m[1], n, n);
+        if (!shifted) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        for (int i = 0; i < n; i++)
+            RTHS_AT(shifted, n, i, i) += 1e-9 * cmax;
+        int psd = rths_mat_is_spd(shifted, n);
+        rths_mat_free(shifted);
+        if (!psd)
+            return rths_config_error_at(cfg, keys[1], err,
+                                        "must be positive semi-definite: a negative damping mode "
+                                        "feeds energy into the structure");
+    }
+    return RTHS_OK;
+}
+
 static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_MATRICES ".mass_kg", K_MATRICES ".damping_n_s_per_m",
                                         K_MATRICES ".stiffness_n_per_m"};
     double *m[3] = {NULL, NULL, NULL};
-    int rows[3] = {0, 0, 0}, cols[3] = {0, 0, 0};
+    int rows[3] = {0, 0, 0}, cols[3] = {0, 0, 0}, from_file = 0;
     int rc = RTHS_OK;
     for (int k = 0; k < 3 && !rc; k++) {
-        rc = rths_config_get_matrix(cfg, keys[k], 1, &m[k], &rows[k], &cols[k], err);
+        rc = read_matrix_key(cfg, keys[k], &m[k], &rows[k], &cols[k], &from_file, err);
         if (rc) break;
         if (rows[k] != cols[k] || rows[k] < 1)
             rc = rths_config_error_at(cfg, keys[k], err, "must be square (got %d x %d)", rows[k],
@@ -55,13 +134,8 @@ static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
         else if (rows[k] != rows[0])
             rc = rths_config_error_at(cfg, keys[k], err, "is %d x %d but %s is %d x %d", rows[k],
                                       cols[k], keys[0], rows[0], cols[0]);
-        else if (!rths_mat_is_symmetric(m[k], rows[k], 1e-12))
-            rc = rths_config_error_at(cfg, keys[k], err, "must be symmetric");
     }
-    if (!rc && !rths_mat_is_spd(m[0], rows[0]))
-        rc = rths_config_error_at(cfg, keys[0], err,
-                                  "must be positive definite (a mass matrix with a zero or "
-                                  "negative mode has no dynamics)");
+    if (!rc) rc = check_physical(cfg, keys, m, rows[0], err);
     if (!rc) rc = rths_assembly_from_matrices(rows[0], m[0], m[1], m[2], &s->assembly, err);
     for (int k = 0; k < 3; k++)
         free(m[k]);
@@ -81,6 +155,32 @@ static int assign_roles(rths_config *cfg, const char *key, const int *dofs, int 
                 cfg, key, err, "DoF %d is listed twice (each DoF has exactly one side)", dofs[i]);
         assigned[dofs[i] - 1] = 1;
         s->roles[dofs[i] - 1] = role;
+    }
+    return RTHS_OK;
+}
+
+/* Sides of the DoFs not listed. A chain: below the interface physical, above it numerical (for
+ * whichever list is absent). Matrices: every DoF neither physical nor interface is numerical when
+ * split.numerical is absent, every DoF neither numerical nor interface physical when only
+ * split.physical is. */
+static int default_sides(rths_setup *s, const int *iface, int n_iface, int n_phys, int n_num,
+                         int *assigned) {
+    int n = s->assembly.n, lowest = n, highest = -1;
+    for (int i = 0; i < n_iface; i++) {
+        if (iface[i] - 1 < lowest) lowest = iface[i] - 1;
+        if (iface[i] - 1 > highest) highest = iface[i] - 1;
+    }
+    for (int i = 0; i < n; i++) {
+        if (assigned[i]) continue;
+        if (!s->chain)
+            s->roles[i] = n_num == 0 ? RTHS_DOF_NUMERICAL : RTHS_DOF_PHYSICAL;
+        else if (i < lowest && n_phys == 0)
+            s->roles[i] = RTHS_DOF_PHYSICAL;
+        else if (i > highest && n_num == 0)
+            s->roles[i] = RTHS_DOF_NUMERICAL;
+        else
+            continue;
+        assigned[i] = 1;
     }
     return RTHS_OK;
 }
@@ -110,29 +210,8 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
         rc = assign_roles(cfg, "split.physical", phys, n_phys, RTHS_DOF_PHYSICAL, assigned, s, err);
     if (!rc)
         rc = assign_roles(cfg, "split.numerical", num, n_num, RTHS_DOF_NUMERICAL, assigned, s, err);
-    if (!rc && (n_phys == 0 || n_num == 0)) {
-        /* For a chain the natural split is: below the interface physical, above it numerical. */
-        if (!s->chain && n_phys + n_num + n_iface < n)
-            rc = rths_config_error_at(
-                cfg, "split", err,
-                "with structure.matrices, list the physical and numerical DoFs "
-                "(split.physical, split.numerical)");
-        int lowest = n, highest = -1;
-        for (int i = 0; i < n_iface; i++) {
-            if (iface[i] - 1 < lowest) lowest = iface[i] - 1;
-            if (iface[i] - 1 > highest) highest = iface[i] - 1;
-        }
-        for (int i = 0; i < n && !rc; i++) {
-            if (assigned[i]) continue;
-            if (i < lowest && n_phys == 0)
-                s->roles[i] = RTHS_DOF_PHYSICAL;
-            else if (i > highest && n_num == 0)
-                s->roles[i] = RTHS_DOF_NUMERICAL;
-            else
-                continue;
-            assigned[i] = 1;
-        }
-    }
+    if (!rc && (n_phys == 0 || n_num == 0))
+        rc = default_sides(s, iface, n_iface, n_phys, n_num, assigned);
     for (int i = 0; i < n && !rc; i++)
         if (!assigned[i])
             rc = rths_config_error_at(cfg, "split", err,
@@ -175,7 +254,7 @@ static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
     int n = s->assembly.n;
     int rc = rths_config_get_int(cfg, "forcing.dof", 1, 0, 1, n, &dof, err);
     if (!rc)
-        rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, INFINITY,
+        rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, 1e9,
                                     &s->forcing_amplitude_n, err);
     if (!rc && !(s->forcing_amplitude_n > 0))
         rc = rths_config_error_at(cfg, "forcing.amplitude_n", err, "must be > 0 (got %g)",

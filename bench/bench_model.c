@@ -1,0 +1,194 @@
+/* Two scaling benchmarks, printed as tables.
+ *
+ * model: the work of `rths model` (modal analysis, FRF preparation, the FRF at the 727
+ * frequencies of the example's grid for 4 written DoFs) on the seed building whose top leg is a
+ * rod of n - 3 elements (examples/rod_chain_1000 at n = 1000), against n; beside it the cost of
+ * the former dense complex solve per frequency (timed on a few frequencies, extrapolated).
+ *
+ * plant: the virtual rig on the seed (examples/four_storey.yaml, default rig with noise): the
+ * plant alone (read + advance per sample; without noise too, which shows what the five sensors'
+ * normal draws cost) and the whole virtual rig (controller step + plant,
+ * 200 forcing periods at 13.47 Hz), exact integrator against RK4 x 8, as samples per second and
+ * real-time factor at the seed's 10 kHz. */
+#include "rths/rig_virtual.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define GRID_POINTS 727
+
+/* The seed's storeys 1-3, then a rod of n - 3 elements (static stiffness and damping of the
+ * seed's top leg, 0.1074 kg consistent mass) carrying the 10.74 kg top storey. */
+static int rod_chain(int n, rths_assembly *a) {
+    rths_error err;
+    double *m = rths_mat_new(n, n), *c = rths_mat_new(n, n), *k = rths_mat_new(n, n);
+    const double sm[3] = {5.37, 5.37, 5.37}, sc[3] = {4.4062, 3.7979, 3.7421},
+                 sk[3] = {53048, 45724, 45052};
+    int el = n - 3;
+    double ke = 45052.0 * el, ce = 3.7421 * el, me = 0.1074 / el;
+    for (int i = 0; i < 3; i++) {
+        RTHS_AT(m, n, i, i) += sm[i];
+        RTHS_AT(c, n, i, i) += sc[i];
+        RTHS_AT(k, n, i, i) += sk[i];
+        if (i > 0) {
+            RTHS_AT(c, n, i - 1, i - 1) += sc[i];
+            RTHS_AT(k, n, i - 1, i - 1) += sk[i];
+            RTHS_AT(c, n, i, i - 1) -= sc[i], RTHS_AT(c, n, i - 1, i) -= sc[i];
+            RTHS_AT(k, n, i, i - 1) -= sk[i], RTHS_AT(k, n, i - 1, i) -= sk[i];
+        }
+    }
+    RTHS_AT(m, n, n - 1, n - 1) += 10.74;
+    for (int e = 0; e < el; e++) {
+        int lo = 2 + e, up = 3 + e;
+        double *mats[2] = {c, k}, vals[2] = {ce, ke};
+        for (int t = 0; t < 2; t++) {
+            RTHS_AT(mats[t], n, lo, lo) += vals[t], RTHS_AT(mats[t], n, up, up) += vals[t];
+            RTHS_AT(mats[t], n, lo, up) -= vals[t], RTHS_AT(mats[t], n, up, lo) -= vals[t];
+        }
+        RTHS_AT(m, n, lo, lo) += me / 3, RTHS_AT(m, n, up, up) += me / 3;
+        RTHS_AT(m, n, lo, up) += me / 6, RTHS_AT(m, n, up, lo) += me / 6;
+    }
+    int rc = rths_assembly_from_matrices(n, m, c, k, a, &err);
+    free(m), free(c), free(k);
+    return rc;
+}
+
+static void bench_model_size(int n) {
+    rths_assembly a;
+    if (rod_chain(n, &a)) return;
+    double *force = calloc((size_t)n, sizeof *force);
+    force[n - 1] = 1.0;
+    int dofs[4] = {0, 1, 2, n - 1};
+    double complex x[4];
+    rths_modes modes;
+    rths_frf_sweep *sw = NULL;
+    rths_error err;
+    double t0 = rths_monotonic_s();
+    if (rths_modal_analysis(&a, &modes, &err)) {
+        printf("%6d  modal analysis failed: %s\n", n, err.msg);
+        return;
+    }
+    double t1 = rths_monotonic_s();
+    if (rths_frf_sweep_create(&a, &modes, force, 4, dofs, &sw, &err)) return;
+    double t2 = rths_monotonic_s();
+    for (int j = 0; j < GRID_POINTS; j++)
+        rths_frf_sweep_eval(sw, 2 * M_PI * (0.5 + 34.5 * j / (GRID_POINTS - 1)), x, &err);
+    double t3 = rths_monotonic_s();
+    /* the former way: one dense complex solve per frequency */
+    double complex *full = malloc((size_t)n * sizeof *full);
+    int dense_runs = n >= 2000 ? 1 : 3;
+    for (int j = 0; j < dense_runs; j++)
+        rths_frf(n, a.mass, a.damping, a.stiffness, force, 2 * M_PI * (1.0 + j), full, &err);
+    double dense_each = (rths_monotonic_s() - t3) / dense_runs;
+    printf("%6d %10.4f %10.4f %10.4f %10.4f   %-16s %12.2f\n", n, t1 - t0, t2 - t1, t3 - t2,
+           t3 - t0, n > 8 ? rths_frf_method_name(rths_frf_sweep_method(sw)) : "",
+           dense_each * GRID_POINTS);
+    free(full), free(force);
+    rths_frf_sweep_destroy(sw);
+    rths_modes_free(&modes);
+    rths_assembly_free(&a);
+}
+
+void rths_bench_model(void) {
+    printf("rths model's work on the rod chain (seed storeys 1-3 + a rod of n - 3 elements), "
+           "wall seconds; FRF at %d frequencies, 4 DoFs written:\n",
+           GRID_POINTS);
+    printf("%6s %10s %10s %10s %10s   %-16s %12s\n", "n", "modes_s", "prepare_s", "frf_s",
+           "total_s", "frf method", "dense_frf_s");
+    const int sizes[4] = {50, 200, 1000, 4000};
+    for (int i = 0; i < 4; i++) {
+        bench_model_size(sizes[i]);
+        fflush(stdout);
+    }
+    printf("(dense_frf_s: the former dense complex solve at every frequency, extrapolated)\n");
+}
+
+static int load_seed(const char *const *ov, int n_ov, rths_config **cfg, rths_setup *s) {
+    const char *dir = getenv("RTHS_SOURCE_DIR");
+    char path[1024];
+    snprintf(path, sizeof path, "%s/examples/four_storey.yaml", dir ? dir : ".");
+    rths_error err;
+    if (rths_config_load(path, ov, n_ov, cfg, &err) || rths_setup_read(*cfg, s, &err)) {
+        fprintf(stderr, "bench plant: %s\n", err.msg);
+        return -1;
+    }
+    return 0;
+}
+
+/* Plant alone: samples per second of read + advance under a 13.47 Hz demand. */
+static double plant_rate(const rths_setup *s, int substeps, int noise) {
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    po.substeps_per_sample = substeps;
+    po.noise = noise;
+    rths_plant *p;
+    rths_error err;
+    if (rths_plant_create(s, &po, 1e4, &p, &err)) return 0;
+    const long n = 2000000;
+    double sink = 0, w = 2 * M_PI * 13.47e-4, t0 = rths_monotonic_s();
+    for (long i = 0; i < n; i++) {
+        rths_sensor_sample in;
+        rths_plant_read(p, &in);
+        sink += in.interface_force_n;
+        rths_plant_advance(p, 0.05 * cos(w * (double)i));
+    }
+    double rate = n / (rths_monotonic_s() - t0);
+    rths_plant_destroy(p);
+    return sink == 12345.678 ? 0 : rate;
+}
+
+/* The whole virtual rig: controller step + plant over 200 periods. */
+static double rig_rate(const char *integrator) {
+    char ov[64];
+    snprintf(ov, sizeof ov, "rig.plant_integrator=%s", integrator);
+    const char *ovs[1] = {ov};
+    rths_config *cfg;
+    rths_setup s;
+    rths_rig *rig;
+    rths_error err;
+    if (load_seed(ovs, 1, &cfg, &s)) return 0;
+    if (rths_virtual_rig_create(cfg, &s, 0, 0, &rig, &err)) {
+        fprintf(stderr, "bench plant: %s\n", err.msg);
+        return 0;
+    }
+    double a[1] = {1e-4}, b[1] = {0};
+    rths_rig_set_forcing(rig, 13.47, 1.0, &err);
+    rths_rig_set_target(rig, 1, a, b, &err);
+    rths_period *p = calloc(200, sizeof *p);
+    double t0 = rths_monotonic_s(), r0 = rths_rig_time_s(rig);
+    rths_rig_run_periods(rig, 200, p, &err);
+    double rate = (rths_rig_time_s(rig) - r0) * 1e4 / (rths_monotonic_s() - t0);
+    free(p);
+    rths_rig_destroy(rig);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    return rate;
+}
+
+void rths_bench_plant(void) {
+    rths_config *cfg;
+    rths_setup s;
+    if (load_seed(NULL, 0, &cfg, &s)) return;
+    printf("virtual rig on the seed at 10 kHz, default rig (noise on), one core:\n");
+    printf("%-34s %14s %18s\n", "", "samples_per_s", "real_time_factor");
+    const struct {
+        const char *name;
+        int substeps, noise;
+    } plants[3] = {{"plant alone, exact", 0, 1},
+                   {"plant alone, RK4 x 8", 8, 1},
+                   {"plant alone, exact, noise off", 0, 0}};
+    for (int i = 0; i < 3; i++) {
+        double r = plant_rate(&s, plants[i].substeps, plants[i].noise);
+        printf("%-34s %14.0f %18.1f\n", plants[i].name, r, r / 1e4);
+    }
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    const char *integrators[2] = {"exact", "rk4"};
+    for (int i = 0; i < 2; i++) {
+        double r = rig_rate(integrators[i]);
+        printf("controller step + plant, %-9s %14.0f %18.1f\n", integrators[i], r, r / 1e4);
+    }
+}

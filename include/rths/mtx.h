@@ -1,0 +1,22 @@
+/* rths mtx: Matrix Market (.mtx) input for the structure's matrices (model module).
+ *
+ * The format finite-element codes export (NIST Matrix Market exchange format): a header line
+ * "%%MatrixMarket matrix FORMAT FIELD SYMMETRY" with FORMAT coordinate or array, FIELD real,
+ * double or integer, SYMMETRY general or symmetric; '%' comment lines; a size line; then the
+ * entries (coordinate: "i j value", 1-based, duplicates summed as FE assembly does; array: values
+ * column by column, for symmetric only the lower triangle). No Debian package with a permissive
+ * licence reads it (SuiteSparse's reader sits in GPL-linked CHOLMOD), hence this small reader. */
+#ifndef RTHS_MTX_H
+#define RTHS_MTX_H
+
+#include "rths/core.h"
+
+/* Largest dimension accepted: a dense n x n double matrix of this size is 1.3 GB. */
+#define RTHS_MTX_MAX_DIM 12000
+
+/* Reads path into a dense column-major rows x cols matrix (*out malloc'ed; symmetric files
+ * expanded to both triangles). Every problem is RTHS_EINPUT with "PATH:LINE: what is wrong";
+ * a file that cannot be opened names the system's reason. */
+int rths_mtx_read(const char *path, double **out, int *rows, int *cols, rths_error *err);
+
+#endif

@@ -1,0 +1,228 @@
+/* Matrix Market reader (see mtx.h): strict about everything that could silently change a matrix
+ * (counts, indices, triangles, trailing text, non-finite values), each problem located by line. */
+#include "rths/mtx.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+
+typedef struct {
+    const char *path;
+    FILE *f;
+    char *line;
+    size_t cap;
+    long lineno;
+} mtx_reader;
+
+static int bad(const mtx_reader *r, rths_error *err, const char *what) {
+    return rths_error_set(err, RTHS_EINPUT, "%s:%ld: %s", r->path, r->lineno, what);
+}
+
+/* Next line that is neither a comment nor blank; 0 at end of file. */
+static int next_data_line(mtx_reader *r) {
+    for (;;) {
+        if (getline(&r->line, &r->cap, r->f) < 0) return 0;
+        r->lineno++;
+        const char *p = r->line + strspn(r->line, " \t\r\n");
+        if (*p && *p != '%') return 1;
+    }
+}
+
+/* Parses exactly `count` whitespace-separated fields of the current line as numbers. */
+static int parse_fields(mtx_reader *r, int count, double *v, rths_error *err) {
+    char *p = r->line, msg[160];
+    for (int k = 0; k < count; k++) {
+        char *end;
+        errno = 0;
+        v[k] = strtod(p, &end);
+        if (end == p) {
+            snprintf(msg, sizeof msg, "expected %d number%s on this line, found %d", count,
+                     count > 1 ? "s" : "", k);
+            return bad(r, err, msg);
+        }
+        if (!isfinite(v[k])) return bad(r, err, "value is not a finite number");
+        p = end;
+    }
+    p += strspn(p, " \t\r\n");
+    if (*p) {
+        int len = (int)strcspn(p, "\r\n");
+        while (len > 0 && (p[len - 1] == ' ' || p[len - 1] == '\t'))
+            len--;
+        snprintf(msg, sizeof msg, "unexpected text '%.*s' after %d number%s", len < 40 ? len : 40,
+                 p, count, count > 1 ? "s" : "");
+        return bad(r, err, msg);
+    }
+    return RTHS_OK;
+}
+
+static int parse_index(mtx_reader *r, double v, int dim, const char *what, int *out,
+                       rths_error *err) {
+    char msg[128];
+    if (v != floor(v) || v < 1 || v > dim) {
+        snprintf(msg, sizeof msg, "%s index %.17g is not a whole number in 1..%d", what, v, dim);
+        return bad(r, err, msg);
+    }
+    *out = (int)v - 1;
+    return RTHS_OK;
+}
+
+typedef struct {
+    int coordinate, symmetric;
+} mtx_kind;
+
+static int parse_header(mtx_reader *r, mtx_kind *kind, rths_error *err) {
+    if (getline(&r->line, &r->cap, r->f) < 0) {
+        r->lineno = 1;
+        return bad(r, err, "empty file: expected a '%%MatrixMarket matrix ...' header");
+    }
+    r->lineno = 1;
+    char banner[32] = "", object[32] = "", format[32] = "", field[32] = "", symmetry[32] = "";
+    int got = sscanf(r->line, "%31s %31s %31s %31s %31s", banner, object, format, field, symmetry);
+    if (got < 1 || strcasecmp(banner, "%%MatrixMarket"))
+        return bad(r, err,
+                   "not a Matrix Market file: the first line must start with "
+                   "'%%MatrixMarket'");
+    if (got < 5)
+        return bad(r, err,
+                   "incomplete header: expected '%%MatrixMarket matrix FORMAT FIELD "
+                   "SYMMETRY'");
+    if (strcasecmp(object, "matrix")) return bad(r, err, "object must be 'matrix'");
+    if (!strcasecmp(format, "coordinate"))
+        kind->coordinate = 1;
+    else if (!strcasecmp(format, "array"))
+        kind->coordinate = 0;
+    else
+        return bad(r, err, "format must be 'coordinate' or 'array'");
+    if (strcasecmp(field, "real") && strcasecmp(field, "double") && strcasecmp(field, "integer"))
+        return bad(r, err,
+                   "field must be 'real' (or 'integer'): a structural matrix has real "
+                   "entries (complex and pattern files are not accepted)");
+    if (!strcasecmp(symmetry, "general"))
+        kind->symmetric = 0;
+    else if (!strcasecmp(symmetry, "symmetric"))
+        kind->symmetric = 1;
+    else
+        return bad(r, err, "symmetry must be 'general' or 'symmetric'");
+    return RTHS_OK;
+}
+
+static int read_size(mtx_reader *r, const mtx_kind *kind, int *rows, int *cols, long *entries,
+                     rths_error *err) {
+    if (!next_data_line(r)) return bad(r, err, "missing size line");
+    double v[3];
+    int rc = parse_fields(r, kind->coordinate ? 3 : 2, v, err);
+    if (rc) return rc;
+    char msg[160];
+    for (int k = 0; k < 2; k++)
+        if (v[k] != floor(v[k]) || v[k] < 1 || v[k] > RTHS_MTX_MAX_DIM) {
+            snprintf(msg, sizeof msg, "size %.17g is not a whole number in 1..%d", v[k],
+                     RTHS_MTX_MAX_DIM);
+            return bad(r, err, msg);
+        }
+    *rows = (int)v[0];
+    *cols = (int)v[1];
+    if (kind->symmetric && *rows != *cols) return bad(r, err, "a symmetric matrix must be square");
+    long full = (long)*rows * *cols;
+    if (kind->coordinate) {
+        if (v[2] != floor(v[2]) || v[2] < 0 || v[2] > 4.0 * (double)full) {
+            snprintf(msg, sizeof msg, "entry count %.17g is not a whole number in 0..%ld", v[2],
+                     4 * full);
+            return bad(r, err, msg);
+        }
+        *entries = (long)v[2];
+    } else {
+        *entries = kind->symmetric ? (long)*rows * (*rows + 1) / 2 : full;
+    }
+    return RTHS_OK;
+}
+
+/* Coordinate entries: summed (FE assembly writes element contributions separately); a symmetric
+ * file may use either triangle, not both. */
+static int read_coordinate(mtx_reader *r, const mtx_kind *kind, int rows, int cols, long entries,
+                           double *m, rths_error *err) {
+    int lower = 0, upper = 0;
+    for (long e = 0; e < entries; e++) {
+        if (!next_data_line(r)) {
+            char msg[128];
+            snprintf(msg, sizeof msg,
+                     "file ends after %ld of the %ld entries the size line "
+                     "announces",
+                     e, entries);
+            return bad(r, err, msg);
+        }
+        double v[3];
+        int i, j, rc = parse_fields(r, 3, v, err);
+        if (!rc) rc = parse_index(r, v[0], rows, "row", &i, err);
+        if (!rc) rc = parse_index(r, v[1], cols, "column", &j, err);
+        if (rc) return rc;
+        lower |= i > j;
+        upper |= i < j;
+        if (kind->symmetric && lower && upper)
+            return bad(r, err,
+                       "a symmetric file stores one triangle only, this entry is in the "
+                       "other one");
+        RTHS_AT(m, rows, i, j) += v[2];
+        if (kind->symmetric && i != j) RTHS_AT(m, rows, j, i) += v[2];
+    }
+    return RTHS_OK;
+}
+
+/* Array entries: column by column; symmetric: the lower triangle only. */
+static int read_array(mtx_reader *r, const mtx_kind *kind, int rows, long entries, double *m,
+                      rths_error *err) {
+    int i = 0, j = 0;
+    for (long e = 0; e < entries; e++) {
+        if (!next_data_line(r)) {
+            char msg[128];
+            snprintf(msg, sizeof msg,
+                     "file ends after %ld of the %ld values the size line "
+                     "announces",
+                     e, entries);
+            return bad(r, err, msg);
+        }
+        double v;
+        int rc = parse_fields(r, 1, &v, err);
+        if (rc) return rc;
+        RTHS_AT(m, rows, i, j) = v;
+        if (kind->symmetric) RTHS_AT(m, rows, j, i) = v;
+        if (++i == rows) {
+            j++;
+            i = kind->symmetric ? j : 0;
+        }
+    }
+    return RTHS_OK;
+}
+
+int rths_mtx_read(const char *path, double **out, int *rows, int *cols, rths_error *err) {
+    *out = NULL;
+    *rows = *cols = 0;
+    mtx_reader r = {.path = path};
+    r.f = fopen(path, "r");
+    if (!r.f) return rths_error_set(err, RTHS_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    mtx_kind kind = {0};
+    long entries = 0;
+    double *m = NULL;
+    int rc = parse_header(&r, &kind, err);
+    if (!rc) rc = read_size(&r, &kind, rows, cols, &entries, err);
+    if (!rc) {
+        m = rths_mat_new(*rows, *cols);
+        if (!m)
+            rc = rths_error_set(err, RTHS_EFAIL, "%s: out of memory (%d x %d)", path, *rows, *cols);
+    }
+    if (!rc)
+        rc = kind.coordinate ? read_coordinate(&r, &kind, *rows, *cols, entries, m, err)
+                             : read_array(&r, &kind, *rows, entries, m, err);
+    if (!rc && next_data_line(&r)) rc = bad(&r, err, "more entries than the size line announces");
+    free(r.line);
+    fclose(r.f);
+    if (rc) {
+        rths_mat_free(m);
+        *rows = *cols = 0;
+        return rc;
+    }
+    *out = m;
+    return RTHS_OK;
+}
