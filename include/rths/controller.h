@@ -1,15 +1,16 @@
-/* rths controller: the per-sample real-time step of the hybrid test (SPEC §1, §3, §8).
+/* rths controller: the per-sample real-time step of the hybrid test (docs/method.md, "The seed
+ * structure", "Errata of the seed paper" and "Numerical substructure integration").
  *
  * Every sample: the numerical substructure is advanced one step (chosen scheme) driven by
  *   F_num = F_comp - F_LC + F_ctrl  on the numerical interface DoF, plus the forcing
  *   Phi cos(theta) on its DoF when that DoF is numerical,
- * with inertial compensation F_comp = p m_int x''_measured (SPEC erratum 2: the rig's interface
- * storey carries its full mass) and grounding control F_ctrl = kp^ (x - xi) + kd^ (x' - xi')
- * (erratum 8); the actuator demand is the PD law U = kp (x* - x) + kd (x*' - x') towards the
- * periodic target x*(theta) (or, in feedback mode, towards the numerical interface itself: the
- * conventional real-time hybrid test); running Fourier sums of the physical and numerical
- * interface displacement and the load-cell force are closed at every whole period and published
- * to a lock-free single-producer/single-consumer ring.
+ * with inertial compensation F_comp = p m_int x''_measured (docs/method.md, "Errata of the seed
+ * paper", erratum 2: the rig's interface storey carries its full mass) and grounding control F_ctrl
+ * = kp^ (x - xi) + kd^ (x' - xi') (erratum 8); the actuator demand is the PD law U = kp (x* - x) +
+ * kd (x*' - x') towards the periodic target x*(theta) (or, in feedback mode, towards the numerical
+ * interface itself: the conventional real-time hybrid test); running Fourier sums of the physical
+ * and numerical interface displacement and the load-cell force are closed at every whole period and
+ * published to a lock-free single-producer/single-consumer ring.
  *
  * rths_controller_step never allocates, locks, prints or calls LAPACK: everything is built by
  * rths_controller_create. The command functions (set_forcing, set_target, arm, ...) must be
@@ -21,36 +22,7 @@
 #include "rths/config.h"
 #include "rths/plant.h"
 #include "rths/setup.h"
-
-#define RTHS_MAX_HARMONICS 5
-
-/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
- * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
- * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
- * numerical sides, target and forcing are all referred to the same phase. */
-typedef struct rths_fourier {
-    double a[RTHS_MAX_HARMONICS + 1];
-    double b[RTHS_MAX_HARMONICS + 1];
-} rths_fourier;
-
-typedef struct rths_period {
-    double frequency_hz; /* forcing frequency during this period */
-    double end_time_s;   /* rig time at the end of the period */
-    int samples;         /* controller samples in this period (sets the coefficients' noise) */
-    rths_fourier phys;   /* physical interface displacement, m */
-    rths_fourier num;    /* numerical interface displacement, m */
-    rths_fourier force;  /* measured interface force (load cell), N */
-} rths_period;
-
-typedef enum {
-    RTHS_RIG_OK = 0,
-    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
-    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
-    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
-    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
-    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
-    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
-} rths_rig_fault;
+#include "rths/signals.h"
 
 /* What the step computed this sample (for traces). */
 typedef struct rths_controller_output {
