@@ -583,14 +583,12 @@ static rths_period run_to_steady(rths_rig *rig, int max_periods, double tol) {
     return cur;
 }
 
-static void test_remote_matches_in_process_virtual_rig(void **state) {
-    (void)state;
-    /* The seed structure with heavier leg damping so the hybrid transient dies out within a few
-     * seconds of wall-clock time (the seed's 0.1 % modes ring for a minute); noise off. */
-    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]"};
+/* The seed structure with heavier leg damping so the hybrid transient dies out within a few
+ * seconds of wall-clock time (the seed's 0.1 % modes ring for a minute); noise off; plus sets. */
+static void remote_matches_in_process(const char *const *sets, int n_sets) {
     const double f = 8.0, amp = 1.0, a[1] = {1.2e-4}, b[1] = {-0.4e-4}, settle_tol = 1e-10;
 
-    rths_config *cfg = seed_config(sets, 1);
+    rths_config *cfg = seed_config(sets, n_sets);
     rths_setup setup;
     rths_error err;
     assert_int_equal(rths_setup_read(cfg, &setup, &err), RTHS_OK);
@@ -602,7 +600,7 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
     assert_int_equal(rths_rig_set_target(local, 1, a, b, &err), RTHS_OK);
     rths_period want = run_to_steady(local, 2000, settle_tol);
 
-    rths_server *s = start_server_with(0, 30.0, sets, 1);
+    rths_server *s = start_server_with(0, 30.0, sets, n_sets);
     rths_rig *remote = remote_rig(rths_server_port(s));
     assert_close(rths_rig_noise_level_m(remote), 0.0, 0.0);
     assert_int_equal(rths_rig_set_forcing(remote, f, amp, &err), RTHS_OK);
@@ -618,9 +616,9 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
             worst,
             fmax(fmax(fabs(got.phys.a[k] - want.phys.a[k]), fabs(got.phys.b[k] - want.phys.b[k])),
                  fmax(fabs(got.num.a[k] - want.num.a[k]), fabs(got.num.b[k] - want.num.b[k]))));
-    print_message("remote vs in-process: phys a1 %.9e vs %.9e m, largest difference %.3g m at "
-                  "controller time %.2f s\n",
-                  got.phys.a[1], want.phys.a[1], worst, got.end_time_s);
+    print_message("remote vs in-process (%s): phys a1 %.9e vs %.9e m, largest difference %.3g m "
+                  "at controller time %.2f s\n",
+                  sets[n_sets - 1], got.phys.a[1], want.phys.a[1], worst, got.end_time_s);
     assert_close(got.frequency_hz, f, 1e-12);
     assert_int_equal(got.samples, want.samples);
     for (int k = 0; k <= 2; k++) {
@@ -642,6 +640,22 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
     rths_rig_destroy(local);
     rths_setup_free(&setup);
     rths_config_free(cfg);
+}
+
+static void test_remote_matches_in_process_virtual_rig(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]"};
+    remote_matches_in_process(sets, 1);
+}
+
+/* Forcing on a physical storey (storey 2): the controller process's per-sample loop hands the
+ * forcing's phase to the plant exactly as the in-process virtual rig does, so it accepts the
+ * split and reaches the same steady state (the agreement asked, 1e-9 m on a 1e-4 m response, is
+ * tighter than the 1e-4 relative the issue asks). */
+static void test_remote_forcing_on_physical_storey(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]", "forcing.dof=2"};
+    remote_matches_in_process(sets, 2);
 }
 
 typedef struct {
@@ -728,6 +742,7 @@ int main(void) {
         cmocka_unit_test(test_remote_rig_unreachable),
         cmocka_unit_test(test_limit_trip_and_restart_reconnect),
         cmocka_unit_test(test_remote_matches_in_process_virtual_rig),
+        cmocka_unit_test(test_remote_forcing_on_physical_storey),
         cmocka_unit_test(test_remote_continuation_matches_in_process),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -96,4 +96,26 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
 int rths_controller_pop_period(rths_controller *c, rths_period *out);
 long rths_controller_dropped_periods(const rths_controller *c);
 
+/* The per-sample loop: the one place where the step and the rig's plant meet, shared by the
+ * in-process virtual rig (rig_virtual.c) and the controller process (server_engine.c). Every
+ * sample: read the sensors, step the controller, hand the forcing's phase to the plant (forcing
+ * on an internal physical DoF is applied there, in continuous time), advance the plant one sample
+ * with the demand held. A DAQ backend would replace the plant calls and nothing else.
+ *
+ * Arming rules, the same for both users: the loop starts disarmed; a latched fault disarms it
+ * (the step ramps the demand to zero); after rths_controller_reset_fault, excitation needs a new
+ * rths_sample_loop_arm. */
+typedef struct rths_sample_loop rths_sample_loop;
+
+int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
+                            const rths_plant_options *popt, rths_sample_loop **out,
+                            rths_error *err);
+void rths_sample_loop_destroy(rths_sample_loop *loop);
+/* One sample; returns the demand (V). out may be NULL. Never allocates, blocks or prints. */
+double rths_sample_loop_run(rths_sample_loop *loop, rths_controller_output *out);
+/* Arms; RTHS_EFAIL (nothing changed) while a fault is latched. */
+int rths_sample_loop_arm(rths_sample_loop *loop);
+rths_controller *rths_sample_loop_controller(rths_sample_loop *loop);
+rths_plant *rths_sample_loop_plant(rths_sample_loop *loop);
+
 #endif

@@ -8,6 +8,7 @@
 #include "rths/server.h"
 
 #include "controller/server_engine.h"
+#include "controller/spsc.h"
 #include "rths/protocol.h"
 
 #include <errno.h>
@@ -35,49 +36,14 @@
 #endif
 #endif
 
-#define CMD_RING 64      /* commands in flight; the network waits for each, so few */
-#define TRACE_RING 16384 /* trace samples between network-thread wake-ups */
-#define LAT_BINS 50000   /* lateness histogram: 1 us bins up to 50 ms, then overflow */
-#define STEP_BINS 10000  /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
+#define CMD_RING 64           /* commands in flight; the network waits for each, so few */
+#define MAX_CMDS_PER_SAMPLE 4 /* commands the loop applies per sample, at most */
+#define TRACE_RING 16384      /* trace samples between network-thread wake-ups */
+#define LAT_BINS 50000        /* lateness histogram: 1 us bins up to 50 ms, then overflow */
+#define STEP_BINS 10000       /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
 #define RX_CAP 8192
 #define TX_CAP (256 * 1024)
 #define TX_RESERVE (32 * 1024) /* room kept for replies: stream frames never take it */
-
-/* ---- single-producer single-consumer ring of fixed-size items ---- */
-
-typedef struct spsc {
-    _Atomic size_t head; /* written by the producer */
-    _Atomic size_t tail; /* written by the consumer */
-    size_t mask, item;
-    unsigned char *buf;
-} spsc;
-
-static int spsc_init(spsc *q, size_t count_pow2, size_t item) {
-    atomic_init(&q->head, 0);
-    atomic_init(&q->tail, 0);
-    q->mask = count_pow2 - 1;
-    q->item = item;
-    q->buf = calloc(count_pow2, item);
-    return q->buf != NULL;
-}
-
-static int spsc_push(spsc *q, const void *item) {
-    size_t h = atomic_load_explicit(&q->head, memory_order_relaxed);
-    size_t t = atomic_load_explicit(&q->tail, memory_order_acquire);
-    if (h - t > q->mask) return 0;
-    memcpy(q->buf + (h & q->mask) * q->item, item, q->item);
-    atomic_store_explicit(&q->head, h + 1, memory_order_release);
-    return 1;
-}
-
-static int spsc_pop(spsc *q, void *item) {
-    size_t t = atomic_load_explicit(&q->tail, memory_order_relaxed);
-    size_t h = atomic_load_explicit(&q->head, memory_order_acquire);
-    if (t == h) return 0;
-    memcpy(item, q->buf + (t & q->mask) * q->item, q->item);
-    atomic_store_explicit(&q->tail, t + 1, memory_order_release);
-    return 1;
-}
 
 /* ---- state ---- */
 
@@ -118,7 +84,8 @@ struct rths_server {
     atomic_int stop;
     atomic_int loop_ready;
 
-    spsc cmds, traces;
+    rths_spsc cmds, traces;
+    void *cmd_storage, *trace_storage;
     uint32_t next_cmd_id; /* network thread */
     _Atomic uint32_t applied_id;
     atomic_int applied_result;
@@ -287,8 +254,9 @@ static void *loop_main(void *arg) {
             shutdown_left = (int64_t)(0.5e9 / (double)period) + 1;
         }
         if (shutdown_left < 0) {
+            /* a bounded number per sample: a flood of commands cannot stretch one sample */
             loop_cmd c;
-            while (spsc_pop(&s->cmds, &c))
+            for (int k = 0; k < MAX_CMDS_PER_SAMPLE && rths_spsc_pop(&s->cmds, &c); k++)
                 apply_cmd(s, &c);
             if (rths_engine_armed(s->engine) &&
                 now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
@@ -312,7 +280,7 @@ static void *loop_main(void *arg) {
             uint32_t d = atomic_load_explicit(&s->trace_decimation, memory_order_relaxed);
             if (++decim_count >= d) {
                 decim_count = 0;
-                spsc_push(&s->traces, &sig); /* full: the sample is lost, never waited for */
+                rths_spsc_push(&s->traces, &sig); /* full: the sample is lost, never waited for */
             }
         } else {
             decim_count = 0;
@@ -372,7 +340,7 @@ static void drop_client(rths_server *s, const char *why) {
     if (atomic_load(&s->armed)) {
         /* Loss of the controlling connection disarms: excitation and target ramp to zero. */
         loop_cmd cmd = {.id = ++s->next_cmd_id, .type = CMD_DISARM, .reason = RTHS_DISARM_LINK};
-        spsc_push(&s->cmds, &cmd);
+        rths_spsc_push(&s->cmds, &cmd);
     }
 }
 
@@ -397,7 +365,7 @@ static int flush_tx(rths_server *s) {
 static int run_cmd(rths_server *s, loop_cmd *cmd, double *applied_time) {
     cmd->id = ++s->next_cmd_id;
     int64_t give_up = mono_ns() + 2000000000;
-    while (!spsc_push(&s->cmds, cmd)) {
+    while (!rths_spsc_push(&s->cmds, cmd)) {
         if (mono_ns() > give_up) return RTHS_PROTO_ESTATE;
         struct timespec ts = {0, 50000};
         nanosleep(&ts, NULL);
@@ -573,7 +541,7 @@ static void handle(rths_server *s, const rths_msg *m) {
         atomic_store(&s->trace_on, 0);
         {
             rths_proto_trace_sample junk;
-            while (spsc_pop(&s->traces, &junk)) {
+            while (rths_spsc_pop(&s->traces, &junk)) {
             }
         }
         c->batch_n = 0;
@@ -688,7 +656,7 @@ static void pump_streams(rths_server *s) {
         }
     }
     rths_proto_trace_sample ts;
-    while (spsc_pop(&s->traces, &ts)) {
+    while (rths_spsc_pop(&s->traces, &ts)) {
         if (c->fd < 0 || !c->sub_traces) continue;
         c->batch[c->batch_n++] = ts;
         if (c->batch_n == RTHS_PROTO_MAX_TRACE_BATCH) {
@@ -835,11 +803,13 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
     s->lat_hist = calloc(LAT_BINS + 1, sizeof *s->lat_hist);
     s->step_hist = calloc(STEP_BINS + 1, sizeof *s->step_hist);
     if (!s->c.tx || !s->lat_hist || !s->step_hist ||
-        !spsc_init(&s->cmds, CMD_RING, sizeof(loop_cmd)) ||
-        !spsc_init(&s->traces, TRACE_RING, sizeof(rths_proto_trace_sample))) {
+        !(s->cmd_storage = calloc(CMD_RING, sizeof(loop_cmd))) ||
+        !(s->trace_storage = calloc(TRACE_RING, sizeof(rths_proto_trace_sample)))) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
+    rths_spsc_init(&s->cmds, s->cmd_storage, CMD_RING, sizeof(loop_cmd));
+    rths_spsc_init(&s->traces, s->trace_storage, TRACE_RING, sizeof(rths_proto_trace_sample));
     if (s->period_ns < 1000) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EINPUT, "sample period %g s is below 1 us",
@@ -937,8 +907,8 @@ void rths_server_destroy(rths_server *s) {
     free(s->c.tx);
     free(s->lat_hist);
     free(s->step_hist);
-    free(s->cmds.buf);
-    free(s->traces.buf);
+    free(s->cmd_storage);
+    free(s->trace_storage);
     free(s);
 }
 

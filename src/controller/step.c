@@ -2,6 +2,8 @@
  * locks, prints or calls LAPACK; tests/test_controller.c checks it. */
 #include "rths/controller.h"
 
+#include "controller/spsc.h"
+
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -44,8 +46,8 @@ struct rths_controller {
     double y_prev[3], theta_prev;
     int period_samples, at_boundary;
     /* published periods: single producer (step), single consumer (pop) */
-    rths_period ring[RING_CAPACITY];
-    atomic_size_t head, tail;
+    rths_period ring_storage[RING_CAPACITY];
+    rths_spsc ring;
     atomic_long dropped;
 };
 
@@ -129,8 +131,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->velocity_alpha =
         opt->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * opt->velocity_cutoff_hz * c->h) : 0.0;
     c->harmonics = 1;
-    atomic_init(&c->head, 0);
-    atomic_init(&c->tail, 0);
+    rths_spsc_init(&c->ring, c->ring_storage, RING_CAPACITY, sizeof(rths_period));
     atomic_init(&c->dropped, 0);
     *out = c;
     return RTHS_OK;
@@ -224,24 +225,19 @@ static void accumulate(sums *s, double dtheta, double c0, double s0, double y0, 
 }
 
 static void publish(rths_controller *c, double end_time) {
-    size_t head = atomic_load_explicit(&c->head, memory_order_relaxed);
-    size_t tail = atomic_load_explicit(&c->tail, memory_order_acquire);
-    if (head - tail >= RING_CAPACITY) {
-        atomic_fetch_add(&c->dropped, 1);
-    } else {
-        rths_period *p = &c->ring[head % RING_CAPACITY];
-        p->frequency_hz = c->omega / (2 * M_PI);
-        p->end_time_s = end_time;
-        p->samples = c->period_samples;
-        memcpy(p->phys.a, c->acc_phys.a, sizeof p->phys.a);
-        memcpy(p->phys.b, c->acc_phys.b, sizeof p->phys.b);
-        memcpy(p->num.a, c->acc_num.a, sizeof p->num.a);
-        memcpy(p->num.b, c->acc_num.b, sizeof p->num.b);
-        memcpy(p->force.a, c->acc_force.a, sizeof p->force.a);
-        memcpy(p->force.b, c->acc_force.b, sizeof p->force.b);
-        p->phys.b[0] = p->num.b[0] = p->force.b[0] = 0;
-        atomic_store_explicit(&c->head, head + 1, memory_order_release);
-    }
+    rths_period p;
+    memset(&p, 0, sizeof p); /* padding too: records compare bytewise (tests, journals) */
+    p.frequency_hz = c->omega / (2 * M_PI);
+    p.end_time_s = end_time;
+    p.samples = c->period_samples;
+    memcpy(p.phys.a, c->acc_phys.a, sizeof p.phys.a);
+    memcpy(p.phys.b, c->acc_phys.b, sizeof p.phys.b);
+    memcpy(p.num.a, c->acc_num.a, sizeof p.num.a);
+    memcpy(p.num.b, c->acc_num.b, sizeof p.num.b);
+    memcpy(p.force.a, c->acc_force.a, sizeof p.force.a);
+    memcpy(p.force.b, c->acc_force.b, sizeof p.force.b);
+    p.phys.b[0] = p.num.b[0] = p.force.b[0] = 0;
+    if (!rths_spsc_push(&c->ring, &p)) atomic_fetch_add(&c->dropped, 1);
     memset(&c->acc_phys, 0, sizeof c->acc_phys);
     memset(&c->acc_num, 0, sizeof c->acc_num);
     memset(&c->acc_force, 0, sizeof c->acc_force);
@@ -249,12 +245,7 @@ static void publish(rths_controller *c, double end_time) {
 }
 
 int rths_controller_pop_period(rths_controller *c, rths_period *out) {
-    size_t tail = atomic_load_explicit(&c->tail, memory_order_relaxed);
-    size_t head = atomic_load_explicit(&c->head, memory_order_acquire);
-    if (tail == head) return 0;
-    *out = c->ring[tail % RING_CAPACITY];
-    atomic_store_explicit(&c->tail, tail + 1, memory_order_release);
-    return 1;
+    return rths_spsc_pop(&c->ring, out);
 }
 
 static void latch(rths_controller *c, rths_rig_fault f) {

@@ -6,20 +6,13 @@
 #include <stdlib.h>
 
 typedef struct {
-    rths_controller *ctrl;
-    rths_plant *plant;
+    rths_sample_loop *loop; /* the per-sample loop, shared with the controller process */
+    rths_controller *ctrl;  /* the loop's */
     double sample_rate_hz;
 } virtual_rig;
 
-/* One controller sample: sensors in, step, demand out, plant advances. */
 static void sample(virtual_rig *v, rths_controller_output *out) {
-    rths_sensor_sample s;
-    rths_plant_read(v->plant, &s);
-    double demand = rths_controller_step(v->ctrl, &s, out);
-    double amplitude, theta, omega;
-    rths_controller_forcing(v->ctrl, &amplitude, &theta, &omega);
-    rths_plant_set_forcing(v->plant, amplitude, theta, omega);
-    rths_plant_advance(v->plant, demand);
+    rths_sample_loop_run(v->loop, out);
 }
 
 static int fault_error(virtual_rig *v, rths_error *err) {
@@ -106,16 +99,14 @@ static int v_reset_fault(void *self, rths_error *err) {
     (void)err;
     virtual_rig *v = self;
     rths_controller_reset_fault(v->ctrl);
-    rths_controller_arm(v->ctrl, 1);
-    return RTHS_OK;
+    return rths_sample_loop_arm(v->loop);
 }
 static double v_noise(void *self) {
-    return rths_plant_noise_level_m(((virtual_rig *)self)->plant);
+    return rths_plant_noise_level_m(rths_sample_loop_plant(((virtual_rig *)self)->loop));
 }
 static void v_destroy(void *self) {
     virtual_rig *v = self;
-    rths_controller_destroy(v->ctrl);
-    rths_plant_destroy(v->plant);
+    rths_sample_loop_destroy(v->loop);
     free(v);
 }
 
@@ -137,11 +128,8 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     virtual_rig *v = calloc(1, sizeof *v);
     if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     v->sample_rate_hz = copt->sample_rate_hz;
-    /* forcing on a physical DoF: the plant applies it, in continuous time */
-    rths_controller_options co = *copt;
-    co.plant_applies_forcing = 1;
-    int rc = rths_controller_create(setup, &co, &v->ctrl, err);
-    if (!rc) rc = rths_plant_create(setup, popt, copt->sample_rate_hz, &v->plant, err);
+    int rc = rths_sample_loop_create(setup, copt, popt, &v->loop, err);
+    if (!rc) v->ctrl = rths_sample_loop_controller(v->loop);
     char description[200];
     snprintf(description, sizeof description,
              "virtual rig: %s integrator, %g Hz, shaker delay %g s, lag %g Hz, noise %s",
@@ -150,13 +138,11 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     if (!rc && !(*out = rths_rig_create(&virtual_ops, v, description)))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (rc) {
-        rths_controller_destroy(v->ctrl);
-        rths_plant_destroy(v->plant);
+        rths_sample_loop_destroy(v->loop);
         free(v);
         return rc;
     }
-    rths_controller_arm(v->ctrl, 1);
-    return RTHS_OK;
+    return rths_sample_loop_arm(v->loop);
 }
 
 int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_seed,
@@ -179,5 +165,5 @@ rths_controller *rths_virtual_rig_controller(rths_rig *rig) {
 
 rths_plant *rths_virtual_rig_plant(rths_rig *rig) {
     virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
-    return v ? v->plant : NULL;
+    return v ? rths_sample_loop_plant(v->loop) : NULL;
 }
