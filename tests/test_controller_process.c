@@ -276,6 +276,8 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ETYPE);
     assert_int_equal(reply.u.error.request_type, 0x42);
+    /* the message names the problem once ("unknown message type 0x42", not "unknown unknown") */
+    assert_string_equal(reply.u.error.message, "unknown message type 0x42");
     /* A valid reply-type frame sent as a request: ERROR 6 too. */
     rths_msg_init(&m, RTHS_MSG_ACK, 0);
     m.u.ack.acked_type = RTHS_MSG_ARM;
@@ -289,6 +291,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     raw_reply(&r, 6, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_EPAYLOAD);
+    assert_string_equal(reply.u.error.message, "malformed payload for ARM (type 0x02)");
     raw_request(&r, RTHS_MSG_GET_STATUS, &reply); /* still in step with the stream */
     assert_int_equal(reply.type, RTHS_MSG_STATUS);
     assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);

@@ -591,8 +591,11 @@ static void read_client(rths_server *s) {
         atomic_store_explicit(&s->last_rx_ns, mono_ns(), memory_order_relaxed);
         if (st != RTHS_PROTO_OK) {
             char why[160];
-            snprintf(why, sizeof why, "%s %s (type 0x%02x)", rths_msg_type_name(m.type),
-                     rths_proto_status_name(st), m.type);
+            if (st == RTHS_PROTO_ETYPE)
+                snprintf(why, sizeof why, "unknown message type 0x%02x", m.type);
+            else
+                snprintf(why, sizeof why, "%s for %s (type 0x%02x)", rths_proto_status_name(st),
+                         rths_msg_type_name(m.type), m.type);
             send_error(s, m.seq, st, m.type, why);
             continue;
         }
