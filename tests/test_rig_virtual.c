@@ -1,7 +1,7 @@
 /* The virtual rig against independent truths: at the target that matches the interface, the
- * measured response equals the frequency-domain fidelity model of the same scheme (SPEC §8) and,
- * for the default scheme, the analytic FRF; runs repeat exactly for a seed; the bilinear leg's
- * static force-displacement has both slopes and the kink. */
+ * measured response equals the frequency-domain fidelity model of the same scheme (docs/method.md,
+ * "Numerical substructure integration") and, for the default scheme, the analytic FRF; runs repeat
+ * exactly for a seed; the bilinear leg's static force-displacement has both slopes and the kink. */
 #include "testlib.h"
 
 #include "rths/fidelity.h"
@@ -64,7 +64,7 @@ static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ide
  * matched target equals the frequency-domain fidelity model to 5e-5 (measured <= 8e-6: what
  * remains is the corrector's and the steady-state test's floors); the default scheme equals the
  * analytic FRF to 1e-4 at the second mode's peak (measured 5e-6), implicit Euler is about a
- * quarter low (SPEC §8). */
+ * quarter low (docs/method.md, "Numerical substructure integration"). */
 static void test_matched_equals_fidelity(void **state) {
     (void)state;
     rths_config *cfg;
