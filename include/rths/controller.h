@@ -48,6 +48,11 @@ typedef struct rths_controller_options {
     double ramp_time_s;            /* demand, forcing and target ramp to zero in this time */
     int track_static;              /* target's static term = the measured mean of the last
                                       period (the actuator carries no static load) */
+    double min_frequency_hz;       /* forcing below this is refused by the rigs (a period must end
+                                      in bounded time); 0.1 Hz */
+    double max_pending_s;          /* a forcing change waits for the period boundary at most this
+                                      long; then the open period is dropped unpublished and the new
+                                      forcing starts at phase 0 at once; 1 s */
     int plant_applies_forcing;     /* 1: forcing on an internal physical DoF is accepted and left
                                       to the plant (rths_controller_forcing gives its phase);
                                       0 (default): such a forcing DoF is refused at create */
@@ -65,7 +70,8 @@ void rths_controller_destroy(rths_controller *c);
 
 /* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
  * period boundary, so every published period has one forcing; the phase theta is continuous
- * across changes. The first forcing of a controller at rest starts at once. */
+ * across changes. The first forcing of a controller at rest starts at once. A change that has
+ * waited max_pending_s without a boundary drops the open period and starts at phase 0. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);
@@ -91,6 +97,11 @@ int rths_controller_at_period_boundary(const rths_controller *c);
 double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
                             rths_controller_output *out);
 
+/* An upper bound of the target's peak |x*(t)| = |sum_k a[k] cos k w t + b[k] sin k w t|, m:
+ * sum_k hypot(a[k], b[k]) (exact for one harmonic). The rigs refuse a target whose bound is beyond
+ * the displacement limit; the step also clamps x* to the limit, so a ramp never overshoots it. */
+double rths_target_peak_bound_m(int harmonics, const double *a, const double *b);
+
 /* Any thread (single consumer): the oldest unread whole period; 1 if one was available. Periods
  * that do not fit in the ring (capacity 256) are dropped and counted. */
 int rths_controller_pop_period(rths_controller *c, rths_period *out);
@@ -107,6 +118,11 @@ long rths_controller_dropped_periods(const rths_controller *c);
  * rths_sample_loop_arm. */
 typedef struct rths_sample_loop rths_sample_loop;
 
+/* Reads the sections the loop is built from (controller and rig) over the defaults already in
+ * copt and popt, and checks them against each other (the shaker delay against the sample rate,
+ * located at rig.shaker.delay_s). */
+int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt,
+                                 rths_plant_options *popt, rths_error *err);
 int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
                             const rths_plant_options *popt, rths_sample_loop **out,
                             rths_error *err);

@@ -29,6 +29,10 @@ typedef struct rths_sensor_spec {
     double quantum;    /* quantisation step (0: none) */
 } rths_sensor_spec;
 
+/* The longest shaker transport delay the plant holds, in samples (delay_s x sample rate, rounded;
+ * the delay line of plant.c). */
+#define RTHS_PLANT_MAX_DELAY_SAMPLES 4095
+
 typedef struct rths_plant_options {
     double gain_n_per_v;     /* shaker force per demand volt */
     double delay_s;          /* pure transport delay (rounded to whole samples) */

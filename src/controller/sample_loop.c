@@ -2,6 +2,7 @@
  * per-sample I/O seam, once, for every user. */
 #include "rths/controller.h"
 
+#include <math.h>
 #include <stdlib.h>
 
 struct rths_sample_loop {
@@ -9,6 +10,21 @@ struct rths_sample_loop {
     rths_plant *plant;
     rths_sensor_sample sensors; /* preallocated: read into every sample */
 };
+
+int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt,
+                                 rths_plant_options *popt, rths_error *err) {
+    int rc = rths_controller_config_read(cfg, copt, err);
+    if (!rc) rc = rths_plant_config_read(cfg, popt, err);
+    if (rc) return rc;
+    double samples = round(popt->delay_s * copt->sample_rate_hz);
+    if (samples > RTHS_PLANT_MAX_DELAY_SAMPLES)
+        return rths_config_error_at(cfg, "rig.shaker.delay_s", err,
+                                    "%g s is %.0f samples at controller.sample_rate_hz = %g; the "
+                                    "shaker's delay line holds at most %d",
+                                    popt->delay_s, samples, copt->sample_rate_hz,
+                                    RTHS_PLANT_MAX_DELAY_SAMPLES);
+    return RTHS_OK;
+}
 
 int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
                             const rths_plant_options *popt, rths_sample_loop **out,

@@ -9,6 +9,7 @@
 
 #include "controller/server_engine.h"
 #include "controller/spsc.h"
+#include "rths/controller.h"
 #include "rths/protocol.h"
 
 #include <errno.h>
@@ -20,6 +21,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <stdatomic.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,6 +46,8 @@
 #define RX_CAP 8192
 #define TX_CAP (256 * 1024)
 #define TX_RESERVE (32 * 1024) /* room kept for replies: stream frames never take it */
+#define NOTICE_BURST 10        /* connection notices per NOTICE_WINDOW_NS; the rest are counted */
+#define NOTICE_WINDOW_NS 1000000000
 
 /* ---- state ---- */
 
@@ -108,6 +112,8 @@ struct rths_server {
     /* network thread only */
     client c;
     int note_armed, note_fault; /* state last announced on stderr */
+    int64_t notice_window_start_ns;
+    int notices_in_window, notices_suppressed;
     rths_proto_period latest;
     int have_latest;
     _Atomic uint64_t periods_dropped;
@@ -146,6 +152,35 @@ static inline void add64(_Atomic uint64_t *p, uint64_t v) {
 static inline void max64(_Atomic uint64_t *p, uint64_t v) {
     if (v > atomic_load_explicit(p, memory_order_relaxed))
         atomic_store_explicit(p, v, memory_order_relaxed);
+}
+
+/* Connection notices on stderr (network thread), at most NOTICE_BURST per second: a storm of
+ * connections must not flood the operator's terminal or log. What is held back is counted and
+ * reported once the second is over (notices_flush). */
+static void notices_flush(rths_server *s, int64_t now) {
+    if (now - s->notice_window_start_ns < NOTICE_WINDOW_NS) return;
+    if (s->notices_suppressed && !s->opt.quiet)
+        fprintf(stderr, "rths controller: %d more connection notices suppressed\n",
+                s->notices_suppressed);
+    s->notice_window_start_ns = now;
+    s->notices_in_window = s->notices_suppressed = 0;
+}
+
+static void notice(rths_server *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void notice(rths_server *s, const char *fmt, ...) {
+    if (s->opt.quiet) return;
+    notices_flush(s, mono_ns());
+    if (s->notices_in_window >= NOTICE_BURST) {
+        s->notices_suppressed++;
+        return;
+    }
+    s->notices_in_window++;
+    va_list ap;
+    va_start(ap, fmt);
+    fputs("rths controller: ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
 }
 
 /* ---- options and configuration ---- */
@@ -335,8 +370,7 @@ static void drop_client(rths_server *s, const char *why) {
     close(c->fd);
     c->fd = -1;
     atomic_store(&s->trace_on, 0);
-    if (!s->opt.quiet)
-        fprintf(stderr, "rths controller: client %s disconnected (%s)\n", c->peer, why);
+    notice(s, "client %s disconnected (%s)", c->peer, why);
     if (atomic_load(&s->armed)) {
         /* Loss of the controlling connection disarms: excitation and target ramp to zero. */
         loop_cmd cmd = {.id = ++s->next_cmd_id, .type = CMD_DISARM, .reason = RTHS_DISARM_LINK};
@@ -461,9 +495,7 @@ static void handle(rths_server *s, const rths_msg *m) {
         r.u.hello_reply.noise_level_m = s->info.noise_level_m;
         snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
         queue_frame(s, &r, 1);
-        if (!s->opt.quiet)
-            fprintf(stderr, "rths controller: client %s says hello (%s)\n", c->peer,
-                    m->u.hello.name);
+        notice(s, "client %s says hello (%s)", c->peer, m->u.hello.name);
         return;
     }
     case RTHS_MSG_ARM:
@@ -483,14 +515,15 @@ static void handle(rths_server *s, const rths_msg *m) {
         reply_ack(s, m, t);
         return;
     case RTHS_MSG_SET_FORCING:
-        if (!(m->u.forcing.frequency_hz > 0) ||
+        if (!(m->u.forcing.frequency_hz >= s->info.min_frequency_hz) ||
             m->u.forcing.frequency_hz > s->opt.max_frequency_hz ||
             fabs(m->u.forcing.amplitude_n) > s->opt.max_amplitude_n) {
             snprintf(msg, sizeof msg,
-                     "forcing %g Hz, %g N outside (0, %g] Hz, |amplitude| <= %g N "
-                     "(server.max_frequency_hz, server.max_amplitude_n)",
-                     m->u.forcing.frequency_hz, m->u.forcing.amplitude_n, s->opt.max_frequency_hz,
-                     s->opt.max_amplitude_n);
+                     "forcing %g Hz, %g N outside [%g, %g] Hz, |amplitude| <= %g N "
+                     "(controller.min_frequency_hz, server.max_frequency_hz, "
+                     "server.max_amplitude_n)",
+                     m->u.forcing.frequency_hz, m->u.forcing.amplitude_n, s->info.min_frequency_hz,
+                     s->opt.max_frequency_hz, s->opt.max_amplitude_n);
             send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
             return;
         }
@@ -504,6 +537,15 @@ static void handle(rths_server *s, const rths_msg *m) {
         if (m->u.target.harmonics > s->info.max_harmonics) {
             snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
                      m->u.target.harmonics, s->info.max_harmonics);
+            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+            return;
+        }
+        double peak = rths_target_peak_bound_m(m->u.target.harmonics, m->u.target.a, m->u.target.b);
+        if (peak > s->info.displacement_limit_m) {
+            snprintf(msg, sizeof msg,
+                     "target of up to %g m is beyond the displacement limit %g m "
+                     "(controller.limits.displacement_m)",
+                     peak, s->info.displacement_limit_m);
             send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
             return;
         }
@@ -624,9 +666,7 @@ static void accept_client(rths_server *s) {
         ssize_t sent = send(fd, buf, n, MSG_DONTWAIT | MSG_NOSIGNAL);
         (void)sent;
         close(fd);
-        if (!s->opt.quiet)
-            fprintf(stderr, "rths controller: refused %s:%s (busy, armed by %s)\n", host, serv,
-                    s->c.peer);
+        notice(s, "refused %s:%s (busy, armed by %s)", host, serv, s->c.peer);
         return;
     }
     if (s->c.fd >= 0) drop_client(s, "replaced by a new connection");
@@ -741,6 +781,7 @@ static void *net_main(void *arg) {
         pump_streams(s);
         if (flush_tx(s)) drop_client(s, "send failed");
         announce(s);
+        notices_flush(s, mono_ns());
     }
     drop_client(s, "controller stopping");
     return NULL;
@@ -767,7 +808,7 @@ static int bind_listen(rths_server *s, rths_error *err) {
         int one = 1;
         /* A restarted controller must get its port back while old connections sit in TIME_WAIT. */
         setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-        if (!bind(fd, ai->ai_addr, ai->ai_addrlen) && !listen(fd, 4)) {
+        if (!bind(fd, ai->ai_addr, ai->ai_addrlen) && !listen(fd, SOMAXCONN)) {
             struct sockaddr_storage sa;
             socklen_t sl = sizeof sa;
             getsockname(fd, (struct sockaddr *)&sa, &sl);

@@ -35,8 +35,7 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     rths_plant_defaults(&popt);
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
-    if (!rc) rc = rths_controller_config_read(cfg, &copt, err);
-    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
+    if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
     /* the loop starts disarmed: nothing is excited until the host arms it */
     if (!rc) rc = rths_sample_loop_create(&e->setup, &copt, &popt, &e->loop, err);
     if (rc) {
@@ -49,6 +48,8 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     info->noise_level_m = rths_plant_noise_level_m(rths_sample_loop_plant(e->loop));
     info->max_harmonics = RTHS_MAX_HARMONICS;
     info->ramp_time_s = copt.ramp_time_s;
+    info->min_frequency_hz = copt.min_frequency_hz;
+    info->displacement_limit_m = copt.displacement_limit_m;
     snprintf(info->description, sizeof info->description,
              "rths controller: virtual plant, %d DoF assembly, %.0f Hz, sensor noise %s",
              e->setup.assembly.n, copt.sample_rate_hz, popt.noise ? "on" : "off");

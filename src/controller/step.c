@@ -28,6 +28,7 @@ struct rths_controller {
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
+    double pending_since_s; /* controller time of the oldest pending change */
     int harmonics;
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
     int feedback, armed;
@@ -67,7 +68,16 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->force_limit_n = 500.0;
     opt->ramp_time_s = 0.1;
     opt->track_static = 1;
+    opt->min_frequency_hz = 0.1;
+    opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
+}
+
+double rths_target_peak_bound_m(int harmonics, const double *a, const double *b) {
+    double bound = 0;
+    for (int k = 0; k < harmonics; k++)
+        bound += hypot(a[k], b[k]);
+    return bound;
 }
 
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
@@ -151,6 +161,7 @@ void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double
     } else {
         /* frequency and amplitude change together at the next period boundary, so every
          * published period has one forcing; a later call before then replaces this one */
+        if (!c->pending_forcing) c->pending_since_s = c->time_s;
         c->pending_omega = w;
         c->pending_amplitude = amplitude_n;
         c->pending_forcing = 1;
@@ -248,6 +259,32 @@ int rths_controller_pop_period(rths_controller *c, rths_period *out) {
     return rths_spsc_pop(&c->ring, out);
 }
 
+/* A forcing change waits for the period boundary, so every published period has one forcing;
+ * but an old forcing of very low frequency must not hold a change back for its whole period (at
+ * 0.001 Hz: 1000 s, and no period ever closes meanwhile). Past max_pending_s the open period is
+ * dropped unpublished and the new forcing starts at phase 0 now. */
+static void start_overdue_forcing(rths_controller *c) {
+    if (!c->pending_forcing || c->time_s - c->pending_since_s < c->opt.max_pending_s) return;
+    c->omega = c->pending_omega;
+    c->amplitude_n = c->pending_amplitude;
+    c->pending_forcing = 0;
+    c->theta = 0;
+    memset(&c->acc_phys, 0, sizeof c->acc_phys);
+    memset(&c->acc_num, 0, sizeof c->acc_num);
+    memset(&c->acc_force, 0, sizeof c->acc_force);
+    c->period_samples = 0;
+}
+
+/* x* stays within the displacement limit: a target beyond it (refused by the rigs) or a ramp
+ * cannot drive the physical side past the limit before the fault latches. */
+static void clamp_target(const rths_controller *c, double *target, double *target_dot) {
+    const double limit = c->opt.displacement_limit_m;
+    if (fabs(*target) > limit) {
+        *target = copysign(limit, *target);
+        *target_dot = 0;
+    }
+}
+
 static void latch(rths_controller *c, rths_rig_fault f) {
     if (!c->fault) c->fault = f;
 }
@@ -284,6 +321,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->x_prev = x;
     c->have_prev = 1;
 
+    start_overdue_forcing(c);
     /* phase of this sample */
     double theta0 = c->theta;
     double theta1 = theta0 + c->omega * h;
@@ -350,6 +388,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
          * actuator carries no static load: the preload alone sets the static point, as in the
          * true assembly, and the numerical interface's mean follows through the grounding. */
         if (c->opt.track_static) target += c->static_offset;
+        clamp_target(c, &target, &target_dot);
     }
     double demand =
         c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);

@@ -9,6 +9,7 @@ typedef struct {
     rths_sample_loop *loop; /* the per-sample loop, shared with the controller process */
     rths_controller *ctrl;  /* the loop's */
     double sample_rate_hz;
+    double min_frequency_hz, displacement_limit_m; /* the controller's options */
 } virtual_rig;
 
 static void sample(virtual_rig *v, rths_controller_output *out) {
@@ -25,9 +26,14 @@ static int fault_error(virtual_rig *v, rths_error *err) {
 
 static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {
     virtual_rig *v = self;
-    if (!(frequency_hz > 0 && frequency_hz < 0.25 * v->sample_rate_hz) || !isfinite(amplitude_n))
-        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N is out of range", frequency_hz,
-                              amplitude_n);
+    if (!(frequency_hz >= v->min_frequency_hz && frequency_hz < 0.25 * v->sample_rate_hz) ||
+        !isfinite(amplitude_n))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "forcing %g Hz, %g N is out of range: the frequency must be in "
+                              "[%g, %g) Hz (controller.min_frequency_hz, a quarter of "
+                              "controller.sample_rate_hz), the amplitude finite",
+                              frequency_hz, amplitude_n, v->min_frequency_hz,
+                              0.25 * v->sample_rate_hz);
     rths_controller_set_forcing(v->ctrl, frequency_hz, amplitude_n);
     return RTHS_OK;
 }
@@ -41,6 +47,12 @@ static int v_set_target(void *self, int harmonics, const double *a, const double
     for (int k = 0; k < harmonics; k++)
         if (!isfinite(a[k]) || !isfinite(b[k]))
             return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite", k + 1);
+    double peak = rths_target_peak_bound_m(harmonics, a, b);
+    if (peak > v->displacement_limit_m)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "target of up to %g m is beyond the displacement limit %g m "
+                              "(controller.limits.displacement_m)",
+                              peak, v->displacement_limit_m);
     rths_controller_set_target(v->ctrl, harmonics, a, b);
     return RTHS_OK;
 }
@@ -128,6 +140,8 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     virtual_rig *v = calloc(1, sizeof *v);
     if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     v->sample_rate_hz = copt->sample_rate_hz;
+    v->min_frequency_hz = copt->min_frequency_hz;
+    v->displacement_limit_m = copt->displacement_limit_m;
     int rc = rths_sample_loop_create(setup, copt, popt, &v->loop, err);
     if (!rc) v->ctrl = rths_sample_loop_controller(v->loop);
     char description[200];
@@ -151,8 +165,7 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
     rths_plant_options popt;
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
-    int rc = rths_controller_config_read(cfg, &copt, err);
-    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
+    int rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
     if (rc) return rc;
     if (has_seed) popt.seed = seed_override;
     return rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
