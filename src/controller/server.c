@@ -248,11 +248,77 @@ static void rt_setup(rths_server *s) {
     atomic_fetch_or(&s->rt_flags, flags);
 }
 
+/* Sleeps to the next absolute deadline and records how late the wake-up was; returns now, ns. */
+static int64_t wait_next_sample(rths_server *s, struct timespec *next) {
+    const int64_t period = s->period_ns;
+    next->tv_nsec += period;
+    while (next->tv_nsec >= 1000000000) {
+        next->tv_nsec -= 1000000000;
+        next->tv_sec++;
+    }
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, next, NULL) == EINTR) {
+    }
+    int64_t now = mono_ns();
+    int64_t deadline = (int64_t)next->tv_sec * 1000000000 + next->tv_nsec;
+    int64_t late = now - deadline;
+    if (late < 0) late = 0;
+    uint64_t bin = (uint64_t)late / 1000u;
+    bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
+    max64(&s->worst_late_ns, (uint64_t)late);
+    if (late >= period) add64(&s->overruns, 1);
+    if (late > 1000 * period) { /* 0.1 s behind at 10 kHz: catching up would only burst */
+        next->tv_sec = now / 1000000000;
+        next->tv_nsec = now % 1000000000;
+        add64(&s->resyncs, 1);
+    }
+    return now;
+}
+
+/* Host commands (a bounded number per sample: a flood cannot stretch one sample) and the
+ * watchdog. */
+static void serve_host(rths_server *s, int64_t now, int64_t watchdog_ns) {
+    loop_cmd c;
+    for (int k = 0; k < MAX_CMDS_PER_SAMPLE && rths_spsc_pop(&s->cmds, &c); k++)
+        apply_cmd(s, &c);
+    if (rths_engine_armed(s->engine) &&
+        now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
+        atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
+        rths_engine_trip_watchdog(s->engine);
+    }
+}
+
+/* One step, timed into the step-cost histogram. */
+static void timed_step(rths_server *s, rths_proto_trace_sample *sig) {
+    int64_t t0 = mono_ns();
+    rths_engine_step(s->engine, sig);
+    int64_t cost = mono_ns() - t0;
+    uint64_t c = (uint64_t)(cost > 0 ? cost : 0);
+    uint64_t sb = c / 100u;
+    bump32(&s->step_hist[sb < STEP_BINS ? sb : STEP_BINS]);
+    add64(&s->step_sum_ns, c);
+    max64(&s->worst_step_ns, c);
+}
+
+/* The state other threads read, after every sample. */
+static void publish_state(rths_server *s, int *prev_armed) {
+    int armed = rths_engine_armed(s->engine);
+    int fault = rths_engine_fault(s->engine);
+    if (*prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
+        atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
+    *prev_armed = armed;
+    atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
+    atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
+    atomic_store_explicit(&s->time_bits, dbits(rths_engine_time_s(s->engine)),
+                          memory_order_relaxed);
+    atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
+                          memory_order_relaxed);
+    add64(&s->samples, 1);
+}
+
 static void *loop_main(void *arg) {
     rths_server *s = arg;
     rt_setup(s);
     atomic_store(&s->loop_ready, 1);
-    const int64_t period = s->period_ns;
     const int64_t watchdog_ns = (int64_t)(s->opt.watchdog_s * 1e9);
     /* After a stop request the loop keeps stepping, disarmed, long enough for the step's ramp to
      * bring the demand to zero: a real rig must not be left with a held demand. */
@@ -262,55 +328,19 @@ static void *loop_main(void *arg) {
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (;;) {
-        next.tv_nsec += period;
-        while (next.tv_nsec >= 1000000000) {
-            next.tv_nsec -= 1000000000;
-            next.tv_sec++;
-        }
-        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL) == EINTR) {
-        }
-        int64_t now = mono_ns();
-        int64_t deadline = (int64_t)next.tv_sec * 1000000000 + next.tv_nsec;
-        int64_t late = now - deadline;
-        if (late < 0) late = 0;
-        uint64_t bin = (uint64_t)late / 1000u;
-        bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
-        max64(&s->worst_late_ns, (uint64_t)late);
-        if (late >= period) add64(&s->overruns, 1);
-        if (late > 1000 * period) { /* 0.1 s behind at 10 kHz: catching up would only burst */
-            next.tv_sec = now / 1000000000;
-            next.tv_nsec = now % 1000000000;
-            add64(&s->resyncs, 1);
-        }
-
+        int64_t now = wait_next_sample(s, &next);
         if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
             if (rths_engine_armed(s->engine)) atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
             rths_engine_disarm(s->engine);
-            shutdown_left = (int64_t)(0.5e9 / (double)period) + 1;
+            shutdown_left = (int64_t)(0.5e9 / (double)s->period_ns) + 1;
         }
-        if (shutdown_left < 0) {
-            /* a bounded number per sample: a flood of commands cannot stretch one sample */
-            loop_cmd c;
-            for (int k = 0; k < MAX_CMDS_PER_SAMPLE && rths_spsc_pop(&s->cmds, &c); k++)
-                apply_cmd(s, &c);
-            if (rths_engine_armed(s->engine) &&
-                now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
-                atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
-                rths_engine_trip_watchdog(s->engine);
-            }
-        } else if (shutdown_left-- == 0) {
+        if (shutdown_left < 0)
+            serve_host(s, now, watchdog_ns);
+        else if (shutdown_left-- == 0)
             break;
-        }
 
         rths_proto_trace_sample sig;
-        int64_t t0 = mono_ns();
-        rths_engine_step(s->engine, &sig);
-        int64_t cost = mono_ns() - t0;
-        uint64_t sb = (uint64_t)(cost > 0 ? cost : 0) / 100u;
-        bump32(&s->step_hist[sb < STEP_BINS ? sb : STEP_BINS]);
-        add64(&s->step_sum_ns, (uint64_t)(cost > 0 ? cost : 0));
-        max64(&s->worst_step_ns, (uint64_t)(cost > 0 ? cost : 0));
-
+        timed_step(s, &sig);
         if (atomic_load_explicit(&s->trace_on, memory_order_relaxed)) {
             uint32_t d = atomic_load_explicit(&s->trace_decimation, memory_order_relaxed);
             if (++decim_count >= d) {
@@ -320,18 +350,7 @@ static void *loop_main(void *arg) {
         } else {
             decim_count = 0;
         }
-        int armed = rths_engine_armed(s->engine);
-        int fault = rths_engine_fault(s->engine);
-        if (prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
-            atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
-        prev_armed = armed;
-        atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
-        atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
-        atomic_store_explicit(&s->time_bits, dbits(rths_engine_time_s(s->engine)),
-                              memory_order_relaxed);
-        atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
-                              memory_order_relaxed);
-        add64(&s->samples, 1);
+        publish_state(s, &prev_armed);
     }
     atomic_store(&s->armed, 0);
     return NULL;
@@ -465,10 +484,110 @@ static void reply_ack(rths_server *s, const rths_msg *req, double t) {
     queue_frame(s, &m, 1);
 }
 
-static void handle(rths_server *s, const rths_msg *m) {
+static void handle_hello(rths_server *s, const rths_msg *m) {
     client *c = &s->c;
+    if (m->u.hello.version != RTHS_PROTO_VERSION) {
+        char msg[RTHS_PROTO_MAX_TEXT + 1];
+        snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u", RTHS_PROTO_VERSION,
+                 m->u.hello.version);
+        send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
+        drop_client(s, "protocol version mismatch");
+        return;
+    }
+    c->hello = 1;
+    rths_msg r;
+    rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
+    r.u.hello_reply.version = RTHS_PROTO_VERSION;
+    r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
+    r.u.hello_reply.sample_period_s = s->info.sample_period_s;
+    r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
+    r.u.hello_reply.noise_level_m = s->info.noise_level_m;
+    snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
+    queue_frame(s, &r, 1);
+    notice(s, "client %s says hello (%s)", c->peer, m->u.hello.name);
+}
+
+/* SET_FORCING and SET_TARGET within the configured limits, else ERROR 10 naming the keys; an
+ * accepted one becomes the loop command cmd. Returns 0 when accepted. */
+static int check_forcing(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
+    const double f = m->u.forcing.frequency_hz, amp = m->u.forcing.amplitude_n;
+    if (!(f >= s->info.min_frequency_hz) || f > s->opt.max_frequency_hz ||
+        fabs(amp) > s->opt.max_amplitude_n) {
+        char msg[RTHS_PROTO_MAX_TEXT + 1];
+        snprintf(msg, sizeof msg,
+                 "forcing %g Hz, %g N outside [%g, %g] Hz, |amplitude| <= %g N "
+                 "(controller.min_frequency_hz, server.max_frequency_hz, server.max_amplitude_n)",
+                 f, amp, s->info.min_frequency_hz, s->opt.max_frequency_hz, s->opt.max_amplitude_n);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    cmd->type = CMD_FORCING;
+    cmd->frequency_hz = f;
+    cmd->amplitude_n = amp;
+    return 0;
+}
+
+static int check_target(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
+    const rths_proto_target *t = &m->u.target;
     char msg[RTHS_PROTO_MAX_TEXT + 1];
-    if (!c->hello && m->type != RTHS_MSG_HELLO) {
+    if (t->harmonics > s->info.max_harmonics) {
+        snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
+                 t->harmonics, s->info.max_harmonics);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    double peak = rths_target_peak_bound_m(t->harmonics, t->a, t->b);
+    if (peak > s->info.displacement_limit_m) {
+        snprintf(msg, sizeof msg,
+                 "target of up to %g m is beyond the displacement limit %g m "
+                 "(controller.limits.displacement_m)",
+                 peak, s->info.displacement_limit_m);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    cmd->type = CMD_TARGET;
+    cmd->harmonics = t->harmonics;
+    memcpy(cmd->a, t->a, sizeof cmd->a);
+    memcpy(cmd->b, t->b, sizeof cmd->b);
+    return 0;
+}
+
+static void handle_subscribe(rths_server *s, const rths_msg *m) {
+    client *c = &s->c;
+    c->sub_periods = (m->u.subscribe.flags & RTHS_SUBSCRIBE_PERIODS) != 0;
+    c->sub_traces = (m->u.subscribe.flags & RTHS_SUBSCRIBE_TRACES) != 0;
+    /* Samples queued under the old subscription must not be mistaken for new ones. */
+    atomic_store(&s->trace_on, 0);
+    rths_proto_trace_sample junk;
+    while (rths_spsc_pop(&s->traces, &junk)) {
+    }
+    c->batch_n = 0;
+    atomic_store(&s->trace_decimation, m->u.subscribe.trace_decimation);
+    atomic_store(&s->trace_on, c->sub_traces);
+    reply_ack(s, m, ctl_time(s));
+}
+
+static void handle_query(rths_server *s, const rths_msg *m) {
+    client *c = &s->c;
+    rths_msg r;
+    if (m->type == RTHS_MSG_GET_STATUS) {
+        rths_msg_init(&r, RTHS_MSG_STATUS, m->seq);
+        fill_status(s, &r.u.status);
+        queue_frame(s, &r, 1);
+        c->last_armed = r.u.status.flags & RTHS_STATUS_ARMED ? 1 : 0;
+        c->last_fault = r.u.status.fault;
+    } else if (!s->have_latest) {
+        send_error(s, m->seq, RTHS_PROTO_ENODATA, m->type, "no whole period yet");
+    } else {
+        rths_msg_init(&r, RTHS_MSG_PERIOD, m->seq);
+        r.u.period = s->latest;
+        queue_frame(s, &r, 1);
+    }
+}
+
+static void handle(rths_server *s, const rths_msg *m) {
+    char msg[RTHS_PROTO_MAX_TEXT + 1];
+    if (!s->c.hello && m->type != RTHS_MSG_HELLO) {
         send_error(s, m->seq, RTHS_PROTO_ESTATE, m->type, "send HELLO first");
         return;
     }
@@ -477,27 +596,9 @@ static void handle(rths_server *s, const rths_msg *m) {
     double t = ctl_time(s);
     int rc;
     switch (m->type) {
-    case RTHS_MSG_HELLO: {
-        if (m->u.hello.version != RTHS_PROTO_VERSION) {
-            snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u",
-                     RTHS_PROTO_VERSION, m->u.hello.version);
-            send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
-            drop_client(s, "protocol version mismatch");
-            return;
-        }
-        c->hello = 1;
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
-        r.u.hello_reply.version = RTHS_PROTO_VERSION;
-        r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
-        r.u.hello_reply.sample_period_s = s->info.sample_period_s;
-        r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
-        r.u.hello_reply.noise_level_m = s->info.noise_level_m;
-        snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
-        queue_frame(s, &r, 1);
-        notice(s, "client %s says hello (%s)", c->peer, m->u.hello.name);
+    case RTHS_MSG_HELLO:
+        handle_hello(s, m);
         return;
-    }
     case RTHS_MSG_ARM:
         cmd.type = CMD_ARM;
         if ((rc = run_cmd(s, &cmd, &t))) {
@@ -506,105 +607,40 @@ static void handle(rths_server *s, const rths_msg *m) {
             send_error(s, m->seq, rc, m->type, msg);
             return;
         }
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_DISARM:
         cmd.type = CMD_DISARM;
         cmd.reason = RTHS_DISARM_COMMAND;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_SET_FORCING:
-        if (!(m->u.forcing.frequency_hz >= s->info.min_frequency_hz) ||
-            m->u.forcing.frequency_hz > s->opt.max_frequency_hz ||
-            fabs(m->u.forcing.amplitude_n) > s->opt.max_amplitude_n) {
-            snprintf(msg, sizeof msg,
-                     "forcing %g Hz, %g N outside [%g, %g] Hz, |amplitude| <= %g N "
-                     "(controller.min_frequency_hz, server.max_frequency_hz, "
-                     "server.max_amplitude_n)",
-                     m->u.forcing.frequency_hz, m->u.forcing.amplitude_n, s->info.min_frequency_hz,
-                     s->opt.max_frequency_hz, s->opt.max_amplitude_n);
-            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
-            return;
-        }
-        cmd.type = CMD_FORCING;
-        cmd.frequency_hz = m->u.forcing.frequency_hz;
-        cmd.amplitude_n = m->u.forcing.amplitude_n;
+        if (check_forcing(s, m, &cmd)) return;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_SET_TARGET:
-        if (m->u.target.harmonics > s->info.max_harmonics) {
-            snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
-                     m->u.target.harmonics, s->info.max_harmonics);
-            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
-            return;
-        }
-        double peak = rths_target_peak_bound_m(m->u.target.harmonics, m->u.target.a, m->u.target.b);
-        if (peak > s->info.displacement_limit_m) {
-            snprintf(msg, sizeof msg,
-                     "target of up to %g m is beyond the displacement limit %g m "
-                     "(controller.limits.displacement_m)",
-                     peak, s->info.displacement_limit_m);
-            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
-            return;
-        }
-        cmd.type = CMD_TARGET;
-        cmd.harmonics = m->u.target.harmonics;
-        memcpy(cmd.a, m->u.target.a, sizeof cmd.a);
-        memcpy(cmd.b, m->u.target.b, sizeof cmd.b);
+        if (check_target(s, m, &cmd)) return;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
+        break;
+    case RTHS_MSG_GET_STATUS:
+    case RTHS_MSG_GET_COEFFS:
+        handle_query(s, m);
         return;
-    case RTHS_MSG_GET_STATUS: {
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_STATUS, m->seq);
-        fill_status(s, &r.u.status);
-        queue_frame(s, &r, 1);
-        c->last_armed = r.u.status.flags & RTHS_STATUS_ARMED ? 1 : 0;
-        c->last_fault = r.u.status.fault;
-        return;
-    }
-    case RTHS_MSG_GET_COEFFS: {
-        if (!s->have_latest) {
-            send_error(s, m->seq, RTHS_PROTO_ENODATA, m->type, "no whole period yet");
-            return;
-        }
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_PERIOD, m->seq);
-        r.u.period = s->latest;
-        queue_frame(s, &r, 1);
-        return;
-    }
     case RTHS_MSG_SUBSCRIBE:
-        c->sub_periods = (m->u.subscribe.flags & RTHS_SUBSCRIBE_PERIODS) != 0;
-        c->sub_traces = (m->u.subscribe.flags & RTHS_SUBSCRIBE_TRACES) != 0;
-        /* Samples queued under the old subscription must not be mistaken for new ones. */
-        atomic_store(&s->trace_on, 0);
-        {
-            rths_proto_trace_sample junk;
-            while (rths_spsc_pop(&s->traces, &junk)) {
-            }
-        }
-        c->batch_n = 0;
-        atomic_store(&s->trace_decimation, m->u.subscribe.trace_decimation);
-        atomic_store(&s->trace_on, c->sub_traces);
-        reply_ack(s, m, ctl_time(s));
+        handle_subscribe(s, m);
         return;
     case RTHS_MSG_RESET_FAULT:
         cmd.type = CMD_RESET;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_PING:
-        reply_ack(s, m, t);
-        return;
+        break;
     default:
         /* Replies-only types sent to the controller. */
         snprintf(msg, sizeof msg, "%s is not a request", rths_msg_type_name(m->type));
         send_error(s, m->seq, RTHS_PROTO_ETYPE, m->type, msg);
         return;
     }
+    reply_ack(s, m, t);
 }
 
 static void read_client(rths_server *s) {
