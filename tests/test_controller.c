@@ -254,12 +254,130 @@ static void test_limits_latch(void **state) {
     in.displacement_m[2] = NAN;
     run_until_fault(c, &in, RTHS_RIG_FAULT_NONFINITE, o.ramp_time_s);
     rths_controller_reset_fault(c);
-    /* a target far away asks for a demand beyond the limit */
-    in.displacement_m[2] = 0;
+    /* a target away from the measured position asks for a demand beyond the limit: x* is
+     * clamped to the displacement limit (0.01 m), and the measured -0.009 m puts the PD's
+     * 100 V/m x 0.019 m = 1.9 V beyond a 1 V limit */
+    rths_controller_destroy(c);
+    o.demand_limit_v = 1.0;
+    rths_error err;
+    if (rths_controller_create(&s, &o, &c, &err)) fail_msg("%s", err.msg);
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 13.0, 1.0);
+    in.displacement_m[2] = -0.009;
     double a[1] = {1.0}, b[1] = {0};
     rths_controller_set_target(c, 1, a, b);
     run_until_fault(c, &in, RTHS_RIG_FAULT_DEMAND, o.ramp_time_s);
     rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* Issue 18: after a forcing of very low frequency, a change must not wait for its period's end
+ * (0.001 Hz: 1000 s). It waits at most max_pending_s of controller time, then the open period is
+ * dropped unpublished and the new forcing starts at phase 0; its periods then close normally. */
+static void test_pending_forcing_waits_a_bounded_time(void **state) {
+    (void)state;
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    rths_controller *c = make(&s, &cfg, &o);
+    const double h = 1.0 / o.sample_rate_hz;
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 0.001, 1.0);
+    rths_sensor_sample in = {.n = 3};
+    for (int i = 0; i < 5000; i++) /* 0.5 s */
+        rths_controller_step(c, &in, NULL);
+    const double t_request = rths_controller_time_s(c);
+    rths_controller_set_forcing(c, 13.0, 2.0);
+    while (fabs(rths_controller_frequency_hz(c) - 13.0) > 1e-9) {
+        rths_controller_step(c, &in, NULL);
+        assert_true(rths_controller_time_s(c) <= t_request + o.max_pending_s + 2 * h);
+    }
+    assert_true(rths_controller_time_s(c) >= t_request + o.max_pending_s - h);
+    double amp, theta, omega;
+    rths_controller_forcing(c, &amp, &theta, &omega);
+    assert_close(theta, omega * h, 1e-12); /* started at phase 0 in the sample just run */
+    rths_period p;
+    int n = 0;
+    for (int i = 0; i < 2000; i++) { /* 0.2 s: two whole 13 Hz periods */
+        rths_controller_step(c, &in, NULL);
+        while (rths_controller_pop_period(c, &p)) {
+            assert_close(p.frequency_hz, 13.0, 1e-12); /* the 0.001 Hz period was never published */
+            assert_true(abs(p.samples - 769) <= 1);    /* 10000 / 13 samples per period */
+            n++;
+        }
+    }
+    assert_int_equal(n, 2);
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* The target's peak bound is exact for one harmonic (3-4-5) and the triangle inequality beyond;
+ * the step clamps x* to the displacement limit, so a huge target ramping in never asks for more
+ * than the limit. */
+static void test_target_bounded_by_the_limit(void **state) {
+    (void)state;
+    const double a[2] = {3e-3, 1e-3}, b[2] = {4e-3, 0};
+    assert_close(rths_target_peak_bound_m(1, a, b), 5e-3, 1e-18);
+    assert_close(rths_target_peak_bound_m(2, a, b), 6e-3, 1e-18);
+    assert_close(rths_target_peak_bound_m(0, a, b), 0, 0);
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    rths_controller *c = make(&s, &cfg, &o);
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 13.0, 1.0);
+    const double huge_a[1] = {0.5}, huge_b[1] = {0};
+    rths_controller_set_target(c, 1, huge_a, huge_b);
+    rths_sensor_sample in = {.n = 3};
+    rths_controller_output out;
+    double peak = 0;
+    for (int i = 0; i < 3000; i++) { /* 0.3 s: the ramp (0.1 s) and beyond */
+        rths_controller_step(c, &in, &out);
+        peak = fmax(peak, fabs(out.target_m));
+    }
+    assert_close(peak, o.displacement_limit_m, 1e-15); /* reached, never exceeded */
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* The per-sample loop shared by the virtual rig and the controller process: a latched fault
+ * disarms it; arming is refused while the fault is latched; after the reset it stays disarmed
+ * until armed again. */
+static void test_sample_loop_fault_disarms(void **state) {
+    (void)state;
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    seed_setup(&s, &cfg);
+    rths_controller_defaults(&o);
+    o.force_limit_n = 1e-3; /* any excitation trips it */
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    rths_plant_ideal(&po);
+    rths_sample_loop *loop;
+    rths_error err;
+    if (rths_sample_loop_create(&s, &o, &po, &loop, &err)) fail_msg("%s", err.msg);
+    rths_controller *c = rths_sample_loop_controller(loop);
+    assert_false(rths_controller_armed(c)); /* starts disarmed */
+    assert_int_equal(rths_sample_loop_arm(loop), RTHS_OK);
+    rths_controller_set_forcing(c, 13.0, 1.0);
+    const double a[1] = {1e-4}, b[1] = {0};
+    rths_controller_set_target(c, 1, a, b);
+    int i = 0;
+    while (rths_controller_fault(c) == RTHS_RIG_OK && i++ < 10000)
+        rths_sample_loop_run(loop, NULL);
+    assert_int_equal(rths_controller_fault(c), RTHS_RIG_FAULT_FORCE);
+    assert_false(rths_controller_armed(c));
+    assert_int_equal(rths_sample_loop_arm(loop), RTHS_EFAIL);
+    assert_false(rths_controller_armed(c));
+    rths_controller_reset_fault(c);
+    assert_false(rths_controller_armed(c));
+    assert_int_equal(rths_sample_loop_arm(loop), RTHS_OK);
+    assert_true(rths_controller_armed(c));
+    rths_sample_loop_destroy(loop);
     rths_setup_free(&s);
     rths_config_free(cfg);
 }
@@ -271,6 +389,9 @@ int main(void) {
         cmocka_unit_test(test_fourier_sums_exact),
         cmocka_unit_test(test_forcing_changes_at_boundary),
         cmocka_unit_test(test_limits_latch),
+        cmocka_unit_test(test_pending_forcing_waits_a_bounded_time),
+        cmocka_unit_test(test_target_bounded_by_the_limit),
+        cmocka_unit_test(test_sample_loop_fault_disarms),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -7,6 +7,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 static void test_crc32_known_answer(void **state) {
@@ -383,6 +384,84 @@ static void test_encoder_refuses_invalid_messages(void **state) {
     assert_int_equal(rths_proto_encode(&m, buf, 11), 0); /* a 12-byte frame */
 }
 
+/* docs/protocol.md's message tables are the message list of protocol.h: every row of the form
+ * "| 0xNN | NAME | payload | reply |" (requests) or "| 0xNN | NAME | payload |" (controller to
+ * host) equals the row the list gives, and every listed message has its row. A field added to the
+ * list and not to the document (or the reverse) fails here. */
+#define DOC_FIELD(kind, member, doc) doc,
+#define DOC_ROW(name, code, direction, reply)                                                      \
+    {code, #name, direction, reply,                                                                \
+     (const char *const[]){RTHS_PROTO_PAYLOAD_##name(DOC_FIELD) NULL}},
+
+typedef struct {
+    int code;
+    const char *name;
+    int direction;
+    const char *reply;
+    const char *const *fields;
+} doc_row;
+
+static void expected_row(const doc_row *r, char *out, size_t cap) {
+    char payload[1024] = "";
+    for (int i = 0; r->fields[i]; i++)
+        snprintf(payload + strlen(payload), sizeof payload - strlen(payload), "%s%s", i ? ", " : "",
+                 r->fields[i]);
+    if (!payload[0]) snprintf(payload, sizeof payload, "—");
+    if (r->direction == RTHS_PROTO_REQUEST)
+        snprintf(out, cap, "| 0x%02X | %s | %s | %s |", r->code, r->name, payload, r->reply);
+    else
+        snprintf(out, cap, "| 0x%02X | %s | %s |", r->code, r->name, payload);
+}
+
+static void test_document_tables_match_the_message_list(void **state) {
+    (void)state;
+    const doc_row rows[] = {RTHS_PROTO_MESSAGES(DOC_ROW)};
+    const int n = (int)(sizeof rows / sizeof rows[0]);
+    FILE *f = fopen(rths_test_source_path("docs/protocol.md"), "r");
+    assert_non_null(f);
+    char line[2048];
+    int found[256] = {0}, doc_rows = 0, bad = 0;
+    while (fgets(line, sizeof line, f)) {
+        line[strcspn(line, "\n")] = '\0';
+        unsigned code;
+        if (sscanf(line, "| 0x%2x |", &code) != 1) continue;
+        doc_rows++;
+        int match = 0;
+        for (int i = 0; i < n; i++) {
+            if (rows[i].code != (int)code) continue;
+            char want[2048];
+            expected_row(&rows[i], want, sizeof want);
+            if (strcmp(line, want) != 0) {
+                print_message("docs/protocol.md:\n  %s\nthe message list says:\n  %s\n", line,
+                              want);
+                bad = 1;
+            }
+            found[code]++;
+            match = 1;
+        }
+        if (!match) {
+            print_message("docs/protocol.md documents type 0x%02X, not in the list: %s\n", code,
+                          line);
+            bad = 1;
+        }
+    }
+    fclose(f);
+    for (int i = 0; i < n; i++)
+        if (found[rows[i].code] != 1) {
+            char want[2048];
+            expected_row(&rows[i], want, sizeof want);
+            print_message("docs/protocol.md has %d rows for %s; expected once:\n  %s\n",
+                          found[rows[i].code], rows[i].name, want);
+            bad = 1;
+        }
+    assert_int_equal(doc_rows, n);
+    assert_false(bad);
+    /* The list also names the types: a sanity anchor on both ends of it. */
+    assert_string_equal(rths_msg_type_name(RTHS_MSG_HELLO), "HELLO");
+    assert_string_equal(rths_msg_type_name(0xFF), "ERROR");
+    assert_string_equal(rths_msg_type_name(0x42), "unknown");
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_crc32_known_answer),
@@ -395,6 +474,7 @@ int main(void) {
         cmocka_unit_test(test_every_bit_flip_is_caught),
         cmocka_unit_test(test_malformed_payloads),
         cmocka_unit_test(test_encoder_refuses_invalid_messages),
+        cmocka_unit_test(test_document_tables_match_the_message_list),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

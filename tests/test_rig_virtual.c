@@ -1,7 +1,7 @@
 /* The virtual rig against independent truths: at the target that matches the interface, the
- * measured response equals the frequency-domain fidelity model of the same scheme (SPEC §8) and,
- * for the default scheme, the analytic FRF; runs repeat exactly for a seed; the bilinear leg's
- * static force-displacement has both slopes and the kink. */
+ * measured response equals the frequency-domain fidelity model of the same scheme (docs/method.md,
+ * "Numerical substructure integration") and, for the default scheme, the analytic FRF; runs repeat
+ * exactly for a seed; the bilinear leg's static force-displacement has both slopes and the kink. */
 #include "testlib.h"
 
 #include "rths/fidelity.h"
@@ -64,7 +64,7 @@ static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ide
  * matched target equals the frequency-domain fidelity model to 5e-5 (measured <= 8e-6: what
  * remains is the corrector's and the steady-state test's floors); the default scheme equals the
  * analytic FRF to 1e-4 at the second mode's peak (measured 5e-6), implicit Euler is about a
- * quarter low (SPEC §8). */
+ * quarter low (docs/method.md, "Numerical substructure integration"). */
 static void test_matched_equals_fidelity(void **state) {
     (void)state;
     rths_config *cfg;
@@ -217,6 +217,44 @@ static void test_bilinear_static_slopes(void **state) {
     rths_config_free(cfg);
 }
 
+/* Issue 18: out-of-range commands are refused with the key that bounds them, before they reach
+ * the step: a frequency below controller.min_frequency_hz (1e-300 Hz overflowed the sample
+ * budget of run_periods), a target whose peak is beyond the displacement limit; and a shaker
+ * delay the plant cannot hold is a located configuration error naming rig.shaker.delay_s. */
+static void test_refuses_out_of_range_commands(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_setup s;
+    load(NULL, 0, &cfg, &s);
+    rths_rig *rig;
+    rths_error err;
+    if (rths_virtual_rig_create(cfg, &s, 0, 0, &rig, &err)) fail_msg("%s", err.msg);
+    const double tiny[] = {1e-300, 0.05, -1, NAN};
+    for (int i = 0; i < 4; i++) {
+        assert_int_equal(rths_rig_set_forcing(rig, tiny[i], 1.0, &err), RTHS_EINPUT);
+        assert_non_null(strstr(err.msg, "controller.min_frequency_hz"));
+    }
+    assert_int_equal(rths_rig_set_forcing(rig, 0.1, 1.0, &err), RTHS_OK);
+    const double a_far[1] = {0.3}, b_far[1] = {0.4}; /* peak 0.5 m; the limit is 0.01 m */
+    assert_int_equal(rths_rig_set_target(rig, 1, a_far, b_far, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "0.5 m"));
+    assert_non_null(strstr(err.msg, "controller.limits.displacement_m"));
+    const double a_ok[1] = {6e-3}, b_ok[1] = {8e-3}; /* peak exactly the limit: accepted */
+    assert_int_equal(rths_rig_set_target(rig, 1, a_ok, b_ok, &err), RTHS_OK);
+    rths_rig_destroy(rig);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+
+    const char *ov[] = {"controller.sample_rate_hz=1000000", "rig.shaker.delay_s=0.05"};
+    load(ov, 2, &cfg, &s);
+    assert_int_equal(rths_virtual_rig_create(cfg, &s, 0, 0, &rig, &err), RTHS_EINPUT);
+    print_message("%s\n", err.msg);
+    assert_non_null(strstr(err.msg, "key 'rig.shaker.delay_s'"));
+    assert_non_null(strstr(err.msg, "50000 samples"));
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_matched_equals_fidelity),
@@ -224,6 +262,7 @@ int main(void) {
         cmocka_unit_test(test_deterministic_for_a_seed),
         cmocka_unit_test(test_bilinear_static_slopes),
         cmocka_unit_test(test_forcing_on_physical_dof),
+        cmocka_unit_test(test_refuses_out_of_range_commands),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -1,15 +1,16 @@
-/* rths controller: the per-sample real-time step of the hybrid test (SPEC §1, §3, §8).
+/* rths controller: the per-sample real-time step of the hybrid test (docs/method.md, "The seed
+ * structure", "Errata of the seed paper" and "Numerical substructure integration").
  *
  * Every sample: the numerical substructure is advanced one step (chosen scheme) driven by
  *   F_num = F_comp - F_LC + F_ctrl  on the numerical interface DoF, plus the forcing
  *   Phi cos(theta) on its DoF when that DoF is numerical,
- * with inertial compensation F_comp = p m_int x''_measured (SPEC erratum 2: the rig's interface
- * storey carries its full mass) and grounding control F_ctrl = kp^ (x - xi) + kd^ (x' - xi')
- * (erratum 8); the actuator demand is the PD law U = kp (x* - x) + kd (x*' - x') towards the
- * periodic target x*(theta) (or, in feedback mode, towards the numerical interface itself: the
- * conventional real-time hybrid test); running Fourier sums of the physical and numerical
- * interface displacement and the load-cell force are closed at every whole period and published
- * to a lock-free single-producer/single-consumer ring.
+ * with inertial compensation F_comp = p m_int x''_measured (docs/method.md, "Errata of the seed
+ * paper", erratum 2: the rig's interface storey carries its full mass) and grounding control F_ctrl
+ * = kp^ (x - xi) + kd^ (x' - xi') (erratum 8); the actuator demand is the PD law U = kp (x* - x) +
+ * kd (x*' - x') towards the periodic target x*(theta) (or, in feedback mode, towards the numerical
+ * interface itself: the conventional real-time hybrid test); running Fourier sums of the physical
+ * and numerical interface displacement and the load-cell force are closed at every whole period and
+ * published to a lock-free single-producer/single-consumer ring.
  *
  * rths_controller_step never allocates, locks, prints or calls LAPACK: everything is built by
  * rths_controller_create. The command functions (set_forcing, set_target, arm, ...) must be
@@ -21,36 +22,7 @@
 #include "rths/config.h"
 #include "rths/plant.h"
 #include "rths/setup.h"
-
-#define RTHS_MAX_HARMONICS 5
-
-/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
- * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
- * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
- * numerical sides, target and forcing are all referred to the same phase. */
-typedef struct rths_fourier {
-    double a[RTHS_MAX_HARMONICS + 1];
-    double b[RTHS_MAX_HARMONICS + 1];
-} rths_fourier;
-
-typedef struct rths_period {
-    double frequency_hz; /* forcing frequency during this period */
-    double end_time_s;   /* rig time at the end of the period */
-    int samples;         /* controller samples in this period (sets the coefficients' noise) */
-    rths_fourier phys;   /* physical interface displacement, m */
-    rths_fourier num;    /* numerical interface displacement, m */
-    rths_fourier force;  /* measured interface force (load cell), N */
-} rths_period;
-
-typedef enum {
-    RTHS_RIG_OK = 0,
-    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
-    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
-    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
-    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
-    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
-    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
-} rths_rig_fault;
+#include "rths/signals.h"
 
 /* What the step computed this sample (for traces). */
 typedef struct rths_controller_output {
@@ -76,6 +48,11 @@ typedef struct rths_controller_options {
     double ramp_time_s;            /* demand, forcing and target ramp to zero in this time */
     int track_static;              /* target's static term = the measured mean of the last
                                       period (the actuator carries no static load) */
+    double min_frequency_hz;       /* forcing below this is refused by the rigs (a period must end
+                                      in bounded time); 0.1 Hz */
+    double max_pending_s;          /* a forcing change waits for the period boundary at most this
+                                      long; then the open period is dropped unpublished and the new
+                                      forcing starts at phase 0 at once; 1 s */
     int plant_applies_forcing;     /* 1: forcing on an internal physical DoF is accepted and left
                                       to the plant (rths_controller_forcing gives its phase);
                                       0 (default): such a forcing DoF is refused at create */
@@ -93,7 +70,8 @@ void rths_controller_destroy(rths_controller *c);
 
 /* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
  * period boundary, so every published period has one forcing; the phase theta is continuous
- * across changes. The first forcing of a controller at rest starts at once. */
+ * across changes. The first forcing of a controller at rest starts at once. A change that has
+ * waited max_pending_s without a boundary drops the open period and starts at phase 0. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);
@@ -119,9 +97,41 @@ int rths_controller_at_period_boundary(const rths_controller *c);
 double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
                             rths_controller_output *out);
 
+/* An upper bound of the target's peak |x*(t)| = |sum_k a[k] cos k w t + b[k] sin k w t|, m:
+ * sum_k hypot(a[k], b[k]) (exact for one harmonic). The rigs refuse a target whose bound is beyond
+ * the displacement limit; the step also clamps x* to the limit, so a ramp never overshoots it. */
+double rths_target_peak_bound_m(int harmonics, const double *a, const double *b);
+
 /* Any thread (single consumer): the oldest unread whole period; 1 if one was available. Periods
  * that do not fit in the ring (capacity 256) are dropped and counted. */
 int rths_controller_pop_period(rths_controller *c, rths_period *out);
 long rths_controller_dropped_periods(const rths_controller *c);
+
+/* The per-sample loop: the one place where the step and the rig's plant meet, shared by the
+ * in-process virtual rig (rig_virtual.c) and the controller process (server_engine.c). Every
+ * sample: read the sensors, step the controller, hand the forcing's phase to the plant (forcing
+ * on an internal physical DoF is applied there, in continuous time), advance the plant one sample
+ * with the demand held. A DAQ backend would replace the plant calls and nothing else.
+ *
+ * Arming rules, the same for both users: the loop starts disarmed; a latched fault disarms it
+ * (the step ramps the demand to zero); after rths_controller_reset_fault, excitation needs a new
+ * rths_sample_loop_arm. */
+typedef struct rths_sample_loop rths_sample_loop;
+
+/* Reads the sections the loop is built from (controller and rig) over the defaults already in
+ * copt and popt, and checks them against each other (the shaker delay against the sample rate,
+ * located at rig.shaker.delay_s). */
+int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt,
+                                 rths_plant_options *popt, rths_error *err);
+int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
+                            const rths_plant_options *popt, rths_sample_loop **out,
+                            rths_error *err);
+void rths_sample_loop_destroy(rths_sample_loop *loop);
+/* One sample; returns the demand (V). out may be NULL. Never allocates, blocks or prints. */
+double rths_sample_loop_run(rths_sample_loop *loop, rths_controller_output *out);
+/* Arms; RTHS_EFAIL (nothing changed) while a fault is latched. */
+int rths_sample_loop_arm(rths_sample_loop *loop);
+rths_controller *rths_sample_loop_controller(rths_sample_loop *loop);
+rths_plant *rths_sample_loop_plant(rths_sample_loop *loop);
 
 #endif

@@ -1,4 +1,5 @@
-/* rths plant: the virtual laboratory (SPEC §5) behind the per-sample I/O seam (rths_sensor_sample).
+/* rths plant: the virtual laboratory (docs/method.md, "The virtual
+ * rig") behind the per-sample I/O seam (rths_sensor_sample).
  *
  * The physical substructure with the interface storey's FULL mass (the rig's storey; the mass
  * ratio is emulated by the controller's inertial compensation), optionally the bilinear leg with
@@ -19,19 +20,7 @@
 #define RTHS_PLANT_H
 
 #include "rths/setup.h"
-
-#define RTHS_MAX_SENSED_DOFS 16
-
-/* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
- * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
- * physical DoFs, then the interface DoF), m; acceleration of the interface storey, m/s^2; load
- * cell between actuator and interface storey, N (force on the storey, positive along x). */
-typedef struct rths_sensor_sample {
-    int n;
-    double displacement_m[RTHS_MAX_SENSED_DOFS];
-    double interface_acceleration_m_s2;
-    double interface_force_n;
-} rths_sensor_sample;
+#include "rths/signals.h"
 
 typedef struct rths_sensor_spec {
     double gain_error; /* relative: reading = (1 + gain_error) x true + offset + noise */
@@ -39,6 +28,10 @@ typedef struct rths_sensor_spec {
     double noise_std;  /* white noise standard deviation, sensor's unit */
     double quantum;    /* quantisation step (0: none) */
 } rths_sensor_spec;
+
+/* The longest shaker transport delay the plant holds, in samples (delay_s x sample rate, rounded;
+ * the delay line of plant.c). */
+#define RTHS_PLANT_MAX_DELAY_SAMPLES 4095
 
 typedef struct rths_plant_options {
     double gain_n_per_v;     /* shaker force per demand volt */

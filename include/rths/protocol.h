@@ -36,25 +36,94 @@
 #define RTHS_PROTO_MAX_TRACE_BATCH 16
 #define RTHS_PROTO_LATENCY_BINS 16
 
+/* The message list, the one table the codec, the type names and docs/protocol.md's message
+ * tables come from: X(NAME, code, direction, reply). direction: RTHS_PROTO_REQUEST (host to
+ * controller; reply names the answer) or RTHS_PROTO_REPLY (controller to host; reply ""). Each
+ * message's payload, in wire order, is RTHS_PROTO_PAYLOAD_<NAME>(F): F(kind, member, doc) per
+ * field, kind the wire encoding (u8, u16, u32, u64, f64, text, fourier, latency_hist, harmonics,
+ * trace_batch), member the field of rths_msg.u, doc its docs/protocol.md description
+ * (tests/test_protocol.c fails when the document's tables and this list disagree). */
+#define RTHS_PROTO_MESSAGES(X)                                                                     \
+    X(HELLO, 0x01, RTHS_PROTO_REQUEST, "HELLO_REPLY")                                              \
+    X(ARM, 0x02, RTHS_PROTO_REQUEST, "ACK")                                                        \
+    X(DISARM, 0x03, RTHS_PROTO_REQUEST, "ACK")                                                     \
+    X(SET_FORCING, 0x04, RTHS_PROTO_REQUEST, "ACK")                                                \
+    X(SET_TARGET, 0x05, RTHS_PROTO_REQUEST, "ACK")                                                 \
+    X(GET_STATUS, 0x06, RTHS_PROTO_REQUEST, "STATUS")                                              \
+    X(GET_COEFFS, 0x07, RTHS_PROTO_REQUEST, "PERIOD (the latest whole period)")                    \
+    X(SUBSCRIBE, 0x08, RTHS_PROTO_REQUEST, "ACK")                                                  \
+    X(RESET_FAULT, 0x09, RTHS_PROTO_REQUEST, "ACK")                                                \
+    X(PING, 0x0A, RTHS_PROTO_REQUEST, "ACK")                                                       \
+    X(HELLO_REPLY, 0x81, RTHS_PROTO_REPLY, "")                                                     \
+    X(ACK, 0x82, RTHS_PROTO_REPLY, "")                                                             \
+    X(STATUS, 0x83, RTHS_PROTO_REPLY, "")                                                          \
+    X(PERIOD, 0x84, RTHS_PROTO_REPLY, "")                                                          \
+    X(TRACE, 0x85, RTHS_PROTO_REPLY, "")                                                           \
+    X(ERROR, 0xFF, RTHS_PROTO_REPLY, "")
+
+#define RTHS_PROTO_REQUEST 0
+#define RTHS_PROTO_REPLY 1
+
+#define RTHS_PROTO_PAYLOAD_HELLO(F)                                                                \
+    F(u16, hello.version, "u16 version (=1)")                                                      \
+    F(text, hello.name, "text client name")
+#define RTHS_PROTO_PAYLOAD_ARM(F)
+#define RTHS_PROTO_PAYLOAD_DISARM(F)
+#define RTHS_PROTO_PAYLOAD_SET_FORCING(F)                                                          \
+    F(f64, forcing.frequency_hz, "f64 frequency (Hz)")                                             \
+    F(f64, forcing.amplitude_n, "f64 amplitude (N)")
+#define RTHS_PROTO_PAYLOAD_SET_TARGET(F) F(harmonics, target, "u8 H (0..5), f64 a[H], f64 b[H] (m)")
+#define RTHS_PROTO_PAYLOAD_GET_STATUS(F)
+#define RTHS_PROTO_PAYLOAD_GET_COEFFS(F)
+#define RTHS_PROTO_PAYLOAD_SUBSCRIBE(F)                                                            \
+    F(u8, subscribe.flags, "u8 flags (bit 0: periods, bit 1: traces; other bits 0)")               \
+    F(u32, subscribe.trace_decimation, "u32 trace decimation (>= 1)")
+#define RTHS_PROTO_PAYLOAD_RESET_FAULT(F)
+#define RTHS_PROTO_PAYLOAD_PING(F)
+#define RTHS_PROTO_PAYLOAD_HELLO_REPLY(F)                                                          \
+    F(u16, hello_reply.version, "u16 version")                                                     \
+    F(u8, hello_reply.max_harmonics, "u8 max harmonics (5)")                                       \
+    F(f64, hello_reply.sample_period_s, "f64 sample period (s)")                                   \
+    F(f64, hello_reply.watchdog_s, "f64 watchdog time (s)")                                        \
+    F(f64, hello_reply.noise_level_m, "f64 displacement noise std (m)")                            \
+    F(text, hello_reply.name, "text controller description")
+#define RTHS_PROTO_PAYLOAD_ACK(F)                                                                  \
+    F(u8, ack.acked_type, "u8 acknowledged type")                                                  \
+    F(f64, ack.time_s, "f64 controller time (s) at which the command took effect")
+#define RTHS_PROTO_PAYLOAD_STATUS(F)                                                               \
+    F(f64, status.time_s, "f64 time (s)")                                                          \
+    F(u8, status.flags, "u8 flags")                                                                \
+    F(u8, status.fault, "u8 fault")                                                                \
+    F(u8, status.last_disarm, "u8 last disarm reason")                                             \
+    F(f64, status.frequency_hz, "f64 forcing frequency (Hz)")                                      \
+    F(f64, status.amplitude_n, "f64 forcing amplitude (N)")                                        \
+    F(u64, status.samples, "u64 loop cycles run")                                                  \
+    F(u64, status.overruns, "u64 overruns")                                                        \
+    F(f64, status.worst_lateness_s, "f64 worst wake-up lateness (s)")                              \
+    F(u64, status.periods_dropped, "u64 periods dropped")                                          \
+    F(latency_hist, status.latency_hist, "16 × u64 lateness histogram counts")
+#define RTHS_PROTO_PAYLOAD_PERIOD(F)                                                               \
+    F(u32, period.index, "u32 index")                                                              \
+    F(f64, period.frequency_hz, "f64 frequency (Hz)")                                              \
+    F(f64, period.start_time_s, "f64 start time (s)")                                              \
+    F(f64, period.end_time_s, "f64 end time (s)")                                                  \
+    F(u32, period.samples, "u32 samples")                                                          \
+    F(fourier, period.phys, "fourier physical interface displacement (m)")                         \
+    F(fourier, period.num, "fourier numerical interface displacement (m)")                         \
+    F(fourier, period.force, "fourier load-cell force (N)")
+#define RTHS_PROTO_PAYLOAD_TRACE(F)                                                                \
+    F(trace_batch, trace,                                                                          \
+      "u8 n (1..16), then n × (f64 time (s), x_phys (m), x_num (m), target (m), force (N), "      \
+      "demand (V))")
+#define RTHS_PROTO_PAYLOAD_ERROR(F)                                                                \
+    F(u16, error.code, "u16 code (§2)")                                                            \
+    F(u8, error.request_type, "u8 request type")                                                   \
+    F(text, error.message, "text message")
+
 typedef enum rths_msg_type {
-    /* host -> controller */
-    RTHS_MSG_HELLO = 0x01,
-    RTHS_MSG_ARM = 0x02,
-    RTHS_MSG_DISARM = 0x03,
-    RTHS_MSG_SET_FORCING = 0x04,
-    RTHS_MSG_SET_TARGET = 0x05,
-    RTHS_MSG_GET_STATUS = 0x06,
-    RTHS_MSG_GET_COEFFS = 0x07,
-    RTHS_MSG_SUBSCRIBE = 0x08,
-    RTHS_MSG_RESET_FAULT = 0x09,
-    RTHS_MSG_PING = 0x0A,
-    /* controller -> host */
-    RTHS_MSG_HELLO_REPLY = 0x81,
-    RTHS_MSG_ACK = 0x82,
-    RTHS_MSG_STATUS = 0x83,
-    RTHS_MSG_PERIOD = 0x84,
-    RTHS_MSG_TRACE = 0x85,
-    RTHS_MSG_ERROR = 0xFF,
+#define RTHS_PROTO_X_ENUM(name, code, direction, reply) RTHS_MSG_##name = code,
+    RTHS_PROTO_MESSAGES(RTHS_PROTO_X_ENUM)
+#undef RTHS_PROTO_X_ENUM
 } rths_msg_type;
 
 /* Decoder results; the nonzero values are also the error codes carried by ERROR frames. */
@@ -139,6 +208,17 @@ typedef struct rths_proto_trace_sample {
     double time_s, x_phys_m, x_num_m, target_m, force_n, demand;
 } rths_proto_trace_sample;
 
+/* SET_TARGET's payload: x*(t) = sum_{k=1..harmonics} a[k-1] cos(k w t) + b[k-1] sin(k w t). */
+typedef struct rths_proto_target {
+    int harmonics;
+    double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
+} rths_proto_target;
+
+typedef struct rths_proto_trace {
+    int count;
+    rths_proto_trace_sample s[RTHS_PROTO_MAX_TRACE_BATCH];
+} rths_proto_trace;
+
 #define RTHS_SUBSCRIBE_PERIODS 0x01u
 #define RTHS_SUBSCRIBE_TRACES 0x02u
 
@@ -159,10 +239,7 @@ typedef struct rths_msg {
         struct {
             double frequency_hz, amplitude_n;
         } forcing;
-        struct {
-            int harmonics;
-            double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
-        } target;
+        rths_proto_target target;
         struct {
             uint8_t flags;
             uint32_t trace_decimation;
@@ -175,10 +252,7 @@ typedef struct rths_msg {
         } ack;
         rths_proto_status_msg status;
         rths_proto_period period;
-        struct {
-            int count;
-            rths_proto_trace_sample s[RTHS_PROTO_MAX_TRACE_BATCH];
-        } trace;
+        rths_proto_trace trace;
         struct {
             uint16_t code;
             uint8_t request_type;

@@ -12,21 +12,12 @@
 #ifndef RTHS_RIG_H
 #define RTHS_RIG_H
 
-/* The per-period data (rths_fourier, rths_period) and fault codes are the controller's: it
- * produces them every period (controller.h). */
-#include "rths/controller.h"
+/* The per-period data (rths_fourier, rths_period), fault codes and trace samples: the signals
+ * both sides share; the host never sees the controller's or the plant's own headers. */
+#include "rths/core.h"
+#include "rths/signals.h"
 
 const char *rths_rig_fault_name(rths_rig_fault f);
-
-/* One decimated time trace sample. */
-typedef struct rths_trace_sample {
-    double time_s;
-    double x_phys_m; /* physical interface displacement (laser) */
-    double x_num_m;  /* numerical interface displacement */
-    double target_m; /* control target x*(t) */
-    double force_n;  /* load cell */
-    double demand;   /* actuator demand (V) */
-} rths_trace_sample;
 
 typedef struct rths_rig rths_rig;
 

@@ -33,7 +33,11 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = rths_config_get_double(cfg, "controller.ramp_time_s", 0, opt->ramp_time_s, 0, 60,
                                      &opt->ramp_time_s, err)) ||
         (rc = rths_config_get_bool(cfg, "controller.track_static", 0, opt->track_static,
-                                   &opt->track_static, err)))
+                                   &opt->track_static, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.min_frequency_hz", 0, opt->min_frequency_hz,
+                                     1e-3, 1e3, &opt->min_frequency_hz, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.max_pending_s", 0, opt->max_pending_s, 0,
+                                     3600, &opt->max_pending_s, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
     if (opt->velocity_cutoff_hz >= 0.5 * opt->sample_rate_hz)

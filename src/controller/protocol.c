@@ -50,38 +50,11 @@ const char *rths_proto_status_name(int status) {
 
 const char *rths_msg_type_name(int type) {
     switch (type) {
-    case RTHS_MSG_HELLO:
-        return "HELLO";
-    case RTHS_MSG_ARM:
-        return "ARM";
-    case RTHS_MSG_DISARM:
-        return "DISARM";
-    case RTHS_MSG_SET_FORCING:
-        return "SET_FORCING";
-    case RTHS_MSG_SET_TARGET:
-        return "SET_TARGET";
-    case RTHS_MSG_GET_STATUS:
-        return "GET_STATUS";
-    case RTHS_MSG_GET_COEFFS:
-        return "GET_COEFFS";
-    case RTHS_MSG_SUBSCRIBE:
-        return "SUBSCRIBE";
-    case RTHS_MSG_RESET_FAULT:
-        return "RESET_FAULT";
-    case RTHS_MSG_PING:
-        return "PING";
-    case RTHS_MSG_HELLO_REPLY:
-        return "HELLO_REPLY";
-    case RTHS_MSG_ACK:
-        return "ACK";
-    case RTHS_MSG_STATUS:
-        return "STATUS";
-    case RTHS_MSG_PERIOD:
-        return "PERIOD";
-    case RTHS_MSG_TRACE:
-        return "TRACE";
-    case RTHS_MSG_ERROR:
-        return "ERROR";
+#define TYPE_NAME(name, code, direction, reply)                                                    \
+    case code:                                                                                     \
+        return #name;
+        RTHS_PROTO_MESSAGES(TYPE_NAME)
+#undef TYPE_NAME
     }
     return "unknown";
 }
@@ -159,115 +132,81 @@ static void w_text(writer *w, const char *s) {
     w_bytes(w, s, n);
 }
 
-static void w_fourier(writer *w, const rths_proto_fourier *f) {
+/* Field encoders, one per wire kind of the message list (protocol.h). */
+static void enc_u8(writer *w, const uint8_t *v) {
+    w_u8(w, *v);
+}
+static void enc_u16(writer *w, const uint16_t *v) {
+    w_u16(w, *v);
+}
+static void enc_u32(writer *w, const uint32_t *v) {
+    w_u32(w, *v);
+}
+static void enc_u64(writer *w, const uint64_t *v) {
+    w_u64(w, *v);
+}
+static void enc_f64(writer *w, const double *v) {
+    w_f64(w, *v);
+}
+static void enc_text(writer *w, const char (*v)[RTHS_PROTO_MAX_TEXT + 1]) {
+    w_text(w, *v);
+}
+static void enc_fourier(writer *w, const rths_proto_fourier *f) {
     for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
         w_f64(w, f->a[k]);
     for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
         w_f64(w, f->b[k]);
 }
+static void enc_latency_hist(writer *w, const uint64_t (*h)[RTHS_PROTO_LATENCY_BINS]) {
+    for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
+        w_u64(w, (*h)[i]);
+}
+static void enc_harmonics(writer *w, const rths_proto_target *t) {
+    if (t->harmonics < 0 || t->harmonics > RTHS_PROTO_HARMONICS) {
+        w->bad = 1;
+        return;
+    }
+    w_u8(w, (unsigned)t->harmonics);
+    for (int k = 0; k < t->harmonics; k++)
+        w_f64(w, t->a[k]);
+    for (int k = 0; k < t->harmonics; k++)
+        w_f64(w, t->b[k]);
+}
+static void enc_trace_batch(writer *w, const rths_proto_trace *t) {
+    if (t->count < 1 || t->count > RTHS_PROTO_MAX_TRACE_BATCH) {
+        w->bad = 1;
+        return;
+    }
+    w_u8(w, (unsigned)t->count);
+    for (int i = 0; i < t->count; i++) {
+        const rths_proto_trace_sample *s = &t->s[i];
+        const double v[6] = {s->time_s,   s->x_phys_m, s->x_num_m,
+                             s->target_m, s->force_n,  s->demand};
+        for (int j = 0; j < 6; j++)
+            w_f64(w, v[j]);
+    }
+}
+
+/* Constraints beyond the field kinds; both directions refuse what this refuses. */
+static int payload_valid(const rths_msg *m) {
+    if (m->type == RTHS_MSG_SUBSCRIBE)
+        return !(m->u.subscribe.flags & ~(RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES)) &&
+               m->u.subscribe.trace_decimation >= 1;
+    return 1;
+}
+
+#define ENCODE_FIELD(kind, member, doc) enc_##kind(w, &m->u.member);
+#define ENCODE_CASE(name, code, direction, reply)                                                  \
+    case code:                                                                                     \
+        RTHS_PROTO_PAYLOAD_##name(ENCODE_FIELD) break;
 
 static void encode_payload(writer *w, const rths_msg *m) {
+    if (!payload_valid(m)) {
+        w->bad = 1;
+        return;
+    }
     switch (m->type) {
-    case RTHS_MSG_HELLO:
-        w_u16(w, m->u.hello.version);
-        w_text(w, m->u.hello.name);
-        break;
-    case RTHS_MSG_ARM:
-    case RTHS_MSG_DISARM:
-    case RTHS_MSG_GET_STATUS:
-    case RTHS_MSG_GET_COEFFS:
-    case RTHS_MSG_RESET_FAULT:
-    case RTHS_MSG_PING:
-        break;
-    case RTHS_MSG_SET_FORCING:
-        w_f64(w, m->u.forcing.frequency_hz);
-        w_f64(w, m->u.forcing.amplitude_n);
-        break;
-    case RTHS_MSG_SET_TARGET: {
-        int h = m->u.target.harmonics;
-        if (h < 0 || h > RTHS_PROTO_HARMONICS) {
-            w->bad = 1;
-            return;
-        }
-        w_u8(w, (unsigned)h);
-        for (int k = 0; k < h; k++)
-            w_f64(w, m->u.target.a[k]);
-        for (int k = 0; k < h; k++)
-            w_f64(w, m->u.target.b[k]);
-        break;
-    }
-    case RTHS_MSG_SUBSCRIBE:
-        if (m->u.subscribe.flags & ~(RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES) ||
-            m->u.subscribe.trace_decimation < 1) {
-            w->bad = 1;
-            return;
-        }
-        w_u8(w, m->u.subscribe.flags);
-        w_u32(w, m->u.subscribe.trace_decimation);
-        break;
-    case RTHS_MSG_HELLO_REPLY:
-        w_u16(w, m->u.hello_reply.version);
-        w_u8(w, m->u.hello_reply.max_harmonics);
-        w_f64(w, m->u.hello_reply.sample_period_s);
-        w_f64(w, m->u.hello_reply.watchdog_s);
-        w_f64(w, m->u.hello_reply.noise_level_m);
-        w_text(w, m->u.hello_reply.name);
-        break;
-    case RTHS_MSG_ACK:
-        w_u8(w, m->u.ack.acked_type);
-        w_f64(w, m->u.ack.time_s);
-        break;
-    case RTHS_MSG_STATUS: {
-        const rths_proto_status_msg *s = &m->u.status;
-        w_f64(w, s->time_s);
-        w_u8(w, s->flags);
-        w_u8(w, s->fault);
-        w_u8(w, s->last_disarm);
-        w_f64(w, s->frequency_hz);
-        w_f64(w, s->amplitude_n);
-        w_u64(w, s->samples);
-        w_u64(w, s->overruns);
-        w_f64(w, s->worst_lateness_s);
-        w_u64(w, s->periods_dropped);
-        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
-            w_u64(w, s->latency_hist[i]);
-        break;
-    }
-    case RTHS_MSG_PERIOD: {
-        const rths_proto_period *p = &m->u.period;
-        w_u32(w, p->index);
-        w_f64(w, p->frequency_hz);
-        w_f64(w, p->start_time_s);
-        w_f64(w, p->end_time_s);
-        w_u32(w, p->samples);
-        w_fourier(w, &p->phys);
-        w_fourier(w, &p->num);
-        w_fourier(w, &p->force);
-        break;
-    }
-    case RTHS_MSG_TRACE: {
-        int c = m->u.trace.count;
-        if (c < 1 || c > RTHS_PROTO_MAX_TRACE_BATCH) {
-            w->bad = 1;
-            return;
-        }
-        w_u8(w, (unsigned)c);
-        for (int i = 0; i < c; i++) {
-            const rths_proto_trace_sample *s = &m->u.trace.s[i];
-            w_f64(w, s->time_s);
-            w_f64(w, s->x_phys_m);
-            w_f64(w, s->x_num_m);
-            w_f64(w, s->target_m);
-            w_f64(w, s->force_n);
-            w_f64(w, s->demand);
-        }
-        break;
-    }
-    case RTHS_MSG_ERROR:
-        w_u16(w, m->u.error.code);
-        w_u8(w, m->u.error.request_type);
-        w_text(w, m->u.error.message);
-        break;
+        RTHS_PROTO_MESSAGES(ENCODE_CASE)
     default:
         w->bad = 1;
     }
@@ -369,113 +308,79 @@ static void r_text(reader *r, char *out) {
     out[n] = '\0';
 }
 
-static void r_fourier(reader *r, rths_proto_fourier *f) {
+/* Field decoders, one per wire kind of the message list (protocol.h). */
+static void dec_u8(reader *r, uint8_t *v) {
+    *v = (uint8_t)r_u8(r);
+}
+static void dec_u16(reader *r, uint16_t *v) {
+    *v = (uint16_t)r_u16(r);
+}
+static void dec_u32(reader *r, uint32_t *v) {
+    *v = r_u32(r);
+}
+static void dec_u64(reader *r, uint64_t *v) {
+    *v = r_u64(r);
+}
+static void dec_f64(reader *r, double *v) {
+    *v = r_f64(r);
+}
+static void dec_text(reader *r, char (*v)[RTHS_PROTO_MAX_TEXT + 1]) {
+    r_text(r, *v);
+}
+static void dec_fourier(reader *r, rths_proto_fourier *f) {
     for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
         f->a[k] = r_f64(r);
     for (int k = 0; k <= RTHS_PROTO_HARMONICS; k++)
         f->b[k] = r_f64(r);
 }
+static void dec_latency_hist(reader *r, uint64_t (*h)[RTHS_PROTO_LATENCY_BINS]) {
+    for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
+        (*h)[i] = r_u64(r);
+}
+static void dec_harmonics(reader *r, rths_proto_target *t) {
+    unsigned h = r_u8(r);
+    if (h > RTHS_PROTO_HARMONICS) {
+        r->bad = 1;
+        return;
+    }
+    t->harmonics = (int)h;
+    for (unsigned k = 0; k < h; k++)
+        t->a[k] = r_f64(r);
+    for (unsigned k = 0; k < h; k++)
+        t->b[k] = r_f64(r);
+}
+static void dec_trace_batch(reader *r, rths_proto_trace *t) {
+    unsigned c = r_u8(r);
+    if (c < 1 || c > RTHS_PROTO_MAX_TRACE_BATCH) {
+        r->bad = 1;
+        return;
+    }
+    t->count = (int)c;
+    for (unsigned i = 0; i < c; i++) {
+        rths_proto_trace_sample *s = &t->s[i];
+        s->time_s = r_f64(r);
+        s->x_phys_m = r_f64(r);
+        s->x_num_m = r_f64(r);
+        s->target_m = r_f64(r);
+        s->force_n = r_f64(r);
+        s->demand = r_f64(r);
+    }
+}
+
+#define DECODE_FIELD(kind, member, doc) dec_##kind(r, &m->u.member);
+#define DECODE_CASE(name, code, direction, reply)                                                  \
+    case code:                                                                                     \
+        RTHS_PROTO_PAYLOAD_##name(DECODE_FIELD) break;
 
 /* Returns RTHS_PROTO_OK, ETYPE or EPAYLOAD. Trailing bytes are a malformed payload: every type
  * has exactly one valid length for its contents. */
 static int decode_payload(reader *r, rths_msg *m) {
     switch (m->type) {
-    case RTHS_MSG_HELLO:
-        m->u.hello.version = (uint16_t)r_u16(r);
-        r_text(r, m->u.hello.name);
-        break;
-    case RTHS_MSG_ARM:
-    case RTHS_MSG_DISARM:
-    case RTHS_MSG_GET_STATUS:
-    case RTHS_MSG_GET_COEFFS:
-    case RTHS_MSG_RESET_FAULT:
-    case RTHS_MSG_PING:
-        break;
-    case RTHS_MSG_SET_FORCING:
-        m->u.forcing.frequency_hz = r_f64(r);
-        m->u.forcing.amplitude_n = r_f64(r);
-        break;
-    case RTHS_MSG_SET_TARGET: {
-        unsigned h = r_u8(r);
-        if (h > RTHS_PROTO_HARMONICS) return RTHS_PROTO_EPAYLOAD;
-        m->u.target.harmonics = (int)h;
-        for (unsigned k = 0; k < h; k++)
-            m->u.target.a[k] = r_f64(r);
-        for (unsigned k = 0; k < h; k++)
-            m->u.target.b[k] = r_f64(r);
-        break;
-    }
-    case RTHS_MSG_SUBSCRIBE:
-        m->u.subscribe.flags = (uint8_t)r_u8(r);
-        m->u.subscribe.trace_decimation = r_u32(r);
-        if (m->u.subscribe.flags & ~(RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES) ||
-            m->u.subscribe.trace_decimation < 1)
-            return RTHS_PROTO_EPAYLOAD;
-        break;
-    case RTHS_MSG_HELLO_REPLY:
-        m->u.hello_reply.version = (uint16_t)r_u16(r);
-        m->u.hello_reply.max_harmonics = (uint8_t)r_u8(r);
-        m->u.hello_reply.sample_period_s = r_f64(r);
-        m->u.hello_reply.watchdog_s = r_f64(r);
-        m->u.hello_reply.noise_level_m = r_f64(r);
-        r_text(r, m->u.hello_reply.name);
-        break;
-    case RTHS_MSG_ACK:
-        m->u.ack.acked_type = (uint8_t)r_u8(r);
-        m->u.ack.time_s = r_f64(r);
-        break;
-    case RTHS_MSG_STATUS: {
-        rths_proto_status_msg *s = &m->u.status;
-        s->time_s = r_f64(r);
-        s->flags = (uint8_t)r_u8(r);
-        s->fault = (uint8_t)r_u8(r);
-        s->last_disarm = (uint8_t)r_u8(r);
-        s->frequency_hz = r_f64(r);
-        s->amplitude_n = r_f64(r);
-        s->samples = r_u64(r);
-        s->overruns = r_u64(r);
-        s->worst_lateness_s = r_f64(r);
-        s->periods_dropped = r_u64(r);
-        for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
-            s->latency_hist[i] = r_u64(r);
-        break;
-    }
-    case RTHS_MSG_PERIOD: {
-        rths_proto_period *p = &m->u.period;
-        p->index = r_u32(r);
-        p->frequency_hz = r_f64(r);
-        p->start_time_s = r_f64(r);
-        p->end_time_s = r_f64(r);
-        p->samples = r_u32(r);
-        r_fourier(r, &p->phys);
-        r_fourier(r, &p->num);
-        r_fourier(r, &p->force);
-        break;
-    }
-    case RTHS_MSG_TRACE: {
-        unsigned c = r_u8(r);
-        if (c < 1 || c > RTHS_PROTO_MAX_TRACE_BATCH) return RTHS_PROTO_EPAYLOAD;
-        m->u.trace.count = (int)c;
-        for (unsigned i = 0; i < c; i++) {
-            rths_proto_trace_sample *s = &m->u.trace.s[i];
-            s->time_s = r_f64(r);
-            s->x_phys_m = r_f64(r);
-            s->x_num_m = r_f64(r);
-            s->target_m = r_f64(r);
-            s->force_n = r_f64(r);
-            s->demand = r_f64(r);
-        }
-        break;
-    }
-    case RTHS_MSG_ERROR:
-        m->u.error.code = (uint16_t)r_u16(r);
-        m->u.error.request_type = (uint8_t)r_u8(r);
-        r_text(r, m->u.error.message);
-        break;
+        RTHS_PROTO_MESSAGES(DECODE_CASE)
     default:
         return RTHS_PROTO_ETYPE;
     }
-    if (r->bad || r->pos != r->n) return RTHS_PROTO_EPAYLOAD;
+    if (r->bad || r->pos != r->n || !payload_valid(m)) return RTHS_PROTO_EPAYLOAD;
     return RTHS_PROTO_OK;
 }
 

@@ -8,6 +8,8 @@
 #include "rths/server.h"
 
 #include "controller/server_engine.h"
+#include "controller/spsc.h"
+#include "rths/controller.h"
 #include "rths/protocol.h"
 
 #include <errno.h>
@@ -19,6 +21,7 @@
 #include <pthread.h>
 #include <sched.h>
 #include <stdatomic.h>
+#include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -35,49 +38,16 @@
 #endif
 #endif
 
-#define CMD_RING 64      /* commands in flight; the network waits for each, so few */
-#define TRACE_RING 16384 /* trace samples between network-thread wake-ups */
-#define LAT_BINS 50000   /* lateness histogram: 1 us bins up to 50 ms, then overflow */
-#define STEP_BINS 10000  /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
+#define CMD_RING 64           /* commands in flight; the network waits for each, so few */
+#define MAX_CMDS_PER_SAMPLE 4 /* commands the loop applies per sample, at most */
+#define TRACE_RING 16384      /* trace samples between network-thread wake-ups */
+#define LAT_BINS 50000        /* lateness histogram: 1 us bins up to 50 ms, then overflow */
+#define STEP_BINS 10000       /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
 #define RX_CAP 8192
 #define TX_CAP (256 * 1024)
 #define TX_RESERVE (32 * 1024) /* room kept for replies: stream frames never take it */
-
-/* ---- single-producer single-consumer ring of fixed-size items ---- */
-
-typedef struct spsc {
-    _Atomic size_t head; /* written by the producer */
-    _Atomic size_t tail; /* written by the consumer */
-    size_t mask, item;
-    unsigned char *buf;
-} spsc;
-
-static int spsc_init(spsc *q, size_t count_pow2, size_t item) {
-    atomic_init(&q->head, 0);
-    atomic_init(&q->tail, 0);
-    q->mask = count_pow2 - 1;
-    q->item = item;
-    q->buf = calloc(count_pow2, item);
-    return q->buf != NULL;
-}
-
-static int spsc_push(spsc *q, const void *item) {
-    size_t h = atomic_load_explicit(&q->head, memory_order_relaxed);
-    size_t t = atomic_load_explicit(&q->tail, memory_order_acquire);
-    if (h - t > q->mask) return 0;
-    memcpy(q->buf + (h & q->mask) * q->item, item, q->item);
-    atomic_store_explicit(&q->head, h + 1, memory_order_release);
-    return 1;
-}
-
-static int spsc_pop(spsc *q, void *item) {
-    size_t t = atomic_load_explicit(&q->tail, memory_order_relaxed);
-    size_t h = atomic_load_explicit(&q->head, memory_order_acquire);
-    if (t == h) return 0;
-    memcpy(item, q->buf + (t & q->mask) * q->item, q->item);
-    atomic_store_explicit(&q->tail, t + 1, memory_order_release);
-    return 1;
-}
+#define NOTICE_BURST 10        /* connection notices per NOTICE_WINDOW_NS; the rest are counted */
+#define NOTICE_WINDOW_NS 1000000000
 
 /* ---- state ---- */
 
@@ -118,7 +88,8 @@ struct rths_server {
     atomic_int stop;
     atomic_int loop_ready;
 
-    spsc cmds, traces;
+    rths_spsc cmds, traces;
+    void *cmd_storage, *trace_storage;
     uint32_t next_cmd_id; /* network thread */
     _Atomic uint32_t applied_id;
     atomic_int applied_result;
@@ -141,6 +112,8 @@ struct rths_server {
     /* network thread only */
     client c;
     int note_armed, note_fault; /* state last announced on stderr */
+    int64_t notice_window_start_ns;
+    int notices_in_window, notices_suppressed;
     rths_proto_period latest;
     int have_latest;
     _Atomic uint64_t periods_dropped;
@@ -179,6 +152,35 @@ static inline void add64(_Atomic uint64_t *p, uint64_t v) {
 static inline void max64(_Atomic uint64_t *p, uint64_t v) {
     if (v > atomic_load_explicit(p, memory_order_relaxed))
         atomic_store_explicit(p, v, memory_order_relaxed);
+}
+
+/* Connection notices on stderr (network thread), at most NOTICE_BURST per second: a storm of
+ * connections must not flood the operator's terminal or log. What is held back is counted and
+ * reported once the second is over (notices_flush). */
+static void notices_flush(rths_server *s, int64_t now) {
+    if (now - s->notice_window_start_ns < NOTICE_WINDOW_NS) return;
+    if (s->notices_suppressed && !s->opt.quiet)
+        fprintf(stderr, "rths controller: %d more connection notices suppressed\n",
+                s->notices_suppressed);
+    s->notice_window_start_ns = now;
+    s->notices_in_window = s->notices_suppressed = 0;
+}
+
+static void notice(rths_server *s, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void notice(rths_server *s, const char *fmt, ...) {
+    if (s->opt.quiet) return;
+    notices_flush(s, mono_ns());
+    if (s->notices_in_window >= NOTICE_BURST) {
+        s->notices_suppressed++;
+        return;
+    }
+    s->notices_in_window++;
+    va_list ap;
+    va_start(ap, fmt);
+    fputs("rths controller: ", stderr);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
 }
 
 /* ---- options and configuration ---- */
@@ -246,11 +248,77 @@ static void rt_setup(rths_server *s) {
     atomic_fetch_or(&s->rt_flags, flags);
 }
 
+/* Sleeps to the next absolute deadline and records how late the wake-up was; returns now, ns. */
+static int64_t wait_next_sample(rths_server *s, struct timespec *next) {
+    const int64_t period = s->period_ns;
+    next->tv_nsec += period;
+    while (next->tv_nsec >= 1000000000) {
+        next->tv_nsec -= 1000000000;
+        next->tv_sec++;
+    }
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, next, NULL) == EINTR) {
+    }
+    int64_t now = mono_ns();
+    int64_t deadline = (int64_t)next->tv_sec * 1000000000 + next->tv_nsec;
+    int64_t late = now - deadline;
+    if (late < 0) late = 0;
+    uint64_t bin = (uint64_t)late / 1000u;
+    bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
+    max64(&s->worst_late_ns, (uint64_t)late);
+    if (late >= period) add64(&s->overruns, 1);
+    if (late > 1000 * period) { /* 0.1 s behind at 10 kHz: catching up would only burst */
+        next->tv_sec = now / 1000000000;
+        next->tv_nsec = now % 1000000000;
+        add64(&s->resyncs, 1);
+    }
+    return now;
+}
+
+/* Host commands (a bounded number per sample: a flood cannot stretch one sample) and the
+ * watchdog. */
+static void serve_host(rths_server *s, int64_t now, int64_t watchdog_ns) {
+    loop_cmd c;
+    for (int k = 0; k < MAX_CMDS_PER_SAMPLE && rths_spsc_pop(&s->cmds, &c); k++)
+        apply_cmd(s, &c);
+    if (rths_engine_armed(s->engine) &&
+        now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
+        atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
+        rths_engine_trip_watchdog(s->engine);
+    }
+}
+
+/* One step, timed into the step-cost histogram. */
+static void timed_step(rths_server *s, rths_proto_trace_sample *sig) {
+    int64_t t0 = mono_ns();
+    rths_engine_step(s->engine, sig);
+    int64_t cost = mono_ns() - t0;
+    uint64_t c = (uint64_t)(cost > 0 ? cost : 0);
+    uint64_t sb = c / 100u;
+    bump32(&s->step_hist[sb < STEP_BINS ? sb : STEP_BINS]);
+    add64(&s->step_sum_ns, c);
+    max64(&s->worst_step_ns, c);
+}
+
+/* The state other threads read, after every sample. */
+static void publish_state(rths_server *s, int *prev_armed) {
+    int armed = rths_engine_armed(s->engine);
+    int fault = rths_engine_fault(s->engine);
+    if (*prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
+        atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
+    *prev_armed = armed;
+    atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
+    atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
+    atomic_store_explicit(&s->time_bits, dbits(rths_engine_time_s(s->engine)),
+                          memory_order_relaxed);
+    atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
+                          memory_order_relaxed);
+    add64(&s->samples, 1);
+}
+
 static void *loop_main(void *arg) {
     rths_server *s = arg;
     rt_setup(s);
     atomic_store(&s->loop_ready, 1);
-    const int64_t period = s->period_ns;
     const int64_t watchdog_ns = (int64_t)(s->opt.watchdog_s * 1e9);
     /* After a stop request the loop keeps stepping, disarmed, long enough for the step's ramp to
      * bring the demand to zero: a real rig must not be left with a held demand. */
@@ -260,75 +328,29 @@ static void *loop_main(void *arg) {
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
     for (;;) {
-        next.tv_nsec += period;
-        while (next.tv_nsec >= 1000000000) {
-            next.tv_nsec -= 1000000000;
-            next.tv_sec++;
-        }
-        while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &next, NULL) == EINTR) {
-        }
-        int64_t now = mono_ns();
-        int64_t deadline = (int64_t)next.tv_sec * 1000000000 + next.tv_nsec;
-        int64_t late = now - deadline;
-        if (late < 0) late = 0;
-        uint64_t bin = (uint64_t)late / 1000u;
-        bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
-        max64(&s->worst_late_ns, (uint64_t)late);
-        if (late >= period) add64(&s->overruns, 1);
-        if (late > 1000 * period) { /* 0.1 s behind at 10 kHz: catching up would only burst */
-            next.tv_sec = now / 1000000000;
-            next.tv_nsec = now % 1000000000;
-            add64(&s->resyncs, 1);
-        }
-
+        int64_t now = wait_next_sample(s, &next);
         if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
             if (rths_engine_armed(s->engine)) atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
             rths_engine_disarm(s->engine);
-            shutdown_left = (int64_t)(0.5e9 / (double)period) + 1;
+            shutdown_left = (int64_t)(0.5e9 / (double)s->period_ns) + 1;
         }
-        if (shutdown_left < 0) {
-            loop_cmd c;
-            while (spsc_pop(&s->cmds, &c))
-                apply_cmd(s, &c);
-            if (rths_engine_armed(s->engine) &&
-                now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
-                atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
-                rths_engine_trip_watchdog(s->engine);
-            }
-        } else if (shutdown_left-- == 0) {
+        if (shutdown_left < 0)
+            serve_host(s, now, watchdog_ns);
+        else if (shutdown_left-- == 0)
             break;
-        }
 
         rths_proto_trace_sample sig;
-        int64_t t0 = mono_ns();
-        rths_engine_step(s->engine, &sig);
-        int64_t cost = mono_ns() - t0;
-        uint64_t sb = (uint64_t)(cost > 0 ? cost : 0) / 100u;
-        bump32(&s->step_hist[sb < STEP_BINS ? sb : STEP_BINS]);
-        add64(&s->step_sum_ns, (uint64_t)(cost > 0 ? cost : 0));
-        max64(&s->worst_step_ns, (uint64_t)(cost > 0 ? cost : 0));
-
+        timed_step(s, &sig);
         if (atomic_load_explicit(&s->trace_on, memory_order_relaxed)) {
             uint32_t d = atomic_load_explicit(&s->trace_decimation, memory_order_relaxed);
             if (++decim_count >= d) {
                 decim_count = 0;
-                spsc_push(&s->traces, &sig); /* full: the sample is lost, never waited for */
+                rths_spsc_push(&s->traces, &sig); /* full: the sample is lost, never waited for */
             }
         } else {
             decim_count = 0;
         }
-        int armed = rths_engine_armed(s->engine);
-        int fault = rths_engine_fault(s->engine);
-        if (prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
-            atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
-        prev_armed = armed;
-        atomic_store_explicit(&s->armed, armed, memory_order_relaxed);
-        atomic_store_explicit(&s->fault, fault, memory_order_relaxed);
-        atomic_store_explicit(&s->time_bits, dbits(rths_engine_time_s(s->engine)),
-                              memory_order_relaxed);
-        atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
-                              memory_order_relaxed);
-        add64(&s->samples, 1);
+        publish_state(s, &prev_armed);
     }
     atomic_store(&s->armed, 0);
     return NULL;
@@ -367,12 +389,11 @@ static void drop_client(rths_server *s, const char *why) {
     close(c->fd);
     c->fd = -1;
     atomic_store(&s->trace_on, 0);
-    if (!s->opt.quiet)
-        fprintf(stderr, "rths controller: client %s disconnected (%s)\n", c->peer, why);
+    notice(s, "client %s disconnected (%s)", c->peer, why);
     if (atomic_load(&s->armed)) {
         /* Loss of the controlling connection disarms: excitation and target ramp to zero. */
         loop_cmd cmd = {.id = ++s->next_cmd_id, .type = CMD_DISARM, .reason = RTHS_DISARM_LINK};
-        spsc_push(&s->cmds, &cmd);
+        rths_spsc_push(&s->cmds, &cmd);
     }
 }
 
@@ -397,7 +418,7 @@ static int flush_tx(rths_server *s) {
 static int run_cmd(rths_server *s, loop_cmd *cmd, double *applied_time) {
     cmd->id = ++s->next_cmd_id;
     int64_t give_up = mono_ns() + 2000000000;
-    while (!spsc_push(&s->cmds, cmd)) {
+    while (!rths_spsc_push(&s->cmds, cmd)) {
         if (mono_ns() > give_up) return RTHS_PROTO_ESTATE;
         struct timespec ts = {0, 50000};
         nanosleep(&ts, NULL);
@@ -463,10 +484,110 @@ static void reply_ack(rths_server *s, const rths_msg *req, double t) {
     queue_frame(s, &m, 1);
 }
 
-static void handle(rths_server *s, const rths_msg *m) {
+static void handle_hello(rths_server *s, const rths_msg *m) {
     client *c = &s->c;
+    if (m->u.hello.version != RTHS_PROTO_VERSION) {
+        char msg[RTHS_PROTO_MAX_TEXT + 1];
+        snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u", RTHS_PROTO_VERSION,
+                 m->u.hello.version);
+        send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
+        drop_client(s, "protocol version mismatch");
+        return;
+    }
+    c->hello = 1;
+    rths_msg r;
+    rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
+    r.u.hello_reply.version = RTHS_PROTO_VERSION;
+    r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
+    r.u.hello_reply.sample_period_s = s->info.sample_period_s;
+    r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
+    r.u.hello_reply.noise_level_m = s->info.noise_level_m;
+    snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
+    queue_frame(s, &r, 1);
+    notice(s, "client %s says hello (%s)", c->peer, m->u.hello.name);
+}
+
+/* SET_FORCING and SET_TARGET within the configured limits, else ERROR 10 naming the keys; an
+ * accepted one becomes the loop command cmd. Returns 0 when accepted. */
+static int check_forcing(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
+    const double f = m->u.forcing.frequency_hz, amp = m->u.forcing.amplitude_n;
+    if (!(f >= s->info.min_frequency_hz) || f > s->opt.max_frequency_hz ||
+        fabs(amp) > s->opt.max_amplitude_n) {
+        char msg[RTHS_PROTO_MAX_TEXT + 1];
+        snprintf(msg, sizeof msg,
+                 "forcing %g Hz, %g N outside [%g, %g] Hz, |amplitude| <= %g N "
+                 "(controller.min_frequency_hz, server.max_frequency_hz, server.max_amplitude_n)",
+                 f, amp, s->info.min_frequency_hz, s->opt.max_frequency_hz, s->opt.max_amplitude_n);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    cmd->type = CMD_FORCING;
+    cmd->frequency_hz = f;
+    cmd->amplitude_n = amp;
+    return 0;
+}
+
+static int check_target(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
+    const rths_proto_target *t = &m->u.target;
     char msg[RTHS_PROTO_MAX_TEXT + 1];
-    if (!c->hello && m->type != RTHS_MSG_HELLO) {
+    if (t->harmonics > s->info.max_harmonics) {
+        snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
+                 t->harmonics, s->info.max_harmonics);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    double peak = rths_target_peak_bound_m(t->harmonics, t->a, t->b);
+    if (peak > s->info.displacement_limit_m) {
+        snprintf(msg, sizeof msg,
+                 "target of up to %g m is beyond the displacement limit %g m "
+                 "(controller.limits.displacement_m)",
+                 peak, s->info.displacement_limit_m);
+        send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+        return -1;
+    }
+    cmd->type = CMD_TARGET;
+    cmd->harmonics = t->harmonics;
+    memcpy(cmd->a, t->a, sizeof cmd->a);
+    memcpy(cmd->b, t->b, sizeof cmd->b);
+    return 0;
+}
+
+static void handle_subscribe(rths_server *s, const rths_msg *m) {
+    client *c = &s->c;
+    c->sub_periods = (m->u.subscribe.flags & RTHS_SUBSCRIBE_PERIODS) != 0;
+    c->sub_traces = (m->u.subscribe.flags & RTHS_SUBSCRIBE_TRACES) != 0;
+    /* Samples queued under the old subscription must not be mistaken for new ones. */
+    atomic_store(&s->trace_on, 0);
+    rths_proto_trace_sample junk;
+    while (rths_spsc_pop(&s->traces, &junk)) {
+    }
+    c->batch_n = 0;
+    atomic_store(&s->trace_decimation, m->u.subscribe.trace_decimation);
+    atomic_store(&s->trace_on, c->sub_traces);
+    reply_ack(s, m, ctl_time(s));
+}
+
+static void handle_query(rths_server *s, const rths_msg *m) {
+    client *c = &s->c;
+    rths_msg r;
+    if (m->type == RTHS_MSG_GET_STATUS) {
+        rths_msg_init(&r, RTHS_MSG_STATUS, m->seq);
+        fill_status(s, &r.u.status);
+        queue_frame(s, &r, 1);
+        c->last_armed = r.u.status.flags & RTHS_STATUS_ARMED ? 1 : 0;
+        c->last_fault = r.u.status.fault;
+    } else if (!s->have_latest) {
+        send_error(s, m->seq, RTHS_PROTO_ENODATA, m->type, "no whole period yet");
+    } else {
+        rths_msg_init(&r, RTHS_MSG_PERIOD, m->seq);
+        r.u.period = s->latest;
+        queue_frame(s, &r, 1);
+    }
+}
+
+static void handle(rths_server *s, const rths_msg *m) {
+    char msg[RTHS_PROTO_MAX_TEXT + 1];
+    if (!s->c.hello && m->type != RTHS_MSG_HELLO) {
         send_error(s, m->seq, RTHS_PROTO_ESTATE, m->type, "send HELLO first");
         return;
     }
@@ -475,29 +596,9 @@ static void handle(rths_server *s, const rths_msg *m) {
     double t = ctl_time(s);
     int rc;
     switch (m->type) {
-    case RTHS_MSG_HELLO: {
-        if (m->u.hello.version != RTHS_PROTO_VERSION) {
-            snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u",
-                     RTHS_PROTO_VERSION, m->u.hello.version);
-            send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
-            drop_client(s, "protocol version mismatch");
-            return;
-        }
-        c->hello = 1;
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
-        r.u.hello_reply.version = RTHS_PROTO_VERSION;
-        r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
-        r.u.hello_reply.sample_period_s = s->info.sample_period_s;
-        r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
-        r.u.hello_reply.noise_level_m = s->info.noise_level_m;
-        snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
-        queue_frame(s, &r, 1);
-        if (!s->opt.quiet)
-            fprintf(stderr, "rths controller: client %s says hello (%s)\n", c->peer,
-                    m->u.hello.name);
+    case RTHS_MSG_HELLO:
+        handle_hello(s, m);
         return;
-    }
     case RTHS_MSG_ARM:
         cmd.type = CMD_ARM;
         if ((rc = run_cmd(s, &cmd, &t))) {
@@ -506,95 +607,40 @@ static void handle(rths_server *s, const rths_msg *m) {
             send_error(s, m->seq, rc, m->type, msg);
             return;
         }
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_DISARM:
         cmd.type = CMD_DISARM;
         cmd.reason = RTHS_DISARM_COMMAND;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_SET_FORCING:
-        if (!(m->u.forcing.frequency_hz > 0) ||
-            m->u.forcing.frequency_hz > s->opt.max_frequency_hz ||
-            fabs(m->u.forcing.amplitude_n) > s->opt.max_amplitude_n) {
-            snprintf(msg, sizeof msg,
-                     "forcing %g Hz, %g N outside (0, %g] Hz, |amplitude| <= %g N "
-                     "(server.max_frequency_hz, server.max_amplitude_n)",
-                     m->u.forcing.frequency_hz, m->u.forcing.amplitude_n, s->opt.max_frequency_hz,
-                     s->opt.max_amplitude_n);
-            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
-            return;
-        }
-        cmd.type = CMD_FORCING;
-        cmd.frequency_hz = m->u.forcing.frequency_hz;
-        cmd.amplitude_n = m->u.forcing.amplitude_n;
+        if (check_forcing(s, m, &cmd)) return;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_SET_TARGET:
-        if (m->u.target.harmonics > s->info.max_harmonics) {
-            snprintf(msg, sizeof msg, "target with %d harmonics; this controller runs at most %d",
-                     m->u.target.harmonics, s->info.max_harmonics);
-            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
-            return;
-        }
-        cmd.type = CMD_TARGET;
-        cmd.harmonics = m->u.target.harmonics;
-        memcpy(cmd.a, m->u.target.a, sizeof cmd.a);
-        memcpy(cmd.b, m->u.target.b, sizeof cmd.b);
+        if (check_target(s, m, &cmd)) return;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
+        break;
+    case RTHS_MSG_GET_STATUS:
+    case RTHS_MSG_GET_COEFFS:
+        handle_query(s, m);
         return;
-    case RTHS_MSG_GET_STATUS: {
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_STATUS, m->seq);
-        fill_status(s, &r.u.status);
-        queue_frame(s, &r, 1);
-        c->last_armed = r.u.status.flags & RTHS_STATUS_ARMED ? 1 : 0;
-        c->last_fault = r.u.status.fault;
-        return;
-    }
-    case RTHS_MSG_GET_COEFFS: {
-        if (!s->have_latest) {
-            send_error(s, m->seq, RTHS_PROTO_ENODATA, m->type, "no whole period yet");
-            return;
-        }
-        rths_msg r;
-        rths_msg_init(&r, RTHS_MSG_PERIOD, m->seq);
-        r.u.period = s->latest;
-        queue_frame(s, &r, 1);
-        return;
-    }
     case RTHS_MSG_SUBSCRIBE:
-        c->sub_periods = (m->u.subscribe.flags & RTHS_SUBSCRIBE_PERIODS) != 0;
-        c->sub_traces = (m->u.subscribe.flags & RTHS_SUBSCRIBE_TRACES) != 0;
-        /* Samples queued under the old subscription must not be mistaken for new ones. */
-        atomic_store(&s->trace_on, 0);
-        {
-            rths_proto_trace_sample junk;
-            while (spsc_pop(&s->traces, &junk)) {
-            }
-        }
-        c->batch_n = 0;
-        atomic_store(&s->trace_decimation, m->u.subscribe.trace_decimation);
-        atomic_store(&s->trace_on, c->sub_traces);
-        reply_ack(s, m, ctl_time(s));
+        handle_subscribe(s, m);
         return;
     case RTHS_MSG_RESET_FAULT:
         cmd.type = CMD_RESET;
         run_cmd(s, &cmd, &t);
-        reply_ack(s, m, t);
-        return;
+        break;
     case RTHS_MSG_PING:
-        reply_ack(s, m, t);
-        return;
+        break;
     default:
         /* Replies-only types sent to the controller. */
         snprintf(msg, sizeof msg, "%s is not a request", rths_msg_type_name(m->type));
         send_error(s, m->seq, RTHS_PROTO_ETYPE, m->type, msg);
         return;
     }
+    reply_ack(s, m, t);
 }
 
 static void read_client(rths_server *s) {
@@ -623,8 +669,11 @@ static void read_client(rths_server *s) {
         atomic_store_explicit(&s->last_rx_ns, mono_ns(), memory_order_relaxed);
         if (st != RTHS_PROTO_OK) {
             char why[160];
-            snprintf(why, sizeof why, "%s %s (type 0x%02x)", rths_msg_type_name(m.type),
-                     rths_proto_status_name(st), m.type);
+            if (st == RTHS_PROTO_ETYPE)
+                snprintf(why, sizeof why, "unknown message type 0x%02x", m.type);
+            else
+                snprintf(why, sizeof why, "%s for %s (type 0x%02x)", rths_proto_status_name(st),
+                         rths_msg_type_name(m.type), m.type);
             send_error(s, m.seq, st, m.type, why);
             continue;
         }
@@ -653,9 +702,7 @@ static void accept_client(rths_server *s) {
         ssize_t sent = send(fd, buf, n, MSG_DONTWAIT | MSG_NOSIGNAL);
         (void)sent;
         close(fd);
-        if (!s->opt.quiet)
-            fprintf(stderr, "rths controller: refused %s:%s (busy, armed by %s)\n", host, serv,
-                    s->c.peer);
+        notice(s, "refused %s:%s (busy, armed by %s)", host, serv, s->c.peer);
         return;
     }
     if (s->c.fd >= 0) drop_client(s, "replaced by a new connection");
@@ -688,7 +735,7 @@ static void pump_streams(rths_server *s) {
         }
     }
     rths_proto_trace_sample ts;
-    while (spsc_pop(&s->traces, &ts)) {
+    while (rths_spsc_pop(&s->traces, &ts)) {
         if (c->fd < 0 || !c->sub_traces) continue;
         c->batch[c->batch_n++] = ts;
         if (c->batch_n == RTHS_PROTO_MAX_TRACE_BATCH) {
@@ -770,6 +817,7 @@ static void *net_main(void *arg) {
         pump_streams(s);
         if (flush_tx(s)) drop_client(s, "send failed");
         announce(s);
+        notices_flush(s, mono_ns());
     }
     drop_client(s, "controller stopping");
     return NULL;
@@ -796,7 +844,7 @@ static int bind_listen(rths_server *s, rths_error *err) {
         int one = 1;
         /* A restarted controller must get its port back while old connections sit in TIME_WAIT. */
         setsockopt(fd, SOL_SOCKET, SO_REUSEADDR, &one, sizeof one);
-        if (!bind(fd, ai->ai_addr, ai->ai_addrlen) && !listen(fd, 4)) {
+        if (!bind(fd, ai->ai_addr, ai->ai_addrlen) && !listen(fd, SOMAXCONN)) {
             struct sockaddr_storage sa;
             socklen_t sl = sizeof sa;
             getsockname(fd, (struct sockaddr *)&sa, &sl);
@@ -835,11 +883,13 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
     s->lat_hist = calloc(LAT_BINS + 1, sizeof *s->lat_hist);
     s->step_hist = calloc(STEP_BINS + 1, sizeof *s->step_hist);
     if (!s->c.tx || !s->lat_hist || !s->step_hist ||
-        !spsc_init(&s->cmds, CMD_RING, sizeof(loop_cmd)) ||
-        !spsc_init(&s->traces, TRACE_RING, sizeof(rths_proto_trace_sample))) {
+        !(s->cmd_storage = calloc(CMD_RING, sizeof(loop_cmd))) ||
+        !(s->trace_storage = calloc(TRACE_RING, sizeof(rths_proto_trace_sample)))) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
+    rths_spsc_init(&s->cmds, s->cmd_storage, CMD_RING, sizeof(loop_cmd));
+    rths_spsc_init(&s->traces, s->trace_storage, TRACE_RING, sizeof(rths_proto_trace_sample));
     if (s->period_ns < 1000) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EINPUT, "sample period %g s is below 1 us",
@@ -937,8 +987,8 @@ void rths_server_destroy(rths_server *s) {
     free(s->c.tx);
     free(s->lat_hist);
     free(s->step_hist);
-    free(s->cmds.buf);
-    free(s->traces.buf);
+    free(s->cmd_storage);
+    free(s->trace_storage);
     free(s);
 }
 

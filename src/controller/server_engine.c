@@ -1,7 +1,6 @@
-/* The controller process's engine: the per-sample controller step (controller.h) on the virtual
- * plant (plant.h), joined at the per-sample I/O seam exactly as the in-process virtual rig joins
- * them: read the sensors, step the controller, advance the plant one sample with the demand held.
- * A DAQ backend would replace the two plant calls and nothing else. */
+/* The controller process's engine: the per-sample loop (controller.h, rths_sample_loop: the
+ * controller step on the virtual plant, the same loop the in-process virtual rig runs) adapted to
+ * the protocol's types. */
 #include "controller/server_engine.h"
 
 #include "rths/controller.h"
@@ -16,12 +15,11 @@
 struct rths_engine {
     rths_setup setup;
     int have_setup;
-    rths_controller *ctl;
-    rths_plant *plant;
+    rths_sample_loop *loop; /* the per-sample loop, shared with the in-process virtual rig */
+    rths_controller *ctl;   /* the loop's */
     double h;
-    rths_sensor_sample sensors; /* preallocated: the step thread reads into it every sample */
-    uint32_t period_index;      /* network thread only */
-    double last_end_s;          /* network thread: end of the last period popped */
+    uint32_t period_index; /* network thread only */
+    double last_end_s;     /* network thread: end of the last period popped */
     int have_last_end;
 };
 
@@ -37,21 +35,21 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     rths_plant_defaults(&popt);
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
-    if (!rc) rc = rths_controller_config_read(cfg, &copt, err);
-    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
-    if (!rc) rc = rths_controller_create(&e->setup, &copt, &e->ctl, err);
-    if (!rc) rc = rths_plant_create(&e->setup, &popt, copt.sample_rate_hz, &e->plant, err);
+    if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
+    /* the loop starts disarmed: nothing is excited until the host arms it */
+    if (!rc) rc = rths_sample_loop_create(&e->setup, &copt, &popt, &e->loop, err);
     if (rc) {
         rths_engine_destroy(e);
         return rc;
     }
-    /* The controller must not excite anything until the host arms it. */
-    rths_controller_arm(e->ctl, 0);
+    e->ctl = rths_sample_loop_controller(e->loop);
     e->h = 1.0 / copt.sample_rate_hz;
     info->sample_period_s = e->h;
-    info->noise_level_m = rths_plant_noise_level_m(e->plant);
+    info->noise_level_m = rths_plant_noise_level_m(rths_sample_loop_plant(e->loop));
     info->max_harmonics = RTHS_MAX_HARMONICS;
     info->ramp_time_s = copt.ramp_time_s;
+    info->min_frequency_hz = copt.min_frequency_hz;
+    info->displacement_limit_m = copt.displacement_limit_m;
     snprintf(info->description, sizeof info->description,
              "rths controller: virtual plant, %d DoF assembly, %.0f Hz, sensor noise %s",
              e->setup.assembly.n, copt.sample_rate_hz, popt.noise ? "on" : "off");
@@ -61,21 +59,14 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
 
 void rths_engine_destroy(rths_engine *e) {
     if (!e) return;
-    rths_plant_destroy(e->plant);
-    rths_controller_destroy(e->ctl);
+    rths_sample_loop_destroy(e->loop);
     if (e->have_setup) rths_setup_free(&e->setup);
     free(e);
 }
 
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig) {
     rths_controller_output o;
-    rths_plant_read(e->plant, &e->sensors);
-    double u = rths_controller_step(e->ctl, &e->sensors, &o);
-    rths_plant_advance(e->plant, u);
-    /* A latched fault disarms: after RESET_FAULT, excitation needs a new, explicit ARM (the step
-     * itself only ramps while the fault is latched and would resume on reset). */
-    if (rths_controller_fault(e->ctl) != RTHS_RIG_OK && rths_controller_armed(e->ctl))
-        rths_controller_arm(e->ctl, 0);
+    rths_sample_loop_run(e->loop, &o);
     sig->time_s = o.time_s;
     sig->x_phys_m = o.x_phys_m;
     sig->x_num_m = o.x_num_m;
@@ -85,9 +76,7 @@ void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig) {
 }
 
 int rths_engine_arm(rths_engine *e) {
-    if (rths_controller_fault(e->ctl) != RTHS_RIG_OK) return RTHS_PROTO_ESTATE;
-    rths_controller_arm(e->ctl, 1);
-    return 0;
+    return rths_sample_loop_arm(e->loop) ? RTHS_PROTO_ESTATE : 0;
 }
 
 void rths_engine_disarm(rths_engine *e) {

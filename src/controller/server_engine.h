@@ -14,7 +14,9 @@ typedef struct rths_engine_info {
     double sample_period_s;
     double noise_level_m; /* displacement noise std of the plant's sensors, m */
     int max_harmonics;
-    double ramp_time_s; /* disarm/fault ramp of demand, forcing and target to zero, s */
+    double ramp_time_s;          /* disarm/fault ramp of demand, forcing and target to zero, s */
+    double min_frequency_hz;     /* controller.min_frequency_hz: SET_FORCING below is refused */
+    double displacement_limit_m; /* controller.limits.displacement_m: targets beyond are refused */
     char description[RTHS_PROTO_MAX_TEXT + 1];
 } rths_engine_info;
 

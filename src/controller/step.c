@@ -2,6 +2,8 @@
  * locks, prints or calls LAPACK; tests/test_controller.c checks it. */
 #include "rths/controller.h"
 
+#include "controller/spsc.h"
+
 #include <math.h>
 #include <stdatomic.h>
 #include <stdlib.h>
@@ -26,6 +28,7 @@ struct rths_controller {
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
+    double pending_since_s; /* controller time of the oldest pending change */
     int harmonics;
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
     int feedback, armed;
@@ -44,8 +47,8 @@ struct rths_controller {
     double y_prev[3], theta_prev;
     int period_samples, at_boundary;
     /* published periods: single producer (step), single consumer (pop) */
-    rths_period ring[RING_CAPACITY];
-    atomic_size_t head, tail;
+    rths_period ring_storage[RING_CAPACITY];
+    rths_spsc ring;
     atomic_long dropped;
 };
 
@@ -65,7 +68,16 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->force_limit_n = 500.0;
     opt->ramp_time_s = 0.1;
     opt->track_static = 1;
+    opt->min_frequency_hz = 0.1;
+    opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
+}
+
+double rths_target_peak_bound_m(int harmonics, const double *a, const double *b) {
+    double bound = 0;
+    for (int k = 0; k < harmonics; k++)
+        bound += hypot(a[k], b[k]);
+    return bound;
 }
 
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
@@ -129,8 +141,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->velocity_alpha =
         opt->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * opt->velocity_cutoff_hz * c->h) : 0.0;
     c->harmonics = 1;
-    atomic_init(&c->head, 0);
-    atomic_init(&c->tail, 0);
+    rths_spsc_init(&c->ring, c->ring_storage, RING_CAPACITY, sizeof(rths_period));
     atomic_init(&c->dropped, 0);
     *out = c;
     return RTHS_OK;
@@ -150,6 +161,7 @@ void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double
     } else {
         /* frequency and amplitude change together at the next period boundary, so every
          * published period has one forcing; a later call before then replaces this one */
+        if (!c->pending_forcing) c->pending_since_s = c->time_s;
         c->pending_omega = w;
         c->pending_amplitude = amplitude_n;
         c->pending_forcing = 1;
@@ -224,24 +236,19 @@ static void accumulate(sums *s, double dtheta, double c0, double s0, double y0, 
 }
 
 static void publish(rths_controller *c, double end_time) {
-    size_t head = atomic_load_explicit(&c->head, memory_order_relaxed);
-    size_t tail = atomic_load_explicit(&c->tail, memory_order_acquire);
-    if (head - tail >= RING_CAPACITY) {
-        atomic_fetch_add(&c->dropped, 1);
-    } else {
-        rths_period *p = &c->ring[head % RING_CAPACITY];
-        p->frequency_hz = c->omega / (2 * M_PI);
-        p->end_time_s = end_time;
-        p->samples = c->period_samples;
-        memcpy(p->phys.a, c->acc_phys.a, sizeof p->phys.a);
-        memcpy(p->phys.b, c->acc_phys.b, sizeof p->phys.b);
-        memcpy(p->num.a, c->acc_num.a, sizeof p->num.a);
-        memcpy(p->num.b, c->acc_num.b, sizeof p->num.b);
-        memcpy(p->force.a, c->acc_force.a, sizeof p->force.a);
-        memcpy(p->force.b, c->acc_force.b, sizeof p->force.b);
-        p->phys.b[0] = p->num.b[0] = p->force.b[0] = 0;
-        atomic_store_explicit(&c->head, head + 1, memory_order_release);
-    }
+    rths_period p;
+    memset(&p, 0, sizeof p); /* padding too: records compare bytewise (tests, journals) */
+    p.frequency_hz = c->omega / (2 * M_PI);
+    p.end_time_s = end_time;
+    p.samples = c->period_samples;
+    memcpy(p.phys.a, c->acc_phys.a, sizeof p.phys.a);
+    memcpy(p.phys.b, c->acc_phys.b, sizeof p.phys.b);
+    memcpy(p.num.a, c->acc_num.a, sizeof p.num.a);
+    memcpy(p.num.b, c->acc_num.b, sizeof p.num.b);
+    memcpy(p.force.a, c->acc_force.a, sizeof p.force.a);
+    memcpy(p.force.b, c->acc_force.b, sizeof p.force.b);
+    p.phys.b[0] = p.num.b[0] = p.force.b[0] = 0;
+    if (!rths_spsc_push(&c->ring, &p)) atomic_fetch_add(&c->dropped, 1);
     memset(&c->acc_phys, 0, sizeof c->acc_phys);
     memset(&c->acc_num, 0, sizeof c->acc_num);
     memset(&c->acc_force, 0, sizeof c->acc_force);
@@ -249,32 +256,58 @@ static void publish(rths_controller *c, double end_time) {
 }
 
 int rths_controller_pop_period(rths_controller *c, rths_period *out) {
-    size_t tail = atomic_load_explicit(&c->tail, memory_order_relaxed);
-    size_t head = atomic_load_explicit(&c->head, memory_order_acquire);
-    if (tail == head) return 0;
-    *out = c->ring[tail % RING_CAPACITY];
-    atomic_store_explicit(&c->tail, tail + 1, memory_order_release);
-    return 1;
+    return rths_spsc_pop(&c->ring, out);
+}
+
+/* A forcing change waits for the period boundary, so every published period has one forcing;
+ * but an old forcing of very low frequency must not hold a change back for its whole period (at
+ * 0.001 Hz: 1000 s, and no period ever closes meanwhile). Past max_pending_s the open period is
+ * dropped unpublished and the new forcing starts at phase 0 now. */
+static void start_overdue_forcing(rths_controller *c) {
+    if (!c->pending_forcing || c->time_s - c->pending_since_s < c->opt.max_pending_s) return;
+    c->omega = c->pending_omega;
+    c->amplitude_n = c->pending_amplitude;
+    c->pending_forcing = 0;
+    c->theta = 0;
+    memset(&c->acc_phys, 0, sizeof c->acc_phys);
+    memset(&c->acc_num, 0, sizeof c->acc_num);
+    memset(&c->acc_force, 0, sizeof c->acc_force);
+    c->period_samples = 0;
+}
+
+/* x* stays within the displacement limit: a target beyond it (refused by the rigs) or a ramp
+ * cannot drive the physical side past the limit before the fault latches. */
+static void clamp_target(const rths_controller *c, double *target, double *target_dot) {
+    const double limit = c->opt.displacement_limit_m;
+    if (fabs(*target) > limit) {
+        *target = copysign(limit, *target);
+        *target_dot = 0;
+    }
 }
 
 static void latch(rths_controller *c, rths_rig_fault f) {
     if (!c->fault) c->fault = f;
 }
 
-double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
-                            rths_controller_output *out) {
-    const double h = c->h;
-    const int nx = c->nx, nn = c->nn;
-    /* ramp: up to 1 while armed and healthy, down to 0 otherwise */
-    double dr = c->opt.ramp_time_s > 0 ? h / c->opt.ramp_time_s : 1.0;
+/* ramp: up to 1 while armed and healthy, down to 0 otherwise */
+static void update_ramp(rths_controller *c) {
+    double dr = c->opt.ramp_time_s > 0 ? c->h / c->opt.ramp_time_s : 1.0;
     if (c->armed && !c->fault)
         c->ramp = fmin(1.0, c->ramp + dr);
     else
         c->ramp = fmax(0.0, c->ramp - dr);
+}
 
-    double x = in->displacement_m[c->np - 1];
-    double acc = in->interface_acceleration_m_s2, f_lc = in->interface_force_n;
-    int finite = isfinite(x) && isfinite(acc) && isfinite(f_lc);
+typedef struct {
+    double x, acc, f_lc; /* interface displacement, acceleration, load-cell force */
+} measured;
+
+/* The sensors against the limits. A non-finite reading latches a fault and is replaced by zero,
+ * so the numerical model stays finite. */
+static measured read_sensors(rths_controller *c, const rths_sensor_sample *in) {
+    measured m = {in->displacement_m[c->np - 1], in->interface_acceleration_m_s2,
+                  in->interface_force_n};
+    int finite = isfinite(m.x) && isfinite(m.acc) && isfinite(m.f_lc);
     for (int i = 0; i < in->n && i < RTHS_MAX_SENSED_DOFS; i++) {
         finite &= isfinite(in->displacement_m[i]);
         if (fabs(in->displacement_m[i]) > c->opt.displacement_limit_m)
@@ -282,43 +315,40 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     }
     if (!finite) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
-        x = acc = f_lc = 0; /* keep the numerical model finite */
+        m.x = m.acc = m.f_lc = 0;
         c->ramp = 0;
     }
-    if (fabs(f_lc) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
-
+    if (fabs(m.f_lc) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
     /* velocity of the physical interface: filtered backward difference */
-    double v_raw = c->have_prev ? (x - c->x_prev) / h : 0.0;
+    double v_raw = c->have_prev ? (m.x - c->x_prev) / c->h : 0.0;
     c->v_est = c->velocity_alpha * c->v_est + (1 - c->velocity_alpha) * v_raw;
-    c->x_prev = x;
+    c->x_prev = m.x;
     c->have_prev = 1;
+    return m;
+}
 
-    /* phase of this sample */
-    double theta0 = c->theta;
-    double theta1 = theta0 + c->omega * h;
-
-    /* numerical substructure: F_num = F_comp - F_LC + F_ctrl. The grounding control compares
-     * like with like, the last measured x with the last xi and both velocities by the same
-     * backward difference, so it vanishes exactly when the interface matches (erratum 8) and
-     * adds no spurious stiffness or damping to the converged response. */
-    double xi = c->z[0], xi_dot;
+/* Grounding control F_ctrl. It compares like with like, the last measured x with the last xi and
+ * both velocities by the same backward difference, so it vanishes exactly when the interface
+ * matches (erratum 8) and adds no spurious stiffness or damping to the converged response. */
+static double grounding_force(rths_controller *c, double x) {
+    const double xi = c->z[0];
     double x_last = c->grounding_have ? c->x_last : x;
     double xi_last_prev = c->grounding_have ? c->xi_last_prev : xi;
     double x_last_prev = c->grounding_have ? c->x_last_prev : x_last;
     double f_ctrl =
         c->opt.grounding_kp_n_per_m * (x_last - xi) +
-        c->opt.grounding_kd_n_s_per_m * ((x_last - x_last_prev) - (xi - xi_last_prev)) / h;
+        c->opt.grounding_kd_n_s_per_m * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
     c->x_last_prev = x_last;
     c->x_last = x;
     c->xi_last_prev = xi;
     c->grounding_have = 1;
-    /* the only trigonometry of the step: both ends of this sample's phase interval */
-    const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
-    /* a sample past the period boundary belongs to the next period: its forcing amplitude */
-    if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
-        c->amplitude_n = c->pending_amplitude;
-    c->forcing_now = c->ramp * c->amplitude_n;
-    double u[N_INPUTS] = {c->m_comp * acc - f_lc + f_ctrl, c->forcing_now * cos1};
+    return f_ctrl;
+}
+
+/* One step of the discretised numerical substructure under inputs u; its interface displacement
+ * and velocity after the step. */
+static void advance_numerical(rths_controller *c, const double *u, double *xi, double *xi_dot) {
+    const int nx = c->nx;
     for (int i = 0; i < nx; i++) {
         double v = 0;
         for (int j = 0; j < nx; j++)
@@ -328,38 +358,46 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         c->z_next[i] = v;
     }
     memcpy(c->z, c->z_next, sizeof(double) * (size_t)nx);
-    memcpy(c->u_prev, u, sizeof u);
-    xi = c->z[0];
-    xi_dot = c->z[nn];
-    if (!isfinite(xi)) {
+    memcpy(c->u_prev, u, sizeof(double) * N_INPUTS);
+    *xi = c->z[0];
+    *xi_dot = c->z[c->nn];
+    if (!isfinite(*xi)) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
         memset(c->z, 0, sizeof c->z);
         memset(c->u_prev, 0, sizeof c->u_prev);
-        xi = xi_dot = 0;
+        *xi = *xi_dot = 0;
     }
+}
 
-    /* target and PD demand */
-    double target, target_dot;
+/* x*(theta1) and its rate: the periodic target (ramped, plus the tracked static term, clamped to
+ * the stroke) or, in feedback mode, the numerical interface itself. */
+static void control_target(const rths_controller *c, double cos1, double sin1, double xi,
+                           double xi_dot, double *target, double *target_dot) {
     if (c->feedback) {
-        target = xi;
-        target_dot = xi_dot;
-    } else {
-        target = target_dot = 0;
-        double ck = cos1, sk = sin1;
-        for (int k = 1; k <= c->harmonics; k++) {
-            target += c->target_a[k - 1] * ck + c->target_b[k - 1] * sk;
-            target_dot += k * c->omega * (-c->target_a[k - 1] * sk + c->target_b[k - 1] * ck);
-            double next = ck * cos1 - sk * sin1;
-            sk = sk * cos1 + ck * sin1;
-            ck = next;
-        }
-        target *= c->ramp;
-        target_dot *= c->ramp;
-        /* The static term follows the physical side's own mean (last whole period), so the
-         * actuator carries no static load: the preload alone sets the static point, as in the
-         * true assembly, and the numerical interface's mean follows through the grounding. */
-        if (c->opt.track_static) target += c->static_offset;
+        *target = xi;
+        *target_dot = xi_dot;
+        return;
     }
+    double t = 0, t_dot = 0, ck = cos1, sk = sin1;
+    for (int k = 1; k <= c->harmonics; k++) {
+        t += c->target_a[k - 1] * ck + c->target_b[k - 1] * sk;
+        t_dot += k * c->omega * (-c->target_a[k - 1] * sk + c->target_b[k - 1] * ck);
+        double next = ck * cos1 - sk * sin1;
+        sk = sk * cos1 + ck * sin1;
+        ck = next;
+    }
+    t *= c->ramp;
+    t_dot *= c->ramp;
+    /* The static term follows the physical side's own mean (last whole period), so the actuator
+     * carries no static load: the preload alone sets the static point, as in the true assembly,
+     * and the numerical interface's mean follows through the grounding. */
+    if (c->opt.track_static) t += c->static_offset;
+    clamp_target(c, &t, &t_dot);
+    *target = t;
+    *target_dot = t_dot;
+}
+
+static double pd_demand(rths_controller *c, double target, double target_dot, double x) {
     double demand =
         c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
     if (!isfinite(demand)) {
@@ -368,54 +406,83 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     }
     if (fabs(demand) > c->opt.demand_limit_v) latch(c, RTHS_RIG_FAULT_DEMAND);
     if (c->fault) demand *= c->ramp; /* ramps to zero after a trip, then holds zero */
+    return demand;
+}
 
-    /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation) */
-    double y[3] = {x, xi, f_lc};
-    c->at_boundary = 0;
-    c->time_s += h;
-    if (c->omega > 0) {
-        const double dth = theta1 - theta0;
-        if (theta1 < 2 * M_PI) {
-            accumulate(&c->acc_phys, dth, cos0, sin0, c->y_prev[0], cos1, sin1, y[0]);
-            accumulate(&c->acc_num, dth, cos0, sin0, c->y_prev[1], cos1, sin1, y[1]);
-            accumulate(&c->acc_force, dth, cos0, sin0, c->y_prev[2], cos1, sin1, y[2]);
-            c->period_samples++;
-            c->theta = theta1;
-        } else {
-            double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
-            double yb[3];
-            for (int i = 0; i < 3; i++)
-                yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
-            /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
-            const double d0 = 2 * M_PI - theta0;
-            accumulate(&c->acc_phys, d0, cos0, sin0, c->y_prev[0], 1.0, 0.0, yb[0]);
-            accumulate(&c->acc_num, d0, cos0, sin0, c->y_prev[1], 1.0, 0.0, yb[1]);
-            accumulate(&c->acc_force, d0, cos0, sin0, c->y_prev[2], 1.0, 0.0, yb[2]);
-            c->period_samples++;
-            c->static_offset = c->acc_phys.a[0];
-            publish(c, c->time_s - (1 - alpha) * h);
-            if (c->pending_forcing) {
-                c->omega = c->pending_omega;
-                c->amplitude_n = c->pending_amplitude;
-                c->pending_forcing = 0;
-            }
-            /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
-            double rest = theta1 - 2 * M_PI;
-            accumulate(&c->acc_phys, rest, 1.0, 0.0, yb[0], cos1, sin1, y[0]);
-            accumulate(&c->acc_num, rest, 1.0, 0.0, yb[1], cos1, sin1, y[1]);
-            accumulate(&c->acc_force, rest, 1.0, 0.0, yb[2], cos1, sin1, y[2]);
-            c->theta = rest;
-            c->at_boundary = 1;
-        }
+/* The trapezoid of the three signals (physical, numerical, force) from ya at (c0, s0) to yb at
+ * (c1, s1) over dtheta. */
+static void accumulate_signals(rths_controller *c, double dtheta, double c0, double s0,
+                               const double *ya, double c1, double s1, const double *yb) {
+    accumulate(&c->acc_phys, dtheta, c0, s0, ya[0], c1, s1, yb[0]);
+    accumulate(&c->acc_num, dtheta, c0, s0, ya[1], c1, s1, yb[1]);
+    accumulate(&c->acc_force, dtheta, c0, s0, ya[2], c1, s1, yb[2]);
+}
+
+/* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
+ * theta = 2 pi the period is published and a pending forcing change takes over. */
+static void update_fourier(rths_controller *c, double theta0, double theta1, double cos0,
+                           double sin0, double cos1, double sin1, const double *y) {
+    if (!(c->omega > 0)) return;
+    if (theta1 < 2 * M_PI) {
+        accumulate_signals(c, theta1 - theta0, cos0, sin0, c->y_prev, cos1, sin1, y);
+        c->period_samples++;
+        c->theta = theta1;
+        return;
     }
+    double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
+    double yb[3];
+    for (int i = 0; i < 3; i++)
+        yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
+    /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
+    accumulate_signals(c, 2 * M_PI - theta0, cos0, sin0, c->y_prev, 1.0, 0.0, yb);
+    c->period_samples++;
+    c->static_offset = c->acc_phys.a[0];
+    publish(c, c->time_s - (1 - alpha) * c->h);
+    if (c->pending_forcing) {
+        c->omega = c->pending_omega;
+        c->amplitude_n = c->pending_amplitude;
+        c->pending_forcing = 0;
+    }
+    /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
+    double rest = theta1 - 2 * M_PI;
+    accumulate_signals(c, rest, 1.0, 0.0, yb, cos1, sin1, y);
+    c->theta = rest;
+    c->at_boundary = 1;
+}
+
+double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
+                            rths_controller_output *out) {
+    update_ramp(c);
+    const measured m = read_sensors(c, in);
+    start_overdue_forcing(c);
+    /* phase of this sample */
+    const double theta0 = c->theta, theta1 = theta0 + c->omega * c->h;
+    /* numerical substructure: F_num = F_comp - F_LC + F_ctrl */
+    const double f_ctrl = grounding_force(c, m.x);
+    /* the only trigonometry of the step: both ends of this sample's phase interval */
+    const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
+    /* a sample past the period boundary belongs to the next period: its forcing amplitude */
+    if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
+        c->amplitude_n = c->pending_amplitude;
+    c->forcing_now = c->ramp * c->amplitude_n;
+    const double u[N_INPUTS] = {c->m_comp * m.acc - m.f_lc + f_ctrl, c->forcing_now * cos1};
+    double xi, xi_dot, target, target_dot;
+    advance_numerical(c, u, &xi, &xi_dot);
+    control_target(c, cos1, sin1, xi, xi_dot, &target, &target_dot);
+    const double demand = pd_demand(c, target, target_dot, m.x);
+
+    const double y[3] = {m.x, xi, m.f_lc};
+    c->at_boundary = 0;
+    c->time_s += c->h;
+    update_fourier(c, theta0, theta1, cos0, sin0, cos1, sin1, y);
     memcpy(c->y_prev, y, sizeof y);
     if (out) {
         out->time_s = c->time_s;
         out->demand_v = demand;
         out->target_m = target;
-        out->x_phys_m = x;
+        out->x_phys_m = m.x;
         out->x_num_m = xi;
-        out->force_n = f_lc;
+        out->force_n = m.f_lc;
     }
     return demand;
 }

@@ -12,13 +12,20 @@ struct rths_rig {
 
 const char *rths_rig_fault_name(rths_rig_fault f) {
     switch (f) {
-    case RTHS_RIG_OK: return "none";
-    case RTHS_RIG_FAULT_DISPLACEMENT: return "displacement limit";
-    case RTHS_RIG_FAULT_FORCE: return "force limit";
-    case RTHS_RIG_FAULT_DEMAND: return "demand limit";
-    case RTHS_RIG_FAULT_NONFINITE: return "non-finite signal";
-    case RTHS_RIG_FAULT_LINK: return "link lost";
-    case RTHS_RIG_FAULT_WATCHDOG: return "watchdog";
+    case RTHS_RIG_OK:
+        return "none";
+    case RTHS_RIG_FAULT_DISPLACEMENT:
+        return "displacement limit";
+    case RTHS_RIG_FAULT_FORCE:
+        return "force limit";
+    case RTHS_RIG_FAULT_DEMAND:
+        return "demand limit";
+    case RTHS_RIG_FAULT_NONFINITE:
+        return "non-finite signal";
+    case RTHS_RIG_FAULT_LINK:
+        return "link lost";
+    case RTHS_RIG_FAULT_WATCHDOG:
+        return "watchdog";
     }
     return "unknown fault";
 }
@@ -42,7 +49,9 @@ void rths_rig_destroy(rths_rig *rig) {
     free(rig);
 }
 
-const char *rths_rig_description(const rths_rig *rig) { return rig->description; }
+const char *rths_rig_description(const rths_rig *rig) {
+    return rig->description;
+}
 
 int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n, rths_error *err) {
     return rig->ops->set_forcing(rig->self, frequency_hz, amplitude_n, err);
@@ -60,15 +69,17 @@ int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error 
     return rig->ops->run_periods(rig->self, count, out, err);
 }
 
-int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples,
-                          rths_trace_sample *out, int *n_out, rths_error *err) {
+int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,
+                          int *n_out, rths_error *err) {
     if (!rig->ops->record_trace)
         return rths_error_set(err, RTHS_EFAIL, "rig '%s' cannot record time traces",
                               rig->description);
     return rig->ops->record_trace(rig->self, duration_s, max_samples, out, n_out, err);
 }
 
-double rths_rig_time_s(rths_rig *rig) { return rig->ops->time_s(rig->self); }
+double rths_rig_time_s(rths_rig *rig) {
+    return rig->ops->time_s(rig->self);
+}
 
 rths_rig_fault rths_rig_get_fault(rths_rig *rig) {
     return rig->ops->fault ? rig->ops->fault(rig->self) : RTHS_RIG_OK;

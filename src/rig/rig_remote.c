@@ -460,12 +460,23 @@ static int r_set_target(void *self, int harmonics, const double *a, const double
     remote *r = self;
     int rc = check_usable(r, err);
     if (rc) return rc;
+    /* a refused target (e.g. beyond the displacement limit) must not be the one restored on
+     * reconnection: keep the last accepted one */
+    int old_harmonics = r->harmonics;
+    double old_a[RTHS_MAX_HARMONICS], old_b[RTHS_MAX_HARMONICS];
+    memcpy(old_a, r->ta, sizeof old_a);
+    memcpy(old_b, r->tb, sizeof old_b);
     r->harmonics = harmonics;
     for (int k = 0; k < harmonics; k++) {
         r->ta[k] = a[k];
         r->tb[k] = b[k];
     }
-    return send_target(r, err);
+    if ((rc = send_target(r, err))) {
+        r->harmonics = old_harmonics;
+        memcpy(r->ta, old_a, sizeof old_a);
+        memcpy(r->tb, old_b, sizeof old_b);
+    }
+    return rc;
 }
 
 static int r_run_periods(void *self, int count, rths_period *out, rths_error *err) {

@@ -6,20 +6,14 @@
 #include <stdlib.h>
 
 typedef struct {
-    rths_controller *ctrl;
-    rths_plant *plant;
+    rths_sample_loop *loop; /* the per-sample loop, shared with the controller process */
+    rths_controller *ctrl;  /* the loop's */
     double sample_rate_hz;
+    double min_frequency_hz, displacement_limit_m; /* the controller's options */
 } virtual_rig;
 
-/* One controller sample: sensors in, step, demand out, plant advances. */
 static void sample(virtual_rig *v, rths_controller_output *out) {
-    rths_sensor_sample s;
-    rths_plant_read(v->plant, &s);
-    double demand = rths_controller_step(v->ctrl, &s, out);
-    double amplitude, theta, omega;
-    rths_controller_forcing(v->ctrl, &amplitude, &theta, &omega);
-    rths_plant_set_forcing(v->plant, amplitude, theta, omega);
-    rths_plant_advance(v->plant, demand);
+    rths_sample_loop_run(v->loop, out);
 }
 
 static int fault_error(virtual_rig *v, rths_error *err) {
@@ -32,9 +26,14 @@ static int fault_error(virtual_rig *v, rths_error *err) {
 
 static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {
     virtual_rig *v = self;
-    if (!(frequency_hz > 0 && frequency_hz < 0.25 * v->sample_rate_hz) || !isfinite(amplitude_n))
-        return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N is out of range", frequency_hz,
-                              amplitude_n);
+    if (!(frequency_hz >= v->min_frequency_hz && frequency_hz < 0.25 * v->sample_rate_hz) ||
+        !isfinite(amplitude_n))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "forcing %g Hz, %g N is out of range: the frequency must be in "
+                              "[%g, %g) Hz (controller.min_frequency_hz, a quarter of "
+                              "controller.sample_rate_hz), the amplitude finite",
+                              frequency_hz, amplitude_n, v->min_frequency_hz,
+                              0.25 * v->sample_rate_hz);
     rths_controller_set_forcing(v->ctrl, frequency_hz, amplitude_n);
     return RTHS_OK;
 }
@@ -48,6 +47,12 @@ static int v_set_target(void *self, int harmonics, const double *a, const double
     for (int k = 0; k < harmonics; k++)
         if (!isfinite(a[k]) || !isfinite(b[k]))
             return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite", k + 1);
+    double peak = rths_target_peak_bound_m(harmonics, a, b);
+    if (peak > v->displacement_limit_m)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "target of up to %g m is beyond the displacement limit %g m "
+                              "(controller.limits.displacement_m)",
+                              peak, v->displacement_limit_m);
     rths_controller_set_target(v->ctrl, harmonics, a, b);
     return RTHS_OK;
 }
@@ -106,16 +111,14 @@ static int v_reset_fault(void *self, rths_error *err) {
     (void)err;
     virtual_rig *v = self;
     rths_controller_reset_fault(v->ctrl);
-    rths_controller_arm(v->ctrl, 1);
-    return RTHS_OK;
+    return rths_sample_loop_arm(v->loop);
 }
 static double v_noise(void *self) {
-    return rths_plant_noise_level_m(((virtual_rig *)self)->plant);
+    return rths_plant_noise_level_m(rths_sample_loop_plant(((virtual_rig *)self)->loop));
 }
 static void v_destroy(void *self) {
     virtual_rig *v = self;
-    rths_controller_destroy(v->ctrl);
-    rths_plant_destroy(v->plant);
+    rths_sample_loop_destroy(v->loop);
     free(v);
 }
 
@@ -137,11 +140,10 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     virtual_rig *v = calloc(1, sizeof *v);
     if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     v->sample_rate_hz = copt->sample_rate_hz;
-    /* forcing on a physical DoF: the plant applies it, in continuous time */
-    rths_controller_options co = *copt;
-    co.plant_applies_forcing = 1;
-    int rc = rths_controller_create(setup, &co, &v->ctrl, err);
-    if (!rc) rc = rths_plant_create(setup, popt, copt->sample_rate_hz, &v->plant, err);
+    v->min_frequency_hz = copt->min_frequency_hz;
+    v->displacement_limit_m = copt->displacement_limit_m;
+    int rc = rths_sample_loop_create(setup, copt, popt, &v->loop, err);
+    if (!rc) v->ctrl = rths_sample_loop_controller(v->loop);
     char description[200];
     snprintf(description, sizeof description,
              "virtual rig: %s integrator, %g Hz, shaker delay %g s, lag %g Hz, noise %s",
@@ -150,13 +152,11 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     if (!rc && !(*out = rths_rig_create(&virtual_ops, v, description)))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (rc) {
-        rths_controller_destroy(v->ctrl);
-        rths_plant_destroy(v->plant);
+        rths_sample_loop_destroy(v->loop);
         free(v);
         return rc;
     }
-    rths_controller_arm(v->ctrl, 1);
-    return RTHS_OK;
+    return rths_sample_loop_arm(v->loop);
 }
 
 int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_seed,
@@ -165,8 +165,7 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
     rths_plant_options popt;
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
-    int rc = rths_controller_config_read(cfg, &copt, err);
-    if (!rc) rc = rths_plant_config_read(cfg, &popt, err);
+    int rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
     if (rc) return rc;
     if (has_seed) popt.seed = seed_override;
     return rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
@@ -179,5 +178,5 @@ rths_controller *rths_virtual_rig_controller(rths_rig *rig) {
 
 rths_plant *rths_virtual_rig_plant(rths_rig *rig) {
     virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
-    return v ? v->plant : NULL;
+    return v ? rths_sample_loop_plant(v->loop) : NULL;
 }

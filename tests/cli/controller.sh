@@ -128,6 +128,20 @@ paste -d, <(tail -n 1 "$tmp/sim_remote/coefficients.csv") <(tail -n 1 "$tmp/sim_
           if (d > 1e-4 * s + 1e-12) { print names[i] ": " r " over tcp vs " l; bad = 1 } }
       exit bad }' || fail "simulate over tcp differs from the in-process run"
 
+# A connection storm (issue 18): 200 connections opened and closed at once. The controller keeps
+# serving, and its connection notices are rate-limited (at most 10 a second plus one "suppressed"
+# line a second: before, every connection logged a line, 200 and more). Counting lines, not time:
+# the storm cannot last 15 s on loopback, so at most 15 x 11 lines.
+before=$(wc -l <"$tmp/ctl.err")
+for _ in $(seq 1 200); do
+    (exec 3<>"/dev/tcp/127.0.0.1/$port") 2>/dev/null
+done
+"$RTHS" simulate "$CFG" --out "$tmp/sim_after" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" "${SIM[@]}" \
+    >"$tmp/sim_after.out" 2>"$tmp/sim_after.err" || fail "no service after a connection storm: $(cat "$tmp/sim_after.err")"
+wait_for "connection notices suppressed" "$tmp/ctl.err" "'suppressed' summary after the storm"
+storm_lines=$(($(wc -l <"$tmp/ctl.err") - before))
+[ "$storm_lines" -le 165 ] || fail "a storm of 200 connections logged $storm_lines lines"
+
 # SIGTERM: disarm, ramp down, statistics on stderr, exit 0.
 kill -TERM "$pid"
 wait "$pid"

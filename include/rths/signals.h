@@ -1,0 +1,63 @@
+/* rths signals: the data that crosses the seams between the real-time side and the host.
+ *
+ * The per-sample I/O seam (sensor sample in, actuator demand out) between the controller step and
+ * the rig's hardware or virtual plant; the per-period record the step publishes at every whole
+ * forcing period; the latched fault codes; the decimated trace sample. Both sides include this
+ * header and nothing else of each other's: the host (iterate/, continuation/, rig/) never compiles
+ * against the plant, the model or the setup (docs/architecture.md, the module order). */
+#ifndef RTHS_SIGNALS_H
+#define RTHS_SIGNALS_H
+
+#define RTHS_MAX_HARMONICS 5
+#define RTHS_MAX_SENSED_DOFS 16
+
+/* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
+ * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
+ * forcing phase (phase-continuous across frequency changes), so coefficients of the physical and
+ * numerical sides, target and forcing are all referred to the same phase. */
+typedef struct rths_fourier {
+    double a[RTHS_MAX_HARMONICS + 1];
+    double b[RTHS_MAX_HARMONICS + 1];
+} rths_fourier;
+
+typedef struct rths_period {
+    double frequency_hz; /* forcing frequency during this period */
+    double end_time_s;   /* rig time at the end of the period */
+    int samples;         /* controller samples in this period (sets the coefficients' noise) */
+    rths_fourier phys;   /* physical interface displacement, m */
+    rths_fourier num;    /* numerical interface displacement, m */
+    rths_fourier force;  /* measured interface force (load cell), N */
+} rths_period;
+
+typedef enum {
+    RTHS_RIG_OK = 0,
+    RTHS_RIG_FAULT_DISPLACEMENT = 1, /* a displacement limit tripped */
+    RTHS_RIG_FAULT_FORCE = 2,        /* the interface force limit tripped */
+    RTHS_RIG_FAULT_DEMAND = 3,       /* the actuator demand limit tripped */
+    RTHS_RIG_FAULT_NONFINITE = 4,    /* a NaN/inf reached the controller */
+    RTHS_RIG_FAULT_LINK = 5,         /* remote rig: link lost or protocol error */
+    RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
+} rths_rig_fault;
+
+/* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
+ * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
+ * physical DoFs, then the interface DoF), m; acceleration of the interface storey, m/s^2; load
+ * cell between actuator and interface storey, N (force on the storey, positive along x). */
+typedef struct rths_sensor_sample {
+    int n;
+    double displacement_m[RTHS_MAX_SENSED_DOFS];
+    double interface_acceleration_m_s2;
+    double interface_force_n;
+} rths_sensor_sample;
+
+/* One decimated time trace sample. */
+typedef struct rths_trace_sample {
+    double time_s;
+    double x_phys_m; /* physical interface displacement (laser) */
+    double x_num_m;  /* numerical interface displacement */
+    double target_m; /* control target x*(t) */
+    double force_n;  /* load cell */
+    double demand;   /* actuator demand (V) */
+} rths_trace_sample;
+
+#endif
