@@ -51,9 +51,10 @@ void rths_bench_controller(void) {
     double t0 = rths_monotonic_s(), r0 = rths_rig_time_s(rig);
     rths_rig_run_periods(rig, 200, p, &err);
     double wall = rths_monotonic_s() - t0, simulated = rths_rig_time_s(rig) - r0;
-    printf("virtual rig (step + plant, noise, RK4 x8): %.0f samples/s, real-time factor %.1f at "
-           "10 kHz\n",
-           simulated * 1e4 / wall, simulated / wall);
+    printf(
+        "virtual rig (step + plant, noise, exact plant): %.0f samples/s, real-time factor %.1f at "
+        "10 kHz\n",
+        simulated * 1e4 / wall, simulated / wall);
     free(p);
     rths_rig_destroy(rig);
     rths_setup_free(&s);

@@ -109,10 +109,14 @@ static void bench_step_cost(void) {
     rths_period p;
     while (rths_controller_pop_period(ctl, &p)) {
     }
-    printf("link: per-sample cost, %d samples back to back at 13.47 Hz (%s integrator, %d plant "
-           "RK4 substeps); includes ~20-40 ns of clock reads:\n",
-           N, copt.scheme == RTHS_SCHEME_DEFAULT ? "default" : "configured",
-           popt.substeps_per_sample);
+    char plant_integrator[48];
+    if (popt.substeps_per_sample > 0)
+        snprintf(plant_integrator, sizeof plant_integrator, "RK4 x%d", popt.substeps_per_sample);
+    else
+        snprintf(plant_integrator, sizeof plant_integrator, "exact");
+    printf("link: per-sample cost, %d samples back to back at 13.47 Hz (%s integrator, %s plant); "
+           "includes ~20-40 ns of clock reads:\n",
+           N, copt.scheme == RTHS_SCHEME_DEFAULT ? "default" : "configured", plant_integrator);
     report_costs("controller step (the RT work):", c_step, N, h);
     report_costs("simulated plant (read + advance):", c_plant, N, h);
     free(c_step);

@@ -89,8 +89,12 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                               "the controller drives one interface DoF; this split has %d",
                               s->n_int);
     if (s->np > RTHS_MAX_SENSED_DOFS || s->nn > RTHS_MAX_SENSED_DOFS)
-        return rths_error_set(err, RTHS_EINPUT, "at most %d DoFs per substructure",
-                              RTHS_MAX_SENSED_DOFS);
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the %s substructure has %d DoFs; the real-time controller (fixed "
+                              "per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) takes at "
+                              "most %d per substructure (rths model has no limit)",
+                              s->np > RTHS_MAX_SENSED_DOFS ? "physical" : "numerical",
+                              s->np > RTHS_MAX_SENSED_DOFS ? s->np : s->nn, RTHS_MAX_SENSED_DOFS);
     int forcing_physical = 0;
     if (setup->split.int_dofs[0] != setup->forcing_dof) {
         int numerical = 0;
