@@ -22,10 +22,11 @@ static void print_usage(FILE *to, const command_entry *cmds, int n) {
             "Commands:\n");
     for (int i = 0; i < n; i++)
         if (cmds[i].fn) fprintf(to, "  %-11s %s\n", cmds[i].name, cmds[i].summary);
-    fprintf(to, "\nEvery command that takes CONFIG accepts --set dotted.key=value (repeatable) to\n"
-                "override any configuration key, e.g. --set split.mass_ratio=0.33.\n\n"
-                "Exit status: 0 success; 1 failure (numerics, I/O, rig fault); 2 bad usage or input\n"
-                "(configuration, command line, values out of range). Nothing is written on exit 2.\n");
+    fprintf(to,
+            "\nEvery command that takes CONFIG accepts --set dotted.key=value (repeatable) to\n"
+            "override any configuration key, e.g. --set split.mass_ratio=0.33.\n\n"
+            "Exit status: 0 success; 1 failure (numerics, I/O, rig fault); 2 bad usage or input\n"
+            "(configuration, command line, values out of range). Nothing is written on exit 2.\n");
 }
 
 int main(int argc, char **argv) {
@@ -36,6 +37,7 @@ int main(int argc, char **argv) {
         {"frf", rths_cmd_frf, "iterative hybrid test with continuation: the frequency response"},
         {"chart", rths_cmd_chart, "stability chart of the delayed-feedback hybrid test"},
         {"controller", rths_cmd_controller, "the real-time controller process"},
+        {"view", rths_cmd_view, "live web page of a run folder, finished or in progress"},
     };
     const int n = (int)(sizeof cmds / sizeof cmds[0]);
     if (argc < 2) {
