@@ -8,9 +8,10 @@
  * torn one. live.json is a display, not a record: it is not fsync'ed (that would cost
  * milliseconds per evaluation); journal.jsonl stays the durable record of the run.
  *
- * Cost: one JSON text of a few kB formatted into a preallocated buffer and one write + rename,
- * a few tens of microseconds (bench/bench_view.c), against milliseconds to seconds of rig time
- * per evaluation. Nothing here allocates after rths_live_open.
+ * Cost: one JSON text of 5 kB formatted into a preallocated buffer and one write + rename, about
+ * 0.1-0.3 ms (bench/bench_view.c; most of it the file system's rename), at most every 0.1 s of
+ * wall time (rths_live_set_interval), against seconds of rig time per evaluation in a lab.
+ * Nothing here allocates after rths_live_open.
  *
  * live.json (format 1; SI units in the key names):
  *   state "running" | "ended"; point (index of the point being sought); points_accepted;
@@ -51,8 +52,16 @@ int rths_live_open(const char *dir, rths_live **out, rths_error *err);
 /* Writes the final state ("state": "ended") and frees. live may be NULL. */
 void rths_live_close(rths_live *live);
 
-/* Records one evaluation and replaces live.json. */
+/* Records one evaluation and replaces live.json, unless it was replaced less than the minimum
+ * interval ago (then the next call or rths_live_flush writes it). */
 int rths_live_evaluation_done(rths_live *live, const rths_live_evaluation *ev, rths_error *err);
+
+/* Minimum wall time between two replacements of live.json, default 0.1 s (0: every
+ * evaluation). A lab evaluation takes seconds, so there every evaluation is written; a virtual rig
+ * at full speed does tens per second, more than the page (4 updates per second) can show. */
+void rths_live_set_interval(rths_live *live, double min_interval_s);
+/* Writes what was recorded but held back by the interval. */
+void rths_live_flush(rths_live *live);
 
 /* From the continuation's progress callback (after every correction attempt): the accepted count
  * and, when accepted, the start of the next point (its residual history starts afresh). Replaces

@@ -37,7 +37,12 @@ struct rths_live {
     long overruns;
     double worst_lateness_s;
     int ended;
+    double min_interval_s, last_write_s;
+    int dirty;                      /* recorded but not yet written (inside the minimum interval) */
     struct observing_rig *observer; /* the observing rig on this live, if any */
+    /* cos and sin of k * 2 pi i / (n - 1) for the reconstructed trace, computed once */
+    double cos_table[RTHS_MAX_HARMONICS][RTHS_LIVE_TRACE_SAMPLES];
+    double sin_table[RTHS_MAX_HARMONICS][RTHS_LIVE_TRACE_SAMPLES];
 };
 
 /* The observing rig (rths_live_wrap_rig). */
@@ -155,6 +160,8 @@ static void format_text(rths_live *l) {
 
 /* temp + rename: readers see a whole file. No fsync (a display, see live.h). */
 static int write_text(rths_live *l, rths_error *err) {
+    l->dirty = 0;
+    l->last_write_s = rths_monotonic_s();
     format_text(l);
     if (l->overflow) return rths_error_set(err, RTHS_EFAIL, "live.json: text too long");
     int fd = open(l->tmp, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
@@ -196,13 +203,21 @@ int rths_live_open(const char *dir, rths_live **out, rths_error *err) {
     }
     l->buf[0] = 0;
     l->opened_s = rths_monotonic_s();
+    l->min_interval_s = 0.1;
+    l->last_write_s = -1e300;
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
+        for (int i = 0; i < RTHS_LIVE_TRACE_SAMPLES; i++) {
+            double phase = 2 * M_PI * k * i / (RTHS_LIVE_TRACE_SAMPLES - 1);
+            l->cos_table[k - 1][i] = cos(phase);
+            l->sin_table[k - 1][i] = sin(phase);
+        }
     *out = l;
     return RTHS_OK;
 }
 
 void rths_live_close(rths_live *l) {
     if (!l) return;
-    if (l->have_evaluation && l->buf && l->c_locale) {
+    if (l->have_evaluation && l->buf && l->c_locale && !l->ended) {
         l->ended = 1;
         rths_error ignored;
         (void)write_text(l, &ignored);
@@ -238,7 +253,7 @@ static void reconstruct_trace(rths_live *l) {
     for (int i = 0; i < n; i++) {
         double t = period * i / (n - 1), p = ev->phys.a[0], q = ev->num.a[0];
         for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
-            double c = cos(2 * M_PI * k * i / (n - 1)), s = sin(2 * M_PI * k * i / (n - 1));
+            double c = l->cos_table[k - 1][i], s = l->sin_table[k - 1][i];
             p += ev->phys.a[k] * c + ev->phys.b[k] * s;
             q += ev->num.a[k] * c + ev->num.b[k] * s;
         }
@@ -264,6 +279,23 @@ static void copy_trace(rths_live *l, const rths_live_evaluation *ev) {
     l->trace_measured = 1;
 }
 
+/* At most one file per min_interval_s: the page polls 4 times a second, so faster writes would
+ * cost the run without showing anything more (the residual history keeps every evaluation). */
+static int write_if_due(rths_live *l, rths_error *err) {
+    l->dirty = 1;
+    if (rths_monotonic_s() - l->last_write_s < l->min_interval_s) return RTHS_OK;
+    return write_text(l, err);
+}
+
+void rths_live_set_interval(rths_live *l, double min_interval_s) {
+    if (l) l->min_interval_s = min_interval_s > 0 ? min_interval_s : 0;
+}
+
+void rths_live_flush(rths_live *l) {
+    rths_error ignored;
+    if (l && l->dirty && l->have_evaluation) (void)write_text(l, &ignored);
+}
+
 int rths_live_evaluation_done(rths_live *l, const rths_live_evaluation *ev, rths_error *err) {
     if (ev->harmonics < 0 || ev->harmonics > RTHS_MAX_HARMONICS)
         return rths_error_set(err, RTHS_EINPUT, "live: %d harmonics (at most %d)", ev->harmonics,
@@ -283,7 +315,7 @@ int rths_live_evaluation_done(rths_live *l, const rths_live_evaluation *ev, rths
     l->history_n++;
     l->evaluations_total++;
     l->have_evaluation = 1;
-    return write_text(l, err);
+    return write_if_due(l, err);
 }
 
 void rths_live_progress(rths_live *l, int points_accepted, double frequency_hz, double residual_m,
@@ -297,7 +329,7 @@ void rths_live_progress(rths_live *l, int points_accepted, double frequency_hz, 
     l->points_accepted = points_accepted;
     if (accepted) l->new_point = 1;
     rths_error ignored;
-    if (changed && l->have_evaluation) (void)write_text(l, &ignored);
+    if (changed && l->have_evaluation) (void)write_if_due(l, &ignored);
 }
 
 void rths_live_link_stats(rths_live *l, long overruns, double worst_lateness_s) {

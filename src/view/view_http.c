@@ -235,6 +235,7 @@ static int serve_status(rths_view *v, struct mg_connection *c) {
                                                           ? "ended"
                                                           : "running"));
         json_object_object_add(o, "files", files_object(v));
+        json_object_object_add(o, "plan", view_plan_object(v->run_dir));
     }
     if (v->snapshot) {
         char buf[16384];

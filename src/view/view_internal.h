@@ -28,6 +28,9 @@ char *view_json_text(struct json_object *obj); /* %.17g numbers, malloc'ed */
 /* truth.csv as {"column": [values...], ...} */
 int view_truth_json(const char *dir, char **json, rths_error *err);
 
+/* What the run's config.yaml plans: {start_hz, end_hz, method, max_points}, or NULL. */
+struct json_object *view_plan_object(const char *dir);
+
 /* The page and its libraries, compiled into the binary (web/assets.cmake generates the table). */
 typedef struct view_asset {
     const char *name; /* "index.html", "uPlot.iife.min.js", ... */

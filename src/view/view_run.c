@@ -273,3 +273,28 @@ int view_truth_json(const char *dir, char **json, rths_error *err) {
     json_object_put(root);
     return rc;
 }
+
+json_object *view_plan_object(const char *dir) {
+    char *path = view_join(dir, "config.yaml");
+    rths_config *cfg = NULL;
+    rths_error err;
+    rths_continuation_options cont;
+    rths_continuation_defaults(&cont);
+    json_object *plan = NULL;
+    /* config.yaml is the configuration as the run resolved it: its continuation section says
+     * what range the run covers */
+    if (path && view_file_exists(dir, "config.yaml") &&
+        !rths_config_load(path, NULL, 0, &cfg, &err) &&
+        !rths_continuation_config_read(cfg, &cont, &err)) {
+        plan = json_object_new_object();
+        json_object_object_add(plan, "start_hz", json_object_new_double(cont.start_hz));
+        json_object_object_add(plan, "end_hz", json_object_new_double(cont.end_hz));
+        json_object_object_add(
+            plan, "method",
+            json_object_new_string(cont.method == RTHS_CONT_ARCLENGTH ? "arclength" : "natural"));
+        json_object_object_add(plan, "max_points", json_object_new_int(cont.max_points));
+    }
+    rths_config_free(cfg);
+    free(path);
+    return plan;
+}
