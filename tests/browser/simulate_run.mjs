@@ -1,6 +1,7 @@
 // A run in progress, replayed from a finished one: node simulate_run.mjs FINISHED_DIR DEST_DIR
 // START_POINTS INTERVAL_MS [--finish]. DEST gets FINISHED's config.yaml and truth.csv and the
-// journal's header and first START_POINTS points at once, then one more point every INTERVAL_MS,
+// journal's header and first START_POINTS points at once (INTERVAL_MS 0: only that; a DEST that
+// already holds a journal continues after its points), then one more point every INTERVAL_MS,
 // with live.json replaced (temp + rename, as src/report/live.c does) from that point's measured
 // coefficients. With --finish, frf.csv and summary.json are copied at the end, as the run writes
 // them when it ends. Stands in for a paced `rths frf` until the run writes live.json itself.
@@ -14,7 +15,10 @@ const header = lines[0], points = lines.slice(1);
 fs.mkdirSync(dest, { recursive: true });
 for (const f of ["config.yaml", "truth.csv"]) fs.copyFileSync(path.join(src, f), path.join(dest, f));
 const journal = path.join(dest, "journal.jsonl");
-fs.writeFileSync(journal, header + "\n" + points.slice(0, start).map((l) => l + "\n").join(""));
+let n = start;
+if (fs.existsSync(journal)) n = fs.readFileSync(journal, "utf8").split("\n").filter((l) => l.includes('"point"')).length;
+else fs.writeFileSync(journal, header + "\n" + points.slice(0, start).map((l) => l + "\n").join(""));
+if (interval <= 0) process.exit(0);
 
 function liveJson(p, n, history) {
   const f = p.frequency_hz, samples = 64;
@@ -48,7 +52,6 @@ function replace(file, text) {
   fs.renameSync(file + ".tmp", file);
 }
 
-let n = start;
 const timer = setInterval(() => {
   if (n >= points.length) {
     clearInterval(timer);
