@@ -77,6 +77,14 @@ static void put_number(rths_live *l, const char *fmt, double x) {
         put(l, "null");
 }
 
+/* key and value: the text before the number, the number (or null), the text after it */
+static void put_value(rths_live *l, const char *before, const char *fmt, double x,
+                      const char *after) {
+    put(l, "%s", before);
+    put_number(l, fmt, x);
+    put(l, "%s", after);
+}
+
 static void put_array(rths_live *l, const char *key, const double *x, int n, const char *fmt) {
     put(l, "\"%s\": [", key);
     for (int i = 0; i < n; i++) {
@@ -111,7 +119,7 @@ static void put_health(rths_live *l) {
         rths_rig_fault_name(ev->fault), (int)ev->fault, l->have_link_stats ? "true" : "false");
     if (l->have_link_stats) {
         put(l, "\"link_stats\": true, \"overruns\": %ld, ", l->overruns);
-        put_number(l, "\"worst_lateness_s\": %.9g}\n", l->worst_lateness_s);
+        put_value(l, "\"worst_lateness_s\": ", "%.9g", l->worst_lateness_s, "}\n");
     } else {
         put(l, "\"link_stats\": false, \"overruns\": null, \"worst_lateness_s\": null}\n");
     }
@@ -129,8 +137,8 @@ static void format_text(rths_live *l) {
         l->ended ? "ended" : "running", l->points_accepted);
     put(l, "  \"points_accepted\": %d,\n  \"iteration\": %d,\n  \"evaluations_total\": %d,\n",
         l->points_accepted, iteration, l->evaluations_total);
-    put_number(l, "  \"frequency_hz\": %.17g,\n", ev->frequency_hz);
-    put_number(l, "  \"residual_m\": %.9g,\n", l->residual_m);
+    put_value(l, "  \"frequency_hz\": ", "%.17g", ev->frequency_hz, ",\n");
+    put_value(l, "  \"residual_m\": ", "%.9g", l->residual_m, ",\n");
     put_history(l);
     put(l, "  \"harmonics\": %d,\n  \"target\": {", ev->harmonics);
     put_array(l, "a_m", ev->target_a_m, ev->harmonics, "%.17g");
@@ -139,7 +147,8 @@ static void format_text(rths_live *l) {
     put(l, "},\n");
     put_fourier(l, "physical", &ev->phys);
     put_fourier(l, "numerical", &ev->num);
-    put_number(l, "  \"period_s\": %.17g,\n", ev->frequency_hz > 0 ? 1 / ev->frequency_hz : NAN);
+    put_value(l, "  \"period_s\": ", "%.17g", ev->frequency_hz > 0 ? 1 / ev->frequency_hz : NAN,
+              ",\n");
     put(l, "  \"trace\": {\"source\": \"%s\", ",
         l->trace_measured ? "measured" : "reconstructed from the latest period's harmonics");
     put_array(l, "time_s", l->trace_t, l->trace_n_samples, "%.9g");
@@ -148,7 +157,7 @@ static void format_text(rths_live *l) {
     put(l, ", ");
     put_array(l, "numerical_m", l->trace_n, l->trace_n_samples, "%.9g");
     put(l, "},\n");
-    put_number(l, "  \"rig_time_s\": %.9g,\n", ev->rig_time_s);
+    put_value(l, "  \"rig_time_s\": ", "%.9g", ev->rig_time_s, ",\n");
     put(l, "  \"wall_time_s\": %.6f,\n  \"unix_time_s\": %.3f,\n", rths_monotonic_s() - l->opened_s,
         (double)now.tv_sec + 1e-9 * (double)now.tv_nsec);
     put_health(l);
