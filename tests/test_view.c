@@ -5,6 +5,7 @@
 #include "rths/view.h"
 #include "testlib.h"
 
+#include <civetweb.h>
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -188,12 +189,48 @@ static void points_from_journal(void **state) {
     free(json);
 }
 
+/* The controller's page: no run folder, a process snapshot served under /api/status "process". */
+static int snapshot(void *user, char *buf, size_t cap) {
+    return snprintf(buf, cap, "{\"overruns\": %d, \"armed\": true}", *(int *)user);
+}
+
+static void process_snapshot(void **state) {
+    (void)state;
+    int overruns = 17;
+    rths_view_options opt;
+    rths_view_options_defaults(&opt);
+    opt.port = 0;
+    opt.snapshot = snapshot;
+    opt.snapshot_user = &overruns;
+    rths_view *v;
+    rths_error err;
+    assert_int_equal(rths_view_start(&opt, &v, &err), RTHS_OK);
+    char ebuf[256] = "", body[4096] = "";
+    struct mg_connection *c = mg_download("127.0.0.1", rths_view_port(v), 0, ebuf, sizeof ebuf,
+                                          "GET /api/status HTTP/1.0\r\n\r\n");
+    assert_non_null(c);
+    int n = 0, got;
+    while ((got = mg_read(c, body + n, sizeof body - 1 - (size_t)n)) > 0)
+        n += got;
+    body[n] = 0;
+    mg_close_connection(c);
+    rths_view_stop(v);
+    json_object *root = json_tokener_parse(body), *proc, *x;
+    assert_non_null(root);
+    assert_true(json_object_object_get_ex(root, "process", &proc));
+    assert_true(json_object_object_get_ex(proc, "overruns", &x));
+    assert_int_equal(json_object_get_int(x), 17);
+    assert_false(json_object_object_get_ex(root, "run_dir", &x));
+    json_object_put(root);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(listen_addresses),
         cmocka_unit_test_setup_teardown(run_folders, setup, teardown),
         cmocka_unit_test_setup_teardown(points_from_csv, setup, teardown),
         cmocka_unit_test_setup_teardown(points_from_journal, setup, teardown),
+        cmocka_unit_test(process_snapshot),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -425,6 +425,11 @@ function renderFacts() {
     if (state.summary.max_relative_error_vs_truth != null)
       rows.push(["max deviation from truth", `${sig(100 * state.summary.max_relative_error_vs_truth, 3)} %`]);
   }
+  // a live process's own snapshot (the controller's page): its scalar fields as they come
+  const proc = state.status && state.status.process;
+  if (proc)
+    for (const [k, v] of Object.entries(proc))
+      if (v === null || typeof v !== "object") rows.push([k.replace(/_/g, " "), String(v)]);
   facts($("health"), rows);
 }
 
@@ -458,7 +463,7 @@ function refresh(changed) {
     try {
       state.status = await getJSON("/api/status");
       const files = state.status.files || {};
-      const want = (k) => !changed || changed.includes(k);
+      const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
       if (want("points")) state.points = (await getJSON("/api/points")).points;
       if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
       if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;

@@ -3,6 +3,7 @@
 #include "cli/commands.h"
 #include "rths/view.h"
 
+#include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
 #include <string.h>
@@ -30,13 +31,6 @@ static const char usage[] =
     "\n"
     "Exit status: 0 stopped by a signal; 1 cannot listen; 2 bad usage, or RUN_DIR missing or not\n"
     "a run folder.\n";
-
-static volatile sig_atomic_t stop_requested;
-
-static void on_signal(int sig) {
-    (void)sig;
-    stop_requested = 1;
-}
 
 /* RUN_DIR is the one argument that is neither an option nor an option's value. */
 static int split_run_dir(int argc, char **argv, char **rest, int *n_rest, const char **run_dir) {
@@ -80,17 +74,20 @@ int rths_cmd_view(int argc, char **argv) {
                 "rths view: warning: serving on %s, reachable from other machines; the page "
                 "has no authentication and shows the run folder's files\n",
                 vopt.host);
+    /* SIGINT and SIGTERM are blocked before the server's threads exist (they inherit the mask)
+     * and taken here by sigwait: the stop never depends on which thread a signal lands on */
+    sigset_t stop_signals;
+    sigemptyset(&stop_signals);
+    sigaddset(&stop_signals, SIGINT);
+    sigaddset(&stop_signals, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &stop_signals, NULL);
     rths_view *view;
     if ((rc = rths_view_start(&vopt, &view, &err))) return rths_cli_fail(&cli, rc, &err);
-    struct sigaction sa = {.sa_handler = on_signal};
-    sigemptyset(&sa.sa_mask);
-    sigaction(SIGINT, &sa, NULL);
-    sigaction(SIGTERM, &sa, NULL);
     int v6 = strchr(vopt.host, ':') != NULL;
     rths_cli_print(&cli, "rths view: %s at http://%s%s%s:%d/ (Ctrl-C to stop)\n", run_dir,
                    v6 ? "[" : "", vopt.host, v6 ? "]" : "", rths_view_port(view));
-    while (!stop_requested)
-        pause();
+    int sig;
+    sigwait(&stop_signals, &sig);
     rths_view_stop(view);
     return RTHS_OK;
 }
