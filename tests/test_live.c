@@ -137,7 +137,7 @@ static void history_per_point(void **state) {
                      hypot(0.3, 0.4 / (i + 1)), 1e-8);
     json_object_put(o);
     /* the point is accepted: the next evaluation starts the next point's history */
-    rths_live_progress(live, 1, 10, 0.1, 1);
+    rths_live_progress(live, 0, 10, 0.1, 1); /* point 0 accepted */
     assert_int_equal(rths_live_evaluation_done(live, &ev, &err), RTHS_OK);
     o = read_live(s);
     assert_int_equal((int)num(o, "point"), 1);
@@ -270,7 +270,7 @@ static void observing_rig(void **state) {
     assert_int_equal(rths_rig_set_target(rig, 1, &a, &b, &err), RTHS_OK);
     assert_int_equal(rths_rig_run_periods(rig, 1, p, &err), RTHS_OK);
     /* the corrector accepts: progress publishes the deciding evaluation (run 4: 1/5) first */
-    rths_live_progress(live, 1, 5, 0.2, 1);
+    rths_live_progress(live, 0, 5, 0.2, 1);
     o = read_live(s);
     assert_close(num(o, "residual_m"), 0.2, 1e-9);
     assert_int_equal((int)json_object_array_length(get(o, "residual_history_m")), 2);

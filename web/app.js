@@ -228,20 +228,25 @@ function folds() {
 
 // ---------- the other panels ----------
 
+// Equal spans on both axes (a match is the 45° diagonal), each centred on its own signal: the
+// static displacement (a preload) would otherwise shrink the loop to a dot.
 function lissajousRanges() {
   const l = state.live;
   if (!l || !l.trace || !l.trace.physical_m.length) return [[-1, 1], [-1, 1]];
-  const all = l.trace.physical_m.concat(l.trace.numerical_m).filter((v) => v != null);
-  const m = Math.max(...all.map((v) => Math.abs(v * UM))) * 1.1 || 1;
-  return [[-m, m], [-m, m]];
+  const p = l.trace.physical_m.filter((v) => v != null).map((v) => v * UM);
+  const n = l.trace.numerical_m.filter((v) => v != null).map((v) => v * UM);
+  const half = 0.55 * Math.max(Math.max(...p) - Math.min(...p), Math.max(...n) - Math.min(...n)) || 1;
+  const pc = 0.5 * (Math.max(...p) + Math.min(...p)), nc = 0.5 * (Math.max(...n) + Math.min(...n));
+  return [[pc - half, pc + half], [nc - half, nc + half]];
 }
 
 function drawLissajous(u, ctx) {
   const l = state.live;
   ctx.save();
   clipToPlot(u, ctx);
-  const [xr] = lissajousRanges();
-  line(u, ctx, xr, xr, COLORS.tol, 1, [4, 4]);
+  const [xr, yr] = lissajousRanges();
+  const lo = Math.min(xr[0], yr[0]), hi = Math.max(xr[1], yr[1]);
+  line(u, ctx, [lo, hi], [lo, hi], COLORS.tol, 1, [4, 4]);
   if (l && l.trace) {
     const px = l.trace.physical_m.map((v) => (v == null ? null : v * UM));
     const ny = l.trace.numerical_m.map((v) => (v == null ? null : v * UM));

@@ -63,18 +63,20 @@ void rths_live_set_interval(rths_live *live, double min_interval_s);
 /* Writes what was recorded but held back by the interval. */
 void rths_live_flush(rths_live *live);
 
-/* From the continuation's progress callback (after every correction attempt): the accepted count
- * and, when accepted, the start of the next point (its residual history starts afresh). Replaces
- * live.json when anything the view shows changed. */
-void rths_live_progress(rths_live *live, int points_accepted, double frequency_hz,
-                        double residual_m, int accepted);
+/* From the continuation's progress callback, after every correction attempt: point is the index
+ * of the point the attempt was for (the callback's `points`), accepted whether it was accepted;
+ * the next evaluation then starts the next point's residual history. Replaces live.json when the
+ * accepted count changed. */
+void rths_live_progress(rths_live *live, int point, double frequency_hz, double residual_m,
+                        int accepted);
 
 /* Health of a remote rig's controller (wake-up lateness, overrun cycles), when known. */
 void rths_live_link_stats(rths_live *live, long overruns, double worst_lateness_s);
 
 /* The observing rig: forwards every call to inner and, when an evaluation ends (the next
  * set_forcing/set_target after periods were run, or rths_live_progress), publishes the latest
- * period. The new rig owns inner (destroying it destroys inner); live must outlive it. */
+ * period. The new rig owns inner (destroying it destroys inner); out may be &inner, and is set
+ * only on success. Once live is closed the rig just forwards. */
 int rths_live_wrap_rig(rths_live *live, rths_rig *inner, rths_rig **out, rths_error *err);
 
 /* The JSON text last written (for tests); NUL-terminated, owned by live. */

@@ -327,13 +327,14 @@ int rths_live_evaluation_done(rths_live *l, const rths_live_evaluation *ev, rths
     return write_if_due(l, err);
 }
 
-void rths_live_progress(rths_live *l, int points_accepted, double frequency_hz, double residual_m,
+void rths_live_progress(rths_live *l, int point, double frequency_hz, double residual_m,
                         int accepted) {
     (void)frequency_hz;
     (void)residual_m;
     if (!l) return;
     /* the evaluation that decided this attempt belongs to the point it decided */
     if (l->observer) publish_if_done(l->observer);
+    int points_accepted = point + (accepted ? 1 : 0);
     int changed = points_accepted != l->points_accepted;
     l->points_accepted = points_accepted;
     if (accepted) l->new_point = 1;
@@ -436,16 +437,17 @@ static const rths_rig_ops observing_ops = {
 };
 
 int rths_live_wrap_rig(rths_live *live, rths_rig *inner, rths_rig **out, rths_error *err) {
-    *out = NULL;
+    /* *out may alias inner (rig = wrap(rig)): it is only set on success, so a failure leaves the
+     * caller's rig as it was */
     observing_rig *o = calloc(1, sizeof *o);
-    if (!o) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    o->live = live;
-    o->inner = inner;
-    live->observer = o;
-    *out = rths_rig_create(&observing_ops, o, rths_rig_description(inner));
-    if (!*out) {
+    rths_rig *rig = o ? rths_rig_create(&observing_ops, o, rths_rig_description(inner)) : NULL;
+    if (!rig) {
         free(o);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
+    o->live = live;
+    o->inner = inner;
+    live->observer = o;
+    *out = rig;
     return RTHS_OK;
 }
