@@ -2,7 +2,9 @@
  * checked against closed forms: the residual is |phys - num| over the matched harmonics, the trace
  * is the Fourier series of the given coefficients, the observing rig forwards every call and
  * publishes the last period of each evaluation. */
+#include "rths/continuation.h"
 #include "rths/live.h"
+#include "rths/rig_virtual.h"
 #include "testlib.h"
 
 #include <json-c/json.h>
@@ -286,12 +288,86 @@ static void observing_rig(void **state) {
     rths_live_close(live);
 }
 
+/* ---- a real continuation run on the virtual rig, watched ---- */
+
+typedef struct {
+    rths_live *live;
+    rths_point last;
+} watched;
+
+static int keep_point(void *user, const rths_point *pt, int is_update) {
+    (void)is_update;
+    ((watched *)user)->last = *pt;
+    return 0;
+}
+
+static void progress(void *user, int points, double f, double r, int evaluations, int accepted) {
+    (void)evaluations;
+    rths_live_progress(((watched *)user)->live, points, f, r, accepted);
+}
+
+/* Every evaluation of the run is published (interval 0): live.json ends with the run's own counts
+ * and the last point's frequency, and the run's results are those of an unwatched run. */
+static void real_run(void **state) {
+    scratch *s = *state;
+    const char *ov[] = {"continuation.start_hz=12.9", "continuation.end_hz=13.05"};
+    rths_config *cfg;
+    rths_setup setup;
+    rths_error err;
+    assert_int_equal(rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), ov,
+                                      2, &cfg, &err),
+                     RTHS_OK);
+    assert_int_equal(rths_setup_read(cfg, &setup, &err), RTHS_OK);
+    rths_settle_options so;
+    rths_newton_options no;
+    rths_continuation_options co;
+    int harmonics = 1;
+    rths_settle_defaults(&so, 0);
+    rths_newton_defaults(&no, 0);
+    rths_continuation_defaults(&co);
+    co.model_predictor = 1;
+    assert_int_equal(rths_iterate_config_read(cfg, &so, &no, &harmonics, &err), RTHS_OK);
+    assert_int_equal(rths_continuation_config_read(cfg, &co, &err), RTHS_OK);
+    rths_continuation_result res[2];
+    watched w[2];
+    for (int watch = 0; watch < 2; watch++) {
+        rths_rig *rig;
+        memset(&w[watch], 0, sizeof w[watch]);
+        assert_int_equal(rths_virtual_rig_create(cfg, &setup, 0, 0, &rig, &err), RTHS_OK);
+        if (watch) {
+            assert_int_equal(rths_live_open(s->dir, &w[watch].live, &err), RTHS_OK);
+            rths_live_set_interval(w[watch].live, 0);
+            assert_int_equal(rths_live_wrap_rig(w[watch].live, rig, &rig, &err), RTHS_OK);
+        }
+        assert_int_equal(rths_continuation_run(
+                             rig, &co, &so, &no, harmonics, setup.forcing_amplitude_n, NULL, 0,
+                             keep_point, watch ? progress : NULL, &w[watch], &res[watch], &err),
+                         RTHS_OK);
+        rths_live_close(w[watch].live);
+        rths_rig_destroy(rig);
+    }
+    /* the observing rig changes nothing: same evaluations, same last point, bit for bit */
+    assert_int_equal(res[1].evaluations, res[0].evaluations);
+    assert_int_equal(res[1].points, res[0].points);
+    assert_true(w[1].last.sol.amplitude_m == w[0].last.sol.amplitude_m);
+    json_object *o = read_live(s);
+    assert_string_equal(json_object_get_string(get(o, "state")), "ended");
+    assert_int_equal((int)num(o, "evaluations_total"), res[1].evaluations);
+    assert_int_equal((int)num(o, "points_accepted"), res[1].points);
+    assert_true(num(o, "frequency_hz") == w[1].last.sol.eval.frequency_hz);
+    assert_true(num(o, "rig_time_s") > 0);
+    json_object_put(o);
+    rths_setup_free(&setup);
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test_setup_teardown(residual_and_trace, setup, teardown),
         cmocka_unit_test_setup_teardown(history_per_point, setup, teardown),
         cmocka_unit_test_setup_teardown(nan_is_null_and_interval_holds_back, setup, teardown),
         cmocka_unit_test_setup_teardown(observing_rig, setup, teardown),
+        cmocka_unit_test_setup_teardown(real_run, setup, teardown),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
