@@ -52,7 +52,7 @@ function customPlot(el, height, xLabel, yLabel, legend, ranges, draw) {
     ...plotSize(el, height),
     scales: { x: { time: false, auto: false }, y: { auto: false } },
     axes: [
-      { label: xLabel, values: fmtAxis(4) },
+      { label: xLabel, values: fmtAxis(6) },
       { label: yLabel, values: fmtAxis(4), size: 64 },
     ],
     legend: { live: false },
@@ -80,7 +80,7 @@ function nativePlot(el, height, xLabel, yLabel, series, extra = {}) {
     ...plotSize(el, height),
     scales: { x: { time: false }, ...(extra.scales || {}) },
     axes: [
-      { label: xLabel, values: extra.xValues || fmtAxis(4) },
+      { label: xLabel, values: extra.xValues || fmtAxis(6) },
       { label: yLabel, values: extra.yValues || fmtAxis(3), size: 64 },
     ],
     legend: { live: false },
