@@ -123,7 +123,7 @@ void rths_bench_view(void) {
     printf("linear example, default strategy, virtual rig at full speed:\n");
     printf("  plain    %7.2f s wall, %d evaluations, %.2f ms wall per evaluation\n", plain,
            evals_plain, 1e3 * per_eval);
-    printf("  watched  %7.2f s wall, %d evaluations (live.json after each)\n", watched,
+    printf("  watched  %7.2f s wall, %d evaluations (live.json at most 10 per second)\n", watched,
            evals_watched);
     printf("  one replacement = %.3f %% of an evaluation's wall time; with at most one per 0.1 s, "
            "at most %.3f %% of the run's wall time (goal: < 1 %%)\n",
