@@ -8,14 +8,23 @@ SUDO       := $(shell [ "$$(id -u)" = 0 ] || echo sudo)
 
 all: build
 
+# A package counts as present when installed or provided by an installed one (e.g. NodeSource's
+# nodejs provides npm). The live view's npm packages (web/package-lock.json) follow.
 deps:
-	@missing=""; for p in $(PACKAGES); do \
-	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || missing="$$missing $$p"; \
+	@provided=$$(dpkg-query -W -f='$${Status}|$${Provides}\n' 2>/dev/null | grep '^install ok installed|' \
+	  | cut -d'|' -f2 | tr ',' '\n' | sed 's/(.*//; s/ //g'); \
+	missing=""; for p in $(PACKAGES); do \
+	  dpkg-query -W -f='$${Status}' $$p 2>/dev/null | grep -q "ok installed" || \
+	  echo "$$provided" | grep -qx "$$p" || missing="$$missing $$p"; \
 	done; \
 	if [ -n "$$missing" ]; then \
 	  echo "make deps: installing$$missing"; \
 	  $(SUDO) apt-get update -qq && \
 	  DEBIAN_FRONTEND=noninteractive $(SUDO) apt-get install -y -qq --no-install-recommends $$missing; \
+	fi
+	@if [ ! -d web/node_modules ]; then \
+	  echo "make deps: npm ci in web/ (uPlot for rths view, puppeteer-core for its browser test)"; \
+	  cd web && npm ci --no-audit --no-fund; \
 	fi
 
 build: deps

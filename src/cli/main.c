@@ -36,6 +36,7 @@ int main(int argc, char **argv) {
         {"frf", rths_cmd_frf, "iterative hybrid test with continuation: the frequency response"},
         {"chart", rths_cmd_chart, "stability chart of the delayed-feedback hybrid test"},
         {"controller", rths_cmd_controller, "the real-time controller process"},
+        {"view", rths_cmd_view, "live web page of a run folder, finished or in progress"},
     };
     const int n = (int)(sizeof cmds / sizeof cmds[0]);
     if (argc < 2) {

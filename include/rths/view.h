@@ -1,0 +1,62 @@
+/* rths view: a web page that watches a run folder, finished or still being written (`rths view`).
+ *
+ * The view only reads what the run writes (journal.jsonl, frf.csv, truth.csv, summary.json,
+ * live.json, see live.h); the test process serves nothing and is not slowed. HTTP by civetweb, on
+ * loopback unless another address is asked for. Routes (docs/view.md):
+ *   /                  the page (assets embedded in the binary at build time: no network needed)
+ *   /assets/NAME       the page's scripts and styles (uPlot)
+ *   /api/points        every accepted point with the fields of frf.csv: from frf.csv once the run
+ *                      has written it, before that from journal.jsonl
+ *   /api/truth         truth.csv as columns
+ *   /api/live          live.json as written
+ *   /api/summary       summary.json, once the run has ended (404 before)
+ *   /api/status        what the folder holds now, and the process snapshot when one is served
+ *   /api/events        server-sent events: "change" whenever a file of the run changes
+ *   /run/NAME          a file directly inside the run folder (figures, CSV); nothing else
+ * Requests naming anything outside the run folder (.., encoded or not, slashes, symlinks that
+ * leave it) are refused with 403; unknown paths get 404; all errors are short JSON or text. */
+#ifndef RTHS_VIEW_H
+#define RTHS_VIEW_H
+
+#include "rths/core.h"
+
+#include <stddef.h>
+
+typedef struct rths_view rths_view;
+
+/* A snapshot of a live process, e.g. the controller's status (signals, limits, watchdog,
+ * lateness): fills buf with one JSON object (NUL-terminated) and returns its length, or -1.
+ * Called from the server's threads: it must only read state the process publishes for it. */
+typedef int (*rths_view_snapshot_fn)(void *user, char *buf, size_t cap);
+
+typedef struct rths_view_options {
+    const char *run_dir; /* the run folder served; NULL: only the snapshot (controller page) */
+    char host[256];      /* listen address, default "127.0.0.1" */
+    int port;            /* default 8080; 0: a free port (see rths_view_port) */
+    double poll_s;       /* how often the folder is checked for changes, default 0.25 s */
+    rths_view_snapshot_fn snapshot; /* optional, served at /api/status as "process" */
+    void *snapshot_user;
+} rths_view_options;
+
+void rths_view_options_defaults(rths_view_options *opt);
+
+/* "HOST:PORT", "[IPv6]:PORT" or "PORT" (loopback). RTHS_EINPUT when malformed. */
+int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *port,
+                           rths_error *err);
+/* 1 for 127.0.0.0/8, ::1 and "localhost". */
+int rths_view_host_is_loopback(const char *host);
+
+/* RTHS_OK when dir is a folder holding a run (journal.jsonl, frf.csv or live.json), else
+ * RTHS_EINPUT with the reason (missing, not a folder, not a run). */
+int rths_view_check_run_dir(const char *dir, rths_error *err);
+
+/* The run's accepted points as JSON {"source": "frf.csv"|"journal.jsonl", "columns": [...],
+ * "points": [{column: value, ...}, ...]} (malloc'ed text, caller frees). NaN becomes null. */
+int rths_view_points_json(const char *dir, char **json, rths_error *err);
+
+/* Binds and starts serving in background threads. */
+int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *err);
+int rths_view_port(const rths_view *v); /* the bound port */
+void rths_view_stop(rths_view *v);      /* closes every connection; v may be NULL */
+
+#endif

@@ -1,0 +1,452 @@
+/* The view's HTTP side over civetweb: routes, error pages, server-sent events (see view.h). */
+#include "view/view_internal.h"
+
+#include <arpa/inet.h>
+#include <civetweb.h>
+#include <errno.h>
+#include <json-c/json.h>
+#include <limits.h>
+#include <pthread.h>
+#include <stdatomic.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <strings.h>
+#include <sys/stat.h>
+#include <time.h>
+
+struct rths_view {
+    struct mg_context *ctx;
+    char *run_dir; /* realpath of the folder */
+    int port;
+    double poll_s;
+    rths_view_snapshot_fn snapshot;
+    void *snapshot_user;
+    atomic_int stopping;
+};
+
+/* The files of a run whose changes the page hears about, and the API each one feeds. */
+static const char *const watched[][2] = {
+    {"journal.jsonl", "points"}, {"frf.csv", "points"},  {"live.json", "live"},
+    {"summary.json", "summary"}, {"truth.csv", "truth"},
+};
+enum { N_WATCHED = sizeof watched / sizeof watched[0] };
+
+void rths_view_options_defaults(rths_view_options *opt) {
+    memset(opt, 0, sizeof *opt);
+    snprintf(opt->host, sizeof opt->host, "127.0.0.1");
+    opt->port = 8080;
+    opt->poll_s = 0.25;
+}
+
+int rths_view_host_is_loopback(const char *host) {
+    struct in_addr a4;
+    struct in6_addr a6;
+    if (!strcmp(host, "localhost")) return 1;
+    if (inet_pton(AF_INET, host, &a4) == 1) return (ntohl(a4.s_addr) >> 24) == 127;
+    if (inet_pton(AF_INET6, host, &a6) == 1) return IN6_IS_ADDR_LOOPBACK(&a6);
+    return 0;
+}
+
+int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *port,
+                           rths_error *err) {
+    const char *colon = strrchr(text, ':');
+    const char *port_text = colon ? colon + 1 : text;
+    size_t hlen = colon ? (size_t)(colon - text) : 0;
+    const char *h = text;
+    if (hlen >= 2 && text[0] == '[' && text[hlen - 1] == ']') h++, hlen -= 2;
+    char *end;
+    errno = 0;
+    long p = strtol(port_text, &end, 10);
+    if (!*port_text || *end || errno || p < 0 || p > 65535)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "--listen '%s': expected HOST:PORT with a port 0..65535 (0: a free "
+                              "one), e.g. 127.0.0.1:8080",
+                              text);
+    if (colon && hlen == 0)
+        return rths_error_set(err, RTHS_EINPUT, "--listen '%s': empty host", text);
+    if (hlen >= host_cap) return rths_error_set(err, RTHS_EINPUT, "--listen: host too long");
+    if (colon) {
+        memcpy(host, h, hlen);
+        host[hlen] = 0;
+    } else {
+        snprintf(host, host_cap, "127.0.0.1");
+    }
+    struct in_addr a4;
+    struct in6_addr a6;
+    if (strcmp(host, "localhost") && inet_pton(AF_INET, host, &a4) != 1 &&
+        inet_pton(AF_INET6, host, &a6) != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "--listen '%s': '%s' is not a numeric IPv4/IPv6 address or "
+                              "localhost",
+                              text, host);
+    *port = (int)p;
+    return RTHS_OK;
+}
+
+/* ---- responses ---- */
+
+static int send_body(struct mg_connection *c, int status, const char *mime, const void *body,
+                     size_t len) {
+    const char *reason = status == 200   ? "OK"
+                         : status == 403 ? "Forbidden"
+                         : status == 404 ? "Not Found"
+                         : status == 405 ? "Method Not Allowed"
+                                         : "Internal Server Error";
+    mg_printf(c,
+              "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\n"
+              "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n"
+              "Connection: close\r\n\r\n",
+              status, reason, mime, len);
+    const struct mg_request_info *ri = mg_get_request_info(c);
+    if (len && strcmp(ri->request_method, "HEAD")) mg_write(c, body, len);
+    return status;
+}
+
+static int send_json_error(struct mg_connection *c, int status, const char *msg) {
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "error", json_object_new_string(msg));
+    const char *text = json_object_to_json_string_ext(o, JSON_C_TO_STRING_PLAIN);
+    send_body(c, status, "application/json", text, strlen(text));
+    json_object_put(o);
+    return status;
+}
+
+static int send_owned_json(struct mg_connection *c, char *text, const rths_error *err) {
+    if (!text) return send_json_error(c, 500, err->msg);
+    send_body(c, 200, "application/json", text, strlen(text));
+    free(text);
+    return 200;
+}
+
+static int send_html_error(struct mg_connection *c, int status, const char *msg) {
+    char page[2048];
+    int n = snprintf(page, sizeof page,
+                     "<!doctype html><html><head><meta charset=\"utf-8\"><title>rths view: "
+                     "%d</title></head><body style=\"font-family:sans-serif\"><h1>%d</h1>"
+                     "<p>%s</p><p>The view serves <a href=\"/\">the page</a>, /api/points, "
+                     "/api/truth, /api/live, /api/summary, /api/status, /api/events and the run "
+                     "folder's own files as /run/NAME.</p></body></html>",
+                     status, status, msg);
+    return send_body(c, status, "text/html; charset=utf-8", page, (size_t)n);
+}
+
+/* ---- routes ---- */
+
+/* Anything that could name a file outside the run folder: dot-dot (plain or percent-encoded),
+ * backslashes, encoded slashes, NUL. Checked on the raw request before any decoding. */
+static int is_traversal(const char *raw) {
+    return strstr(raw, "..") || strcasestr(raw, "%2e") || strcasestr(raw, "%2f") ||
+           strcasestr(raw, "%5c") || strchr(raw, '\\') || strcasestr(raw, "%00");
+}
+
+static int serve_asset(struct mg_connection *c, const char *name) {
+    for (int i = 0; i < view_asset_count; i++)
+        if (!strcmp(view_assets[i].name, name))
+            return send_body(c, 200, view_assets[i].mime, view_assets[i].data, view_assets[i].size);
+    return send_html_error(c, 404, "No such asset.");
+}
+
+static const char *mime_of(const char *name) {
+    const char *dot = strrchr(name, '.');
+    static const char *const map[][2] = {
+        {".png", "image/png"},
+        {".svg", "image/svg+xml"},
+        {".csv", "text/csv"},
+        {".json", "application/json"},
+        {".jsonl", "application/x-ndjson"},
+        {".log", "text/plain; charset=utf-8"},
+        {".gp", "text/plain; charset=utf-8"},
+        {".yaml", "text/plain; charset=utf-8"},
+    };
+    for (size_t i = 0; dot && i < sizeof map / sizeof map[0]; i++)
+        if (!strcmp(dot, map[i][0])) return map[i][1];
+    return "application/octet-stream";
+}
+
+/* /run/NAME: a regular file directly inside the run folder, also after resolving symlinks. */
+static int serve_run_file(rths_view *v, struct mg_connection *c, const char *name) {
+    if (!*name || name[0] == '.' || strchr(name, '/'))
+        return send_html_error(c, 403, "Refused: only files directly inside the run folder.");
+    char *path = view_join(v->run_dir, name);
+    char *real = path ? realpath(path, NULL) : NULL;
+    size_t dlen = strlen(v->run_dir);
+    struct stat st;
+    int inside = real && !strncmp(real, v->run_dir, dlen) && real[dlen] == '/' &&
+                 !strchr(real + dlen + 1, '/');
+    int status;
+    if (real && !inside)
+        status = send_html_error(c, 403, "Refused: that file lies outside the run folder.");
+    else if (!real || stat(real, &st) != 0 || !S_ISREG(st.st_mode))
+        status = send_html_error(c, 404, "The run folder holds no such file.");
+    else {
+        size_t len = 0;
+        char *data = view_read_file(real, (size_t)256 << 20, &len);
+        status = data ? send_body(c, 200, mime_of(name), data, len)
+                      : send_html_error(c, 500, "Cannot read that file.");
+        free(data);
+    }
+    free(real);
+    free(path);
+    return status;
+}
+
+static int serve_file_json(rths_view *v, struct mg_connection *c, const char *name,
+                           const char *missing) {
+    char *path = view_join(v->run_dir, name);
+    size_t len = 0;
+    char *data = path ? view_read_file(path, (size_t)16 << 20, &len) : NULL;
+    free(path);
+    int status =
+        data ? send_body(c, 200, "application/json", data, len) : send_json_error(c, 404, missing);
+    free(data);
+    return status;
+}
+
+static json_object *files_object(const rths_view *v) {
+    json_object *files = json_object_new_object();
+    for (int i = 0; i < N_WATCHED; i++) {
+        char *path = view_join(v->run_dir, watched[i][0]);
+        struct stat st;
+        if (path && stat(path, &st) == 0) {
+            json_object *f = json_object_new_object();
+            json_object_object_add(f, "bytes", json_object_new_int64((int64_t)st.st_size));
+            json_object_object_add(f, "modified_unix_s",
+                                   json_object_new_double((double)st.st_mtim.tv_sec +
+                                                          1e-9 * (double)st.st_mtim.tv_nsec));
+            json_object_object_add(files, watched[i][0], f);
+        }
+        free(path);
+    }
+    return files;
+}
+
+static int serve_status(rths_view *v, struct mg_connection *c) {
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "rths_version", json_object_new_string(RTHS_VERSION));
+    if (v->run_dir) {
+        struct stat st;
+        int present = stat(v->run_dir, &st) == 0;
+        json_object_object_add(o, "run_dir", json_object_new_string(v->run_dir));
+        json_object_object_add(o, "run_dir_present", json_object_new_boolean(present));
+        json_object_object_add(o, "state",
+                               json_object_new_string(!present ? "gone"
+                                                      : view_file_exists(v->run_dir, "summary.json")
+                                                          ? "ended"
+                                                          : "running"));
+        json_object_object_add(o, "files", files_object(v));
+        json_object_object_add(o, "plan", view_plan_object(v->run_dir));
+    }
+    if (v->snapshot) {
+        char buf[16384];
+        int n = v->snapshot(v->snapshot_user, buf, sizeof buf);
+        json_object *p = n > 0 && (size_t)n < sizeof buf ? json_tokener_parse(buf) : NULL;
+        json_object_object_add(o, "process", p);
+    }
+    char *text = view_json_text(o);
+    json_object_put(o);
+    rths_error err = {.msg = "out of memory"};
+    return send_owned_json(c, text, &err);
+}
+
+/* A signature of the watched files: any change of size, time or inode (rename) shows. */
+static void signature(const rths_view *v, long long sig[N_WATCHED][3]) {
+    for (int i = 0; i < N_WATCHED; i++) {
+        char *path = view_join(v->run_dir, watched[i][0]);
+        struct stat st;
+        if (path && stat(path, &st) == 0) {
+            sig[i][0] = (long long)st.st_size;
+            sig[i][1] = (long long)st.st_mtim.tv_sec * 1000000000LL + st.st_mtim.tv_nsec;
+            sig[i][2] = (long long)st.st_ino;
+        } else {
+            sig[i][0] = sig[i][1] = sig[i][2] = -1;
+        }
+        free(path);
+    }
+}
+
+static void sleep_s(double s) {
+    struct timespec ts = {(time_t)s, (long)((s - (double)(time_t)s) * 1e9)};
+    while (nanosleep(&ts, &ts) != 0 && errno == EINTR) {
+    }
+}
+
+/* Server-sent events: "change" with the APIs to fetch again, a comment as keep-alive. Ends when
+ * the browser goes (a write fails) or the view stops. */
+static int serve_events(rths_view *v, struct mg_connection *c) {
+    mg_printf(c, "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
+                 "Connection: close\r\n\r\nretry: 1000\n\n");
+    long long last[N_WATCHED][3], now[N_WATCHED][3];
+    memset(last, 0xff, sizeof last);
+    memset(now, 0xff, sizeof now);
+    int first = 1;
+    double idle = 0;
+    while (!atomic_load(&v->stopping)) {
+        if (v->run_dir) signature(v, now);
+        char list[256] = "";
+        for (int i = 0; v->run_dir && i < N_WATCHED; i++)
+            if ((first || memcmp(now[i], last[i], sizeof now[i])) && !strstr(list, watched[i][1]))
+                snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"%s\"",
+                         list[0] ? ", " : "", watched[i][1]);
+        /* a process snapshot changes all the time: sent with every poll */
+        if (list[0] || v->snapshot)
+            snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"status\"",
+                     list[0] ? ", " : "");
+        char msg[512];
+        if (list[0]) {
+            int n = snprintf(msg, sizeof msg, "event: change\ndata: {\"changed\": [%s]}\n\n", list);
+            if (mg_write(c, msg, (size_t)n) <= 0) break;
+            idle = 0;
+        } else if ((idle += v->poll_s) >= 10) {
+            if (mg_write(c, ": keep-alive\n\n", 14) <= 0) break;
+            idle = 0;
+        }
+        memcpy(last, now, sizeof last);
+        first = 0;
+        sleep_s(v->poll_s);
+    }
+    return 200;
+}
+
+static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
+    rths_error err = {0};
+    char *text = NULL;
+    if (!strcmp(what, "status")) return serve_status(v, c);
+    if (!strcmp(what, "events")) return serve_events(v, c);
+    if (!v->run_dir) return send_json_error(c, 404, "this view serves no run folder");
+    struct stat st;
+    if (stat(v->run_dir, &st) != 0) {
+        char msg[PATH_MAX + 64];
+        snprintf(msg, sizeof msg, "the run folder %s is gone", v->run_dir);
+        return send_json_error(c, 404, msg);
+    }
+    if (!strcmp(what, "points")) {
+        rths_view_points_json(v->run_dir, &text, &err);
+        return send_owned_json(c, text, &err);
+    }
+    if (!strcmp(what, "truth")) {
+        if (!view_file_exists(v->run_dir, "truth.csv"))
+            return send_json_error(c, 404, "no truth.csv in the run folder (yet)");
+        view_truth_json(v->run_dir, &text, &err);
+        return send_owned_json(c, text, &err);
+    }
+    if (!strcmp(what, "live"))
+        return serve_file_json(v, c, "live.json",
+                               "no live.json: this run has not written one (yet); runs write "
+                               "it after every evaluation when they are watched");
+    if (!strcmp(what, "summary"))
+        return serve_file_json(v, c, "summary.json", "the run has not ended: no summary.json yet");
+    return send_json_error(c, 404, "unknown API: use points, truth, live, summary, status, events");
+}
+
+static int handle_request(rths_view *v, struct mg_connection *c) {
+    const struct mg_request_info *ri = mg_get_request_info(c);
+    const char *uri = ri->local_uri ? ri->local_uri : "/";
+    if (strcmp(ri->request_method, "GET") && strcmp(ri->request_method, "HEAD"))
+        return send_html_error(c, 405, "Only GET and HEAD.");
+    if (is_traversal(ri->request_uri ? ri->request_uri : "") || is_traversal(uri))
+        return send_html_error(c, 403, "Refused: the path leaves the run folder.");
+    if (!strcmp(uri, "/") || !strcmp(uri, "/index.html")) return serve_asset(c, "index.html");
+    if (!strncmp(uri, "/assets/", 8)) return serve_asset(c, uri + 8);
+    if (!strncmp(uri, "/api/", 5)) return route_api(v, c, uri + 5);
+    if (!strncmp(uri, "/run/", 5)) {
+        if (!v->run_dir) return send_html_error(c, 404, "This view serves no run folder.");
+        return serve_run_file(v, c, uri + 5);
+    }
+    return send_html_error(c, 404, "Not found.");
+}
+
+typedef struct {
+    rths_view *v;
+    struct mg_connection *c;
+    int status;
+} request_job;
+
+static void *request_thread(void *arg) {
+    request_job *job = arg;
+    job->status = handle_request(job->v, job->c);
+    return NULL;
+}
+
+/* civetweb's workers have 100 kB stacks (Debian's build), too little for json-c, the journal
+ * reader and a sanitizer build: each request runs on a thread of ordinary size while the worker
+ * waits, so only one thread ever uses the connection. */
+static int handle(struct mg_connection *c, void *cbdata) {
+    request_job job = {.v = cbdata, .c = c, .status = 500};
+    pthread_attr_t attr;
+    pthread_t thread;
+    pthread_attr_init(&attr);
+    pthread_attr_setstacksize(&attr, (size_t)8 << 20);
+    if (pthread_create(&thread, &attr, request_thread, &job) == 0)
+        pthread_join(thread, NULL);
+    else
+        mg_printf(c, "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n\r\n");
+    pthread_attr_destroy(&attr);
+    return job.status;
+}
+
+/* civetweb's own messages (bind failures) reach the caller through mg_start2's error text;
+ * per-request chatter is not printed. */
+static int quiet_log(const struct mg_connection *c, const char *message) {
+    (void)c;
+    (void)message;
+    return 1;
+}
+
+int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *err) {
+    *out = NULL;
+    rths_view *v = calloc(1, sizeof *v);
+    if (!v) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    v->poll_s = opt->poll_s > 0 ? opt->poll_s : 0.25;
+    v->snapshot = opt->snapshot;
+    v->snapshot_user = opt->snapshot_user;
+    if (opt->run_dir) {
+        int rc = rths_view_check_run_dir(opt->run_dir, err);
+        if (!rc && !(v->run_dir = realpath(opt->run_dir, NULL)))
+            rc = rths_error_set(err, RTHS_EINPUT, "run folder %s: %s", opt->run_dir,
+                                strerror(errno));
+        if (rc) {
+            free(v);
+            return rc;
+        }
+    }
+    char ports[300];
+    snprintf(ports, sizeof ports, strchr(opt->host, ':') ? "[%s]:%d" : "%s:%d", opt->host,
+             opt->port);
+    const char *options[] = {"listening_ports",   ports, "num_threads", "16",
+                             "enable_keep_alive", "no",  NULL};
+    struct mg_callbacks callbacks = {.log_message = quiet_log};
+    struct mg_init_data init = {
+        .callbacks = &callbacks, .user_data = v, .configuration_options = options};
+    char text[256] = "";
+    unsigned code = 0;
+    struct mg_error_data error = {.code = &code, .text = text, .text_buffer_size = sizeof text};
+    mg_init_library(0);
+    v->ctx = mg_start2(&init, &error);
+    if (!v->ctx) {
+        free(v->run_dir);
+        free(v);
+        mg_exit_library();
+        return rths_error_set(err, RTHS_EFAIL, "cannot listen on %s: %s", ports,
+                              text[0] ? text : "civetweb refused");
+    }
+    mg_set_request_handler(v->ctx, "/", handle, v);
+    struct mg_server_port sp[4];
+    int n = mg_get_server_ports(v->ctx, 4, sp);
+    v->port = n > 0 ? sp[0].port : opt->port;
+    *out = v;
+    return RTHS_OK;
+}
+
+int rths_view_port(const rths_view *v) {
+    return v->port;
+}
+
+void rths_view_stop(rths_view *v) {
+    if (!v) return;
+    atomic_store(&v->stopping, 1);
+    if (v->ctx) mg_stop(v->ctx);
+    mg_exit_library();
+    free(v->run_dir);
+    free(v);
+}

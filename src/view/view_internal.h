@@ -1,0 +1,44 @@
+/* Inside the view module: reading a run folder, the embedded assets. */
+#ifndef RTHS_VIEW_INTERNAL_H
+#define RTHS_VIEW_INTERNAL_H
+
+#include "rths/view.h"
+
+#include <stddef.h>
+
+struct json_object;
+
+enum { VIEW_FRF_COLUMNS = 22, VIEW_CSV_MAX_COLUMNS = 64 };
+
+/* A numeric CSV with a header line (the run's files: C locale, "nan" for NaN). */
+typedef struct view_csv {
+    char *columns[VIEW_CSV_MAX_COLUMNS];
+    int n_columns;
+    double *values; /* row-major, n_rows x n_columns */
+    int n_rows, cap;
+} view_csv;
+
+int view_csv_read(const char *path, view_csv *out, rths_error *err);
+void view_csv_free(view_csv *csv);
+
+char *view_join(const char *dir, const char *name);                    /* dir/name, malloc'ed */
+int view_file_exists(const char *dir, const char *name);               /* a regular file */
+char *view_read_file(const char *path, size_t max_bytes, size_t *len); /* NUL-terminated */
+char *view_json_text(struct json_object *obj); /* %.17g numbers, malloc'ed */
+/* truth.csv as {"column": [values...], ...} */
+int view_truth_json(const char *dir, char **json, rths_error *err);
+
+/* What the run's config.yaml plans: {start_hz, end_hz, method, max_points}, or NULL. */
+struct json_object *view_plan_object(const char *dir);
+
+/* The page and its libraries, compiled into the binary (web/assets.cmake generates the table). */
+typedef struct view_asset {
+    const char *name; /* "index.html", "uPlot.iife.min.js", ... */
+    const char *mime;
+    const unsigned char *data;
+    size_t size;
+} view_asset;
+extern const view_asset view_assets[];
+extern const int view_asset_count;
+
+#endif
