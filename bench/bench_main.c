@@ -11,6 +11,7 @@ void rths_bench_frf(void) __attribute__((weak));
 void rths_bench_link(void) __attribute__((weak));
 void rths_bench_model(void) __attribute__((weak));
 void rths_bench_plant(void) __attribute__((weak));
+void rths_bench_view(void) __attribute__((weak));
 
 typedef struct {
     const char *name;
@@ -19,9 +20,13 @@ typedef struct {
 
 int main(int argc, char **argv) {
     const bench_entry benches[] = {
-        {"controller", rths_bench_controller}, {"frf", rths_bench_frf},
-        {"stability", rths_bench_stability},   {"link", rths_bench_link},
-        {"model", rths_bench_model},           {"plant", rths_bench_plant},
+        {"controller", rths_bench_controller},
+        {"frf", rths_bench_frf},
+        {"stability", rths_bench_stability},
+        {"link", rths_bench_link},
+        {"model", rths_bench_model},
+        {"plant", rths_bench_plant},
+        {"view", rths_bench_view},
     };
     const char *filter = argc > 1 ? argv[1] : NULL;
     if (filter && (!strcmp(filter, "--help") || !strcmp(filter, "-h"))) {
