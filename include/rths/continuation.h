@@ -42,7 +42,8 @@ typedef struct rths_point {
     int segment;                    /* branch segment (0, 1, ...): increments after each fold */
     double step;                    /* arclength: scaled step length used to reach this point */
     double secant_omega;            /* frequency component of the secant that arrived here */
-    rths_corrector_state corrector; /* carried Jacobian after this point (for --resume) */
+    rths_residual residual;         /* the residual record at the solution */
+    rths_corrector_saved corrector; /* what the corrector carried on from this point (--resume) */
 } rths_point;
 
 typedef struct rths_fold {
@@ -89,7 +90,10 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
 /* Physical interface fundamental amplitude of a point, m. */
 double rths_point_amplitude_m(const rths_point *pt);
 
-/* ---- journal: one JSON line per accepted point, flushed and synced per record ---- */
+/* ---- journal: one JSON line per accepted point, flushed and synced per record ----
+ * Format (header, point and update records, the corrector state) in docs/journal.md. This rths
+ * writes format RTHS_JOURNAL_FORMAT and reads it and format 2. */
+#define RTHS_JOURNAL_FORMAT 3
 
 typedef struct rths_journal rths_journal;
 
