@@ -265,6 +265,84 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
     return 0;
 }
 
+/* Reading state: where we are, the format from the header, the points so far. */
+typedef struct {
+    const char *path;
+    int lineno;
+    int complete; /* the line ends in a newline (else: a torn final record) */
+    int format;   /* from the header; 0 before it */
+    rths_point *pts;
+    int n, alloc;
+    char **strategy;
+} journal_reader;
+
+enum { READ_ON = 0, READ_TORN = -1 }; /* or an error code */
+
+static int read_header(journal_reader *r, json_object *o, rths_error *err) {
+    json_object *s;
+    int format = 0;
+    if (get_int(o, "format", &format) ||
+        (format != JOURNAL_FORMAT && format != JOURNAL_FORMAT_FLAT_CORRECTOR))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%d: journal format %d, this rths reads formats %d and %d: "
+                              "start a new run in another folder",
+                              r->path, r->lineno, format, JOURNAL_FORMAT_FLAT_CORRECTOR,
+                              JOURNAL_FORMAT);
+    r->format = format;
+    if (r->strategy && json_object_object_get_ex(o, "strategy", &s)) {
+        free(*r->strategy);
+        *r->strategy = strdup(json_object_get_string(s));
+    }
+    return READ_ON;
+}
+
+static int read_point(journal_reader *r, json_object *o, int is_update, rths_error *err) {
+    rths_point pt;
+    if (r->format == 0)
+        return rths_error_set(err, RTHS_EINPUT, "%s:%d: point record before the header", r->path,
+                              r->lineno);
+    if (parse_point(o, r->format, &pt)) {
+        if (!r->complete) return READ_TORN;
+        return rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", r->path,
+                              r->lineno);
+    }
+    if ((!is_update && pt.index != r->n) || (is_update && (pt.index < 0 || pt.index >= r->n)))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%d: point %d out of sequence (expected %d): the journal has "
+                              "gaps or duplicates",
+                              r->path, r->lineno, pt.index, r->n);
+    if (is_update) {
+        r->pts[pt.index] = pt;
+        return READ_ON;
+    }
+    if (r->n == r->alloc) {
+        int alloc = r->alloc ? 2 * r->alloc : 64;
+        rths_point *grown = realloc(r->pts, (size_t)alloc * sizeof *grown);
+        if (!grown) return rths_error_set(err, RTHS_EFAIL, "out of memory reading the journal");
+        r->pts = grown;
+        r->alloc = alloc;
+    }
+    r->pts[r->n++] = pt;
+    return READ_ON;
+}
+
+static int read_record(journal_reader *r, const char *line, rths_error *err) {
+    json_object *o = json_tokener_parse(line), *t;
+    const char *type = NULL;
+    if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
+    int rc = READ_ON;
+    if (!o || !type) /* a torn final record: the kill came mid-write */
+        rc = !r->complete ? READ_TORN
+                          : rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", r->path,
+                                           r->lineno);
+    else if (!strcmp(type, "header"))
+        rc = read_header(r, o, err);
+    else if (!strcmp(type, "point") || !strcmp(type, "update"))
+        rc = read_point(r, o, !strcmp(type, "update"), err);
+    if (o) json_object_put(o);
+    return rc;
+}
+
 int rths_journal_read(const char *path, rths_point **points, int *n_points, char **strategy,
                       rths_error *err) {
     *points = NULL;
@@ -274,92 +352,24 @@ int rths_journal_read(const char *path, rths_point **points, int *n_points, char
     if (!f)
         return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path,
                               strerror(errno));
+    journal_reader r = {.path = path, .strategy = strategy};
     char *line = NULL;
     size_t cap = 0;
     ssize_t len;
-    int lineno = 0, n = 0, alloc = 0, rc = RTHS_OK, journal_format = 0;
-    rths_point *pts = NULL;
-    while ((len = getline(&line, &cap, f)) > 0) {
-        lineno++;
-        int complete = line[len - 1] == '\n';
-        json_object *o = json_tokener_parse(line);
-        const char *type = NULL;
-        json_object *t;
-        if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
-        if (!o || !type) {
-            if (o) json_object_put(o);
-            if (!complete) break; /* torn final record: the kill came mid-write */
-            rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", path, lineno);
-            break;
-        }
-        if (!strcmp(type, "header")) {
-            json_object *s;
-            int format = 0;
-            if (get_int(o, "format", &format) ||
-                (format != JOURNAL_FORMAT && format != JOURNAL_FORMAT_FLAT_CORRECTOR)) {
-                json_object_put(o);
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%d: journal format %d, this rths reads formats %d and %d: "
-                                    "start a new run in another folder",
-                                    path, lineno, format, JOURNAL_FORMAT_FLAT_CORRECTOR,
-                                    JOURNAL_FORMAT);
-                break;
-            }
-            journal_format = format;
-            if (strategy && json_object_object_get_ex(o, "strategy", &s)) {
-                free(*strategy);
-                *strategy = strdup(json_object_get_string(s));
-            }
-        } else if (!strcmp(type, "point") || !strcmp(type, "update")) {
-            rths_point pt;
-            if (journal_format == 0) {
-                json_object_put(o);
-                rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: point record before the header", path,
-                                    lineno);
-                break;
-            }
-            if (parse_point(o, journal_format, &pt)) {
-                json_object_put(o);
-                if (!complete) break;
-                rc =
-                    rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", path, lineno);
-                break;
-            }
-            int is_update = !strcmp(type, "update");
-            if ((!is_update && pt.index != n) || (is_update && (pt.index < 0 || pt.index >= n))) {
-                json_object_put(o);
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%d: point %d out of sequence (expected %d): the journal "
-                                    "has gaps or duplicates",
-                                    path, lineno, pt.index, n);
-                break;
-            }
-            if (is_update) {
-                pts[pt.index] = pt;
-            } else {
-                if (n == alloc) {
-                    alloc = alloc ? 2 * alloc : 64;
-                    rths_point *grown = realloc(pts, (size_t)alloc * sizeof *pts);
-                    if (!grown) {
-                        json_object_put(o);
-                        rc = rths_error_set(err, RTHS_EFAIL, "out of memory reading the journal");
-                        break;
-                    }
-                    pts = grown;
-                }
-                pts[n++] = pt;
-            }
-        }
-        json_object_put(o);
+    int rc = READ_ON;
+    while (rc == READ_ON && (len = getline(&line, &cap, f)) > 0) {
+        r.lineno++;
+        r.complete = line[len - 1] == '\n';
+        rc = read_record(&r, line, err);
     }
     free(line);
     fclose(f);
-    if (rc) {
-        free(pts);
+    if (rc > 0) {
+        free(r.pts);
         if (strategy) free(*strategy), *strategy = NULL;
         return rc;
     }
-    *points = pts;
-    *n_points = n;
+    *points = r.pts;
+    *n_points = r.n;
     return RTHS_OK;
 }
