@@ -233,36 +233,78 @@ static int compare_int(const void *a, const void *b) {
     return (*(const int *)a > *(const int *)b) - (*(const int *)a < *(const int *)b);
 }
 
-int frf_write_summary(frf_state *run, rths_error *err) {
-    const frf_state *facts = run;
+typedef struct {
+    int converged, evaluations, within_3se;
+    double rig_time, max_h[4], median;
+} point_stats;
+
+/* Totals and extremes over the accepted points; the largest error against the truth goes to
+ * run->max_truth_error. */
+static void point_statistics(frf_state *run, point_stats *ps) {
     const rths_truth_curve *t = &run->truth;
-    double *max_truth_error = &run->max_truth_error;
-    const rths_continuation_result *res = &run->result;
-    json_object *root = summary_new(run->opt);
-    int converged = 0, evaluations = 0, within_3se = 0;
-    double rig_time = 0, max_h[4] = {0, 0, 0, 0};
+    memset(ps, 0, sizeof *ps);
     int *evals = calloc((size_t)(run->n ? run->n : 1), sizeof *evals);
-    *max_truth_error = 0;
+    run->max_truth_error = 0;
     for (int i = 0; i < run->n; i++) {
         const rths_point *pt = &run->pts[i];
-        converged += pt->sol.converged;
-        evaluations += pt->evaluations;
-        rig_time += pt->rig_time_s;
+        ps->converged += pt->sol.converged;
+        ps->evaluations += pt->evaluations;
+        ps->rig_time += pt->rig_time_s;
         if (evals) evals[i] = pt->evaluations;
         for (int k = 1; k <= 3; k++)
-            max_h[k] = fmax(max_h[k], frf_harmonic_error(pt, k));
+            ps->max_h[k] = fmax(ps->max_h[k], frf_harmonic_error(pt, k));
         double e =
-            rths_truth_relative_error(facts->setup, t, pt->sol.frequency_hz, pt->sol.amplitude_m);
-        if (isfinite(e)) *max_truth_error = fmax(*max_truth_error, e);
-        double truth = rths_truth_linear_amplitude_m(facts->setup, pt->sol.frequency_hz);
-        within_3se += fabs(pt->sol.amplitude_m - truth) <= 3 * pt->sol.amplitude_se_m;
+            rths_truth_relative_error(run->setup, t, pt->sol.frequency_hz, pt->sol.amplitude_m);
+        if (isfinite(e)) run->max_truth_error = fmax(run->max_truth_error, e);
+        double truth = rths_truth_linear_amplitude_m(run->setup, pt->sol.frequency_hz);
+        ps->within_3se += fabs(pt->sol.amplitude_m - truth) <= 3 * pt->sol.amplitude_se_m;
     }
-    double median = 0;
     if (evals && run->n) {
         qsort(evals, (size_t)run->n, sizeof *evals, compare_int);
-        median = run->n % 2 ? evals[run->n / 2] : 0.5 * (evals[run->n / 2 - 1] + evals[run->n / 2]);
+        ps->median =
+            run->n % 2 ? evals[run->n / 2] : 0.5 * (evals[run->n / 2 - 1] + evals[run->n / 2]);
     }
     free(evals);
+}
+
+/* The folds: where this process located them, else (a resumed journal's flag without a located
+ * fold) the midpoint of the bracketing points. */
+static json_object *folds_json(const frf_state *run) {
+    const rths_continuation_result *res = &run->result;
+    json_object *folds = json_object_new_array();
+    for (int i = 0; i < run->n; i++) {
+        if (!run->pts[i].fold) continue;
+        double f = 0, a = 0;
+        int found = 0;
+        for (int k = 0; k < res->n_folds; k++)
+            if (res->folds[k].after_point == i) {
+                f = res->folds[k].frequency_hz;
+                a = res->folds[k].amplitude_m;
+                found = 1;
+            }
+        if (!found && i + 1 < run->n) {
+            f = 0.25 * (run->pts[i].sol.omega_rad_s + run->pts[i + 1].sol.omega_rad_s) / M_PI;
+            a = 0.5 *
+                (rths_point_amplitude_m(&run->pts[i]) + rths_point_amplitude_m(&run->pts[i + 1]));
+        }
+        json_object *fold = json_object_new_object();
+        json_object_object_add(fold, "frequency_hz", json_object_new_double(f));
+        json_object_object_add(fold, "amplitude_m", json_object_new_double(a));
+        json_object_object_add(fold, "after_point", json_object_new_int(i));
+        json_object_array_add(folds, fold);
+    }
+    return folds;
+}
+
+int frf_write_summary(frf_state *run, rths_error *err) {
+    const frf_state *facts = run;
+    const rths_continuation_result *res = &run->result;
+    json_object *root = summary_new(run->opt);
+    point_stats ps;
+    point_statistics(run, &ps);
+    int converged = ps.converged, evaluations = ps.evaluations, within_3se = ps.within_3se;
+    double rig_time = ps.rig_time, median = ps.median, *max_h = ps.max_h;
+    double *max_truth_error = &run->max_truth_error;
     json_object_object_add(root, "strategy", json_object_new_string(facts->strategy));
     json_object_object_add(root, "harmonics", json_object_new_int(facts->harmonics));
     json_object_object_add(root, "mass_ratio",
@@ -288,31 +330,7 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "failed_corrections", json_object_new_int(res->failures));
     json_object_object_add(root, "reached_end", json_object_new_boolean(res->reached_end));
     json_object_object_add(root, "stop_reason", json_object_new_string(res->stop_reason));
-    json_object *folds = json_object_new_array();
-    for (int i = 0; i < run->n; i++) {
-        if (!run->pts[i].fold) continue;
-        /* the journal keeps fold flags; the located fold itself is in the result when this
-         * process found it, else the midpoint of the bracketing points stands in */
-        double f = 0, a = 0;
-        int found = 0;
-        for (int k = 0; k < res->n_folds; k++)
-            if (res->folds[k].after_point == i) {
-                f = res->folds[k].frequency_hz;
-                a = res->folds[k].amplitude_m;
-                found = 1;
-            }
-        if (!found && i + 1 < run->n) {
-            f = 0.25 * (run->pts[i].sol.omega_rad_s + run->pts[i + 1].sol.omega_rad_s) / M_PI;
-            a = 0.5 *
-                (rths_point_amplitude_m(&run->pts[i]) + rths_point_amplitude_m(&run->pts[i + 1]));
-        }
-        json_object *fold = json_object_new_object();
-        json_object_object_add(fold, "frequency_hz", json_object_new_double(f));
-        json_object_object_add(fold, "amplitude_m", json_object_new_double(a));
-        json_object_object_add(fold, "after_point", json_object_new_int(i));
-        json_object_array_add(folds, fold);
-    }
-    json_object_object_add(root, "folds", folds);
+    json_object_object_add(root, "folds", folds_json(run));
     json_object_object_add(root, "max_interface_error_h1_m", json_object_new_double(max_h[1]));
     json_object_object_add(root, "max_interface_error_h2_m", json_object_new_double(max_h[2]));
     json_object_object_add(root, "max_interface_error_h3_m", json_object_new_double(max_h[3]));
