@@ -45,8 +45,9 @@ static const char usage[] =
     "config.yaml, run.log.\n"
     "\n"
     "Exit status: 0 the run ended normally (also when it stopped early after\n"
-    "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault or\n"
-    "I/O failure (everything accepted so far is saved); 2 bad usage or configuration.\n";
+    "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault,\n"
+    "I/O failure, or no point accepted at all (everything accepted so far is saved); 2 bad\n"
+    "usage or configuration, a journal of another configuration, or DIR in use by another run.\n";
 
 static void print_progress(void *user, int points, double frequency_hz, double residual_m,
                            int evaluations, int accepted) {
@@ -137,7 +138,7 @@ int rths_cmd_frf(int argc, char **argv) {
     rths_run_frf_result r;
     rc = rths_run_frf(&opt, &cb, &r, &err);
     if (progress && r.outputs_written) fprintf(stderr, "\n");
-    if (r.outputs_written)
+    if (r.outputs_written && r.points > 0)
         rths_cli_print(&cli,
                        "%d points (%d converged, %d resumed), %d evaluations, %.1f s rig time, "
                        "%.1f s wall; %d fold(s); max deviation from the true response %.3g %%\n"

@@ -274,7 +274,11 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     double t_start = rths_monotonic_s();
     if (!rc) run_rc = run_continuation(&st, &run_err);
     st.wall_time_s = rths_monotonic_s() - t_start;
-    /* Whatever ended the run, everything accepted is written out. */
+    /* Whatever ended the run, everything accepted is written out. A run that accepted no point
+     * (and was not cancelled) measured nothing: a failure, whatever stopped it. */
+    if (!rc && !run_rc && st.n == 0 && !st.cancelled)
+        run_rc = rths_error_set(&run_err, RTHS_EFAIL, "no point was accepted: %s",
+                                st.result.stop_reason);
     if (!rc) rc = write_outputs(&st, run_rc, err);
     if (!rc) fill_result(&st, run_rc, result);
     if (!rc && run_rc) {
