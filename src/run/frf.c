@@ -7,11 +7,15 @@
 #include "rths/rig_remote.h"
 #include "rths/rig_virtual.h"
 
+#include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/file.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 /* The seed's implicit Euler numerical substructure and its grounding damping (Table 2). */
 const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_euler",
@@ -134,7 +138,49 @@ static int check_journal(frf_state *st, rths_error *err) {
     if (opt->resume && !exists)
         return rths_error_set(err, RTHS_EINPUT, "--resume: %s has no journal.jsonl to resume",
                               opt->out_dir);
-    return opt->resume ? load_resume(st, err) : RTHS_OK;
+    return RTHS_OK;
+}
+
+/* Two runs must never write one folder: an exclusive flock on DIR/run.lock, held until the run
+ * ends (the kernel drops it if the process dies), which holds the holder's pid. An existing
+ * folder is locked before its journal is looked at (create 0: a missing one is left alone); a new
+ * one is created and locked once the input is checked (create 1), so a refused run leaves
+ * nothing, and its journal check is repeated under the lock because another run may have started
+ * the folder meanwhile. */
+static int lock_folder(frf_state *st, int create, rths_error *err) {
+    const char *dir = st->opt->out_dir;
+    struct stat sb;
+    if (st->lock_fd >= 0 || (!create && stat(dir, &sb) != 0)) return RTHS_OK;
+    if (create && mkdir(dir, 0755) != 0 && errno != EEXIST)
+        return rths_error_set(err, RTHS_EFAIL, "cannot create %s: %s", dir, strerror(errno));
+    size_t len = strlen(dir) + 16;
+    char *path = malloc(len);
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    snprintf(path, len, "%s/run.lock", dir);
+    st->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    int rc = RTHS_OK;
+    if (st->lock_fd < 0) {
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
+    } else if (flock(st->lock_fd, LOCK_EX | LOCK_NB) != 0) {
+        char pid[32] = "?";
+        ssize_t n = pread(st->lock_fd, pid, sizeof pid - 1, 0);
+        pid[n > 0 ? n : 1] = 0;
+        pid[strcspn(pid, "\n")] = 0;
+        rc =
+            rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir, pid);
+    } else {
+        char pid[32];
+        int n = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
+        if (ftruncate(st->lock_fd, 0) != 0 || pwrite(st->lock_fd, pid, (size_t)n, 0) != n)
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+    }
+    free(path);
+    if (!rc && !st->opt->resume && st->journal_path && stat(st->journal_path, &sb) == 0)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s already holds a run (journal.jsonl): continue it with --resume, "
+                            "or choose another --out",
+                            dir);
+    return rc;
 }
 
 /* Opens the output folder (run.log, config.yaml) and writes the truth curve. */
@@ -258,16 +304,20 @@ static void release(frf_state *st) {
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
     rths_report_close(st->rep);
+    if (st->lock_fd >= 0) close(st->lock_fd); /* releases the folder */
 }
 
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
                  rths_run_frf_result *result, rths_error *err) {
-    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup};
+    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1};
     memset(result, 0, sizeof *result);
     result->status = RTHS_RUN_FAILED;
     int rc = read_options(&st, err);
     if (!rc) rc = create_rig(&st, err);
+    if (!rc) rc = lock_folder(&st, 0, err);
     if (!rc) rc = check_journal(&st, err);
+    if (!rc) rc = lock_folder(&st, 1, err);
+    if (!rc && opt->resume) rc = load_resume(&st, err);
     if (!rc) rc = open_outputs(&st, err);
     int run_rc = RTHS_OK;
     rths_error run_err = {0};

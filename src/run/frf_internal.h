@@ -28,6 +28,7 @@ typedef struct frf_state {
     rths_truth_curve truth;
     rths_continuation_result result;
     int cancelled;
+    int lock_fd; /* DIR/run.lock, flock'ed while the run owns the folder */
     double wall_time_s, trace_rig_time_s, max_truth_error;
 } frf_state;
 

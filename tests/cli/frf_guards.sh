@@ -21,5 +21,28 @@ grep -q "max deviation" "$work/none.out" && fail "a run without points printed a
 [ -f "$work/none/summary.json" ] || fail "the failed run's summary.json is missing"
 [ "$failures" -eq 0 ] && echo "ok   no point accepted -> exit 1"
 
+# 3. a folder in use: a long run holds DIR/run.lock; a second run into DIR is refused (exit 2,
+# naming the holder's pid), and so is a --resume of it
+"$bin" frf "$lin" --out "$work/busy" --quiet --set continuation.start_hz=12 \
+    --set continuation.end_hz=14 --set continuation.max_step_hz=0.005 \
+    --set continuation.initial_step_hz=0.005 &
+holder=$!
+for _ in $(seq 1 400); do
+    [ -s "$work/busy/journal.jsonl" ] && break
+    sleep 0.05
+done
+for mode in fresh resume; do
+    extra=()
+    [ $mode = resume ] && extra=(--resume)
+    "$bin" frf "$lin" --out "$work/busy" --quiet "${extra[@]}" 2>"$work/busy.err"
+    rc=$?
+    [ "$rc" -eq 2 ] || fail "$mode run into a busy folder: exit $rc, expected 2"
+    grep -q "in use by another rths run (pid $holder)" "$work/busy.err" \
+        || fail "$mode: message does not name pid $holder: $(cat "$work/busy.err")"
+done
+kill "$holder" 2>/dev/null
+wait "$holder" 2>/dev/null
+[ "$failures" -eq 0 ] && echo "ok   busy folder -> exit 2 naming pid $holder"
+
 [ "$failures" -eq 0 ] && echo ok
 exit "$failures"
