@@ -101,6 +101,10 @@ typedef struct rths_journal rths_journal;
 int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err);
 /* Appends a point (is_update: a later line for the same index replaces the earlier one). */
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err);
+/* Records a resume after n_points points, with the configuration changes it was allowed
+ * ("key: was -> now"); readers skip the record. */
+int rths_journal_append_resume(rths_journal *j, int n_points, const char *const *changes,
+                               int n_changes, rths_error *err);
 void rths_journal_close(rths_journal *j);
 
 /* Reads a journal: the points in index order, updates applied. A torn last line (the process was

@@ -140,6 +140,19 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     return rc;
 }
 
+int rths_journal_append_resume(rths_journal *j, int n_points, const char *const *changes,
+                               int n_changes, rths_error *err) {
+    json_object *o = json_object_new_object(), *list = json_object_new_array();
+    json_object_object_add(o, "type", json_object_new_string("resume"));
+    json_object_object_add(o, "after_points", json_object_new_int(n_points));
+    for (int i = 0; i < n_changes; i++)
+        json_object_array_add(list, json_object_new_string(changes[i]));
+    json_object_object_add(o, "changed", list);
+    int rc = write_line(j, o, err);
+    json_object_put(o);
+    return rc;
+}
+
 /* ---- reading ---- */
 
 static int get_dbl(json_object *o, const char *key, double *out) {

@@ -202,6 +202,12 @@ static int open_outputs(frf_state *st, rths_error *err) {
     if (!rc) rc = rths_truth_compute(st->setup, lo, hi, &st->truth, err);
     if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
     if (!rc) rc = rths_journal_open(st->journal_path, st->strategy, &st->journal, err);
+    if (!rc && st->opt->resume) {
+        const char *changes[FRF_MAX_CHANGES];
+        for (int i = 0; i < st->n_changes; i++)
+            changes[i] = st->changes[i];
+        rc = rths_journal_append_resume(st->journal, st->n_resume, changes, st->n_changes, err);
+    }
     for (int i = 0; i < st->n_resume && !rc; i++)
         if (remember(st, &st->resume_pts[i])) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     return rc;
@@ -317,6 +323,7 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     if (!rc) rc = lock_folder(&st, 0, err);
     if (!rc) rc = check_journal(&st, err);
     if (!rc) rc = lock_folder(&st, 1, err);
+    if (!rc && opt->resume) rc = frf_check_resume_config(&st, err);
     if (!rc && opt->resume) rc = load_resume(&st, err);
     if (!rc) rc = open_outputs(&st, err);
     int run_rc = RTHS_OK;

@@ -29,8 +29,17 @@ typedef struct frf_state {
     rths_continuation_result result;
     int cancelled;
     int lock_fd; /* DIR/run.lock, flock'ed while the run owns the folder */
+    /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */
+    char changes[8][256];
+    int n_changes;
     double wall_time_s, trace_rig_time_s, max_truth_error;
 } frf_state;
+
+enum { FRF_MAX_CHANGES = 8 };
+
+/* resume_check.c: refuses a resumed configuration that changes more than end_hz, max_points or
+ * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */
+int frf_check_resume_config(frf_state *st, rths_error *err);
 
 /* frf_outputs.c */
 double frf_harmonic_error(const rths_point *pt, int k);

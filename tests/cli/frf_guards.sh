@@ -21,6 +21,25 @@ grep -q "max deviation" "$work/none.out" && fail "a run without points printed a
 [ -f "$work/none/summary.json" ] || fail "the failed run's summary.json is missing"
 [ "$failures" -eq 0 ] && echo "ok   no point accepted -> exit 1"
 
+# 2. --resume with another configuration: physics refused naming the key, nothing changed; an
+# extended end frequency accepted and recorded in the journal
+"$bin" frf "$lin" --out "$work/short" --quiet "${quiet[@]}" || fail "short run failed"
+cp "$work/short/frf.csv" "$work/short.csv"
+for change in split.mass_ratio=0.33 rig.seed=99 forcing.amplitude_n=2 continuation.start_hz=12.5; do
+    "$bin" frf "$lin" --out "$work/short" --quiet --resume "${quiet[@]}" --set "$change" \
+        2>"$work/short.err"
+    rc=$?
+    [ "$rc" -eq 2 ] || fail "resume with $change: exit $rc, expected 2"
+    grep -q "key '${change%%=*}' was" "$work/short.err" || fail "resume with $change: $(cat "$work/short.err")"
+done
+cmp -s "$work/short/frf.csv" "$work/short.csv" || fail "a refused resume touched frf.csv"
+"$bin" frf "$lin" --out "$work/short" --quiet --resume "${quiet[@]}" \
+    --set continuation.end_hz=12.9 || fail "resume with a longer range refused"
+[ "$(wc -l <"$work/short/frf.csv")" -gt "$(wc -l <"$work/short.csv")" ] || fail "no points added"
+grep -q '"type":"resume".*continuation.end_hz: 12.8 -> 12.9' "$work/short/journal.jsonl" \
+    || fail "the allowed change is not in the journal"
+[ "$failures" -eq 0 ] && echo "ok   resume: physics change refused, longer range accepted"
+
 # 3. a folder in use: a long run holds DIR/run.lock; a second run into DIR is refused (exit 2,
 # naming the holder's pid), and so is a --resume of it
 "$bin" frf "$lin" --out "$work/busy" --quiet --set continuation.start_hz=12 \
