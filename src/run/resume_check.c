@@ -67,6 +67,7 @@ static int flatten(struct fy_node *node, const char *prefix, flat_config *out) {
 }
 
 static int load_flat(const char *path, flat_config *out) {
+    if (access(path, R_OK) != 0) return -1; /* before libfyaml, which would print its own error */
     struct fy_document *doc = fy_document_build_from_file(NULL, path);
     if (!doc) return -1;
     int rc = flatten(fy_document_root(doc), "", out);

@@ -15,6 +15,7 @@ head -n 1 "$work/full/journal.jsonl" | grep -q '"format":3' || fail "new journal
 
 # the first three points of the reference as a format-2 journal
 mkdir -p "$work/old"
+cp "$work/full/config.yaml" "$work/old/"
 python3 - "$work/full/journal.jsonl" "$work/old/journal.jsonl" <<'PY'
 import json, sys
 H = 12  # the history ring; L = 2 * RTHS_MAX_HARMONICS + 1 and W = L - 1 follow from the length
@@ -63,6 +64,7 @@ paste -d, <(cut -d, -f2,3 "$work/full/frf.csv") <(cut -d, -f2,3 "$work/old/frf.c
 
 # an unknown format is refused, naming the formats read
 mkdir -p "$work/future"
+cp "$work/full/config.yaml" "$work/future/"
 sed '1s/"format":3/"format":9/' "$work/full/journal.jsonl" >"$work/future/journal.jsonl"
 "$bin" frf "$cfg" --out "$work/future" --resume "${opts[@]}" 2>"$work/err"
 rc=$?
