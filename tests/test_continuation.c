@@ -341,6 +341,55 @@ static void test_continuation_duffing_two_folds(void **state) {
     assert_close(got_lo, f_lo, 0.02);
 }
 
+/* The branch stays in the requested range: swept down from just above the lower fold (on the
+ * small-amplitude branch, where the cold start lands), the Duffing curve turns back up at the
+ * lower fold and climbs along the middle branch far above the start; the run ends where it leaves
+ * the range (start + 5 % of the range), never accepting a point beyond. On a branch declared
+ * without folds the same curve may not turn back at all: every accepted point's frequency is
+ * below the one before. */
+static void test_continuation_stays_in_range(void **state) {
+    (void)state;
+    double truth[4];
+    assert_int_equal(duffing_folds(truth, 4), 2);
+    double f_lo = fmin(truth[0], truth[1]) / (2 * M_PI),
+           f_hi = fmax(truth[0], truth[1]) / (2 * M_PI);
+    double start = f_lo + 0.2 * (f_hi - f_lo), end = f_lo - 1.0;
+    for (int monotonic = 0; monotonic < 2; monotonic++) {
+        rths_rig *rig = mock_rig(1, 0.3, 0.0);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_continuation_options co;
+        default_options(&st, &nw, &co);
+        co.start_hz = start;
+        co.end_hz = end;
+        co.max_step = 0.02;
+        co.amplitude_scale_m = 0.01;
+        co.monotonic = monotonic;
+        sweep col = {0};
+        rths_continuation_result res;
+        rths_error err;
+        assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, sweep_point,
+                                               NULL, &col, &res, &err),
+                         RTHS_OK);
+        rths_rig_destroy(rig);
+        if (getenv("RTHS_TEST_VERBOSE"))
+            fprintf(stderr, "monotonic %d: %d points, %s\n", monotonic, col.n, res.stop_reason);
+        double margin = co.range_margin * (start - end);
+        for (int i = 0; i < col.n; i++) {
+            double f = col.sol[i].omega_rad_s / (2 * M_PI);
+            assert_true(f <= start + margin && f >= end - margin);
+            if (monotonic && i > 0)
+                assert_true(col.sol[i].omega_rad_s < col.sol[i - 1].omega_rad_s);
+        }
+        if (!monotonic) {
+            assert_non_null(strstr(res.stop_reason, "left the requested range"));
+            assert_int_equal(res.n_folds, 1); /* the lower fold, then up out of the range */
+        } else {
+            assert_int_equal(res.n_folds, 0);
+        }
+    }
+}
+
 /* Real 2N x 2N Jacobian of the map target -> c_k(w) * target, per harmonic, in the corrector's
  * layout (cos rows/columns k-1, sin rows/columns N+k-1; x = Re(X e^{iwt}), X = A - iB). */
 static void complex_gain_jacobian(int N, double w, double complex (*c)(int, double), double *J) {
@@ -776,6 +825,7 @@ int main(void) {
         cmocka_unit_test(test_corrector_linear_harmonics),
         cmocka_unit_test(test_continuation_linear_both_methods),
         cmocka_unit_test(test_continuation_duffing_two_folds),
+        cmocka_unit_test(test_continuation_stays_in_range),
         cmocka_unit_test(test_matched_estimate),
         cmocka_unit_test(test_model_predictor_saves_evaluations),
         cmocka_unit_test(test_first_point_retried),

@@ -31,6 +31,13 @@ typedef struct rths_continuation_options {
      * f = J u - Phi of the last 4 points; either seeds the corrector's Jacobians. 0: the seed's
      * secant in the targets */
     int model_predictor;
+    /* The branch stays in the requested range: a point more than range_margin * |end - start|
+     * beyond start_hz ends the run (the branch left the range), one beyond end_hz is an
+     * overshooting step, retried shorter. */
+    double range_margin;
+    /* 1: the branch has no folds (a linear structure): a correction that moves the frequency
+     * back is a failure (retried with a shorter step), not a turn of the branch */
+    int monotonic;
 } rths_continuation_options;
 
 typedef struct rths_point {

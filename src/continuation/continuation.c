@@ -23,6 +23,8 @@ void rths_continuation_defaults(rths_continuation_options *opt) {
     opt->max_failures = 6;
     opt->amplitude_scale_m = 0.0;
     opt->model_predictor = 1;
+    opt->range_margin = 0.05;
+    opt->monotonic = 0;
 }
 
 double rths_point_amplitude_m(const rths_point *pt) {
@@ -193,6 +195,29 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     return RTHS_OK;
 }
 
+/* A converged point the branch may not take: outside the range (beyond start: *leave = 1, the
+ * run ends), or moving back on a branch without folds. Returns 0, or -1 with err saying why. */
+static int out_of_bounds(const cont_run *run, const rths_solution *sol, int *leave,
+                         rths_error *err) {
+    const rths_continuation_options *opt = run->opt;
+    double f = sol->omega_rad_s / (2 * M_PI);
+    double margin = opt->range_margin * fabs(opt->end_hz - opt->start_hz);
+    *leave = 0;
+    if (run->dir * (opt->start_hz - f) > margin) {
+        *leave = 1;
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the branch left the requested range at %.6g Hz (start %.6g Hz)", f,
+                              opt->start_hz);
+    }
+    if (run->dir * (f - opt->end_hz) > margin)
+        return rths_error_set(err, RTHS_EFAIL, "step overshot the end frequency to %.6g Hz", f);
+    if (opt->monotonic && run->n >= 1 &&
+        run->dir * (sol->omega_rad_s - run->pts[run->n - 1].sol.omega_rad_s) <= 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the frequency moved back to %.6g Hz on a branch without folds", f);
+    return 0;
+}
+
 /* Predict, correct, then accept or retry. Returns RTHS_OK (*stop = 1 when the run ends
  * normally) or an error status (rig fault, point handler). */
 static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths_error *err) {
@@ -208,6 +233,15 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
     if (on_progress)
         on_progress(run->user, run->n, sol->omega_rad_s / (2 * M_PI), sol->residual_norm_m,
                     run->res->evaluations, rc == RTHS_OK);
+    int leave = 0;
+    if (rc == RTHS_OK && out_of_bounds(run, sol, &leave, err)) {
+        rc = RTHS_EFAIL;
+        if (leave) {
+            snprintf(run->res->stop_reason, sizeof run->res->stop_reason, "%s", err->msg);
+            *stop = 1;
+            return RTHS_OK;
+        }
+    }
     if (rc == RTHS_OK) {
         int status = on_accept(run, &pr);
         *stop = status != RTHS_OK;

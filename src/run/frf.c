@@ -45,6 +45,9 @@ static int read_options(frf_state *st, rths_error *err) {
     int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
+    /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
+     * part may be nonlinear whatever the model says) */
+    st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
