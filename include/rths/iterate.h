@@ -1,9 +1,13 @@
-/* rths iterate: the zero problem over a rig and its Newton-Broyden corrector.
+/* rths iterate: the zero problem and its Newton-Broyden corrector (docs/method.md, "Iteration and
+ * continuation").
  *
- * Unknowns u = (A*_1..A*_N, B*_1..B*_N) — the control target's Fourier coefficients, metres — and,
- * for pseudo-arclength continuation, the forcing frequency. The residual is the interface mismatch
- * Phi = (A_k - alpha_k, B_k - beta_k), k = 1..N, of the physical (A, B) and numerical (alpha, beta)
- * interface displacements' coefficients measured in steady state. Static terms are discarded. */
+ * The zero problem (rths_zero_problem) maps n unknowns at a parameter omega to one residual record
+ * per evaluation. On a rig (rths_rig_problem) the unknowns u = (A*_1..A*_N, B*_1..B*_N) are the
+ * control target's Fourier coefficients, metres, the parameter is the forcing frequency (itself
+ * an unknown for pseudo-arclength continuation), and the residual is the interface mismatch
+ * Phi = (A_k - alpha_k, B_k - beta_k), k = 1..N, of the physical (A, B) and numerical (alpha,
+ * beta) interface displacements' coefficients measured in steady state; static terms are
+ * discarded. The corrector (rths_corrector) solves it; analytic problems serve its tests. */
 #ifndef RTHS_ITERATE_H
 #define RTHS_ITERATE_H
 

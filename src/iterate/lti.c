@@ -59,13 +59,6 @@ void lti_project(double *J, int N) {
         lti_block(J, N, k, g[k]);
 }
 
-/* Least-squares fit of the local LTI model (see rths_corrector_state.history) at omega: per
- * harmonic, Phi = g z - f and x = r z + e with each of g, f, r, e a line in w (on the virtual
- * rig a quadratic fitted the noise and made the matched estimate worse: 12 of 492 points beyond
- * three standard errors against none); returns the gains g and r at omega, the prediction
- * z = f / g and, if var_ratio is given, the variance E|d(r/g)|^2 of the ratio that maps a residual
- * onto the response, from the fits' scatter (noise and model error alike). */
-
 /* Least-squares fit of the local LTI model (see corrector_memory.history) at omega: per
  * harmonic, Phi = g z - f and x = r z + e with each of g, f, r, e a line in w (on the virtual
  * rig a quadratic fitted the noise and made the matched estimate worse: 12 of 492 points beyond
