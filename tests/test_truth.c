@@ -92,9 +92,9 @@ static void test_curve_distance(void **state) {
     assert_true(isinf(rths_truth_curve_distance(&t, 11, 0)));
 }
 
-/* Bilinear example over its test range with the usual 10 % margin: the shooting curve turns back in frequency, and its
- * stability flips exactly twice, each time next to a turn (a saddle-node fold), to within one
- * continuation step. */
+/* Bilinear example over its test range with the usual 10 % margin: the shooting curve turns back
+ * in frequency, and its stability flips exactly twice, each time next to a turn (a saddle-node
+ * fold), to within one continuation step. */
 static void test_bilinear_truth_folds(void **state) {
     (void)state;
     rths_config *cfg;
