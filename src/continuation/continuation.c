@@ -47,11 +47,12 @@ static void step_grow(cont_run *run) {
  * below its minimum (the run ends). */
 static int step_shrink(cont_run *run, const cont_prediction *pr) {
     const rths_continuation_options *opt = run->opt;
-    if (run->n == 1 || opt->method == RTHS_CONT_NATURAL)
+    if (run->n == 1 || opt->method == RTHS_CONT_NATURAL || pr->natural_fallback)
         run->step_hz *= opt->shrink;
     else
         run->ds *= opt->shrink;
-    if (opt->method == RTHS_CONT_ARCLENGTH && run->n >= 2 && pr->step_used <= opt->min_step)
+    if (opt->method == RTHS_CONT_ARCLENGTH && run->n >= 2 && !pr->natural_fallback &&
+        pr->step_used <= opt->min_step)
         return -1;
     return 0;
 }
@@ -158,6 +159,7 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     const rths_solution *sol = rths_corrector_solution(run->corr);
     int n = run->n;
     run->consecutive = 0;
+    run->natural_next = 0;
     if (n == 0 && run->sc.amp_scale <= 0) {
         /* scaling fixed from the first solution; only the frequency column depends on it */
         double amp = first_amplitude_scale(sol);
@@ -195,8 +197,11 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     return RTHS_OK;
 }
 
+enum { BOUND_OK, BOUND_RANGE, BOUND_MOVED_BACK };
+
 /* A converged point the branch may not take: outside the range (beyond start: *leave = 1, the
- * run ends), or moving back on a branch without folds. Returns 0, or -1 with err saying why. */
+ * run ends), or moving back on a branch without folds. Returns BOUND_OK, or which bound with err
+ * saying why. */
 static int out_of_bounds(const cont_run *run, const rths_solution *sol, int *leave,
                          rths_error *err) {
     const rths_continuation_options *opt = run->opt;
@@ -205,17 +210,22 @@ static int out_of_bounds(const cont_run *run, const rths_solution *sol, int *lea
     *leave = 0;
     if (run->dir * (opt->start_hz - f) > margin) {
         *leave = 1;
-        return rths_error_set(err, RTHS_EFAIL,
-                              "the branch left the requested range at %.6g Hz (start %.6g Hz)", f,
-                              opt->start_hz);
+        rths_error_set(err, RTHS_EFAIL,
+                       "the branch left the requested range at %.6g Hz (start %.6g Hz)", f,
+                       opt->start_hz);
+        return BOUND_RANGE;
     }
-    if (run->dir * (f - opt->end_hz) > margin)
-        return rths_error_set(err, RTHS_EFAIL, "step overshot the end frequency to %.6g Hz", f);
+    if (run->dir * (f - opt->end_hz) > margin) {
+        rths_error_set(err, RTHS_EFAIL, "step overshot the end frequency to %.6g Hz", f);
+        return BOUND_RANGE;
+    }
     if (opt->monotonic && run->n >= 1 &&
-        run->dir * (sol->omega_rad_s - run->pts[run->n - 1].sol.omega_rad_s) <= 0)
-        return rths_error_set(err, RTHS_EFAIL,
-                              "the frequency moved back to %.6g Hz on a branch without folds", f);
-    return 0;
+        run->dir * (sol->omega_rad_s - run->pts[run->n - 1].sol.omega_rad_s) <= 0) {
+        rths_error_set(err, RTHS_EFAIL,
+                       "the frequency moved back to %.6g Hz on a branch without folds", f);
+        return BOUND_MOVED_BACK;
+    }
+    return BOUND_OK;
 }
 
 /* Predict, correct, then accept or retry. Returns RTHS_OK (*stop = 1 when the run ends
@@ -233,8 +243,15 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
     if (on_progress)
         on_progress(run->user, run->n, sol->omega_rad_s / (2 * M_PI), sol->residual_norm_m,
                     run->res->evaluations, rc == RTHS_OK);
-    int leave = 0;
-    if (rc == RTHS_OK && out_of_bounds(run, sol, &leave, err)) {
+    int leave = 0, bound = rc == RTHS_OK ? out_of_bounds(run, sol, &leave, err) : 0;
+    /* an arclength step that moved back on a branch without folds: the next attempt steps
+     * forward in frequency (natural parameter), as far as the last secant went */
+    if (bound == BOUND_MOVED_BACK && !pr.natural_fallback) {
+        double last_hz = fabs(run->pts[run->n - 1].secant_omega) / (2 * M_PI);
+        run->step_hz = fmax(last_hz, 0.1 * run->opt->initial_step_hz);
+    }
+    if (bound == BOUND_MOVED_BACK) run->natural_next = 1;
+    if (bound) {
         rc = RTHS_EFAIL;
         if (leave) {
             snprintf(run->res->stop_reason, sizeof run->res->stop_reason, "%s", err->msg);

@@ -32,6 +32,7 @@ typedef struct cont_prediction {
     double omega_rad_s;
     rths_arclength arc;
     double step_used;
+    int natural_fallback; /* an arclength run's natural step (see cont_run.natural_next) */
 } cont_prediction;
 
 typedef struct cont_run {
@@ -47,6 +48,9 @@ typedef struct cont_run {
     double ds;      /* arclength: step multiplier of the secant */
     double step_hz; /* natural: frequency step */
     int consecutive;
+    /* arclength on a branch without folds: the last correction moved the frequency back, so the
+     * next one is a natural step forward */
+    int natural_next;
     double first_u[CONT_LD]; /* the first point's retry guess */
     rths_continuation_result *res;
     rths_point_fn on_point;

@@ -165,8 +165,9 @@ void cont_predict(cont_run *run, cont_prediction *pr) {
     if (run->n == 0) { /* the first point: zero target (or the failed attempt's last iterate) */
         pr->omega_rad_s = 2 * M_PI * run->opt->start_hz;
         memcpy(pr->u, run->first_u, sizeof pr->u);
-    } else if (run->n == 1 || run->opt->method == RTHS_CONT_NATURAL) {
+    } else if (run->n == 1 || run->opt->method == RTHS_CONT_NATURAL || run->natural_next) {
         predict_natural(run, pr);
+        pr->natural_fallback = run->n >= 2 && run->opt->method == RTHS_CONT_ARCLENGTH;
     } else {
         predict_arclength(run, pr);
     }
