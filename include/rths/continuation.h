@@ -33,7 +33,7 @@ typedef struct rths_continuation_options {
     int model_predictor;
     /* The branch stays in the requested range: a point more than range_margin * |end - start|
      * beyond start_hz ends the run (the branch left the range), one beyond end_hz is an
-     * overshooting step, retried shorter. */
+     * overshooting step, retried shorter. 0: no range check. */
     double range_margin;
     /* 1: the branch has no folds (a linear structure): a correction that moves the frequency
      * back is a failure (retried with a shorter step), not a turn of the branch */

@@ -208,14 +208,14 @@ static int out_of_bounds(const cont_run *run, const rths_solution *sol, int *lea
     double f = sol->omega_rad_s / (2 * M_PI);
     double margin = opt->range_margin * fabs(opt->end_hz - opt->start_hz);
     *leave = 0;
-    if (run->dir * (opt->start_hz - f) > margin) {
+    if (opt->range_margin > 0 && run->dir * (opt->start_hz - f) > margin) {
         *leave = 1;
         rths_error_set(err, RTHS_EFAIL,
                        "the branch left the requested range at %.6g Hz (start %.6g Hz)", f,
                        opt->start_hz);
         return BOUND_RANGE;
     }
-    if (run->dir * (f - opt->end_hz) > margin) {
+    if (opt->range_margin > 0 && run->dir * (f - opt->end_hz) > margin) {
         rths_error_set(err, RTHS_EFAIL, "step overshot the end frequency to %.6g Hz", f);
         return BOUND_RANGE;
     }
