@@ -106,6 +106,13 @@ typedef struct rths_journal rths_journal;
 
 /* Opens path for appending (creating it with a header line naming the strategy). */
 int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err);
+/* The same, the header also recording the rig's noise seed given for the run (seed: its text, or
+ * NULL when none was given and the configuration's rig.seed applies). */
+int rths_journal_open_seeded(const char *path, const char *strategy, const char *seed,
+                             rths_journal **out, rths_error *err);
+/* The seed the header recorded: *known 0 for a journal that records none (format 2); else
+ * *seed is its text (caller frees) or NULL. */
+int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err);
 /* Appends a point (is_update: a later line for the same index replaces the earlier one). */
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err);
 /* Records a resume after n_points points, with the configuration changes it was allowed

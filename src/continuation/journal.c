@@ -41,6 +41,11 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
 }
 
 int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err) {
+    return rths_journal_open_seeded(path, strategy, NULL, out, err);
+}
+
+int rths_journal_open_seeded(const char *path, const char *strategy, const char *seed,
+                             rths_journal **out, rths_error *err) {
     set_exact_doubles();
     rths_journal *j = calloc(1, sizeof *j);
     if (!j) return rths_error_set(err, RTHS_EFAIL, "out of memory opening the journal");
@@ -58,6 +63,7 @@ int rths_journal_open(const char *path, const char *strategy, rths_journal **out
         json_object_object_add(h, "format", json_object_new_int(JOURNAL_FORMAT));
         json_object_object_add(h, "strategy", json_object_new_string(strategy));
         json_object_object_add(h, "version", json_object_new_string(RTHS_VERSION));
+        json_object_object_add(h, "seed", seed ? json_object_new_string(seed) : NULL);
         int rc = write_line(j, h, err);
         json_object_put(h);
         if (rc) {
@@ -154,6 +160,26 @@ int rths_journal_append_resume(rths_journal *j, int n_points, const char *const 
 }
 
 /* ---- reading ---- */
+
+int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err) {
+    *known = 0;
+    *seed = NULL;
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path,
+                              strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    json_object *h = getline(&line, &cap, f) > 0 ? json_tokener_parse(line) : NULL, *v;
+    free(line);
+    fclose(f);
+    if (h && json_object_object_get_ex(h, "seed", &v)) {
+        *known = 1;
+        if (v) *seed = strdup(json_object_get_string(v));
+    }
+    if (h) json_object_put(h);
+    return RTHS_OK;
+}
 
 static int get_dbl(json_object *o, const char *key, double *out) {
     json_object *v;

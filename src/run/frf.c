@@ -113,7 +113,7 @@ static int load_resume(frf_state *st, rths_error *err) {
     snprintf(tmp, len, "%s.rewrite", st->journal_path);
     remove(tmp);
     rths_journal *j = NULL;
-    rc = rths_journal_open(tmp, st->strategy, &j, err);
+    rc = rths_journal_open_seeded(tmp, st->strategy, st->seed_text, &j, err);
     for (int i = 0; i < st->n_resume && !rc; i++)
         rc = rths_journal_append(j, &pts[i], 0, err);
     if (j) rths_journal_close(j);
@@ -204,7 +204,9 @@ static int open_outputs(frf_state *st, rths_error *err) {
     hi += margin;
     if (!rc) rc = rths_truth_compute(st->setup, lo, hi, &st->truth, err);
     if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
-    if (!rc) rc = rths_journal_open(st->journal_path, st->strategy, &st->journal, err);
+    if (!rc)
+        rc = rths_journal_open_seeded(st->journal_path, st->strategy, st->seed_text, &st->journal,
+                                      err);
     if (!rc && st->opt->resume) {
         const char *changes[FRF_MAX_CHANGES];
         for (int i = 0; i < st->n_changes; i++)
@@ -319,6 +321,9 @@ static void release(frf_state *st) {
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
                  rths_run_frf_result *result, rths_error *err) {
     frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1};
+    if (opt->has_seed)
+        snprintf(st.seed_buf, sizeof st.seed_buf, "%llu", (unsigned long long)opt->seed);
+    st.seed_text = opt->has_seed ? st.seed_buf : NULL;
     memset(result, 0, sizeof *result);
     result->status = RTHS_RUN_FAILED;
     int rc = read_options(&st, err);

@@ -32,6 +32,8 @@ typedef struct frf_state {
     /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */
     char changes[8][256];
     int n_changes;
+    char seed_buf[32];
+    const char *seed_text; /* --seed as text (recorded in the journal), NULL when not given */
     double wall_time_s, trace_rig_time_s, max_truth_error;
 } frf_state;
 

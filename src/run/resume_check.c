@@ -122,7 +122,26 @@ static int refuse(const char *key, const flat_config *old, const flat_config *no
                           key, was ? was : "unset", is ? is : "unset");
 }
 
+/* The noise seed given for the run (--seed) is part of the measurement too. */
+static int check_seed(const frf_state *st, rths_error *err) {
+    int known = 0;
+    char *was = NULL;
+    int rc = rths_journal_read_seed(st->journal_path, &known, &was, err);
+    const char *now = st->seed_text;
+    if (!rc && known && (was ? !now || strcmp(was, now) : now != NULL))
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "--resume: the run started with %s%s and is resumed with %s%s: a "
+                            "resumed run keeps the measurement's noise seed; start a new run in "
+                            "another folder",
+                            was ? "--seed " : "no --seed", was ? was : "",
+                            now ? "--seed " : "no --seed", now ? now : "");
+    free(was);
+    return rc;
+}
+
 int frf_check_resume_config(frf_state *st, rths_error *err) {
+    int seed_rc = check_seed(st, err);
+    if (seed_rc) return seed_rc;
     size_t len = strlen(st->opt->out_dir) + 16;
     char *old_path = malloc(len), tmp[] = "/tmp/rths_resume_XXXXXX";
     if (!old_path) return rths_error_set(err, RTHS_EFAIL, "out of memory");

@@ -40,6 +40,19 @@ grep -q '"type":"resume".*continuation.end_hz: 12.8 -> 12.9' "$work/short/journa
     || fail "the allowed change is not in the journal"
 [ "$failures" -eq 0 ] && echo "ok   resume: physics change refused, longer range accepted"
 
+# the noise seed given on the command line is part of the measurement too
+"$bin" frf "$lin" --out "$work/seeded" --quiet --seed 7 "${quiet[@]}" || fail "seeded run failed"
+for other in "--seed 8" ""; do
+    # shellcheck disable=SC2086
+    "$bin" frf "$lin" --out "$work/seeded" --quiet --resume $other "${quiet[@]}" 2>"$work/seed.err"
+    rc=$?
+    [ "$rc" -eq 2 ] || fail "resume with '${other:-no seed}': exit $rc, expected 2"
+    grep -q "started with --seed 7" "$work/seed.err" || fail "seed message: $(cat "$work/seed.err")"
+done
+"$bin" frf "$lin" --out "$work/seeded" --quiet --resume --seed 7 "${quiet[@]}" \
+    || fail "resume with the same seed refused"
+[ "$failures" -eq 0 ] && echo "ok   resume: another --seed refused"
+
 # 3. a folder in use: a long run holds DIR/run.lock; a second run into DIR is refused (exit 2,
 # naming the holder's pid), and so is a --resume of it
 "$bin" frf "$lin" --out "$work/busy" --quiet --set continuation.start_hz=12 \
