@@ -104,28 +104,49 @@ static int model_predict(cont_run *run, double omega, double *u_out) {
     return 0;
 }
 
+/* The target predictors of a natural step, tried in order: each returns 0 with u (holding the last
+ * point's targets on entry) filled, or -1 to pass to the next. The residual-model ones also seed
+ * the corrector's Jacobians. */
+typedef int (*cont_target_predictor)(cont_run *run, double omega, double *u);
+
+/* The LTI rig's per-harmonic gains fitted to the corrector's evaluation history. */
+static int predict_lti(cont_run *run, double omega, double *u) {
+    return run->opt->model_predictor ? rths_corrector_lti_predict(run->corr, omega, u) : -1;
+}
+
+/* Lines in w through the last points' Jacobians and f = J u - Phi (model_predict). */
+static int predict_residual_model(cont_run *run, double omega, double *u) {
+    return run->opt->model_predictor ? model_predict(run, omega, u) : -1;
+}
+
+/* The seed's secant: the targets extrapolated linearly in frequency from the last two points. */
+static int predict_secant(cont_run *run, double omega, double *u) {
+    int n = run->n, N = run->harmonics;
+    const rths_solution *p1 = &run->pts[n - 1].sol, *p0 = &run->pts[n - 2].sol;
+    double t = (omega - p1->omega_rad_s) / (p1->omega_rad_s - p0->omega_rad_s);
+    for (int k = 0; k < N; k++) {
+        u[k] += t * (p1->target_a[k] - p0->target_a[k]);
+        u[N + k] += t * (p1->target_b[k] - p0->target_b[k]);
+    }
+    return 0;
+}
+
+static const cont_target_predictor natural_predictors[] = {predict_lti, predict_residual_model,
+                                                           predict_secant};
+
 /* Natural parameter (and the first step of an arclength run): the next frequency, the targets
- * from the residual model when it answers, else the secant through the last two points. */
+ * from the first predictor that answers (from the second point on; the first step keeps the
+ * last targets). */
 static void predict_natural(cont_run *run, cont_prediction *pr) {
     const rths_continuation_options *opt = run->opt;
-    int n = run->n, N = run->harmonics;
-    const rths_solution *p1 = &run->pts[n - 1].sol;
+    const rths_solution *p1 = &run->pts[run->n - 1].sol;
     double f = p1->omega_rad_s / (2 * M_PI) + run->dir * run->step_hz;
     if (run->dir * (f - opt->end_hz) > 0) f = opt->end_hz;
     pr->omega_rad_s = 2 * M_PI * f;
     targets_of(p1, pr->u);
-    if (n >= 2 && opt->model_predictor &&
-        (rths_corrector_lti_predict(run->corr, pr->omega_rad_s, pr->u) == 0 ||
-         model_predict(run, pr->omega_rad_s, pr->u) == 0)) {
-        /* targets and Jacobians predicted from the residual model */
-    } else if (n >= 2) { /* secant extrapolation of the targets in frequency */
-        const rths_solution *p0 = &run->pts[n - 2].sol;
-        double t = (pr->omega_rad_s - p1->omega_rad_s) / (p1->omega_rad_s - p0->omega_rad_s);
-        for (int k = 0; k < N; k++) {
-            pr->u[k] += t * (p1->target_a[k] - p0->target_a[k]);
-            pr->u[N + k] += t * (p1->target_b[k] - p0->target_b[k]);
-        }
-    }
+    int count = (int)(sizeof natural_predictors / sizeof natural_predictors[0]);
+    for (int i = 0; run->n >= 2 && i < count; i++)
+        if (natural_predictors[i](run, pr->omega_rad_s, pr->u) == 0) break;
     pr->step_used = fabs(f - p1->omega_rad_s / (2 * M_PI));
 }
 
