@@ -185,26 +185,31 @@ static void test_corrector_linear_harmonics(void **state) {
         rths_newton_options nw;
         rths_settle_defaults(&st, 0);
         rths_newton_defaults(&nw, 0);
-        rths_corrector_state cs;
-        memset(&cs, 0, sizeof cs);
-        rths_solution sol;
-        memset(&sol, 0, sizeof sol);
-        sol.harmonics = N;
-        sol.omega_rad_s = 2 * M_PI * 13.0;
-        rths_arclength arc = {.amplitude_scale_m = 3e-4, .omega_scale_rad_s = 2 * M_PI * 2};
+        rths_zero_problem problem;
+        rths_rig_problem ctx;
+        rths_rig_problem_init(&problem, &ctx, rig, &st, N, 1.0);
+        rths_corrector *c;
         rths_error err;
-        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, &arc, &cs, &sol, &err), RTHS_OK);
+        assert_int_equal(rths_corrector_create(&problem, &nw, &c, &err), RTHS_OK);
+        rths_arclength arc = {.amplitude_scale_m = 3e-4, .omega_scale_rad_s = 2 * M_PI * 2};
+        double u[RTHS_MAX_UNKNOWNS] = {0};
+        assert_int_equal(rths_corrector_solve(c, u, 2 * M_PI * 13.0, &arc, &err), RTHS_OK);
+        assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_CONVERGED);
+        rths_solution sol = *rths_corrector_solution(c);
         assert_true(sol.converged);
         /* tolerance is 1e-3 relative on the residual; the map's gain (1 - H) G is O(1) */
         check_linear_solution(&sol, N, 3e-3);
-        int first = cs.evaluations;
+        int first, again;
+        rths_corrector_counters(c, &first, NULL, NULL);
         /* affine problem: FD Jacobian (2N) + initial + one Newton step (+ possibly one more) */
         assert_true(first <= 2 * N + 3);
         /* a nearby frequency with the carried Jacobian costs fewer evaluations than fresh */
-        sol.omega_rad_s = 2 * M_PI * 13.05;
-        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, &arc, &cs, &sol, &err), RTHS_OK);
-        check_linear_solution(&sol, N, 3e-3);
-        assert_true(cs.evaluations < first);
+        rths_corrector_unknowns(c, u);
+        assert_int_equal(rths_corrector_solve(c, u, 2 * M_PI * 13.05, &arc, &err), RTHS_OK);
+        check_linear_solution(rths_corrector_solution(c), N, 3e-3);
+        rths_corrector_counters(c, &again, NULL, NULL);
+        assert_true(again < first);
+        rths_corrector_destroy(c);
         rths_rig_destroy(rig);
     }
 }
@@ -239,7 +244,7 @@ static int sweep_point(void *user, const rths_point *pt, int is_update) {
     sweep *c = user;
     if (getenv("RTHS_TEST_VERBOSE"))
         fprintf(stderr, "  point %d: %d evaluations, lti %d\n", pt->index, pt->evaluations,
-                pt->corrector.lti);
+                pt->corrector.data[1] != 0); /* format 1: [1] is the LTI flag */
     if (!is_update && c->n < 256) c->sol[c->n++] = pt->sol;
     return 0;
 }
@@ -336,6 +341,55 @@ static void test_continuation_duffing_two_folds(void **state) {
     assert_close(got_lo, f_lo, 0.02);
 }
 
+/* The branch stays in the requested range: swept down from just above the lower fold (on the
+ * small-amplitude branch, where the cold start lands), the Duffing curve turns back up at the
+ * lower fold and climbs along the middle branch far above the start; the run ends where it leaves
+ * the range (start + 5 % of the range), never accepting a point beyond. On a branch declared
+ * without folds the same curve may not turn back at all: every accepted point's frequency is
+ * below the one before. */
+static void test_continuation_stays_in_range(void **state) {
+    (void)state;
+    double truth[4];
+    assert_int_equal(duffing_folds(truth, 4), 2);
+    double f_lo = fmin(truth[0], truth[1]) / (2 * M_PI),
+           f_hi = fmax(truth[0], truth[1]) / (2 * M_PI);
+    double start = f_lo + 0.2 * (f_hi - f_lo), end = f_lo - 1.0;
+    for (int monotonic = 0; monotonic < 2; monotonic++) {
+        rths_rig *rig = mock_rig(1, 0.3, 0.0);
+        rths_settle_options st;
+        rths_newton_options nw;
+        rths_continuation_options co;
+        default_options(&st, &nw, &co);
+        co.start_hz = start;
+        co.end_hz = end;
+        co.max_step = 0.02;
+        co.amplitude_scale_m = 0.01;
+        co.monotonic = monotonic;
+        sweep col = {0};
+        rths_continuation_result res;
+        rths_error err;
+        assert_int_equal(rths_continuation_run(rig, &co, &st, &nw, 1, duf_F, NULL, 0, sweep_point,
+                                               NULL, &col, &res, &err),
+                         RTHS_OK);
+        rths_rig_destroy(rig);
+        if (getenv("RTHS_TEST_VERBOSE"))
+            fprintf(stderr, "monotonic %d: %d points, %s\n", monotonic, col.n, res.stop_reason);
+        double margin = co.range_margin * (start - end);
+        for (int i = 0; i < col.n; i++) {
+            double f = col.sol[i].omega_rad_s / (2 * M_PI);
+            assert_true(f <= start + margin && f >= end - margin);
+            if (monotonic && i > 0)
+                assert_true(col.sol[i].omega_rad_s < col.sol[i - 1].omega_rad_s);
+        }
+        if (!monotonic) {
+            assert_non_null(strstr(res.stop_reason, "left the requested range"));
+            assert_int_equal(res.n_folds, 1); /* the lower fold, then up out of the range */
+        } else {
+            assert_int_equal(res.n_folds, 0);
+        }
+    }
+}
+
 /* Real 2N x 2N Jacobian of the map target -> c_k(w) * target, per harmonic, in the corrector's
  * layout (cos rows/columns k-1, sin rows/columns N+k-1; x = Re(X e^{iwt}), X = A - iB). */
 static void complex_gain_jacobian(int N, double w, double complex (*c)(int, double), double *J) {
@@ -353,8 +407,57 @@ static double complex lin_residual_gain(int k, double w) {
     return (1.0 - lin_H(k, w)) * lin_G(k, w);
 }
 
+/* What a corrector carries, laid out as its saved record, format 1 (docs/journal.md,
+ * "Corrector state"): the tests build a state there and load() it into a corrector. */
+enum { LDT = RTHS_MAX_UNKNOWNS, HW = 2 * RTHS_MAX_HARMONICS };
+typedef struct {
+    int have_jacobian, lti, harmonics;
+    double jacobian[LDT * LDT], response_jacobian[LDT * LDT];
+    int history_count, history_next;
+    struct {
+        double omega_rad_s, target[HW], phi[HW], response[HW];
+    } history[RTHS_LTI_HISTORY];
+} test_memory;
+
+static void to_saved(const test_memory *m, rths_corrector_saved *out) {
+    memset(out, 0, sizeof *out);
+    double *d = out->data;
+    d[0] = m->have_jacobian;
+    d[1] = m->lti;
+    d[2] = 2 * m->harmonics;
+    d[3] = m->harmonics;
+    memcpy(d + 4, m->jacobian, sizeof m->jacobian);
+    memcpy(d + 4 + LDT * LDT, m->response_jacobian, sizeof m->response_jacobian);
+    double *ring = d + 4 + 2 * LDT * LDT + 2 * LDT + 1; /* after the pooled noise (none here) */
+    ring[0] = m->history_count;
+    ring[1] = m->history_next;
+    for (int e = 0; e < RTHS_LTI_HISTORY; e++) {
+        double *h = ring + 2 + e * (1 + 3 * HW);
+        h[0] = m->history[e].omega_rad_s;
+        memcpy(h + 1, m->history[e].target, sizeof m->history[e].target);
+        memcpy(h + 1 + HW, m->history[e].phi, sizeof m->history[e].phi);
+        memcpy(h + 1 + 2 * HW, m->history[e].response, sizeof m->history[e].response);
+    }
+    out->format = RTHS_CORRECTOR_SAVED_FORMAT;
+    out->length = RTHS_CORRECTOR_SAVED_MAX;
+}
+
+/* A corrector over the rig in the state *m. */
+static rths_corrector *corrector_in(const test_memory *m, rths_rig *rig,
+                                    const rths_settle_options *st, const rths_newton_options *nw,
+                                    rths_zero_problem *problem, rths_rig_problem *ctx) {
+    rths_rig_problem_init(problem, ctx, rig, st, m->harmonics, 1.0);
+    rths_corrector *c;
+    rths_corrector_saved saved;
+    rths_error err;
+    to_saved(m, &saved);
+    assert_int_equal(rths_corrector_create(problem, nw, &c, &err), RTHS_OK);
+    assert_int_equal(rths_corrector_load(c, &saved, &err), RTHS_OK);
+    return c;
+}
+
 /* Records the mock's exact steady evaluation at (w, target) in the corrector's LTI history. */
-static void record_exact(rths_corrector_state *cs, int N, double w, const double complex *target) {
+static void record_exact(test_memory *cs, int N, double w, const double complex *target) {
     mock probe = {.omega = w, .duffing = 0};
     int h = cs->history_next;
     cs->history[h].omega_rad_s = w;
@@ -371,6 +474,22 @@ static void record_exact(rths_corrector_state *cs, int N, double w, const double
     }
     cs->history_next = (h + 1) % RTHS_LTI_HISTORY;
     if (cs->history_count < RTHS_LTI_HISTORY) cs->history_count++;
+}
+
+/* Solves from the targets in *sol at its omega; *sol receives the solution; returns the
+ * evaluations used. */
+static int solve_from(rths_corrector *c, rths_solution *sol) {
+    double u[RTHS_MAX_UNKNOWNS];
+    int N = sol->harmonics, evaluations;
+    for (int k = 0; k < N; k++) {
+        u[k] = sol->target_a[k];
+        u[N + k] = sol->target_b[k];
+    }
+    rths_error err;
+    assert_int_equal(rths_corrector_solve(c, u, sol->omega_rad_s, NULL, &err), RTHS_OK);
+    *sol = *rths_corrector_solution(c);
+    rths_corrector_counters(c, &evaluations, NULL, NULL);
+    return evaluations;
 }
 
 /* The matched estimate x - (r/g) Phi from the fitted LTI model: a point accepted 1 % off the
@@ -390,10 +509,9 @@ static void test_matched_estimate(void **state) {
         rths_settle_defaults(&st, 0);
         rths_newton_defaults(&nw, 0);
         nw.rel_tolerance = 0.05;
-        rths_corrector_state cs;
+        static test_memory cs;
         memset(&cs, 0, sizeof cs);
         cs.harmonics = N;
-        cs.n = 2 * N;
         cs.have_jacobian = 1;
         cs.lti = 1;
         double w = 2 * M_PI * 13.0;
@@ -415,9 +533,12 @@ static void test_matched_estimate(void **state) {
             sol.target_a[k - 1] = creal(t);
             sol.target_b[k - 1] = -cimag(t);
         }
-        rths_error err;
-        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &cs, &sol, &err), RTHS_OK);
-        assert_int_equal(cs.evaluations, 1); /* accepted as guessed: the residual is ~1 % */
+        rths_solution guess = sol;
+        rths_zero_problem problem;
+        rths_rig_problem ctx;
+        rths_corrector *c = corrector_in(&cs, rig, &st, &nw, &problem, &ctx);
+        assert_int_equal(solve_from(c, &sol), 1); /* accepted as guessed: the residual is ~1 % */
+        rths_corrector_destroy(c);
         assert_true(sol.have_matched);
         double truth = cabs(lin_solution_phys(1, w));
         double measured = hypot(sol.eval.phys.a[1], sol.eval.phys.b[1]);
@@ -430,26 +551,24 @@ static void test_matched_estimate(void **state) {
             assert_close(sol.matched_b[k - 1], -cimag(x), 1e-5 * cabs(x));
         }
         /* the same point with exact but carried Jacobians and no model: the measurement */
-        rths_corrector_state bare;
+        static test_memory bare;
         memset(&bare, 0, sizeof bare);
         bare.harmonics = N;
-        bare.n = 2 * N;
         bare.have_jacobian = 1;
         memcpy(bare.jacobian, cs.jacobian, sizeof bare.jacobian);
         memcpy(bare.response_jacobian, cs.response_jacobian, sizeof bare.response_jacobian);
-        rths_solution again = sol;
-        for (int k = 1; k <= N; k++) {
-            double complex t = lin_solution_target(k, w) * (1.0 + 0.01 * cexp(I * k));
-            again.target_a[k - 1] = creal(t);
-            again.target_b[k - 1] = -cimag(t);
-        }
-        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &bare, &again, &err), RTHS_OK);
+        rths_solution again = guess;
+        c = corrector_in(&bare, rig, &st, &nw, &problem, &ctx);
+        solve_from(c, &again);
+        rths_corrector_destroy(c);
         assert_false(again.have_matched);
         assert_close(again.amplitude_m, hypot(again.eval.phys.a[1], again.eval.phys.b[1]), 0);
         /* the seed's flowchart reports the measurement */
         nw.report_matched = 0;
-        memset(&sol.eval, 0, sizeof sol.eval);
-        assert_int_equal(rths_correct(rig, &st, &nw, 1.0, NULL, &cs, &sol, &err), RTHS_OK);
+        sol = guess;
+        c = corrector_in(&cs, rig, &st, &nw, &problem, &ctx);
+        solve_from(c, &sol);
+        rths_corrector_destroy(c);
         assert_close(sol.amplitude_m, hypot(sol.eval.phys.a[1], sol.eval.phys.b[1]), 0);
         rths_rig_destroy(rig);
     }
@@ -558,10 +677,9 @@ static void test_first_point_retried(void **state) {
  * first frequency is the closed-form solution's target. */
 static void test_lti_fit_needs_rank(void **state) {
     (void)state;
-    rths_corrector_state cs;
+    static test_memory cs;
     memset(&cs, 0, sizeof cs);
     cs.harmonics = 1;
-    cs.n = 2;
     cs.have_jacobian = 1;
     cs.lti = 1;
     double w0 = 2 * M_PI * 13.0, w1 = 2 * M_PI * 13.05;
@@ -571,11 +689,24 @@ static void test_lti_fit_needs_rank(void **state) {
     }
     double complex t1[RTHS_MAX_HARMONICS + 1] = {0, lin_solution_target(1, w1) * 1.02};
     record_exact(&cs, 1, w1, t1);
-    double a[RTHS_MAX_HARMONICS], b[RTHS_MAX_HARMONICS];
-    assert_int_equal(rths_corrector_lti_predict(&cs, 1, w0, a, b), -1);
+    rths_rig *rig = mock_rig(0, 0.0, 0.0);
+    rths_settle_options st;
+    rths_newton_options nw;
+    rths_settle_defaults(&st, 0);
+    rths_newton_defaults(&nw, 0);
+    rths_zero_problem problem;
+    rths_rig_problem ctx;
+    rths_corrector *c = corrector_in(&cs, rig, &st, &nw, &problem, &ctx);
+    double u[RTHS_MAX_UNKNOWNS];
+    assert_int_equal(rths_corrector_lti_predict(c, w0, u), -1);
+    rths_corrector_destroy(c);
     t1[1] = lin_solution_target(1, w1) * (0.97 + 0.02 * I);
     record_exact(&cs, 1, w1, t1);
-    assert_int_equal(rths_corrector_lti_predict(&cs, 1, w0, a, b), 0);
+    c = corrector_in(&cs, rig, &st, &nw, &problem, &ctx);
+    assert_int_equal(rths_corrector_lti_predict(c, w0, u), 0);
+    rths_corrector_destroy(c);
+    rths_rig_destroy(rig);
+    double a[1] = {u[0]}, b[1] = {u[1]};
     double complex want = lin_solution_target(1, w0); /* mock: target = A - iB */
     assert_close(a[0], creal(want), 1e-9 * cabs(want));
     assert_close(b[0], -cimag(want), 1e-9 * cabs(want));
@@ -652,16 +783,13 @@ static void test_journal_resume(void **state) {
         assert_true(pts[i].sol.eval.num.b[1] == jc.kept[i].sol.eval.num.b[1]);
         assert_int_equal(pts[i].fold, jc.kept[i].fold);
         assert_int_equal(pts[i].segment, jc.kept[i].segment);
-        assert_memory_equal(pts[i].corrector.jacobian, jc.kept[i].corrector.jacobian,
-                            sizeof pts[i].corrector.jacobian);
-        assert_memory_equal(pts[i].corrector.history, jc.kept[i].corrector.history,
-                            sizeof pts[i].corrector.history);
-        assert_int_equal(pts[i].corrector.history_count, jc.kept[i].corrector.history_count);
-        assert_int_equal(pts[i].corrector.history_next, jc.kept[i].corrector.history_next);
+        assert_int_equal(pts[i].corrector.format, jc.kept[i].corrector.format);
+        assert_int_equal(pts[i].corrector.length, jc.kept[i].corrector.length);
+        assert_memory_equal(pts[i].corrector.data, jc.kept[i].corrector.data,
+                            sizeof(double) * (size_t)pts[i].corrector.length);
     }
-    /* resume: truncate the torn tail the way the CLI does (reopen for append after rewrite) */
-    f = fopen(path, "w");
-    fclose(f);
+    /* resume: drop the torn tail the way the CLI does (a fresh journal with the read points) */
+    unlink(path);
     assert_int_equal(rths_journal_open(path, "default", &j, &err), RTHS_OK);
     for (int i = 0; i < n; i++)
         assert_int_equal(rths_journal_append(j, &pts[i], 0, &err), RTHS_OK);
@@ -682,7 +810,7 @@ static void test_journal_resume(void **state) {
     /* the resumed branch has as many points as the reference, give or take the corrector's
      * tolerance-level differences after the restart's fresh transient */
     assert_close(rest.points, ref.points, 3);
-    assert_int_equal(rths_journal_read(path, &pts, &n, NULL, &err), RTHS_OK);
+    if (rths_journal_read(path, &pts, &n, NULL, &err)) fail_msg("%s", err.msg);
     assert_int_equal(n, rest.points);
     for (int i = 0; i < n; i++)
         assert_int_equal(pts[i].index, i);
@@ -697,6 +825,7 @@ int main(void) {
         cmocka_unit_test(test_corrector_linear_harmonics),
         cmocka_unit_test(test_continuation_linear_both_methods),
         cmocka_unit_test(test_continuation_duffing_two_folds),
+        cmocka_unit_test(test_continuation_stays_in_range),
         cmocka_unit_test(test_matched_estimate),
         cmocka_unit_test(test_model_predictor_saves_evaluations),
         cmocka_unit_test(test_first_point_retried),

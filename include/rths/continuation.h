@@ -31,6 +31,13 @@ typedef struct rths_continuation_options {
      * f = J u - Phi of the last 4 points; either seeds the corrector's Jacobians. 0: the seed's
      * secant in the targets */
     int model_predictor;
+    /* The branch stays in the requested range: a point more than range_margin * |end - start|
+     * beyond start_hz ends the run (the branch left the range), one beyond end_hz is an
+     * overshooting step, retried shorter. 0: no range check. */
+    double range_margin;
+    /* 1: the branch has no folds (a linear structure): a correction that moves the frequency
+     * back is a failure (retried with a shorter step), not a turn of the branch */
+    int monotonic;
 } rths_continuation_options;
 
 typedef struct rths_point {
@@ -42,7 +49,8 @@ typedef struct rths_point {
     int segment;                    /* branch segment (0, 1, ...): increments after each fold */
     double step;                    /* arclength: scaled step length used to reach this point */
     double secant_omega;            /* frequency component of the secant that arrived here */
-    rths_corrector_state corrector; /* carried Jacobian after this point (for --resume) */
+    rths_residual residual;         /* the residual record at the solution */
+    rths_corrector_saved corrector; /* what the corrector carried on from this point (--resume) */
 } rths_point;
 
 typedef struct rths_fold {
@@ -89,14 +97,28 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
 /* Physical interface fundamental amplitude of a point, m. */
 double rths_point_amplitude_m(const rths_point *pt);
 
-/* ---- journal: one JSON line per accepted point, flushed and synced per record ---- */
+/* ---- journal: one JSON line per accepted point, flushed and synced per record ----
+ * Format (header, point and update records, the corrector state) in docs/journal.md. This rths
+ * writes format RTHS_JOURNAL_FORMAT and reads it and format 2. */
+#define RTHS_JOURNAL_FORMAT 3
 
 typedef struct rths_journal rths_journal;
 
 /* Opens path for appending (creating it with a header line naming the strategy). */
 int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err);
+/* The same, the header also recording the rig's noise seed given for the run (seed: its text, or
+ * NULL when none was given and the configuration's rig.seed applies). */
+int rths_journal_open_seeded(const char *path, const char *strategy, const char *seed,
+                             rths_journal **out, rths_error *err);
+/* The seed the header recorded: *known 0 for a journal that records none (format 2); else
+ * *seed is its text (caller frees) or NULL. */
+int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err);
 /* Appends a point (is_update: a later line for the same index replaces the earlier one). */
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err);
+/* Records a resume after n_points points, with the configuration changes it was allowed
+ * ("key: was -> now"); readers skip the record. */
+int rths_journal_append_resume(rths_journal *j, int n_points, const char *const *changes,
+                               int n_changes, rths_error *err);
 void rths_journal_close(rths_journal *j);
 
 /* Reads a journal: the points in index order, updates applied. A torn last line (the process was

@@ -1,9 +1,13 @@
-/* rths iterate: the zero problem over a rig and its Newton-Broyden corrector.
+/* rths iterate: the zero problem and its Newton-Broyden corrector (docs/method.md, "Iteration and
+ * continuation").
  *
- * Unknowns u = (A*_1..A*_N, B*_1..B*_N) — the control target's Fourier coefficients, metres — and,
- * for pseudo-arclength continuation, the forcing frequency. The residual is the interface mismatch
- * Phi = (A_k - alpha_k, B_k - beta_k), k = 1..N, of the physical (A, B) and numerical (alpha, beta)
- * interface displacements' coefficients measured in steady state. Static terms are discarded. */
+ * The zero problem (rths_zero_problem) maps n unknowns at a parameter omega to one residual record
+ * per evaluation. On a rig (rths_rig_problem) the unknowns u = (A*_1..A*_N, B*_1..B*_N) are the
+ * control target's Fourier coefficients, metres, the parameter is the forcing frequency (itself
+ * an unknown for pseudo-arclength continuation), and the residual is the interface mismatch
+ * Phi = (A_k - alpha_k, B_k - beta_k), k = 1..N, of the physical (A, B) and numerical (alpha,
+ * beta) interface displacements' coefficients measured in steady state; static terms are
+ * discarded. The corrector (rths_corrector) solves it; analytic problems serve its tests. */
 #ifndef RTHS_ITERATE_H
 #define RTHS_ITERATE_H
 
@@ -13,7 +17,8 @@
 #define RTHS_MAX_UNKNOWNS (2 * RTHS_MAX_HARMONICS + 1)
 #define RTHS_LTI_HISTORY 12
 
-/* How one evaluation waits for steady state and averages (SPEC §6). */
+/* How one evaluation waits for steady state and averages (docs/method.md, "Iteration and
+ * continuation"). */
 typedef struct rths_settle_options {
     int fixed_wait_periods; /* > 0: wait exactly this many periods (the seed's fixed wait) */
     int min_wait_periods;   /* adaptive: never judge steady before this many periods */
@@ -57,43 +62,60 @@ typedef struct rths_newton_options {
     /* 1: report the physical interface response extrapolated to zero mismatch (see
      * rths_solution.matched_*); 0: report the last measurement, as the seed does */
     int report_matched;
+    /* rig safety: a step never exceeds step_limit times the larger of the current unknowns and
+     * the reference (the numerical response) in scaled units; 0: no limit */
+    double step_limit;
 } rths_newton_options;
 
-/* The state the corrector carries between continuation points. */
-typedef struct rths_corrector_state {
+/* ---- the zero problem: Phi(u; omega) = 0 ----
+ *
+ * n unknowns u (metres: for a hybrid test the target's Fourier coefficients, cos terms then sin
+ * terms) at a parameter omega (rad/s, the forcing frequency). One evaluation gives one residual
+ * record, computed once and handed on: the corrector, the continuation and the report all read
+ * Phi, the response and their standard errors from it. */
+typedef struct rths_residual {
+    int n;
+    double phi[RTHS_MAX_UNKNOWNS], phi_se[RTHS_MAX_UNKNOWNS]; /* Phi and its standard error, m */
+    /* Phi = response - reference: the physical interface response (what the report shows) and
+     * the numerical side it must match, with their standard errors, m */
+    double response[RTHS_MAX_UNKNOWNS], response_se[RTHS_MAX_UNKNOWNS];
+    double reference[RTHS_MAX_UNKNOWNS], reference_se[RTHS_MAX_UNKNOWNS];
+    double rig_time_s; /* rig time the evaluation used (also when it failed) */
+    /* independent samples averaged into each mean (periods); > 1: the standard errors are
+     * sample estimates the corrector may pool across evaluations */
+    int samples;
+    rths_evaluation eval; /* the measurement behind the record (rig-backed problems; else zero) */
+} rths_residual;
+
+/* Evaluates Phi at u (n entries, metres) and omega into *out (all of it). Returns RTHS_OK, or an
+ * error code with err set (a rig fault, a non-physical request). */
+typedef int (*rths_zero_eval_fn)(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
+                                 rths_error *err);
+
+typedef struct rths_zero_problem {
+    int n; /* unknowns = residual entries, 1..2 * RTHS_MAX_HARMONICS */
+    /* > 0: n = 2 * harmonics Fourier coefficients (cos terms, then sin terms), which lets the
+     * corrector recognise a linear time-invariant map; 0: unknowns without that structure */
     int harmonics;
-    int n; /* 2N unknown target coefficients */
-    int have_jacobian;
-    /* 1: the last finite-difference Jacobians (natural sweep) were of a linear time-invariant
-     * rig's form, one complex gain per harmonic and no coupling between harmonics, within 5 %
-     * plus what their noise explains. The gains are then refitted to the evaluation history after
-     * every step (or, while the history cannot determine them, fixed by each secant pair), and
-     * the Jacobians always keep that form. */
-    int lti;
-    /* dPhi/d(target, omega): 2N rows, 2N + 1 columns (last column: d/d omega, rad/s) */
-    double jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
-    /* d(physical interface coefficients)/d(target, omega), same layout, estimated alongside */
-    double response_jacobian[RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS];
-    /* Per-period variance of each matched coefficient (physical, numerical side) pooled over
-     * evaluations: the noise is additive, so every evaluation estimates the same variance, and
-     * 4 periods alone give a standard error good to only +-40 %. Sums of squared deviations and
-     * their degrees of freedom; each correction attempt halves the weight of the earlier ones. */
-    double noise_ss[2][RTHS_MAX_UNKNOWNS];
-    double noise_dof;
-    /* Natural sweep: the latest evaluations (ring), from which an LTI rig's local model
-     * Phi_k = g_k(w) z_k - f_k(w), x_k = r_k(w) z_k + e_k(w) (z_k = A*_k + i B*_k, g, f, r, e
-     * linear in w) is fitted by least squares: every evaluation informs the gains, not only
-     * secant pairs. Metres and rad/s; cos terms then sin terms. */
-    int history_count, history_next;
-    struct {
-        double omega_rad_s;
-        double target[2 * RTHS_MAX_HARMONICS], phi[2 * RTHS_MAX_HARMONICS],
-            response[2 * RTHS_MAX_HARMONICS];
-    } history[RTHS_LTI_HISTORY];
-    int evaluations; /* counters for the current point */
-    int iterations;
-    double rig_time_s;
-} rths_corrector_state;
+    rths_zero_eval_fn eval;
+    void *ctx;
+} rths_zero_problem;
+
+/* The rig-backed zero problem of a hybrid test: set the forcing and the target, wait for steady
+ * state, average (rths_evaluate); Phi = physical - numerical interface coefficients. */
+typedef struct rths_rig_problem {
+    rths_rig *rig;
+    const rths_settle_options *settle;
+    int harmonics;
+    double amplitude_n;
+} rths_rig_problem;
+
+/* Fills *problem to evaluate through *ctx (which must outlive it). */
+void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
+                           const rths_settle_options *settle, int harmonics, double amplitude_n);
+
+/* The residual record of a measurement (Phi, response and reference in the corrector's order). */
+void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out);
 
 /* Optional pseudo-arclength constraint: tangent . (scaled(u) - scaled(u_pred)) = 0 with
  * scaled(u) = (targets / amplitude_scale_m, omega / omega_scale_rad_s). */
@@ -131,25 +153,99 @@ typedef struct rths_solution {
     double frequency_hz, amplitude_m, amplitude_se_m;
 } rths_solution;
 
-/* Solves Phi = 0 (with the arclength row when arc->active, else at fixed omega) from the initial
- * guess in *sol (targets and omega). On success sol holds the solution; state keeps the Jacobian
- * and the per-point counters (reset at entry). Returns RTHS_OK when converged, RTHS_EFAIL when not
- * (sol->converged = 0) or on a rig fault (err says which). */
+/* ---- the corrector: Newton-Broyden with line search, an opaque object ----
+ *
+ * Life cycle (as GSL's gsl_multiroot_fsolver or KINSOL): create for a zero problem, set() at an
+ * initial guess (one evaluation, perhaps a finite-difference Jacobian), iterate() one Newton step
+ * (with its line search) while status() is RTHS_CORRECTOR_CONTINUE, read solution(); save() and
+ * load() carry what it learnt (Jacobians, pooled noise, evaluation history) across processes; the
+ * same object carries it from one continuation point to the next. */
+typedef struct rths_corrector rths_corrector;
+
+typedef enum {
+    RTHS_CORRECTOR_CONTINUE = 0,  /* not converged yet: iterate again */
+    RTHS_CORRECTOR_CONVERGED = 1, /* ||Phi|| below tolerance (and the arclength row satisfied) */
+    RTHS_CORRECTOR_STUCK = 2,     /* a fresh Jacobian's step could not reduce the residual */
+    RTHS_CORRECTOR_MAX_ITER = 3,  /* max_iterations used up */
+    RTHS_CORRECTOR_SINGULAR = 4   /* a freshly measured Jacobian is singular */
+} rths_corrector_outcome;
+
+/* What save() gives: a versioned flat record (layout in docs/journal.md, "Corrector state").
+ * Callers store it and hand it back to load(); they need not know the layout. length 0: nothing
+ * learnt yet (a zeroed record is valid). */
+#define RTHS_CORRECTOR_SAVED_FORMAT 1
+#define RTHS_CORRECTOR_SAVED_MAX                                                                   \
+    (4 + 2 * RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS + 2 * RTHS_MAX_UNKNOWNS + 3 +                   \
+     RTHS_LTI_HISTORY * (1 + 6 * RTHS_MAX_HARMONICS))
+typedef struct rths_corrector_saved {
+    int format; /* RTHS_CORRECTOR_SAVED_FORMAT */
+    int length; /* entries of data in use */
+    double data[RTHS_CORRECTOR_SAVED_MAX];
+} rths_corrector_saved;
+
+int rths_corrector_create(const rths_zero_problem *problem, const rths_newton_options *opt,
+                          rths_corrector **out, rths_error *err);
+void rths_corrector_destroy(rths_corrector *c);
+
+/* Scaling of the unknowns when no arclength constraint gives one (defaults 1e-4 m, 1 rad/s): the
+ * finite-difference steps, the step limit and the line search work in u / amplitude_scale_m. */
+void rths_corrector_set_scales(rths_corrector *c, double amplitude_scale_m,
+                               double omega_scale_rad_s);
+/* The amplitude scale changes from old to new: the carried Jacobians' frequency columns follow. */
+void rths_corrector_rescale_amplitude(rths_corrector *c, double old_scale_m, double new_scale_m);
+
+/* Starts a correction at u0 (n entries, m) and omega (with the arclength row when arc->active;
+ * arc's positive scales override the corrector's). Resets the per-correction counters, evaluates
+ * once, measures a Jacobian when none is carried (or opt->fresh_jacobian). Returns RTHS_OK or the
+ * problem's error. */
+int rths_corrector_set(rths_corrector *c, const double *u0, double omega_rad_s,
+                       const rths_arclength *arc, rths_error *err);
+/* One Newton step: solve, limit, line search, Broyden (or LTI) update. Returns RTHS_OK (see
+ * status) or the problem's error. */
+int rths_corrector_iterate(rths_corrector *c, rths_error *err);
+rths_corrector_outcome rths_corrector_status(const rths_corrector *c);
+/* The last accepted iterate: targets, omega, its measurement, residual and tolerance; once
+ * converged also the matched estimate and the reported amplitude (see rths_solution). */
+const rths_solution *rths_corrector_solution(const rths_corrector *c);
+/* The last accepted iterate's unknowns (n entries, m) and its residual record. */
+void rths_corrector_unknowns(const rths_corrector *c, double *u);
+const rths_residual *rths_corrector_residual(const rths_corrector *c);
+/* Evaluations, iterations and rig time of the current correction. */
+void rths_corrector_counters(const rths_corrector *c, int *evaluations, int *iterations,
+                             double *rig_time_s);
+/* Set + iterate until done. RTHS_OK when converged; RTHS_EFAIL with the reason otherwise. */
+int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s,
+                         const rths_arclength *arc, rths_error *err);
+/* Drops the carried Jacobians: the next set() measures fresh ones. */
+void rths_corrector_forget_jacobian(rths_corrector *c);
+
+void rths_corrector_save(const rths_corrector *c, rths_corrector_saved *out);
+/* Restores what save() gave (same problem size); RTHS_EINPUT naming the formats otherwise. */
+int rths_corrector_load(rths_corrector *c, const rths_corrector_saved *in, rths_error *err);
+/* The Jacobians inside a saved record (n x n target block, leading dimension RTHS_MAX_UNKNOWNS):
+ * 1 when it holds some, else 0. */
+int rths_corrector_saved_jacobians(const rths_corrector_saved *in, double *jacobian,
+                                   double *response_jacobian);
+
+/* Residual-model predictor on an LTI rig (natural sweep): the target at omega from the local
+ * model fitted to the recorded evaluations, z_k = f_k / g_k, with the model's Jacobians seeding
+ * the corrector. Returns 0, or -1 when the evaluations do not determine the model (fewer than
+ * two frequencies or six evaluations, or a singular fit) or the rig is not LTI-like. */
+int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u);
+
+/* Replaces the target columns of the carried Jacobians (n x n, leading dimension
+ * RTHS_MAX_UNKNOWNS) with a predictor's, projected onto the LTI form when the rig is LTI-like;
+ * ignored while no Jacobian is carried. */
+void rths_corrector_seed_jacobians(rths_corrector *c, const double *jacobian,
+                                   const double *response_jacobian);
+
+/* Convenience for one correction on a rig (the older interface): state is a saved record (zeroed
+ * on first use) carried between calls; *sol holds the initial guess (harmonics, targets, omega)
+ * and receives the solution. Returns RTHS_OK when converged, RTHS_EFAIL otherwise. */
+typedef rths_corrector_saved rths_corrector_state;
 int rths_correct(rths_rig *rig, const rths_settle_options *settle, const rths_newton_options *opt,
                  double amplitude_n, const rths_arclength *arc, rths_corrector_state *state,
                  rths_solution *sol, rths_error *err);
-
-/* LTI rig on a natural sweep (state->lti): the target at omega predicted by the local model fitted
- * to the recorded evaluations, z_k = f_k / g_k, with the model's Jacobians written into the state
- * to seed the corrector. Returns 0, or -1 when the evaluations do not determine the model (fewer
- * than two frequencies or six evaluations, or a singular fit). */
-int rths_corrector_lti_predict(rths_corrector_state *state, int harmonics, double omega_rad_s,
-                               double *target_a, double *target_b);
-
-/* Replaces the target columns of the state's Jacobians (2N x 2N, leading dimension
- * RTHS_MAX_UNKNOWNS) with a predictor's, projected onto the LTI form when the state is LTI. */
-void rths_corrector_seed_jacobians(rths_corrector_state *state, const double *jacobian,
-                                   const double *response_jacobian);
 
 /* Defaults: the project's best ("default") and the seed's flowchart ("paper"). */
 void rths_settle_defaults(rths_settle_options *opt, int paper);

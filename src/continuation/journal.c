@@ -11,8 +11,9 @@
 #include <string.h>
 #include <unistd.h>
 
-/* 2: points carry the response Jacobian and the matched estimate */
-enum { JOURNAL_FORMAT = 2 };
+/* Formats (docs/journal.md): 2 kept the corrector's fields flat in each point record; 3 stores
+ * the corrector's saved record (rths_corrector_save) as one list. Both are read. */
+enum { JOURNAL_FORMAT = RTHS_JOURNAL_FORMAT, JOURNAL_FORMAT_FLAT_CORRECTOR = 2 };
 
 struct rths_journal {
     int fd;
@@ -40,6 +41,11 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
 }
 
 int rths_journal_open(const char *path, const char *strategy, rths_journal **out, rths_error *err) {
+    return rths_journal_open_seeded(path, strategy, NULL, out, err);
+}
+
+int rths_journal_open_seeded(const char *path, const char *strategy, const char *seed,
+                             rths_journal **out, rths_error *err) {
     set_exact_doubles();
     rths_journal *j = calloc(1, sizeof *j);
     if (!j) return rths_error_set(err, RTHS_EFAIL, "out of memory opening the journal");
@@ -57,6 +63,7 @@ int rths_journal_open(const char *path, const char *strategy, rths_journal **out
         json_object_object_add(h, "format", json_object_new_int(JOURNAL_FORMAT));
         json_object_object_add(h, "strategy", json_object_new_string(strategy));
         json_object_object_add(h, "version", json_object_new_string(RTHS_VERSION));
+        json_object_object_add(h, "seed", seed ? json_object_new_string(seed) : NULL);
         int rc = write_line(j, h, err);
         json_object_put(h);
         if (rc) {
@@ -89,28 +96,6 @@ static void add_fourier(json_object *o, const char *name, const rths_fourier *f,
     json_object_object_add(o, key, dbl_array(f->b, harmonics + 1));
 }
 
-/* The corrector's evaluation history (the LTI model's data), oldest entries included, so a
- * resumed run predicts exactly as the uninterrupted one would. */
-enum { HISTORY_WIDTH = 2 * RTHS_MAX_HARMONICS };
-static void add_history(json_object *o, const rths_corrector_state *c) {
-    double omega[RTHS_LTI_HISTORY], target[RTHS_LTI_HISTORY * HISTORY_WIDTH],
-        phi[RTHS_LTI_HISTORY * HISTORY_WIDTH], response[RTHS_LTI_HISTORY * HISTORY_WIDTH];
-    for (int e = 0; e < RTHS_LTI_HISTORY; e++) {
-        omega[e] = c->history[e].omega_rad_s;
-        memcpy(target + e * HISTORY_WIDTH, c->history[e].target, sizeof c->history[e].target);
-        memcpy(phi + e * HISTORY_WIDTH, c->history[e].phi, sizeof c->history[e].phi);
-        memcpy(response + e * HISTORY_WIDTH, c->history[e].response, sizeof c->history[e].response);
-    }
-    json_object_object_add(o, "history_count", json_object_new_int(c->history_count));
-    json_object_object_add(o, "history_next", json_object_new_int(c->history_next));
-    json_object_object_add(o, "history_omega_rad_s", dbl_array(omega, RTHS_LTI_HISTORY));
-    json_object_object_add(o, "history_target_m",
-                           dbl_array(target, RTHS_LTI_HISTORY * HISTORY_WIDTH));
-    json_object_object_add(o, "history_phi_m", dbl_array(phi, RTHS_LTI_HISTORY * HISTORY_WIDTH));
-    json_object_object_add(o, "history_response_m",
-                           dbl_array(response, RTHS_LTI_HISTORY * HISTORY_WIDTH));
-}
-
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err) {
     const rths_solution *s = &pt->sol;
     const rths_evaluation *e = &s->eval;
@@ -141,19 +126,9 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "segment", json_object_new_int(pt->segment));
     json_object_object_add(o, "step", json_object_new_double(pt->step));
     json_object_object_add(o, "secant_omega", json_object_new_double(pt->secant_omega));
-    json_object_object_add(o, "have_jacobian", json_object_new_int(pt->corrector.have_jacobian));
-    json_object_object_add(o, "lti", json_object_new_int(pt->corrector.lti));
-    json_object_object_add(
-        o, "jacobian", dbl_array(pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
-    json_object_object_add(
-        o, "response_jacobian",
-        dbl_array(pt->corrector.response_jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS));
-    json_object_object_add(o, "noise_ss_phys",
-                           dbl_array(pt->corrector.noise_ss[0], RTHS_MAX_UNKNOWNS));
-    json_object_object_add(o, "noise_ss_num",
-                           dbl_array(pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS));
-    json_object_object_add(o, "noise_dof", json_object_new_double(pt->corrector.noise_dof));
-    add_history(o, &pt->corrector);
+    json_object_object_add(o, "corrector_format", json_object_new_int(pt->corrector.format));
+    json_object_object_add(o, "corrector_state",
+                           dbl_array(pt->corrector.data, pt->corrector.length));
     json_object_object_add(o, "have_matched", json_object_new_int(s->have_matched));
     json_object_object_add(o, "matched_a_m", dbl_array(s->matched_a, N));
     json_object_object_add(o, "matched_b_m", dbl_array(s->matched_b, N));
@@ -171,7 +146,40 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     return rc;
 }
 
+int rths_journal_append_resume(rths_journal *j, int n_points, const char *const *changes,
+                               int n_changes, rths_error *err) {
+    json_object *o = json_object_new_object(), *list = json_object_new_array();
+    json_object_object_add(o, "type", json_object_new_string("resume"));
+    json_object_object_add(o, "after_points", json_object_new_int(n_points));
+    for (int i = 0; i < n_changes; i++)
+        json_object_array_add(list, json_object_new_string(changes[i]));
+    json_object_object_add(o, "changed", list);
+    int rc = write_line(j, o, err);
+    json_object_put(o);
+    return rc;
+}
+
 /* ---- reading ---- */
+
+int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err) {
+    *known = 0;
+    *seed = NULL;
+    FILE *f = fopen(path, "r");
+    if (!f)
+        return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path,
+                              strerror(errno));
+    char *line = NULL;
+    size_t cap = 0;
+    json_object *h = getline(&line, &cap, f) > 0 ? json_tokener_parse(line) : NULL, *v;
+    free(line);
+    fclose(f);
+    if (h && json_object_object_get_ex(h, "seed", &v)) {
+        *known = 1;
+        if (v) *seed = strdup(json_object_get_string(v));
+    }
+    if (h) json_object_put(h);
+    return RTHS_OK;
+}
 
 static int get_dbl(json_object *o, const char *key, double *out) {
     json_object *v;
@@ -211,28 +219,52 @@ static int get_fourier(json_object *o, const char *name, rths_fourier *f, int ha
     return get_arr(o, key, f->b, harmonics + 1);
 }
 
-static int get_history(json_object *o, rths_corrector_state *c) {
-    double omega[RTHS_LTI_HISTORY], target[RTHS_LTI_HISTORY * HISTORY_WIDTH],
-        phi[RTHS_LTI_HISTORY * HISTORY_WIDTH], response[RTHS_LTI_HISTORY * HISTORY_WIDTH];
-    if (get_int(o, "history_count", &c->history_count) ||
-        get_int(o, "history_next", &c->history_next) || c->history_count < 0 ||
-        c->history_count > RTHS_LTI_HISTORY || c->history_next < 0 ||
-        c->history_next >= RTHS_LTI_HISTORY ||
-        get_arr(o, "history_omega_rad_s", omega, RTHS_LTI_HISTORY) ||
-        get_arr(o, "history_target_m", target, RTHS_LTI_HISTORY * HISTORY_WIDTH) ||
-        get_arr(o, "history_phi_m", phi, RTHS_LTI_HISTORY * HISTORY_WIDTH) ||
-        get_arr(o, "history_response_m", response, RTHS_LTI_HISTORY * HISTORY_WIDTH))
+/* Format 3: the corrector's saved record as written. */
+static int get_corrector(json_object *o, rths_corrector_saved *c) {
+    json_object *v;
+    if (get_int(o, "corrector_format", &c->format) ||
+        !json_object_object_get_ex(o, "corrector_state", &v) ||
+        !json_object_is_type(v, json_type_array))
         return -1;
+    c->length = (int)json_object_array_length(v);
+    if (c->length > RTHS_CORRECTOR_SAVED_MAX) return -1;
+    return get_arr(o, "corrector_state", c->data, c->length);
+}
+
+/* Format 2: the same numbers as flat keys of the point record, gathered into the saved record's
+ * layout (format 1 of the corrector state, docs/journal.md). */
+enum { W = 2 * RTHS_MAX_HARMONICS, LD2 = RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS };
+static int get_flat_corrector(json_object *o, int harmonics, rths_corrector_saved *c) {
+    int have = 0, lti = 0, count = 0, next = 0;
+    double *d = c->data, omega[RTHS_LTI_HISTORY], hist[3][RTHS_LTI_HISTORY * W];
+    if (get_int(o, "have_jacobian", &have) || get_int(o, "lti", &lti) ||
+        get_arr(o, "jacobian", d + 4, LD2) || get_arr(o, "response_jacobian", d + 4 + LD2, LD2) ||
+        get_arr(o, "noise_ss_phys", d + 4 + 2 * LD2, RTHS_MAX_UNKNOWNS) ||
+        get_arr(o, "noise_ss_num", d + 4 + 2 * LD2 + RTHS_MAX_UNKNOWNS, RTHS_MAX_UNKNOWNS) ||
+        get_dbl(o, "noise_dof", d + 4 + 2 * LD2 + 2 * RTHS_MAX_UNKNOWNS) ||
+        get_int(o, "history_count", &count) || get_int(o, "history_next", &next) ||
+        get_arr(o, "history_omega_rad_s", omega, RTHS_LTI_HISTORY) ||
+        get_arr(o, "history_target_m", hist[0], RTHS_LTI_HISTORY * W) ||
+        get_arr(o, "history_phi_m", hist[1], RTHS_LTI_HISTORY * W) ||
+        get_arr(o, "history_response_m", hist[2], RTHS_LTI_HISTORY * W))
+        return -1;
+    double head[4] = {have, lti, 2 * harmonics, harmonics};
+    memcpy(d, head, sizeof head);
+    double *ring = d + 4 + 2 * LD2 + 2 * RTHS_MAX_UNKNOWNS + 1;
+    ring[0] = count;
+    ring[1] = next;
     for (int e = 0; e < RTHS_LTI_HISTORY; e++) {
-        c->history[e].omega_rad_s = omega[e];
-        memcpy(c->history[e].target, target + e * HISTORY_WIDTH, sizeof c->history[e].target);
-        memcpy(c->history[e].phi, phi + e * HISTORY_WIDTH, sizeof c->history[e].phi);
-        memcpy(c->history[e].response, response + e * HISTORY_WIDTH, sizeof c->history[e].response);
+        double *h = ring + 2 + e * (1 + 3 * W);
+        h[0] = omega[e];
+        for (int q = 0; q < 3; q++)
+            memcpy(h + 1 + q * W, hist[q] + e * W, sizeof(double) * W);
     }
+    c->format = RTHS_CORRECTOR_SAVED_FORMAT;
+    c->length = (int)(ring + 2 + RTHS_LTI_HISTORY * (1 + 3 * W) - d);
     return 0;
 }
 
-static int parse_point(json_object *o, rths_point *pt) {
+static int parse_point(json_object *o, int format, rths_point *pt) {
     memset(pt, 0, sizeof *pt);
     rths_solution *s = &pt->sol;
     rths_evaluation *e = &s->eval;
@@ -241,8 +273,6 @@ static int parse_point(json_object *o, rths_point *pt) {
         N > RTHS_MAX_HARMONICS)
         return -1;
     s->harmonics = e->harmonics = N;
-    pt->corrector.harmonics = N;
-    pt->corrector.n = 2 * N;
     if (get_dbl(o, "omega_rad_s", &s->omega_rad_s) ||
         get_dbl(o, "frequency_hz", &e->frequency_hz) || get_arr(o, "target_a_m", s->target_a, N) ||
         get_arr(o, "target_b_m", s->target_b, N) ||
@@ -259,14 +289,8 @@ static int parse_point(json_object *o, rths_point *pt) {
         get_dbl(o, "rig_time_s", &pt->rig_time_s) || get_int(o, "fold", &pt->fold) ||
         get_int(o, "segment", &pt->segment) || get_dbl(o, "step", &pt->step) ||
         get_dbl(o, "secant_omega", &pt->secant_omega) ||
-        get_int(o, "have_jacobian", &pt->corrector.have_jacobian) ||
-        get_int(o, "lti", &pt->corrector.lti) ||
-        get_arr(o, "jacobian", pt->corrector.jacobian, RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
-        get_arr(o, "response_jacobian", pt->corrector.response_jacobian,
-                RTHS_MAX_UNKNOWNS * RTHS_MAX_UNKNOWNS) ||
-        get_arr(o, "noise_ss_phys", pt->corrector.noise_ss[0], RTHS_MAX_UNKNOWNS) ||
-        get_arr(o, "noise_ss_num", pt->corrector.noise_ss[1], RTHS_MAX_UNKNOWNS) ||
-        get_dbl(o, "noise_dof", &pt->corrector.noise_dof) || get_history(o, &pt->corrector) ||
+        (format == JOURNAL_FORMAT_FLAT_CORRECTOR ? get_flat_corrector(o, N, &pt->corrector)
+                                                 : get_corrector(o, &pt->corrector)) ||
         get_int(o, "have_matched", &s->have_matched) ||
         get_arr(o, "matched_a_m", s->matched_a, N) || get_arr(o, "matched_b_m", s->matched_b, N) ||
         get_dbl(o, "matched_amplitude_m", &s->matched_amplitude_m) ||
@@ -276,7 +300,86 @@ static int parse_point(json_object *o, rths_point *pt) {
         get_dbl(o, "amplitude_m", &s->amplitude_m) ||
         get_dbl(o, "amplitude_se_m", &s->amplitude_se_m))
         return -1;
+    rths_residual_from_evaluation(e, &pt->residual);
     return 0;
+}
+
+/* Reading state: where we are, the format from the header, the points so far. */
+typedef struct {
+    const char *path;
+    int lineno;
+    int complete; /* the line ends in a newline (else: a torn final record) */
+    int format;   /* from the header; 0 before it */
+    rths_point *pts;
+    int n, alloc;
+    char **strategy;
+} journal_reader;
+
+enum { READ_ON = 0, READ_TORN = -1 }; /* or an error code */
+
+static int read_header(journal_reader *r, json_object *o, rths_error *err) {
+    json_object *s;
+    int format = 0;
+    if (get_int(o, "format", &format) ||
+        (format != JOURNAL_FORMAT && format != JOURNAL_FORMAT_FLAT_CORRECTOR))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%d: journal format %d, this rths reads formats %d and %d: "
+                              "start a new run in another folder",
+                              r->path, r->lineno, format, JOURNAL_FORMAT_FLAT_CORRECTOR,
+                              JOURNAL_FORMAT);
+    r->format = format;
+    if (r->strategy && json_object_object_get_ex(o, "strategy", &s)) {
+        free(*r->strategy);
+        *r->strategy = strdup(json_object_get_string(s));
+    }
+    return READ_ON;
+}
+
+static int read_point(journal_reader *r, json_object *o, int is_update, rths_error *err) {
+    rths_point pt;
+    if (r->format == 0)
+        return rths_error_set(err, RTHS_EINPUT, "%s:%d: point record before the header", r->path,
+                              r->lineno);
+    if (parse_point(o, r->format, &pt)) {
+        if (!r->complete) return READ_TORN;
+        return rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", r->path,
+                              r->lineno);
+    }
+    if ((!is_update && pt.index != r->n) || (is_update && (pt.index < 0 || pt.index >= r->n)))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%d: point %d out of sequence (expected %d): the journal has "
+                              "gaps or duplicates",
+                              r->path, r->lineno, pt.index, r->n);
+    if (is_update) {
+        r->pts[pt.index] = pt;
+        return READ_ON;
+    }
+    if (r->n == r->alloc) {
+        int alloc = r->alloc ? 2 * r->alloc : 64;
+        rths_point *grown = realloc(r->pts, (size_t)alloc * sizeof *grown);
+        if (!grown) return rths_error_set(err, RTHS_EFAIL, "out of memory reading the journal");
+        r->pts = grown;
+        r->alloc = alloc;
+    }
+    r->pts[r->n++] = pt;
+    return READ_ON;
+}
+
+static int read_record(journal_reader *r, const char *line, rths_error *err) {
+    json_object *o = json_tokener_parse(line), *t;
+    const char *type = NULL;
+    if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
+    int rc = READ_ON;
+    if (!o || !type) /* a torn final record: the kill came mid-write */
+        rc = !r->complete ? READ_TORN
+                          : rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", r->path,
+                                           r->lineno);
+    else if (!strcmp(type, "header"))
+        rc = read_header(r, o, err);
+    else if (!strcmp(type, "point") || !strcmp(type, "update"))
+        rc = read_point(r, o, !strcmp(type, "update"), err);
+    if (o) json_object_put(o);
+    return rc;
 }
 
 int rths_journal_read(const char *path, rths_point **points, int *n_points, char **strategy,
@@ -288,83 +391,24 @@ int rths_journal_read(const char *path, rths_point **points, int *n_points, char
     if (!f)
         return rths_error_set(err, RTHS_EINPUT, "cannot read journal %s: %s", path,
                               strerror(errno));
+    journal_reader r = {.path = path, .strategy = strategy};
     char *line = NULL;
     size_t cap = 0;
     ssize_t len;
-    int lineno = 0, n = 0, alloc = 0, rc = RTHS_OK;
-    rths_point *pts = NULL;
-    while ((len = getline(&line, &cap, f)) > 0) {
-        lineno++;
-        int complete = line[len - 1] == '\n';
-        json_object *o = json_tokener_parse(line);
-        const char *type = NULL;
-        json_object *t;
-        if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
-        if (!o || !type) {
-            if (o) json_object_put(o);
-            if (!complete) break; /* torn final record: the kill came mid-write */
-            rc = rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", path, lineno);
-            break;
-        }
-        if (!strcmp(type, "header")) {
-            json_object *s;
-            int format = 0;
-            if (get_int(o, "format", &format) || format != JOURNAL_FORMAT) {
-                json_object_put(o);
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%d: journal format %d, this rths reads format %d: start a "
-                                    "new run in another folder",
-                                    path, lineno, format, JOURNAL_FORMAT);
-                break;
-            }
-            if (strategy && json_object_object_get_ex(o, "strategy", &s)) {
-                free(*strategy);
-                *strategy = strdup(json_object_get_string(s));
-            }
-        } else if (!strcmp(type, "point") || !strcmp(type, "update")) {
-            rths_point pt;
-            if (parse_point(o, &pt)) {
-                json_object_put(o);
-                if (!complete) break;
-                rc =
-                    rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", path, lineno);
-                break;
-            }
-            int is_update = !strcmp(type, "update");
-            if ((!is_update && pt.index != n) || (is_update && (pt.index < 0 || pt.index >= n))) {
-                json_object_put(o);
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%d: point %d out of sequence (expected %d): the journal "
-                                    "has gaps or duplicates",
-                                    path, lineno, pt.index, n);
-                break;
-            }
-            if (is_update) {
-                pts[pt.index] = pt;
-            } else {
-                if (n == alloc) {
-                    alloc = alloc ? 2 * alloc : 64;
-                    rths_point *grown = realloc(pts, (size_t)alloc * sizeof *pts);
-                    if (!grown) {
-                        json_object_put(o);
-                        rc = rths_error_set(err, RTHS_EFAIL, "out of memory reading the journal");
-                        break;
-                    }
-                    pts = grown;
-                }
-                pts[n++] = pt;
-            }
-        }
-        json_object_put(o);
+    int rc = READ_ON;
+    while (rc == READ_ON && (len = getline(&line, &cap, f)) > 0) {
+        r.lineno++;
+        r.complete = line[len - 1] == '\n';
+        rc = read_record(&r, line, err);
     }
     free(line);
     fclose(f);
-    if (rc) {
-        free(pts);
+    if (rc > 0) {
+        free(r.pts);
         if (strategy) free(*strategy), *strategy = NULL;
         return rc;
     }
-    *points = pts;
-    *n_points = n;
+    *points = r.pts;
+    *n_points = r.n;
     return RTHS_OK;
 }

@@ -1,0 +1,77 @@
+/* rths run: a whole frequency-response test as one library call, what `rths frf` does, for the
+ * CLI and for C or Python callers: configuration -> rig -> continuation -> journal -> outputs
+ * (journal.jsonl, frf.csv, truth.csv, summary.json, figures, run.log, config.yaml in out_dir).
+ *
+ *   rths_run_frf_options o = {.cfg = cfg, .setup = &setup, .out_dir = "out/run"};
+ *   rths_run_callbacks cb = {.on_point = my_point, .should_cancel = my_cancel, .user = me};
+ *   rths_run_frf_result r;
+ *   int rc = rths_run_frf(&o, &cb, &r, &err);
+ *
+ * Bad input (configuration, a journal of another run, an occupied folder) is refused with
+ * RTHS_EINPUT before anything is written. Once the run started, everything accepted is saved
+ * however it ends: normally, stopped early (too many failures), cancelled through should_cancel
+ * (RTHS_OK, r.status RTHS_RUN_CANCELLED), or by a rig fault or I/O error (RTHS_EFAIL). */
+#ifndef RTHS_RUN_H
+#define RTHS_RUN_H
+
+#include "rths/continuation.h"
+#include "rths/setup.h"
+
+#include <stdint.h>
+
+/* What the seed's flowchart ("paper" strategy) changes in the configuration besides the iteration
+ * defaults: apply these overrides first when loading it (later overrides still win). */
+extern const char *const rths_run_paper_overrides[];
+enum { RTHS_RUN_PAPER_OVERRIDES = 2 };
+
+typedef struct rths_run_frf_options {
+    rths_config *cfg;        /* loaded (with overrides); the run reads its sections from it */
+    const rths_setup *setup; /* structure, split, forcing read from cfg */
+    const char *out_dir;     /* created; must not hold a run unless resume */
+    const char *strategy;    /* "default" (NULL) or "paper" */
+    int harmonics;           /* 1..3; 0: iteration.harmonics */
+    int resume;              /* continue the run in out_dir from its journal */
+    const char *rig_uri;     /* tcp://HOST:PORT: a controller process; NULL: the virtual rig */
+    int has_seed;            /* noise seed of the virtual rig (else rig.seed) */
+    uint64_t seed;
+    /* recorded in run.log and summary.json */
+    const char *config_path;
+    const char *const *overrides;
+    int n_overrides;
+    int argc;
+    char **argv;
+} rths_run_frf_options;
+
+typedef struct rths_run_callbacks {
+    /* every accepted point once it is journaled (is_update: a fold flag changed later);
+     * non-zero stops the run as a failure */
+    rths_point_fn on_point;
+    /* after every correction attempt, for a progress display */
+    rths_progress_fn on_progress;
+    /* polled after every accepted point: non-zero ends the run cleanly (all saved) */
+    int (*should_cancel)(void *user);
+    void *user;
+} rths_run_callbacks;
+
+typedef enum {
+    RTHS_RUN_COMPLETED = 0, /* reached the end frequency */
+    RTHS_RUN_STOPPED = 1,   /* ended early but normally: point limit, failures, step limit */
+    RTHS_RUN_CANCELLED = 2, /* should_cancel asked for it */
+    RTHS_RUN_FAILED = 3     /* rig fault, I/O error, or the point callback stopped it */
+} rths_run_status;
+
+typedef struct rths_run_frf_result {
+    rths_run_status status;
+    int points, converged_points, resumed_points, evaluations, folds;
+    double rig_time_s, wall_time_s;
+    double max_relative_error_vs_truth; /* see rths_truth_relative_error */
+    char stop_reason[RTHS_ERROR_MSG_LEN + 256];
+    int outputs_written; /* 1: frf.csv and summary.json were written (the counts are valid) */
+} rths_run_frf_result;
+
+/* Runs the test (see above). Returns RTHS_OK when it ran (status says how it ended; also when
+ * cancelled), RTHS_EINPUT on bad input (nothing written), RTHS_EFAIL on a failure during it. */
+int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
+                 rths_run_frf_result *result, rths_error *err);
+
+#endif

@@ -1,0 +1,37 @@
+/* rths truth: the true assembly's interface response, computed without the hybrid loop, against
+ * which a hybrid test is judged: the analytic FRF for a linear structure, shooting with
+ * pseudo-arclength through the folds with a bilinear leg. */
+#ifndef RTHS_TRUTH_H
+#define RTHS_TRUTH_H
+
+#include "rths/setup.h"
+
+typedef struct rths_truth_curve {
+    int n;
+    double *freq_hz;
+    double *amp_m, *amp_h2_m, *amp_h3_m; /* interface displacement amplitude per harmonic, m */
+    int *stable;                         /* 0 where the periodic solution is unstable */
+    int exact; /* 1: the analytic FRF (linear structure), 0: the shooting solution */
+} rths_truth_curve;
+
+/* The curve over [lo_hz, hi_hz] (analytic: the modal grid; shooting: its continuation points). */
+int rths_truth_compute(const rths_setup *s, double lo_hz, double hi_hz, rths_truth_curve *t,
+                       rths_error *err);
+void rths_truth_free(rths_truth_curve *t);
+
+/* Linear structure: the analytic interface amplitude at f_hz, m (NAN with a bilinear leg or when
+ * the FRF cannot be evaluated). */
+double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz);
+
+/* Distance of (f_hz, amp_m) from the curve in the plane (10 ln f, ln A), so a 1 % amplitude error
+ * and a 0.1 % frequency offset count alike: the vertical relative error where the curve is flat,
+ * still meaningful where a folded curve is steep or multi-valued. INFINITY for a non-positive
+ * point. */
+double rths_truth_curve_distance(const rths_truth_curve *t, double f_hz, double amp_m);
+
+/* Relative error of a hybrid point against the truth: linear, |A - A_true(f)| / A_true(f) at its
+ * own frequency; bilinear, rths_truth_curve_distance. */
+double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t, double f_hz,
+                                 double amp_m);
+
+#endif

@@ -1,0 +1,90 @@
+/* The corrector's private state, shared by the files of src/iterate (not installed). */
+#ifndef RTHS_ITERATE_CORRECTOR_INTERNAL_H
+#define RTHS_ITERATE_CORRECTOR_INTERNAL_H
+
+#include "rths/iterate.h"
+
+#include <complex.h>
+
+enum { LD = RTHS_MAX_UNKNOWNS, HISTORY_WIDTH = 2 * RTHS_MAX_HARMONICS };
+
+/* What the corrector learns and carries from one correction (and continuation point) to the
+ * next; save() writes exactly this. */
+typedef struct corrector_memory {
+    int have_jacobian;
+    /* 1: the last finite-difference Jacobians (natural sweep) were of a linear time-invariant
+     * rig's form, one complex gain per harmonic and no coupling between harmonics, within 5 %
+     * plus what their noise explains. The gains are then refitted to the evaluation history after
+     * every step (or, while the history cannot determine them, fixed by each secant pair), and
+     * the Jacobians always keep that form. */
+    int lti;
+    /* dPhi/d(u, omega) in scaled variables: n rows, n + 1 columns (last: d/d omega) */
+    double jacobian[LD * LD];
+    /* d(response)/d(u, omega), same layout, estimated alongside */
+    double response_jacobian[LD * LD];
+    /* Per-sample variance of each residual entry's two sides (response, reference) pooled over
+     * evaluations: the noise is additive, so every evaluation estimates the same variance, and
+     * 4 periods alone give a standard error good to only +-40 %. Sums of squared deviations and
+     * their degrees of freedom; each correction halves the weight of the earlier ones. */
+    double noise_ss[2][LD];
+    double noise_dof;
+    /* Natural sweep: the latest evaluations (ring), from which an LTI rig's local model
+     * Phi_k = g_k(w) z_k - f_k(w), x_k = r_k(w) z_k + e_k(w) (z_k = A*_k + i B*_k, g, f, r, e
+     * linear in w) is fitted by least squares: every evaluation informs the gains, not only
+     * secant pairs. Metres and rad/s; cos terms then sin terms. */
+    int history_count, history_next;
+    struct {
+        double omega_rad_s;
+        double target[HISTORY_WIDTH], phi[HISTORY_WIDTH], response[HISTORY_WIDTH];
+    } history[RTHS_LTI_HISTORY];
+} corrector_memory;
+
+/* One iterate: scaled unknowns (and omega), the scaled residual (with the arclength row) and
+ * response, the extended residual norm, its record and the solution view of it. */
+typedef struct corrector_point {
+    double u[LD], phi[LD], resp[LD], ext;
+    rths_residual rec;
+    rths_solution sol;
+} corrector_point;
+
+struct rths_corrector {
+    rths_zero_problem problem;
+    rths_newton_options opt;
+    int n;         /* unknowns */
+    int harmonics; /* problem->harmonics (0: no Fourier structure) */
+    int m;         /* n, or n + 1 with the arclength row */
+    double default_amp_scale, default_omega_scale;
+    double scale[LD];
+    rths_arclength arc;
+    corrector_memory mem;
+    /* the current correction */
+    int evaluations, iterations;
+    double rig_time_s;
+    int jacobian_here; /* the Jacobians were measured or secant-updated at this point */
+    int fresh;         /* the Jacobians were just measured */
+    rths_corrector_outcome status;
+    corrector_point cur;
+};
+
+/* evaluate.c */
+int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, rths_error *err);
+
+/* lti.c: the LTI rig's complex-gain form and its local model */
+void lti_block(double *J, int N, int k, double complex g);
+int lti_like(const double *J, int N, double noise_entry);
+void lti_project(double *J, int N);
+int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g, double complex *r,
+            double complex *z_pred, double *var_ratio);
+void lti_update(double *J, int N, const double *s, const double *y, const double *noise);
+void lti_secant_noise(const rths_residual *r0, const rths_residual *r1, int N, double scale,
+                      double *noise_phi, double *noise_resp);
+
+/* jacobian.c */
+int corrector_fd_jacobian(rths_corrector *c, rths_error *err);
+void corrector_secant_update(rths_corrector *c, const corrector_point *trial);
+int solve_small(int m, double *a, int lda, double *b);
+
+/* matched.c */
+void corrector_finish(rths_corrector *c);
+
+#endif

@@ -1,0 +1,124 @@
+/* The true assembly's interface response and the error of a hybrid point against it. */
+#include "rths/truth.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+void rths_truth_free(rths_truth_curve *t) {
+    free(t->freq_hz);
+    free(t->amp_m);
+    free(t->amp_h2_m);
+    free(t->amp_h3_m);
+    free(t->stable);
+    memset(t, 0, sizeof *t);
+}
+
+static int truth_alloc(rths_truth_curve *t, int n, rths_error *err) {
+    t->n = n;
+    t->freq_hz = calloc((size_t)n, sizeof(double));
+    t->amp_m = calloc((size_t)n, sizeof(double));
+    t->amp_h2_m = calloc((size_t)n, sizeof(double));
+    t->amp_h3_m = calloc((size_t)n, sizeof(double));
+    t->stable = calloc((size_t)n, sizeof(int));
+    if (t->freq_hz && t->amp_m && t->amp_h2_m && t->amp_h3_m && t->stable) return RTHS_OK;
+    rths_truth_free(t);
+    return rths_error_set(err, RTHS_EFAIL, "out of memory");
+}
+
+/* Bilinear leg: shooting with pseudo-arclength through the folds, every harmonic kept. */
+static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_truth_curve *t,
+                          rths_error *err) {
+    int iface = s->split.int_dofs[0], n = s->assembly.n;
+    rths_shooting_options opt = {.start_hz = lo_hz,
+                                 .end_hz = hi_hz,
+                                 .steps_per_period = 1024,
+                                 .max_step = 0.02,
+                                 .max_points = 4000};
+    rths_periodic_point *pp = NULL;
+    int count = 0;
+    int rc =
+        rths_bilinear_frf(&s->assembly, &s->leg, s->static_force, s->force, &opt, &pp, &count, err);
+    if (!rc) rc = truth_alloc(t, count, err);
+    for (int j = 0; j < count && !rc; j++) {
+        t->freq_hz[j] = pp[j].omega_rad_s / (2 * M_PI);
+        t->amp_m[j] = hypot(pp[j].cos_m[iface + n], pp[j].sin_m[iface + n]);
+        t->amp_h2_m[j] = hypot(pp[j].cos_m[iface + 2 * n], pp[j].sin_m[iface + 2 * n]);
+        t->amp_h3_m[j] = hypot(pp[j].cos_m[iface + 3 * n], pp[j].sin_m[iface + 3 * n]);
+        t->stable[j] = pp[j].stable;
+    }
+    rths_periodic_points_free(pp, count);
+    return rc;
+}
+
+/* Linear structure: the analytic FRF on the modal analysis's frequency grid. */
+static int analytic_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_truth_curve *t,
+                          rths_error *err) {
+    int iface = s->split.int_dofs[0], n = s->assembly.n;
+    rths_modes modes;
+    double *f = NULL;
+    int count = 0;
+    int rc = rths_modal_analysis(&s->assembly, &modes, err);
+    if (rc) return rc;
+    rc = rths_frf_grid(&modes, lo_hz, hi_hz, 0, &f, &count, err);
+    rths_modes_free(&modes);
+    double complex *x = calloc((size_t)n, sizeof *x);
+    if (!rc && !x) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = truth_alloc(t, count, err);
+    for (int j = 0; j < count && !rc; j++) {
+        rc = rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
+                      2 * M_PI * f[j], x, err);
+        t->freq_hz[j] = f[j];
+        t->amp_m[j] = cabs(x[iface]);
+        t->stable[j] = 1;
+    }
+    free(x);
+    free(f);
+    return rc;
+}
+
+int rths_truth_compute(const rths_setup *s, double lo_hz, double hi_hz, rths_truth_curve *t,
+                       rths_error *err) {
+    memset(t, 0, sizeof *t);
+    int rc = s->has_bilinear ? shooting_truth(s, lo_hz, hi_hz, t, err)
+                             : analytic_truth(s, lo_hz, hi_hz, t, err);
+    t->exact = !s->has_bilinear;
+    return rc;
+}
+
+double rths_truth_curve_distance(const rths_truth_curve *t, double f_hz, double amp_m) {
+    double best = INFINITY;
+    if (!(f_hz > 0 && amp_m > 0)) return best;
+    double pu = 10 * log(f_hz), pv = log(amp_m);
+    for (int j = 0; j + 1 < t->n; j++) {
+        if (!(t->amp_m[j] > 0 && t->amp_m[j + 1] > 0)) continue;
+        double u0 = 10 * log(t->freq_hz[j]), v0 = log(t->amp_m[j]);
+        double du = 10 * log(t->freq_hz[j + 1]) - u0, dv = log(t->amp_m[j + 1]) - v0;
+        double len2 = du * du + dv * dv;
+        double x = len2 > 0 ? ((pu - u0) * du + (pv - v0) * dv) / len2 : 0;
+        x = x < 0 ? 0 : x > 1 ? 1 : x;
+        best = fmin(best, hypot(pu - u0 - x * du, pv - v0 - x * dv));
+    }
+    return best;
+}
+
+double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz) {
+    if (s->has_bilinear) return NAN;
+    int n = s->assembly.n;
+    double complex *x = calloc((size_t)n, sizeof *x);
+    rths_error err;
+    double amp = NAN;
+    if (x && !rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
+                       2 * M_PI * f_hz, x, &err))
+        amp = cabs(x[s->split.int_dofs[0]]);
+    free(x);
+    return amp;
+}
+
+double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t, double f_hz,
+                                 double amp_m) {
+    if (s->has_bilinear) return rths_truth_curve_distance(t, f_hz, amp_m);
+    double truth = rths_truth_linear_amplitude_m(s, f_hz);
+    return fabs(amp_m - truth) / truth;
+}

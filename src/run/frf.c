@@ -1,0 +1,356 @@
+/* The FRF test as one call: configuration -> rig -> continuation -> journal -> outputs. Input is
+ * checked before anything is written; once started, everything accepted goes to journal.jsonl as
+ * it happens, and frf.csv, summary.json and the figures are written at the end however the run
+ * ended, so nothing accepted is ever lost. */
+#include "run/frf_internal.h"
+
+#include "rths/rig_remote.h"
+#include "rths/rig_virtual.h"
+
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/file.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+/* The seed's implicit Euler numerical substructure and its grounding damping (Table 2). */
+const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_euler",
+                                                "controller.grounding_kd_n_s_per_m=200", NULL};
+
+/* A private status the point handler returns to end the continuation on cancellation. */
+enum { FRF_CANCELLED = 100 };
+
+/* Strategy defaults, then the iteration, continuation and output sections over them. */
+static int read_options(frf_state *st, rths_error *err) {
+    const rths_run_frf_options *opt = st->opt;
+    st->strategy = opt->strategy ? opt->strategy : "default";
+    if (strcmp(st->strategy, "default") && strcmp(st->strategy, "paper"))
+        return rths_error_set(err, RTHS_EINPUT, "strategy '%s' is neither 'default' nor 'paper'",
+                              st->strategy);
+    st->paper = !strcmp(st->strategy, "paper");
+    if (opt->harmonics < 0 || opt->harmonics > RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT, "harmonics %d is not in 1..%d", opt->harmonics,
+                              RTHS_MAX_HARMONICS);
+    if (opt->rig_uri && strncmp(opt->rig_uri, "tcp://", 6))
+        return rths_error_set(err, RTHS_EINPUT, "rig '%s' is not tcp://HOST:PORT", opt->rig_uri);
+    st->harmonics = 1;
+    rths_settle_defaults(&st->settle, st->paper);
+    rths_newton_defaults(&st->newton, st->paper);
+    rths_continuation_defaults(&st->cont);
+    st->cont.model_predictor = !st->paper;
+    int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
+    if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
+    if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
+    /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
+     * part may be nonlinear whatever the model says) */
+    st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
+    if (!rc)
+        rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
+                                    &st->trace_hz, err);
+    return rc;
+}
+
+/* The rig, created before anything is written: its configuration errors are input errors. The
+ * run's own sections are checked key by key; the controller process reads rig and controller
+ * itself. */
+static int create_rig(frf_state *st, rths_error *err) {
+    const rths_run_frf_options *opt = st->opt;
+    int rc = RTHS_OK;
+    if (!opt->rig_uri)
+        rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
+    if (!rc) {
+        static const char *const others[] = {"rig",      "controller", "stability",
+                                             "fidelity", "server",     NULL};
+        for (int k = 0; others[k]; k++)
+            rths_config_mark_known(opt->cfg, others[k]);
+        rc = rths_config_check_unknown(opt->cfg, err);
+    }
+    if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
+    return rc;
+}
+
+/* Fills the run's memory with a point (the journal's on resume, already durable). */
+static int remember(frf_state *st, const rths_point *pt) {
+    if (pt->index >= st->cap) {
+        int cap = st->cap ? 2 * st->cap : 64;
+        while (cap <= pt->index)
+            cap *= 2;
+        rths_point *p = realloc(st->pts, (size_t)cap * sizeof *p);
+        if (!p) return RTHS_EFAIL;
+        st->pts = p;
+        st->cap = cap;
+    }
+    st->pts[pt->index] = *pt;
+    if (pt->index >= st->n) st->n = pt->index + 1;
+    return RTHS_OK;
+}
+
+/* --resume: the journal's points, after checking they belong to this kind of run. The journal is
+ * rewritten without a torn last line (atomically), in the current format, so appending continues
+ * on a clean record. */
+static int load_resume(frf_state *st, rths_error *err) {
+    char *jstrategy = NULL;
+    int rc = rths_journal_read(st->journal_path, &st->resume_pts, &st->n_resume, &jstrategy, err);
+    if (rc) return rc;
+    const rths_point *pts = st->resume_pts;
+    if (strcmp(jstrategy, st->strategy))
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s was written by a '%s' run; resume it with --strategy %s",
+                            st->journal_path, jstrategy, jstrategy);
+    else if (st->n_resume > 0 && pts[0].sol.harmonics != st->harmonics)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s matched %d harmonic(s); resume it with --harmonics %d",
+                            st->journal_path, pts[0].sol.harmonics, pts[0].sol.harmonics);
+    free(jstrategy);
+    if (rc) return rc;
+    size_t len = strlen(st->journal_path) + 16;
+    char *tmp = malloc(len);
+    if (!tmp) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    snprintf(tmp, len, "%s.rewrite", st->journal_path);
+    remove(tmp);
+    rths_journal *j = NULL;
+    rc = rths_journal_open_seeded(tmp, st->strategy, st->seed_text, &j, err);
+    for (int i = 0; i < st->n_resume && !rc; i++)
+        rc = rths_journal_append(j, &pts[i], 0, err);
+    if (j) rths_journal_close(j);
+    if (!rc && rename(tmp, st->journal_path))
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot replace %s", st->journal_path);
+    if (rc) remove(tmp);
+    free(tmp);
+    return rc;
+}
+
+/* The output folder holds no run (or, to resume, holds one). */
+static int check_journal(frf_state *st, rths_error *err) {
+    const rths_run_frf_options *opt = st->opt;
+    size_t len = strlen(opt->out_dir) + 32;
+    st->journal_path = malloc(len);
+    if (!st->journal_path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    snprintf(st->journal_path, len, "%s/journal.jsonl", opt->out_dir);
+    struct stat sb;
+    int exists = stat(st->journal_path, &sb) == 0;
+    if (!opt->resume && exists)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s already holds a run (journal.jsonl): continue it with --resume, "
+                              "or choose another --out",
+                              opt->out_dir);
+    if (opt->resume && !exists)
+        return rths_error_set(err, RTHS_EINPUT, "--resume: %s has no journal.jsonl to resume",
+                              opt->out_dir);
+    return RTHS_OK;
+}
+
+/* Two runs must never write one folder: an exclusive flock on DIR/run.lock, held until the run
+ * ends (the kernel drops it if the process dies), which holds the holder's pid. An existing
+ * folder is locked before its journal is looked at (create 0: a missing one is left alone); a new
+ * one is created and locked once the input is checked (create 1), so a refused run leaves
+ * nothing, and its journal check is repeated under the lock because another run may have started
+ * the folder meanwhile. */
+static int lock_folder(frf_state *st, int create, rths_error *err) {
+    const char *dir = st->opt->out_dir;
+    struct stat sb;
+    if (st->lock_fd >= 0 || (!create && stat(dir, &sb) != 0)) return RTHS_OK;
+    if (create && mkdir(dir, 0755) != 0 && errno != EEXIST)
+        return rths_error_set(err, RTHS_EFAIL, "cannot create %s: %s", dir, strerror(errno));
+    size_t len = strlen(dir) + 16;
+    char *path = malloc(len);
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    snprintf(path, len, "%s/run.lock", dir);
+    st->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+    int rc = RTHS_OK;
+    if (st->lock_fd < 0) {
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
+    } else if (flock(st->lock_fd, LOCK_EX | LOCK_NB) != 0) {
+        char pid[32] = "?";
+        ssize_t n = pread(st->lock_fd, pid, sizeof pid - 1, 0);
+        pid[n > 0 ? n : 1] = 0;
+        pid[strcspn(pid, "\n")] = 0;
+        rc =
+            rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir, pid);
+    } else {
+        char pid[32];
+        int n = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
+        if (ftruncate(st->lock_fd, 0) != 0 || pwrite(st->lock_fd, pid, (size_t)n, 0) != n)
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+    }
+    free(path);
+    if (!rc && !st->opt->resume && st->journal_path && stat(st->journal_path, &sb) == 0)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s already holds a run (journal.jsonl): continue it with --resume, "
+                            "or choose another --out",
+                            dir);
+    return rc;
+}
+
+/* Opens the output folder (run.log, config.yaml) and writes the truth curve. */
+static int open_outputs(frf_state *st, rths_error *err) {
+    const rths_run_frf_options *opt = st->opt;
+    int rc = rths_report_open(opt->out_dir, "frf", opt->argc, opt->argv, &st->rep, err);
+    if (rc) return rc;
+    char *path = rths_report_path(st->rep, "config.yaml");
+    rc = path ? rths_config_write(opt->cfg, path, err)
+              : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    free(path);
+    /* the last step may pass end_hz (and the first correction move below start_hz): a margin
+     * keeps every accepted point inside the truth curve it is judged against */
+    double lo = fmin(st->cont.start_hz, st->cont.end_hz),
+           hi = fmax(st->cont.start_hz, st->cont.end_hz);
+    double margin = 0.1 * (hi - lo);
+    lo = fmax(lo - margin, 0.5 * lo);
+    hi += margin;
+    if (!rc) rc = rths_truth_compute(st->setup, lo, hi, &st->truth, err);
+    if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
+    if (!rc)
+        rc = rths_journal_open_seeded(st->journal_path, st->strategy, st->seed_text, &st->journal,
+                                      err);
+    if (!rc && st->opt->resume) {
+        const char *changes[FRF_MAX_CHANGES];
+        for (int i = 0; i < st->n_changes; i++)
+            changes[i] = st->changes[i];
+        rc = rths_journal_append_resume(st->journal, st->n_resume, changes, st->n_changes, err);
+    }
+    for (int i = 0; i < st->n_resume && !rc; i++)
+        if (remember(st, &st->resume_pts[i])) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    return rc;
+}
+
+static int on_point(void *user, const rths_point *pt, int is_update) {
+    frf_state *st = user;
+    rths_error err;
+    if (rths_journal_append(st->journal, pt, is_update, &err)) {
+        rths_report_log(st->rep, "%s", err.msg);
+        fprintf(stderr, "rths frf: %s\n", err.msg);
+        return RTHS_EFAIL;
+    }
+    if (remember(st, pt)) return RTHS_EFAIL;
+    const rths_run_callbacks *cb = st->cb;
+    int rc = cb && cb->on_point ? cb->on_point(cb->user, pt, is_update) : RTHS_OK;
+    if (!rc && cb && cb->should_cancel && cb->should_cancel(cb->user)) {
+        st->cancelled = 1;
+        return FRF_CANCELLED;
+    }
+    return rc;
+}
+
+static void on_progress(void *user, int points, double frequency_hz, double residual_m,
+                        int evaluations, int accepted) {
+    const rths_run_callbacks *cb = ((frf_state *)user)->cb;
+    if (cb && cb->on_progress)
+        cb->on_progress(cb->user, points, frequency_hz, residual_m, evaluations, accepted);
+}
+
+/* The continuation itself; returns its status (RTHS_OK also when cancelled). */
+static int run_continuation(frf_state *st, rths_error *run_err) {
+    rths_report_log(st->rep, "start: strategy %s, %d harmonic(s), %s continuation %g -> %g Hz%s",
+                    st->strategy, st->harmonics,
+                    st->cont.method == RTHS_CONT_ARCLENGTH ? "pseudo-arclength" : "natural",
+                    st->cont.start_hz, st->cont.end_hz, st->opt->resume ? ", resumed" : "");
+    if (st->cb && st->cb->should_cancel && st->cb->should_cancel(st->cb->user)) st->cancelled = 1;
+    int run_rc = RTHS_OK;
+    if (!st->cancelled)
+        run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
+                                       st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
+                                       on_point, on_progress, st, &st->result, run_err);
+    if (st->cancelled) {
+        run_rc = RTHS_OK;
+        snprintf(st->result.stop_reason, sizeof st->result.stop_reason,
+                 "cancelled by the caller after %d points", st->n);
+    }
+    rths_report_log(st->rep, "continuation ended: %s%s%s", st->result.stop_reason,
+                    run_rc ? "; " : "", run_rc ? run_err->msg : "");
+    return run_rc;
+}
+
+/* frf.csv, the Lissajous trace (not after a rig fault or a cancellation), summary.json, the
+ * figures. */
+static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
+    int rc = frf_write_frf_csv(st->rep, st, err);
+    int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
+    if (!rc && pick >= 0) {
+        rths_error trace_err;
+        if (frf_trace_point(st->rep, st->rig, &st->settle, st->harmonics,
+                            st->setup->forcing_amplitude_n, &st->pts[pick], &st->trace_rig_time_s,
+                            &trace_err))
+            rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);
+    }
+    if (!rc) rc = frf_write_summary(st, err);
+    if (!rc && st->n > 0) {
+        char title[256];
+        snprintf(title, sizeof title, "Hybrid test, %s strategy, p = %g, %d harmonic(s)%s",
+                 st->strategy, st->setup->split.mass_ratio, st->harmonics,
+                 st->setup->has_bilinear ? ", bilinear leg" : "");
+        rc = frf_plot_frf(st->rep, st, &st->truth, title, err);
+    }
+    return rc;
+}
+
+static void fill_result(const frf_state *st, int run_rc, rths_run_frf_result *r) {
+    r->points = st->n;
+    r->resumed_points = st->n_resume;
+    r->folds = st->result.n_folds;
+    r->wall_time_s = st->wall_time_s;
+    r->max_relative_error_vs_truth = st->max_truth_error;
+    for (int i = 0; i < st->n; i++) {
+        r->converged_points += st->pts[i].sol.converged;
+        r->evaluations += st->pts[i].evaluations;
+        r->rig_time_s += st->pts[i].rig_time_s;
+    }
+    snprintf(r->stop_reason, sizeof r->stop_reason, "%s", st->result.stop_reason);
+    r->outputs_written = 1;
+    r->status = run_rc                   ? RTHS_RUN_FAILED
+                : st->cancelled          ? RTHS_RUN_CANCELLED
+                : st->result.reached_end ? RTHS_RUN_COMPLETED
+                                         : RTHS_RUN_STOPPED;
+}
+
+static void release(frf_state *st) {
+    if (st->journal) rths_journal_close(st->journal);
+    rths_truth_free(&st->truth);
+    free(st->pts);
+    free(st->resume_pts);
+    free(st->journal_path);
+    if (st->rig) rths_rig_destroy(st->rig);
+    rths_report_close(st->rep);
+    if (st->lock_fd >= 0) close(st->lock_fd); /* releases the folder */
+}
+
+int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
+                 rths_run_frf_result *result, rths_error *err) {
+    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1};
+    if (opt->has_seed)
+        snprintf(st.seed_buf, sizeof st.seed_buf, "%llu", (unsigned long long)opt->seed);
+    st.seed_text = opt->has_seed ? st.seed_buf : NULL;
+    memset(result, 0, sizeof *result);
+    result->status = RTHS_RUN_FAILED;
+    int rc = read_options(&st, err);
+    if (!rc) rc = create_rig(&st, err);
+    if (!rc) rc = lock_folder(&st, 0, err);
+    if (!rc) rc = check_journal(&st, err);
+    if (!rc) rc = lock_folder(&st, 1, err);
+    if (!rc && opt->resume) rc = frf_check_resume_config(&st, err);
+    if (!rc && opt->resume) rc = load_resume(&st, err);
+    if (!rc) rc = open_outputs(&st, err);
+    int run_rc = RTHS_OK;
+    rths_error run_err = {0};
+    double t_start = rths_monotonic_s();
+    if (!rc) run_rc = run_continuation(&st, &run_err);
+    st.wall_time_s = rths_monotonic_s() - t_start;
+    /* Whatever ended the run, everything accepted is written out. A run that accepted no point
+     * (and was not cancelled) measured nothing: a failure, whatever stopped it. */
+    if (!rc && !run_rc && st.n == 0 && !st.cancelled)
+        run_rc = rths_error_set(&run_err, RTHS_EFAIL, "no point was accepted: %s",
+                                st.result.stop_reason);
+    if (!rc) rc = write_outputs(&st, run_rc, err);
+    if (!rc) fill_result(&st, run_rc, result);
+    if (!rc && run_rc) {
+        *err = run_err;
+        rc = run_rc;
+    }
+    if (st.rep) rths_report_log(st.rep, "finished with status %d", rc);
+    release(&st);
+    return rc;
+}

@@ -1,0 +1,58 @@
+/* The FRF run's state, shared by the files of src/run (not installed). */
+#ifndef RTHS_RUN_FRF_INTERNAL_H
+#define RTHS_RUN_FRF_INTERNAL_H
+
+#include "rths/report.h"
+#include "rths/run.h"
+#include "rths/truth.h"
+
+typedef struct frf_state {
+    const rths_run_frf_options *opt;
+    const rths_run_callbacks *cb;
+    const rths_setup *setup;
+    const char *strategy;
+    int paper;
+    rths_settle_options settle;
+    rths_newton_options newton;
+    rths_continuation_options cont;
+    int harmonics;
+    double trace_hz; /* output.trace_frequency_hz: the point of the Lissajous figure (0: peak) */
+    rths_rig *rig;
+    rths_report *rep;
+    rths_journal *journal;
+    char *journal_path;
+    rths_point *resume_pts;
+    int n_resume;
+    rths_point *pts; /* accepted points in index order (updates replace) */
+    int n, cap;
+    rths_truth_curve truth;
+    rths_continuation_result result;
+    int cancelled;
+    int lock_fd; /* DIR/run.lock, flock'ed while the run owns the folder */
+    /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */
+    char changes[8][256];
+    int n_changes;
+    char seed_buf[32];
+    const char *seed_text; /* --seed as text (recorded in the journal), NULL when not given */
+    double wall_time_s, trace_rig_time_s, max_truth_error;
+} frf_state;
+
+enum { FRF_MAX_CHANGES = 8 };
+
+/* resume_check.c: refuses a resumed configuration that changes more than end_hz, max_points or
+ * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */
+int frf_check_resume_config(frf_state *st, rths_error *err);
+
+/* frf_outputs.c */
+double frf_harmonic_error(const rths_point *pt, int k);
+int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err);
+int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err);
+int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
+                 const char *title, rths_error *err);
+int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_settle_options *settle,
+                    int harmonics, double amplitude_n, const rths_point *pt,
+                    double *trace_rig_time_s, rths_error *err);
+int frf_choose_trace_point(const frf_state *run, double trace_hz);
+int frf_write_summary(frf_state *run, rths_error *err);
+
+#endif

@@ -1,0 +1,380 @@
+/* The FRF test's outputs: frf.csv, truth.csv, the figures (frf, iterations, lissajous with
+ * trace.csv) and summary.json. */
+#include "run/frf_internal.h"
+
+#include <json-c/json.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* rths_json_summary_new plus what identifies the run's input. */
+static json_object *summary_new(const rths_run_frf_options *opt) {
+    json_object *o = rths_json_summary_new("frf");
+    if (!o) return NULL;
+    if (opt->config_path)
+        json_object_object_add(o, "config_file", json_object_new_string(opt->config_path));
+    json_object *sets = json_object_new_array();
+    for (int i = 0; i < opt->n_overrides; i++)
+        json_object_array_add(sets, json_object_new_string(opt->overrides[i]));
+    json_object_object_add(o, "overrides", sets);
+    if (opt->has_seed) json_object_object_add(o, "seed", json_object_new_uint64(opt->seed));
+    return o;
+}
+
+static int write_summary_json(rths_report *rep, json_object *root, rths_error *err) {
+    char *path = rths_report_path(rep, "summary.json");
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = rths_json_write(path, root, err);
+    free(path);
+    if (!rc) rths_report_log(rep, "wrote summary.json");
+    return rc;
+}
+
+/* Interface mismatch of harmonic k (m): |phys_k - num_k| as a complex amplitude. */
+double frf_harmonic_error(const rths_point *pt, int k) {
+    return hypot(pt->sol.eval.phys.a[k] - pt->sol.eval.num.a[k],
+                 pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
+}
+
+enum { FRF_COLUMNS = 22 };
+
+int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
+    static const char *const header[FRF_COLUMNS] = {"point",
+                                                    "frequency_hz",
+                                                    "amplitude_m",
+                                                    "numerical_amplitude_m",
+                                                    "phase_rad",
+                                                    "interface_error_m",
+                                                    "interface_error_h2_m",
+                                                    "interface_error_h3_m",
+                                                    "amplitude_h2_m",
+                                                    "amplitude_h3_m",
+                                                    "target_a1_m",
+                                                    "target_b1_m",
+                                                    "residual_norm_m",
+                                                    "tolerance_m",
+                                                    "evaluations",
+                                                    "iterations",
+                                                    "rig_time_s",
+                                                    "converged",
+                                                    "fold",
+                                                    "segment",
+                                                    "amplitude_se_m",
+                                                    "measured_amplitude_m"};
+    char *path = rths_report_path(rep, "frf.csv");
+    rths_csv *csv = NULL;
+    int rc = path ? rths_csv_open(path, FRF_COLUMNS, header, &csv, err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < run->n && !rc; i++) {
+        const rths_point *pt = &run->pts[i];
+        const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
+        double row[FRF_COLUMNS] = {
+            /* amplitude_m: what the strategy reports (the response extrapolated to zero
+             * mismatch by default, the measurement for paper); measured_amplitude_m: the
+             * measurement */
+            pt->index, pt->sol.frequency_hz, pt->sol.amplitude_m, hypot(nu->a[1], nu->b[1]),
+            /* x = A cos + B sin = R cos(wt + phi) with phi = atan2(-B, A) */
+            atan2(-ph->b[1], ph->a[1]), frf_harmonic_error(pt, 1), frf_harmonic_error(pt, 2),
+            frf_harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
+            pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
+            pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold,
+            pt->segment, pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1])};
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
+    }
+    rc = rths_csv_finish(csv, rc, err);
+    free(path);
+    return rc;
+}
+
+int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err) {
+    static const char *const header[5] = {"frequency_hz", "amplitude_m", "amplitude_h2_m",
+                                          "amplitude_h3_m", "stable"};
+    char *path = rths_report_path(rep, "truth.csv");
+    rths_csv *csv = NULL;
+    int rc = path ? rths_csv_open(path, 5, header, &csv, err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int j = 0; j < t->n && !rc; j++) {
+        double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
+    }
+    rc = rths_csv_finish(csv, rc, err);
+    free(path);
+    return rc;
+}
+
+int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
+                 const char *title, rths_error *err) {
+    /* Interface errors are tiny next to the response: magnify them so the largest bar is about
+     * 5 % of the peak, and say by how much in the legend (the seed used a fixed 2x). */
+    double max_amp = 0, max_err = 0;
+    for (int i = 0; i < run->n; i++) {
+        max_amp = fmax(max_amp, run->pts[i].sol.amplitude_m);
+        max_err = fmax(max_err, frf_harmonic_error(&run->pts[i], 1));
+    }
+    double mag = 1;
+    if (max_err > 0) {
+        mag = 0.05 * max_amp / max_err;
+        double decade = pow(10, floor(log10(mag)));
+        mag = mag >= 1 ? floor(mag / decade) * decade : 1;
+    }
+    int any_unstable = 0, any_fold = 0;
+    for (int j = 0; j < t->n; j++)
+        any_unstable |= !t->stable[j];
+    for (int i = 0; i < run->n; i++)
+        any_fold |= run->pts[i].fold;
+    char body[4096];
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set title \"%s\" noenhanced\n"
+             "set xlabel 'Forcing frequency (Hz)'\n"
+             "set ylabel 'Interface displacement amplitude, fundamental (m)'\n"
+             "set format y '%%.1e'\n"
+             "set grid\n"
+             "set key below\n"
+             "set bmargin 8\n"
+             "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
+             "'black' title 'true assembly%s'%s, \\\n"
+             "     'frf.csv' using 2:3:($6 * %g) skip 1 with yerrorbars pt 7 ps 0.8 lc rgb "
+             "'#1f77b4' title 'hybrid test (bars: interface error x %g)'%s\n",
+             title, any_unstable ? ", stable" : "",
+             any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
+                            "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
+                          : "",
+             mag, mag,
+             any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
+                        "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
+                      : "");
+    int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
+    if (rc) return rc;
+    int max_iterations = 0;
+    for (int i = 0; i < run->n; i++)
+        max_iterations =
+            run->pts[i].iterations > max_iterations ? run->pts[i].iterations : max_iterations;
+    /* the range hugs the bars: no empty tick left of 0 */
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set title 'Newton iterations per accepted point'\n"
+             "set xlabel 'Iterations to converge'\n"
+             "set ylabel 'Number of points'\n"
+             "set boxwidth 0.8\n"
+             "set style fill solid 0.6\n"
+             "set xtics 1\n"
+             "set xrange [-0.6:%g]\n"
+             "set grid ytics\n"
+             "set yrange [0:*]\n"
+             "plot 'frf.csv' using 16:(1) skip 1 smooth frequency with boxes lc rgb '#1f77b4' "
+             "title 'points'\n",
+             max_iterations + 0.6);
+    return rths_plot(rep, rths_report_dir(rep), "iterations", 900, 600, body, err);
+}
+
+/* Fig. 8 of the seed: time traces and the phase (Lissajous) plot of the physical against the
+ * numerical interface displacement at one converged point. */
+int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_settle_options *settle,
+                    int harmonics, double amplitude_n, const rths_point *pt,
+                    double *trace_rig_time_s, rths_error *err) {
+    double t0 = rths_rig_time_s(rig);
+    rths_evaluation ev;
+    double f_hz = pt->sol.omega_rad_s / (2 * M_PI);
+    int rc = rths_evaluate(rig, settle, harmonics, f_hz, amplitude_n, pt->sol.target_a,
+                           pt->sol.target_b, &ev, err);
+    enum { MAX_SAMPLES = 4000 };
+    rths_trace_sample *tr = calloc(MAX_SAMPLES, sizeof *tr);
+    int n = 0;
+    if (!rc && !tr) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, tr, &n, err);
+    *trace_rig_time_s = rths_rig_time_s(rig) - t0;
+    static const char *const header[6] = {"time_s",   "x_phys_m", "x_num_m",
+                                          "target_m", "force_n",  "demand"};
+    char *path = rc ? NULL : rths_report_path(rep, "trace.csv");
+    rths_csv *csv = NULL;
+    if (!rc) rc = rths_csv_open(path, 6, header, &csv, err);
+    for (int i = 0; i < n && !rc; i++) {
+        double row[6] = {tr[i].time_s - tr[0].time_s,
+                         tr[i].x_phys_m,
+                         tr[i].x_num_m,
+                         tr[i].target_m,
+                         tr[i].force_n,
+                         tr[i].demand};
+        if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing trace.csv");
+    }
+    rc = rths_csv_finish(csv, rc, err);
+    free(path);
+    free(tr);
+    if (rc) return rc;
+    char body[4096];
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set multiplot layout 1,2 title 'Converged point %d at %.4f Hz: interface "
+             "displacements'\n"
+             "set xlabel 'Time (s)'\n"
+             "set ylabel 'Displacement ({/Symbol m}m)'\n"
+             "set grid\n"
+             "set key below\n"
+             "plot 'trace.csv' using 1:($2 * 1e6) skip 1 with lines lw 2 title 'physical x_3', "
+             "\\\n"
+             "     'trace.csv' using 1:($3 * 1e6) skip 1 with lines lw 2 dt 2 title 'numerical "
+             "{/Symbol x}_3', \\\n"
+             "     'trace.csv' using 1:($4 * 1e6) skip 1 with lines lw 1 lc rgb 'gray50' title "
+             "'target x^*'\n"
+             "set xlabel 'Physical x_3 ({/Symbol m}m)'\n"
+             "set ylabel 'Numerical {/Symbol x}_3 ({/Symbol m}m)'\n"
+             "set size square\n"
+             "unset key\n"
+             "plot 'trace.csv' using ($2 * 1e6):($3 * 1e6) skip 1 with lines lw 2 lc rgb "
+             "'#1f77b4'\n"
+             "unset multiplot\n",
+             pt->index, f_hz);
+    return rths_plot(rep, rths_report_dir(rep), "lissajous", 1400, 650, body, err);
+}
+
+static int compare_int(const void *a, const void *b) {
+    return (*(const int *)a > *(const int *)b) - (*(const int *)a < *(const int *)b);
+}
+
+typedef struct {
+    int converged, evaluations, within_3se;
+    double rig_time, max_h[4], median;
+} point_stats;
+
+/* Totals and extremes over the accepted points; the largest error against the truth goes to
+ * run->max_truth_error. */
+static void point_statistics(frf_state *run, point_stats *ps) {
+    const rths_truth_curve *t = &run->truth;
+    memset(ps, 0, sizeof *ps);
+    int *evals = calloc((size_t)(run->n ? run->n : 1), sizeof *evals);
+    run->max_truth_error = 0;
+    for (int i = 0; i < run->n; i++) {
+        const rths_point *pt = &run->pts[i];
+        ps->converged += pt->sol.converged;
+        ps->evaluations += pt->evaluations;
+        ps->rig_time += pt->rig_time_s;
+        if (evals) evals[i] = pt->evaluations;
+        for (int k = 1; k <= 3; k++)
+            ps->max_h[k] = fmax(ps->max_h[k], frf_harmonic_error(pt, k));
+        double e =
+            rths_truth_relative_error(run->setup, t, pt->sol.frequency_hz, pt->sol.amplitude_m);
+        if (isfinite(e)) run->max_truth_error = fmax(run->max_truth_error, e);
+        double truth = rths_truth_linear_amplitude_m(run->setup, pt->sol.frequency_hz);
+        ps->within_3se += fabs(pt->sol.amplitude_m - truth) <= 3 * pt->sol.amplitude_se_m;
+    }
+    if (evals && run->n) {
+        qsort(evals, (size_t)run->n, sizeof *evals, compare_int);
+        ps->median =
+            run->n % 2 ? evals[run->n / 2] : 0.5 * (evals[run->n / 2 - 1] + evals[run->n / 2]);
+    }
+    free(evals);
+}
+
+/* The folds: where this process located them, else (a resumed journal's flag without a located
+ * fold) the midpoint of the bracketing points. */
+static json_object *folds_json(const frf_state *run) {
+    const rths_continuation_result *res = &run->result;
+    json_object *folds = json_object_new_array();
+    for (int i = 0; i < run->n; i++) {
+        if (!run->pts[i].fold) continue;
+        double f = 0, a = 0;
+        int found = 0;
+        for (int k = 0; k < res->n_folds; k++)
+            if (res->folds[k].after_point == i) {
+                f = res->folds[k].frequency_hz;
+                a = res->folds[k].amplitude_m;
+                found = 1;
+            }
+        if (!found && i + 1 < run->n) {
+            f = 0.25 * (run->pts[i].sol.omega_rad_s + run->pts[i + 1].sol.omega_rad_s) / M_PI;
+            a = 0.5 *
+                (rths_point_amplitude_m(&run->pts[i]) + rths_point_amplitude_m(&run->pts[i + 1]));
+        }
+        json_object *fold = json_object_new_object();
+        json_object_object_add(fold, "frequency_hz", json_object_new_double(f));
+        json_object_object_add(fold, "amplitude_m", json_object_new_double(a));
+        json_object_object_add(fold, "after_point", json_object_new_int(i));
+        json_object_array_add(folds, fold);
+    }
+    return folds;
+}
+
+int frf_write_summary(frf_state *run, rths_error *err) {
+    const frf_state *facts = run;
+    const rths_continuation_result *res = &run->result;
+    json_object *root = summary_new(run->opt);
+    point_stats ps;
+    point_statistics(run, &ps);
+    int converged = ps.converged, evaluations = ps.evaluations, within_3se = ps.within_3se;
+    double rig_time = ps.rig_time, median = ps.median, *max_h = ps.max_h;
+    double *max_truth_error = &run->max_truth_error;
+    json_object_object_add(root, "strategy", json_object_new_string(facts->strategy));
+    json_object_object_add(root, "harmonics", json_object_new_int(facts->harmonics));
+    json_object_object_add(root, "mass_ratio",
+                           json_object_new_double(facts->setup->split.mass_ratio));
+    json_object_object_add(root, "forcing_amplitude_n",
+                           json_object_new_double(facts->setup->forcing_amplitude_n));
+    json_object_object_add(root, "bilinear", json_object_new_boolean(facts->setup->has_bilinear));
+    json_object_object_add(root, "points", json_object_new_int(run->n));
+    json_object_object_add(root, "converged_points", json_object_new_int(converged));
+    json_object_object_add(root, "resumed_points", json_object_new_int(facts->n_resume));
+    /* Totals over the accepted points (journal included on --resume); failed attempts are in
+     * their point's counts, since a point's counters include its retries. */
+    json_object_object_add(root, "evaluations_total", json_object_new_int(evaluations));
+    json_object_object_add(root, "evaluations_per_point_median", json_object_new_double(median));
+    json_object_object_add(root, "evaluations_per_point_mean",
+                           json_object_new_double(run->n ? (double)evaluations / run->n : 0));
+    json_object_object_add(root, "rig_time_s", json_object_new_double(rig_time));
+    json_object_object_add(root, "rig_time_per_point_s",
+                           json_object_new_double(run->n ? rig_time / run->n : 0));
+    json_object_object_add(root, "trace_rig_time_s",
+                           json_object_new_double(facts->trace_rig_time_s));
+    json_object_object_add(root, "wall_time_s", json_object_new_double(facts->wall_time_s));
+    json_object_object_add(root, "failed_corrections", json_object_new_int(res->failures));
+    json_object_object_add(root, "reached_end", json_object_new_boolean(res->reached_end));
+    json_object_object_add(root, "stop_reason", json_object_new_string(res->stop_reason));
+    json_object_object_add(root, "folds", folds_json(run));
+    json_object_object_add(root, "max_interface_error_h1_m", json_object_new_double(max_h[1]));
+    json_object_object_add(root, "max_interface_error_h2_m", json_object_new_double(max_h[2]));
+    json_object_object_add(root, "max_interface_error_h3_m", json_object_new_double(max_h[3]));
+    json_object_object_add(
+        root, "truth",
+        json_object_new_string(facts->setup->has_bilinear
+                                   ? "shooting with the bilinear leg (truth.csv)"
+                                   : "analytic FRF of the assembly (truth.csv)"));
+    json_object_object_add(root, "max_relative_error_vs_truth",
+                           json_object_new_double(*max_truth_error));
+    json_object_object_add(
+        root, "amplitude_reported",
+        json_object_new_string(facts->newton.report_matched
+                                   ? "matched: the physical interface response extrapolated to "
+                                     "zero interface mismatch through the corrector's Jacobians"
+                                   : "measured: the physical interface response at the accepted "
+                                     "target"));
+    /* only where the truth is exact (analytic, linear structure) */
+    if (!facts->setup->has_bilinear)
+        json_object_object_add(root, "points_within_3_standard_errors",
+                               json_object_new_int(within_3se));
+    json_object_object_add(
+        root, "truth_error_measure",
+        json_object_new_string(facts->setup->has_bilinear
+                                   ? "distance to the truth curve in the plane (10 ln f, ln A): "
+                                     "1 % in amplitude or 0.1 % in frequency count alike"
+                                   : "|A - A_true(f)| / A_true(f) at each point's frequency"));
+    int rc = write_summary_json(run->rep, root, err);
+    json_object_put(root);
+    return rc;
+}
+
+int frf_choose_trace_point(const frf_state *run, double trace_hz) {
+    int best = -1;
+    double best_score = -INFINITY;
+    for (int i = 0; i < run->n; i++) {
+        const rths_point *pt = &run->pts[i];
+        if (!pt->sol.converged) continue;
+        double score = trace_hz > 0 ? -fabs(pt->sol.omega_rad_s / (2 * M_PI) - trace_hz)
+                                    : rths_point_amplitude_m(pt);
+        if (score > best_score) {
+            best_score = score;
+            best = i;
+        }
+    }
+    return best;
+}

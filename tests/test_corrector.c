@@ -1,0 +1,367 @@
+/* The corrector alone on classic nonlinear systems with known roots, as GSL's multiroot tests
+ * (test_funcs.c) do: Rosenbrock, Powell singular, Helical valley, Freudenstein-Roth and Powell
+ * badly scaled (Moré, Garbow & Hillstrom, ACM TOMS 7, 1981, problems 1, 13, 7, 2 and 3, from their
+ * standard starting points), and a Duffing oscillator's harmonic balance whose root follows from
+ * the amplitude equation. Each runs noise-free and with seeded Gaussian noise on every residual
+ * entry (the evaluation reports that noise as its standard error, as a rig measurement does).
+ *
+ * Tolerances. Noise-free: ||F|| < 1e-10 is asked; at a regular root x - x* = J^-1 F to first
+ * order, so |x - x*| <= ||J^-1||_F ||F|| (J^-1 computed here from the analytic Jacobian) with a
+ * factor 10 for the second-order term. With noise of standard deviation s per entry the corrector
+ * stops once the measured ||F|| < 3 s sqrt(n) (its noise floor); the true ||F|| then is below that
+ * plus the noise itself (< 3 s sqrt(n) with probability > 0.99 for n <= 4), so
+ * |x - x*| <= ||J^-1||_F 6 s sqrt(n), again with a factor 10 of margin. Singular roots (Powell
+ * singular) are bounded through their squared terms instead (see there). */
+#include "testlib.h"
+
+#include "rths/iterate.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+enum { NMAX = 2 * RTHS_MAX_HARMONICS };
+
+typedef struct analytic analytic;
+struct analytic {
+    const char *name;
+    int n;
+    void (*f)(const double *x, double *fx);
+    void (*jac)(const double *x, double *J); /* column-major n x n, for the bounds */
+    double x0[NMAX], root[NMAX];
+    int singular_root;
+    double noise; /* standard deviation added to each entry (0: none) */
+    rths_rng rng;
+};
+
+/* ---- the systems ---- */
+
+static void rosenbrock(const double *x, double *f) {
+    f[0] = 10 * (x[1] - x[0] * x[0]);
+    f[1] = 1 - x[0];
+}
+static void rosenbrock_j(const double *x, double *J) {
+    J[0] = -20 * x[0], J[1] = -1, J[2] = 10, J[3] = 0;
+}
+
+static void powell_singular(const double *x, double *f) {
+    f[0] = x[0] + 10 * x[1];
+    f[1] = sqrt(5.0) * (x[2] - x[3]);
+    f[2] = (x[1] - 2 * x[2]) * (x[1] - 2 * x[2]);
+    f[3] = sqrt(10.0) * (x[0] - x[3]) * (x[0] - x[3]);
+}
+
+static double helical_theta(const double *x) {
+    return atan2(x[1], x[0]) / (2 * M_PI); /* MGH's branch: (0, 1/2] for x2 = 0, x1 < 0 */
+}
+static void helical(const double *x, double *f) {
+    f[0] = 10 * (x[2] - 10 * helical_theta(x));
+    f[1] = 10 * (hypot(x[0], x[1]) - 1);
+    f[2] = x[2];
+}
+static void helical_j(const double *x, double *J) {
+    double r2 = x[0] * x[0] + x[1] * x[1], r = sqrt(r2);
+    /* d theta / dx1 = -x2 / (2 pi r^2), d theta / dx2 = x1 / (2 pi r^2) */
+    J[0] = 100 * x[1] / (2 * M_PI * r2), J[1] = 10 * x[0] / r, J[2] = 0;
+    J[3] = -100 * x[0] / (2 * M_PI * r2), J[4] = 10 * x[1] / r, J[5] = 0;
+    J[6] = 10, J[7] = 0, J[8] = 1;
+}
+
+static void roth(const double *x, double *f) {
+    f[0] = -13 + x[0] + ((5 - x[1]) * x[1] - 2) * x[1];
+    f[1] = -29 + x[0] + ((x[1] + 1) * x[1] - 14) * x[1];
+}
+static void roth_j(const double *x, double *J) {
+    J[0] = 1, J[1] = 1;
+    J[2] = 10 * x[1] - 3 * x[1] * x[1] - 2, J[3] = 3 * x[1] * x[1] + 2 * x[1] - 14;
+}
+
+static void powell_scaled(const double *x, double *f) {
+    f[0] = 1e4 * x[0] * x[1] - 1;
+    f[1] = exp(-x[0]) + exp(-x[1]) - 1.0001;
+}
+static void powell_scaled_j(const double *x, double *J) {
+    J[0] = 1e4 * x[1], J[1] = -exp(-x[0]), J[2] = 1e4 * x[0], J[3] = -exp(-x[1]);
+}
+
+/* Duffing oscillator m x'' + c x' + k x + k3 x^3 = F cos(w t), one harmonic x = a cos + b sin:
+ * F1 = (k - m w^2) a + c w b + 3/4 k3 A^2 a - F, F2 = (k - m w^2) b - c w a + 3/4 k3 A^2 b,
+ * A^2 = a^2 + b^2 (residuals in newtons, unknowns in millimetres so both are O(1)). Below the
+ * folds the amplitude equation [(k - m w^2 + 3/4 k3 A^2)^2 + (c w)^2] A^2 = F^2 has one root. */
+static const double duf_m = 1, duf_c = 2, duf_k = 4000, duf_k3 = 4e9, duf_F = 5, duf_w = 50;
+static double duf_keff(double A) {
+    return duf_k - duf_m * duf_w * duf_w + 0.75 * duf_k3 * A * A;
+}
+static void duffing(const double *x, double *f) {
+    double a = 1e-3 * x[0], b = 1e-3 * x[1], ke = duf_keff(hypot(a, b));
+    f[0] = ke * a + duf_c * duf_w * b - duf_F;
+    f[1] = ke * b - duf_c * duf_w * a;
+}
+static void duffing_j(const double *x, double *J) {
+    double a = 1e-3 * x[0], b = 1e-3 * x[1], ke = duf_keff(hypot(a, b)), q = 1.5 * duf_k3;
+    J[0] = 1e-3 * (ke + q * a * a), J[1] = 1e-3 * (q * a * b - duf_c * duf_w);
+    J[2] = 1e-3 * (q * a * b + duf_c * duf_w), J[3] = 1e-3 * (ke + q * b * b);
+}
+/* The root from the amplitude equation, by bisection on A (monotone below the folds). */
+static void duffing_root(double *root) {
+    double lo = 0, hi = 1;
+    for (int i = 0; i < 200; i++) {
+        double A = 0.5 * (lo + hi), ke = duf_keff(A);
+        if ((ke * ke + duf_c * duf_c * duf_w * duf_w) * A * A < duf_F * duf_F)
+            lo = A;
+        else
+            hi = A;
+    }
+    double A = 0.5 * (lo + hi), ke = duf_keff(A), d = ke * ke + duf_c * duf_c * duf_w * duf_w;
+    root[0] = 1e3 * duf_F * ke / d;
+    root[1] = 1e3 * duf_F * duf_c * duf_w / d;
+}
+
+/* ---- the zero problem over an analytic system ---- */
+
+static int analytic_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
+                         rths_error *err) {
+    (void)omega_rad_s;
+    (void)err;
+    analytic *p = ctx;
+    memset(out, 0, sizeof *out);
+    out->n = p->n;
+    p->f(u, out->phi);
+    for (int i = 0; i < p->n; i++) {
+        out->phi[i] += p->noise * rths_rng_normal(&p->rng);
+        out->phi_se[i] = p->noise;
+        out->response[i] = out->phi[i]; /* Phi = response - reference, reference 0 */
+        out->response_se[i] = p->noise;
+    }
+    out->samples = 1; /* one sample: nothing to pool */
+    return RTHS_OK;
+}
+
+static void options_for(const analytic *p, rths_newton_options *opt) {
+    rths_newton_defaults(opt, 0);
+    opt->max_iterations = 200;
+    opt->rel_tolerance = 0;
+    opt->abs_tolerance_m = 1e-10;
+    opt->noise_factor = 3.0;
+    /* forward differences: sqrt(machine epsilon) noise-free; above the noise (error s / h of
+     * 1e-4 relative) with it */
+    opt->fd_step_rel = p->noise > 0 ? 1e-2 : 1e-7;
+    opt->fd_step_min_m = 0;
+    opt->step_limit = 0; /* rig safety only: an analytic system has no stroke */
+    opt->report_matched = 0;
+}
+
+/* Solves p from its starting point; returns the status, the root in x and the evaluations. */
+static rths_corrector_outcome solve(analytic *p, double *x, int *evaluations) {
+    rths_zero_problem problem = {.n = p->n, .harmonics = 0, .eval = analytic_eval, .ctx = p};
+    rths_newton_options opt;
+    options_for(p, &opt);
+    rths_corrector *c;
+    rths_error err;
+    assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
+    rths_corrector_set_scales(c, 1.0, 1.0);
+    int rc = rths_corrector_solve(c, p->x0, 1.0, NULL, &err);
+    if (rc && getenv("RTHS_TEST_VERBOSE")) fprintf(stderr, "%s: %s\n", p->name, err.msg);
+    rths_corrector_unknowns(c, x);
+    rths_corrector_counters(c, evaluations, NULL, NULL);
+    rths_corrector_outcome status = rths_corrector_status(c);
+    rths_corrector_destroy(c);
+    return status;
+}
+
+/* Frobenius norm of J^-1 at the root (an upper bound of its 2-norm). */
+static double inverse_norm(const analytic *p) {
+    double J[NMAX * NMAX], inv[NMAX * NMAX] = {0}, s = 0;
+    p->jac(p->root, J);
+    for (int i = 0; i < p->n; i++)
+        inv[i + i * p->n] = 1;
+    assert_int_equal(rths_mat_solve(p->n, p->n, J, inv), 0);
+    for (int i = 0; i < p->n * p->n; i++)
+        s += inv[i] * inv[i];
+    return sqrt(s);
+}
+
+static void check_root(analytic *p) {
+    double x[NMAX];
+    int evaluations;
+    rths_corrector_outcome status = solve(p, x, &evaluations);
+    double err = 0;
+    for (int i = 0; i < p->n; i++)
+        err = fmax(err, fabs(x[i] - p->root[i]));
+    double floor = p->noise > 0 ? 6 * p->noise * sqrt(p->n) : 1e-10, bound;
+    if (p->singular_root)
+        /* Powell singular: |x2 - 2 x3| <= ||F||^1/2 and |x1 - x4| <= (||F|| / sqrt 10)^1/2 from
+         * the squared entries; with the two linear entries (<= ||F||) they form a regular linear
+         * system in x whose inverse has entries below 1.2 (computed once), so |x| <=
+         * 4 * 1.2 * ||F||^1/2; a factor 2 of margin */
+        bound = 2 * 4 * 1.2 * sqrt(floor);
+    else
+        bound = 10 * inverse_norm(p) * floor;
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr,
+                "%-22s noise %.0e: status %d, %4d evaluations, |x - x*| %.2e (bound %.2e)\n",
+                p->name, p->noise, status, evaluations, err, bound);
+    /* at a singular root under noise Newton's linear convergence meets the noise floor: a step
+     * can then no longer show a reduction, and the corrector says so (stuck) at the floor */
+    if (!(p->singular_root && p->noise > 0 && status == RTHS_CORRECTOR_STUCK))
+        assert_int_equal(status, RTHS_CORRECTOR_CONVERGED);
+    assert_true(err <= bound);
+}
+
+static analytic classic(int which, double noise) {
+    analytic p = {.noise = noise};
+    rths_rng_seed(&p.rng, 11 + (uint64_t)which);
+    switch (which) {
+    case 0:
+        p = (analytic){"Rosenbrock", 2, rosenbrock, rosenbrock_j, {-1.2, 1},
+                       {1, 1},       0, noise,      p.rng};
+        break;
+    case 1:
+        p = (analytic){"Powell singular", 4, powell_singular, NULL, {3, -1, 0, 1},
+                       {0, 0, 0, 0},      1, noise,           p.rng};
+        break;
+    case 2:
+        p = (analytic){"Helical valley", 3, helical, helical_j, {-1, 0, 0},
+                       {1, 0, 0},        0, noise,   p.rng};
+        break;
+    case 3:
+        /* from MGH's start (0.5, -2) Newton with a line search on ||F|| ends in the local
+         * minimum of ||F|| at (11.41, -0.8968) (see test_roth_local_minimum); from (4, 3) the
+         * root's basin */
+        p = (analytic){"Freudenstein-Roth", 2, roth, roth_j, {4, 3}, {5, 4}, 0, noise, p.rng};
+        break;
+    case 4:
+        p = (analytic){"Powell badly scaled",
+                       2,
+                       powell_scaled,
+                       powell_scaled_j,
+                       {0, 1},
+                       {1.098159329699759e-05, 9.106146739867318},
+                       0,
+                       noise,
+                       p.rng};
+        break;
+    default:
+        p = (analytic){
+            "Duffing harmonic balance", 2, duffing, duffing_j, {0, 0}, {0, 0}, 0, noise, p.rng};
+        duffing_root(p.root);
+        break;
+    }
+    return p;
+}
+
+enum { N_SYSTEMS = 6 };
+
+static void test_noise_free(void **state) {
+    (void)state;
+    for (int which = 0; which < N_SYSTEMS; which++) {
+        analytic p = classic(which, 0.0);
+        check_root(&p);
+    }
+}
+
+/* Noise 1e-6 per entry: six orders below the residuals' starting size. Powell badly scaled is
+ * left out: its root's second unknown is determined only to 1e-4 / |exp(-9.1)| = 1 per 1e-4 of
+ * residual noise, so no noisy measurement can place it (its J^-1 norm is 9e3). */
+static void test_with_noise(void **state) {
+    (void)state;
+    for (int which = 0; which < N_SYSTEMS; which++) {
+        if (which == 4) continue;
+        analytic p = classic(which, 1e-6);
+        check_root(&p);
+    }
+}
+
+/* Freudenstein-Roth from MGH's start: the local minimum of ||F|| at (11.41, -0.8968), where
+ * ||F|| = 6.999, is no root, and a line search on ||F|| cannot leave it. The corrector must say
+ * so, not report convergence. */
+static void test_roth_local_minimum(void **state) {
+    (void)state;
+    analytic p = classic(3, 0.0);
+    p.x0[0] = 0.5;
+    p.x0[1] = -2;
+    double x[NMAX];
+    int evaluations;
+    rths_corrector_outcome status = solve(&p, x, &evaluations);
+    assert_true(status == RTHS_CORRECTOR_STUCK || status == RTHS_CORRECTOR_MAX_ITER);
+    double f[2];
+    roth(x, f);
+    assert_true(hypot(f[0], f[1]) > 6.9);
+}
+
+/* The life cycle step by step: status CONTINUE until converged, then CONVERGED; save() after it
+ * and load() into a new corrector carries the Jacobian, so a nearby start needs no
+ * finite-difference Jacobian (fewer evaluations); a record of another size or format is refused
+ * with a message naming both. */
+static void test_life_cycle(void **state) {
+    (void)state;
+    analytic p = classic(5, 0.0);
+    rths_zero_problem problem = {.n = 2, .eval = analytic_eval, .ctx = &p};
+    rths_newton_options opt;
+    options_for(&p, &opt);
+    rths_corrector *c;
+    rths_error err;
+    assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
+    rths_corrector_set_scales(c, 1.0, 1.0);
+    assert_int_equal(rths_corrector_set(c, p.x0, 1.0, NULL, &err), RTHS_OK);
+    int steps = 0;
+    while (rths_corrector_status(c) == RTHS_CORRECTOR_CONTINUE && steps < 100) {
+        assert_int_equal(rths_corrector_iterate(c, &err), RTHS_OK);
+        steps++;
+    }
+    assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_CONVERGED);
+    int first, iterations;
+    rths_corrector_counters(c, &first, &iterations, NULL);
+    assert_int_equal(iterations, steps);
+    const rths_solution *sol = rths_corrector_solution(c);
+    assert_true(sol->converged);
+    assert_true(sol->residual_norm_m < 1e-10);
+    static rths_corrector_saved saved;
+    rths_corrector_save(c, &saved);
+    rths_corrector_destroy(c);
+
+    assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
+    rths_corrector_set_scales(c, 1.0, 1.0);
+    assert_int_equal(rths_corrector_load(c, &saved, &err), RTHS_OK);
+    double near[2] = {p.root[0] * 1.01, p.root[1] * 0.99};
+    assert_int_equal(rths_corrector_solve(c, near, 1.0, NULL, &err), RTHS_OK);
+    int again;
+    rths_corrector_counters(c, &again, NULL, NULL);
+    assert_true(again < first);
+    assert_true(again <= 8); /* no 2-evaluation FD Jacobian, a few Broyden steps */
+    rths_corrector_destroy(c);
+
+    rths_zero_problem bigger = {.n = 3, .eval = analytic_eval, .ctx = &p};
+    assert_int_equal(rths_corrector_create(&bigger, &opt, &c, &err), RTHS_OK);
+    assert_int_equal(rths_corrector_load(c, &saved, &err), RTHS_EINPUT);
+    saved.format = 99;
+    assert_int_equal(rths_corrector_load(c, &saved, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "format 99"));
+    assert_non_null(strstr(err.msg, "format 1"));
+    rths_corrector_destroy(c);
+}
+
+/* A problem size the corrector cannot hold is refused at create. */
+static void test_refuses_bad_size(void **state) {
+    (void)state;
+    analytic p = classic(0, 0.0);
+    rths_newton_options opt;
+    options_for(&p, &opt);
+    rths_corrector *c = NULL;
+    rths_error err;
+    rths_zero_problem too_big = {.n = NMAX + 1, .eval = analytic_eval, .ctx = &p};
+    assert_int_equal(rths_corrector_create(&too_big, &opt, &c, &err), RTHS_EINPUT);
+    assert_null(c);
+    rths_zero_problem odd_fourier = {.n = 3, .harmonics = 1, .eval = analytic_eval, .ctx = &p};
+    assert_int_equal(rths_corrector_create(&odd_fourier, &opt, &c, &err), RTHS_EINPUT);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_noise_free),         cmocka_unit_test(test_with_noise),
+        cmocka_unit_test(test_roth_local_minimum), cmocka_unit_test(test_life_cycle),
+        cmocka_unit_test(test_refuses_bad_size),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}

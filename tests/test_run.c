@@ -1,0 +1,189 @@
+/* rths_run_frf, the whole FRF test as a library call: a short noise-free sweep of the linear
+ * example ends completed with every point reported through on_point and within 0.5 % of the
+ * analytic FRF (the tolerance is 1e-4 relative; the transient left by the steady-state test adds
+ * ~1e-3 at most); cancelled after three points it saves exactly those three (journal, frf.csv,
+ * summary.json saying so) and a resume continues to the end; bad input writes nothing. */
+#include "testlib.h"
+
+#include "rths/run.h"
+#include "rths/truth.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static const char *const sets[] = {"rig.noise=false", "continuation.start_hz=12.6",
+                                   "continuation.end_hz=12.9"};
+
+typedef struct {
+    int points, updates, cancel_after;
+    double max_error;
+    const rths_setup *setup;
+} watcher;
+
+static int watch_point(void *user, const rths_point *pt, int is_update) {
+    watcher *w = user;
+    if (is_update) {
+        w->updates++;
+        return RTHS_OK;
+    }
+    assert_int_equal(pt->index, w->points);
+    w->points++;
+    double truth = rths_truth_linear_amplitude_m(w->setup, pt->sol.frequency_hz);
+    w->max_error = fmax(w->max_error, fabs(pt->sol.amplitude_m - truth) / truth);
+    return RTHS_OK;
+}
+
+static int cancel_now(void *user) {
+    watcher *w = user;
+    return w->cancel_after > 0 && w->points >= w->cancel_after;
+}
+
+static int run_once(const char *out, int resume, const char *strategy, watcher *w,
+                    rths_run_frf_result *r, rths_error *err) {
+    rths_config *cfg;
+    rths_setup setup;
+    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), sets, 3, &cfg,
+                         err) ||
+        rths_setup_read(cfg, &setup, err))
+        fail_msg("%s", err->msg);
+    w->setup = &setup;
+    rths_run_frf_options opt = {.cfg = cfg,
+                                .setup = &setup,
+                                .out_dir = out,
+                                .strategy = strategy,
+                                .resume = resume,
+                                .overrides = sets,
+                                .n_overrides = 3};
+    rths_run_callbacks cb = {.on_point = watch_point, .should_cancel = cancel_now, .user = w};
+    int rc = rths_run_frf(&opt, &cb, r, err);
+    rths_setup_free(&setup);
+    rths_config_free(cfg);
+    return rc;
+}
+
+static int exists(const char *dir, const char *name) {
+    char path[1024];
+    struct stat st;
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    return stat(path, &st) == 0;
+}
+
+static int csv_rows(const char *dir) {
+    char path[1024], line[4096];
+    snprintf(path, sizeof path, "%s/frf.csv", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) return -1;
+    int rows = -1; /* header */
+    while (fgets(line, sizeof line, f))
+        rows++;
+    fclose(f);
+    return rows;
+}
+
+static int file_has(const char *dir, const char *name, const char *text) {
+    char path[1024];
+    snprintf(path, sizeof path, "%s/%s", dir, name);
+    FILE *f = fopen(path, "r");
+    if (!f) return 0;
+    static char buf[1 << 20];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    return strstr(buf, text) != NULL;
+}
+
+static void remove_tree(const char *dir) {
+    char cmd[1024];
+    snprintf(cmd, sizeof cmd, "rm -rf '%s'", dir);
+    assert_int_equal(system(cmd), 0);
+}
+
+static void test_completed(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_run_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char out[600];
+    snprintf(out, sizeof out, "%s/run", dir);
+    watcher w = {0};
+    rths_run_frf_result r;
+    rths_error err;
+    if (run_once(out, 0, NULL, &w, &r, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(r.status, RTHS_RUN_COMPLETED);
+    assert_true(r.outputs_written);
+    assert_int_equal(r.points, w.points);
+    assert_int_equal(r.converged_points, r.points);
+    assert_true(r.points >= 6); /* 0.3 Hz in steps of at most 0.05 Hz */
+    assert_int_equal(csv_rows(out), r.points);
+    assert_true(w.max_error < 5e-3);
+    assert_true(r.max_relative_error_vs_truth < 5e-3);
+    assert_true(exists(out, "summary.json") && exists(out, "truth.csv") &&
+                exists(out, "journal.jsonl") && exists(out, "config.yaml"));
+    remove_tree(dir);
+}
+
+static void test_cancel_and_resume(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_run_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char out[600];
+    snprintf(out, sizeof out, "%s/run", dir);
+    watcher w = {.cancel_after = 3};
+    rths_run_frf_result r;
+    rths_error err;
+    assert_int_equal(run_once(out, 0, NULL, &w, &r, &err), RTHS_OK);
+    assert_int_equal(r.status, RTHS_RUN_CANCELLED);
+    assert_int_equal(r.points, 3);
+    assert_int_equal(csv_rows(out), 3);
+    assert_true(file_has(out, "summary.json", "cancelled by the caller after 3 points"));
+    assert_false(exists(out, "trace.csv")); /* no rig time spent after a cancel */
+
+    watcher again = {.points = 3}; /* the new points' indices follow the journal's */
+    assert_int_equal(run_once(out, 1, NULL, &again, &r, &err), RTHS_OK);
+    assert_int_equal(r.status, RTHS_RUN_COMPLETED);
+    assert_int_equal(r.resumed_points, 3);
+    assert_true(r.points > 3);
+    assert_int_equal(again.points, r.points); /* on_point saw every new point */
+    assert_int_equal(csv_rows(out), r.points);
+    remove_tree(dir);
+}
+
+/* An occupied folder without resume, a resume of nothing, an unknown strategy: RTHS_EINPUT and
+ * nothing written. */
+static void test_bad_input_writes_nothing(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_run_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char out[600];
+    snprintf(out, sizeof out, "%s/run", dir);
+    watcher w = {0};
+    rths_run_frf_result r;
+    rths_error err;
+    assert_int_equal(run_once(out, 1, NULL, &w, &r, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "no journal.jsonl"));
+    assert_int_equal(run_once(out, 0, "fastest", &w, &r, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "fastest"));
+    assert_false(exists(dir, "run"));
+    assert_false(r.outputs_written);
+    mkdir(out, 0755);
+    char journal[700];
+    snprintf(journal, sizeof journal, "%s/journal.jsonl", out);
+    FILE *f = fopen(journal, "w");
+    fclose(f);
+    assert_int_equal(run_once(out, 0, NULL, &w, &r, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "already holds a run"));
+    assert_false(exists(out, "run.log"));
+    remove_tree(dir);
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_completed),
+        cmocka_unit_test(test_cancel_and_resume),
+        cmocka_unit_test(test_bad_input_writes_nothing),
+    };
+    return cmocka_run_group_tests(tests, NULL, NULL);
+}
