@@ -69,6 +69,12 @@ typedef struct rths_run_frf_result {
     int outputs_written; /* 1: frf.csv and summary.json were written (the counts are valid) */
 } rths_run_frf_result;
 
+/* frf.csv's columns, and an accepted point's row as frf.csv has it (what a point callback of the
+ * C API receives). */
+enum { RTHS_RUN_FRF_COLUMNS = 22 };
+extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
+void rths_run_frf_row(const rths_point *pt, double *row);
+
 /* Runs the test (see above). Returns RTHS_OK when it ran (status says how it ended; also when
  * cancelled), RTHS_EINPUT on bad input (nothing written), RTHS_EFAIL on a failure during it. */
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,

@@ -42,4 +42,10 @@ typedef struct rths_setup {
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err);
 void rths_setup_free(rths_setup *s);
 
+/* Models up to this many DoFs report every DoF; larger ones only what the test sees (physical
+ * substructure, interface, forcing), so modes.csv and true_frf.csv stay small at any n. */
+#define RTHS_SETUP_ALL_DOFS_UP_TO 64
+/* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
+int *rths_setup_output_dofs(const rths_setup *s, int *count);
+
 #endif

@@ -39,68 +39,9 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
 #include "rths/run.h"
 
 #include <inttypes.h>
-#include <math.h>
 
 int rths_api_frf_available(void) {
     return 1;
-}
-
-/* frf.csv's columns for the point callback: the header and row of the run module's frf.csv
- * (src/run/frf_outputs.c), which must stay the same. */
-enum { FRF_COLUMNS = 22 };
-static const char *const frf_columns[FRF_COLUMNS] = {"point",
-                                                     "frequency_hz",
-                                                     "amplitude_m",
-                                                     "numerical_amplitude_m",
-                                                     "phase_rad",
-                                                     "interface_error_m",
-                                                     "interface_error_h2_m",
-                                                     "interface_error_h3_m",
-                                                     "amplitude_h2_m",
-                                                     "amplitude_h3_m",
-                                                     "target_a1_m",
-                                                     "target_b1_m",
-                                                     "residual_norm_m",
-                                                     "tolerance_m",
-                                                     "evaluations",
-                                                     "iterations",
-                                                     "rig_time_s",
-                                                     "converged",
-                                                     "fold",
-                                                     "segment",
-                                                     "amplitude_se_m",
-                                                     "measured_amplitude_m"};
-
-static double harmonic_error(const rths_point *pt, int k) {
-    return hypot(pt->sol.eval.phys.a[k] - pt->sol.eval.num.a[k],
-                 pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
-}
-
-static void frf_row(const rths_point *pt, double *row) {
-    const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
-    const double values[FRF_COLUMNS] = {pt->index,
-                                        pt->sol.frequency_hz,
-                                        pt->sol.amplitude_m,
-                                        hypot(nu->a[1], nu->b[1]),
-                                        atan2(-ph->b[1], ph->a[1]),
-                                        harmonic_error(pt, 1),
-                                        harmonic_error(pt, 2),
-                                        harmonic_error(pt, 3),
-                                        hypot(ph->a[2], ph->b[2]),
-                                        hypot(ph->a[3], ph->b[3]),
-                                        pt->sol.target_a[0],
-                                        pt->sol.target_b[0],
-                                        pt->sol.residual_norm_m,
-                                        pt->sol.tolerance_m,
-                                        pt->evaluations,
-                                        pt->iterations,
-                                        pt->rig_time_s,
-                                        pt->sol.converged,
-                                        pt->fold,
-                                        pt->segment,
-                                        pt->sol.amplitude_se_m,
-                                        hypot(ph->a[1], ph->b[1])};
-    memcpy(row, values, sizeof values);
 }
 
 typedef struct {
@@ -114,9 +55,9 @@ typedef struct {
 static int point(void *user, const rths_point *pt, int is_update) {
     frf_context *c = user;
     if (is_update || !c->o->on_point || c->stop) return RTHS_OK;
-    double row[FRF_COLUMNS];
-    frf_row(pt, row);
-    c->stop = c->o->on_point(c->o->user, FRF_COLUMNS, frf_columns, row) != 0;
+    double row[RTHS_RUN_FRF_COLUMNS];
+    rths_run_frf_row(pt, row);
+    c->stop = c->o->on_point(c->o->user, RTHS_RUN_FRF_COLUMNS, rths_run_frf_columns, row) != 0;
     return RTHS_OK;
 }
 

@@ -53,23 +53,30 @@ static int modes_table(rths_result *r, const rths_modes *m, rths_error *err) {
     return rc;
 }
 
-static int frf_table(rths_result *r, const rths_setup *s, const double *freqs, int count,
-                     double *peak_amp, double *peak_hz, rths_error *err) {
-    int n = s->assembly.n, cols = 1 + 2 * n;
+/* The same DoFs, solver and numbers as `rths model`'s true_frf.csv (rths_frf_sweep). */
+static int frf_table(rths_result *r, const rths_setup *s, const rths_modes *m, const double *freqs,
+                     int count, double *peak_amp, double *peak_hz, rths_error *err) {
+    int n_out = 0;
+    int *dofs = rths_setup_output_dofs(s, &n_out);
+    int cols = 1 + 2 * n_out;
     const char **names = calloc((size_t)cols, sizeof *names);
-    char(*text)[40] = calloc((size_t)(2 * n), sizeof *text);
+    char(*text)[40] = calloc((size_t)(2 * n_out) + 1, sizeof *text);
     const double **data = calloc((size_t)cols, sizeof *data);
     double *block = calloc((size_t)cols * (size_t)count + 1, sizeof *block);
-    double complex *x = calloc((size_t)n, sizeof *x);
-    int rc = names && text && data && block && x ? RTHS_OK
-                                                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
-    int iface = s->split.int_dofs[0];
+    double complex *x = calloc((size_t)n_out + 1, sizeof *x);
+    rths_frf_sweep *sweep = NULL;
+    int rc = dofs && names && text && data && block && x
+                 ? RTHS_OK
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_frf_sweep_create(&s->assembly, m, s->force, n_out, dofs, &sweep, err);
+    int iface = 0;
+    for (int i = 0; i < n_out; i++)
+        if (dofs[i] == s->split.int_dofs[0]) iface = i;
     *peak_amp = *peak_hz = 0;
     for (int j = 0; j < count && !rc; j++) {
-        rc = rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
-                      2 * M_PI * freqs[j], x, err);
+        rc = rths_frf_sweep_eval(sweep, 2 * M_PI * freqs[j], x, err);
         COL(block, count, 0)[j] = freqs[j];
-        for (int i = 0; i < n && !rc; i++) {
+        for (int i = 0; i < n_out && !rc; i++) {
             COL(block, count, 1 + 2 * i)[j] = cabs(x[i]);
             COL(block, count, 2 + 2 * i)[j] = carg(x[i]);
         }
@@ -77,9 +84,9 @@ static int frf_table(rths_result *r, const rths_setup *s, const double *freqs, i
     }
     if (!rc) {
         names[0] = "frequency_hz";
-        for (int i = 0; i < n; i++) {
-            snprintf(text[2 * i], sizeof text[0], "x%d_amplitude_m", i + 1);
-            snprintf(text[2 * i + 1], sizeof text[0], "x%d_phase_rad", i + 1);
+        for (int i = 0; i < n_out; i++) {
+            snprintf(text[2 * i], sizeof text[0], "x%d_amplitude_m", dofs[i] + 1);
+            snprintf(text[2 * i + 1], sizeof text[0], "x%d_phase_rad", dofs[i] + 1);
             names[1 + 2 * i] = text[2 * i];
             names[2 + 2 * i] = text[2 * i + 1];
         }
@@ -87,6 +94,8 @@ static int frf_table(rths_result *r, const rths_setup *s, const double *freqs, i
             data[c] = COL(block, count, c);
         rc = rths_result_add_columns(r, "true_frf", count, cols, names, data, err);
     }
+    rths_frf_sweep_destroy(sweep);
+    free(dofs);
     free(names);
     free(text);
     free(data);
@@ -140,7 +149,7 @@ int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result 
                            &count, err);
     if (!rc) rc = rths_result_new(&r, err);
     if (!rc) rc = modes_table(r, &modes, err);
-    if (!rc) rc = frf_table(r, &setup, freqs, count, &peak_amp, &peak_hz, err);
+    if (!rc) rc = frf_table(r, &setup, &modes, freqs, count, &peak_amp, &peak_hz, err);
     if (!rc)
         rc = rths_result_set_summary(r, model_summary(&setup, &modes, count, peak_amp, peak_hz),
                                      err);

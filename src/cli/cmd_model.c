@@ -36,22 +36,6 @@ static const char usage[] =
     "\n"
     "Exit status: 0 success, 1 failure, 2 bad usage or configuration (nothing written).\n";
 
-/* Models up to this size are written whole; above it the files keep the DoFs a hybrid test
- * sees (physical substructure, interface, forcing) so they stay small at any n. */
-#define ALL_DOFS_UP_TO 64
-
-/* DoFs written to modes.csv and true_frf.csv, ascending (malloc'ed). */
-static int *output_dofs(const rths_setup *s, int *count) {
-    int n = s->assembly.n, m = 0;
-    int *dofs = malloc((size_t)n * sizeof *dofs);
-    if (!dofs) return NULL;
-    for (int i = 0; i < n; i++)
-        if (n <= ALL_DOFS_UP_TO || s->roles[i] != RTHS_DOF_NUMERICAL || i == s->forcing_dof)
-            dofs[m++] = i;
-    *count = m;
-    return dofs;
-}
-
 static int write_modes(rths_report *rep, const rths_modes *m, const int *dofs, int n_out,
                        rths_error *err) {
     int n = m->n, cols = 4 + n_out;
@@ -251,7 +235,7 @@ int rths_cmd_model(int argc, char **argv) {
     if (!rc)
         rc = rths_frf_grid(&modes, setup.frf_start_hz, setup.frf_end_hz, setup.frf_points, &freqs,
                            &count, &err);
-    if (!rc && !(dofs = output_dofs(&setup, &n_out)))
+    if (!rc && !(dofs = rths_setup_output_dofs(&setup, &n_out)))
         rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
     if (!rc)
         rc = rths_frf_sweep_create(&setup.assembly, &modes, setup.force, n_out, dofs, &sweep, &err);

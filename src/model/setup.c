@@ -366,3 +366,15 @@ void rths_setup_free(rths_setup *s) {
     free(s->static_force);
     memset(s, 0, sizeof *s);
 }
+
+int *rths_setup_output_dofs(const rths_setup *s, int *count) {
+    int n = s->assembly.n, m = 0;
+    int *dofs = malloc((size_t)n * sizeof *dofs);
+    if (!dofs) return NULL;
+    for (int i = 0; i < n; i++)
+        if (n <= RTHS_SETUP_ALL_DOFS_UP_TO || s->roles[i] != RTHS_DOF_NUMERICAL ||
+            i == s->forcing_dof)
+            dofs[m++] = i;
+    *count = m;
+    return dofs;
+}

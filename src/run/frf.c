@@ -207,6 +207,10 @@ static int open_outputs(frf_state *st, rths_error *err) {
     if (!rc)
         rc = rths_journal_open_seeded(st->journal_path, st->strategy, st->seed_text, &st->journal,
                                       err);
+    /* the observing rig reports every evaluation to live.json; it forwards every call unchanged
+     * (tests/test_live.c: a watched run equals an unwatched one bit for bit) */
+    if (!rc) rc = rths_live_open(opt->out_dir, &st->live, err);
+    if (!rc) rc = rths_live_wrap_rig(st->live, st->rig, &st->rig, err);
     if (!rc && st->opt->resume) {
         const char *changes[FRF_MAX_CHANGES];
         for (int i = 0; i < st->n_changes; i++)
@@ -238,7 +242,9 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
 
 static void on_progress(void *user, int points, double frequency_hz, double residual_m,
                         int evaluations, int accepted) {
-    const rths_run_callbacks *cb = ((frf_state *)user)->cb;
+    frf_state *st = user;
+    rths_live_progress(st->live, points, frequency_hz, residual_m, accepted);
+    const rths_run_callbacks *cb = st->cb;
     if (cb && cb->on_progress)
         cb->on_progress(cb->user, points, frequency_hz, residual_m, evaluations, accepted);
 }
@@ -255,6 +261,8 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
                                        on_point, on_progress, st, &st->result, run_err);
+    rths_live_close(st->live); /* "state": "ended"; the rig now only forwards */
+    st->live = NULL;
     if (st->cancelled) {
         run_rc = RTHS_OK;
         snprintf(st->result.stop_reason, sizeof st->result.stop_reason,
@@ -309,6 +317,7 @@ static void fill_result(const frf_state *st, int run_rc, rths_run_frf_result *r)
 
 static void release(frf_state *st) {
     if (st->journal) rths_journal_close(st->journal);
+    rths_live_close(st->live);
     rths_truth_free(&st->truth);
     free(st->pts);
     free(st->resume_pts);

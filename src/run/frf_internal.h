@@ -2,6 +2,7 @@
 #ifndef RTHS_RUN_FRF_INTERNAL_H
 #define RTHS_RUN_FRF_INTERNAL_H
 
+#include "rths/live.h"
 #include "rths/report.h"
 #include "rths/run.h"
 #include "rths/truth.h"
@@ -20,6 +21,7 @@ typedef struct frf_state {
     rths_rig *rig;
     rths_report *rep;
     rths_journal *journal;
+    rths_live *live; /* live.json for `rths view`, closed when the continuation ends */
     char *journal_path;
     rths_point *resume_pts;
     int n_resume;

@@ -37,49 +37,53 @@ double frf_harmonic_error(const rths_point *pt, int k) {
                  pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
 }
 
-enum { FRF_COLUMNS = 22 };
+const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS] = {"point",
+                                                                "frequency_hz",
+                                                                "amplitude_m",
+                                                                "numerical_amplitude_m",
+                                                                "phase_rad",
+                                                                "interface_error_m",
+                                                                "interface_error_h2_m",
+                                                                "interface_error_h3_m",
+                                                                "amplitude_h2_m",
+                                                                "amplitude_h3_m",
+                                                                "target_a1_m",
+                                                                "target_b1_m",
+                                                                "residual_norm_m",
+                                                                "tolerance_m",
+                                                                "evaluations",
+                                                                "iterations",
+                                                                "rig_time_s",
+                                                                "converged",
+                                                                "fold",
+                                                                "segment",
+                                                                "amplitude_se_m",
+                                                                "measured_amplitude_m"};
+
+void rths_run_frf_row(const rths_point *pt, double *row) {
+    const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
+    const double values[RTHS_RUN_FRF_COLUMNS] = {
+        /* amplitude_m: what the strategy reports (the response extrapolated to zero
+         * mismatch by default, the measurement for paper); measured_amplitude_m: the
+         * measurement */
+        pt->index, pt->sol.frequency_hz, pt->sol.amplitude_m, hypot(nu->a[1], nu->b[1]),
+        /* x = A cos + B sin = R cos(wt + phi) with phi = atan2(-B, A) */
+        atan2(-ph->b[1], ph->a[1]), frf_harmonic_error(pt, 1), frf_harmonic_error(pt, 2),
+        frf_harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
+        pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
+        pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold, pt->segment,
+        pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1])};
+    memcpy(row, values, sizeof values);
+}
 
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
-    static const char *const header[FRF_COLUMNS] = {"point",
-                                                    "frequency_hz",
-                                                    "amplitude_m",
-                                                    "numerical_amplitude_m",
-                                                    "phase_rad",
-                                                    "interface_error_m",
-                                                    "interface_error_h2_m",
-                                                    "interface_error_h3_m",
-                                                    "amplitude_h2_m",
-                                                    "amplitude_h3_m",
-                                                    "target_a1_m",
-                                                    "target_b1_m",
-                                                    "residual_norm_m",
-                                                    "tolerance_m",
-                                                    "evaluations",
-                                                    "iterations",
-                                                    "rig_time_s",
-                                                    "converged",
-                                                    "fold",
-                                                    "segment",
-                                                    "amplitude_se_m",
-                                                    "measured_amplitude_m"};
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, FRF_COLUMNS, header, &csv, err)
+    int rc = path ? rths_csv_open(path, RTHS_RUN_FRF_COLUMNS, rths_run_frf_columns, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        const rths_point *pt = &run->pts[i];
-        const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
-        double row[FRF_COLUMNS] = {
-            /* amplitude_m: what the strategy reports (the response extrapolated to zero
-             * mismatch by default, the measurement for paper); measured_amplitude_m: the
-             * measurement */
-            pt->index, pt->sol.frequency_hz, pt->sol.amplitude_m, hypot(nu->a[1], nu->b[1]),
-            /* x = A cos + B sin = R cos(wt + phi) with phi = atan2(-B, A) */
-            atan2(-ph->b[1], ph->a[1]), frf_harmonic_error(pt, 1), frf_harmonic_error(pt, 2),
-            frf_harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
-            pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
-            pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold,
-            pt->segment, pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1])};
+        double row[RTHS_RUN_FRF_COLUMNS];
+        rths_run_frf_row(&run->pts[i], row);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
