@@ -1,0 +1,359 @@
+/* Stability of the delayed-feedback test with two interface DoFs, the delay on both actuators.
+ *
+ * The split: the seed's four storeys with storeys 2 and 3 both at the interface (storey 1
+ * physical, storey 4 numerical). Chosen over a five-storey chain because the two interface DoFs
+ * are adjacent: the leg between them stays physical (the coupling rule), so it acts through BOTH
+ * delayed actuators and K_tau, C_tau carry a full 2 x 2 interface block, the coupling a single
+ * interface DoF never exercises; the physical and the numerical side each keep an internal DoF, so
+ * no block of the neutral equation is empty. The seed's masses also keep the single-DoF numbers of
+ * tests/test_stability.c at hand for comparison.
+ *
+ * Checks: the delay equation against a characteristic matrix written by hand from the two
+ * substructures' equations (not from the builder's rule), the double neutral chain, and the
+ * chart's verdict and rightmost root against the time-domain simulation of the delayed-feedback
+ * test at (delay, p) points on both sides of the boundary. */
+#include "testlib.h"
+
+#include "rths/stability.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+static const double m[4] = {5.37, 5.37, 5.37, 10.74};
+static const double c[4] = {4.4062, 3.7979, 3.7421, 3.7421};
+static const double k[4] = {53048, 45724, 45052, 45052};
+static const rths_dof_role roles[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_INTERFACE, RTHS_DOF_INTERFACE,
+                                       RTHS_DOF_NUMERICAL};
+
+static void build(double p, rths_assembly *a, rths_split *s, rths_dde *d) {
+    rths_error err;
+    assert_int_equal(rths_assembly_from_chain(4, m, c, k, a, &err), RTHS_OK);
+    assert_int_equal(rths_split_create(a, roles, p, NULL, NULL, s, &err), RTHS_OK);
+    assert_int_equal(s->n_int, 2);
+    if (d) assert_int_equal(rths_dde_from_split(a, s, d, &err), RTHS_OK);
+}
+
+static void release(rths_assembly *a, rths_split *s, rths_dde *d) {
+    if (d) rths_dde_free(d);
+    rths_split_free(s);
+    rths_assembly_free(a);
+}
+
+/* The characteristic matrix from the equations of motion, written out (1-based storeys, x1 the
+ * physical internal storey, xi2, xi3 the numerical interface storeys, xi4 numerical internal;
+ * the actuators impose x2 = xi2(t - tau), x3 = xi3(t - tau), delay factor e = exp(-lambda tau)):
+ *   storey 1 (physical): m1 x1'' + (c1+c2) x1' - c2 x2' + (k1+k2) x1 - k2 x2 = 0
+ *   storey 2 (numerical p m2, plus the measured physical force at the cut):
+ *     p m2 xi2'' + [(1-p) m2 x2'' - c2 x1' + (c2+c3) x2' - c3 x3' - k2 x1 + (k2+k3) x2 - k3 x3] = 0
+ *   storey 3: p m3 xi3'' + c4 (xi3' - xi4') + k4 (xi3 - xi4)
+ *     + [(1-p) m3 x3'' - c3 x2' + c3 x3' - k3 x2 + k3 x3] = 0
+ *   storey 4: m4 xi4'' + c4 (xi4' - xi3') + k4 (xi4 - xi3) = 0
+ * (the leg between storeys 2 and 3 is physical: it joins two interface DoFs). */
+static void hand_matrix(double p, double tau, double complex l, double complex a[16]) {
+    double complex e = cexp(-l * tau), l2 = l * l;
+#define A(i, j) a[(i) + 4 * (j)]
+    memset(a, 0, 16 * sizeof *a);
+    A(0, 0) = m[0] * l2 + (c[0] + c[1]) * l + k[0] + k[1];
+    A(0, 1) = -(c[1] * l + k[1]) * e;
+    A(1, 0) = -(c[1] * l + k[1]);
+    A(1, 1) = p * m[1] * l2 + ((1 - p) * m[1] * l2 + (c[1] + c[2]) * l + k[1] + k[2]) * e;
+    A(1, 2) = -(c[2] * l + k[2]) * e;
+    A(2, 1) = -(c[2] * l + k[2]) * e;
+    A(2, 2) = p * m[2] * l2 + c[3] * l + k[3] + ((1 - p) * m[2] * l2 + c[2] * l + k[2]) * e;
+    A(2, 3) = -(c[3] * l + k[3]);
+    A(3, 2) = -(c[3] * l + k[3]);
+    A(3, 3) = m[3] * l2 + c[3] * l + k[3];
+#undef A
+}
+
+static double complex det4(double complex a[16]) {
+    /* Gaussian elimination with partial pivoting (4 x 4) */
+    double complex det = 1;
+    for (int col = 0; col < 4; col++) {
+        int piv = col;
+        for (int r = col + 1; r < 4; r++)
+            if (cabs(a[r + 4 * col]) > cabs(a[piv + 4 * col])) piv = r;
+        if (piv != col) {
+            for (int j = 0; j < 4; j++) {
+                double complex t = a[col + 4 * j];
+                a[col + 4 * j] = a[piv + 4 * j];
+                a[piv + 4 * j] = t;
+            }
+            det = -det;
+        }
+        det *= a[col + 4 * col];
+        for (int r = col + 1; r < 4; r++) {
+            double complex f = a[r + 4 * col] / a[col + 4 * col];
+            for (int j = col; j < 4; j++)
+                a[r + 4 * j] -= f * a[col + 4 * j];
+        }
+    }
+    return det;
+}
+
+/* D(lambda) of the builder equals the hand-written determinant at points spread over the plane
+ * (left, right, on the axis, near the first mode, far up where the delay term winds): both are
+ * the same polynomial evaluated in a different order, so to 1e-11 relative (the terms reach
+ * |lambda|^8 m^4 ~ 1e30 at |lambda| = 1e3 and cancel by a few digits). */
+static void test_delay_equation_by_hand(void **state) {
+    (void)state;
+    const double ps[2] = {0.33, 0.67}, taus[2] = {5e-5, 1e-3};
+    const double complex ls[6] = {0.0,           1.0 + 27.0 * I, -3 + 150 * I,
+                                  2.5 - 0.5 * I, 40 * I,         -0.2 + 1e3 * I};
+    for (int ip = 0; ip < 2; ip++)
+        for (int it = 0; it < 2; it++)
+            for (int il = 0; il < 6; il++) {
+                rths_assembly a;
+                rths_split s;
+                rths_dde d;
+                build(ps[ip], &a, &s, &d);
+                double complex got, want, h[16];
+                rths_dde_char(&d, taus[it], ls[il], &got, NULL, NULL);
+                hand_matrix(ps[ip], taus[it], ls[il], h);
+                want = det4(h);
+                if (cabs(got - want) > 1e-11 * cabs(want))
+                    fail_msg("p %g tau %g lambda %g%+gi: builder %g%+gi, by hand %g%+gi", ps[ip],
+                             taus[it], creal(ls[il]), cimag(ls[il]), creal(got), cimag(got),
+                             creal(want), cimag(want));
+                release(&a, &s, &d);
+            }
+    /* D(0) = det K whatever the split: k1 k2 k3 k4 for a grounded chain */
+    rths_assembly a;
+    rths_split s;
+    rths_dde d;
+    build(0.67, &a, &s, &d);
+    double complex d0;
+    rths_dde_char(&d, 1e-4, 0, &d0, NULL, NULL);
+    assert_rel(creal(d0), k[0] * k[1] * k[2] * k[3], 1e-12);
+    /* the delayed blocks: both interface columns, the leg between them in both */
+    assert_close(RTHS_AT(d.kt, 4, 1, 2), -k[2], 1e-9);
+    assert_close(RTHS_AT(d.kt, 4, 2, 1), -k[2], 1e-9);
+    assert_close(RTHS_AT(d.mt, 4, 1, 1), 0.33 * m[1], 1e-12);
+    assert_close(RTHS_AT(d.mt, 4, 2, 2), 0.33 * m[2], 1e-12);
+    release(&a, &s, &d);
+}
+
+/* Two interface masses divided by the same p: det(M_0 + z M_tau) = 0 twice at z = -p/(1-p), so
+ * the neutral chain (double) sits at Re lambda = ln((1-p)/p) / tau as for one DoF. */
+static void test_double_chain(void **state) {
+    (void)state;
+    const double ps[3] = {0.33, 0.5, 0.67};
+    for (int i = 0; i < 3; i++) {
+        rths_assembly a;
+        rths_split s;
+        rths_dde d;
+        rths_error err;
+        build(ps[i], &a, &s, &d);
+        double rt;
+        double complex z[4];
+        int nz;
+        assert_int_equal(rths_dde_essential(&d, &rt, z, &nz, &err), RTHS_OK);
+        assert_int_equal(nz, 2);
+        for (int j = 0; j < 2; j++)
+            assert_close(cabs(z[j] + ps[i] / (1 - ps[i])), 0, 1e-12);
+        assert_close(rt, log((1 - ps[i]) / ps[i]), 1e-12);
+        release(&a, &s, &d);
+    }
+}
+
+static double critical_delay(double p, double *omega) {
+    rths_assembly a;
+    rths_split s;
+    rths_dde d;
+    rths_error err;
+    build(p, &a, &s, &d);
+    double tc;
+    assert_int_equal(rths_dde_critical_delay(&d, 1e-6, 1e-2, 300, 12, &tc, omega, &err), RTHS_OK);
+    /* the crossing found is a root on the axis */
+    if (isfinite(tc) && tc > 0) assert_true(cabs(rths_dde_char_scaled(&d, tc, I * *omega)) < 1e-10);
+    release(&a, &s, &d);
+    return tc;
+}
+
+static rths_dde_label label(double p, double tau) {
+    rths_assembly a;
+    rths_split s;
+    rths_dde d;
+    rths_error err;
+    rths_dde_label l;
+    build(p, &a, &s, &d);
+    assert_int_equal(rths_dde_label_at(&d, tau, 12, &l, &err), RTHS_OK);
+    release(&a, &s, &d);
+    return l;
+}
+
+/* A coarse chart of the two-interface split over the seed's ranges. */
+static rths_chart chart;
+static int chart_done;
+static rths_assembly chart_assembly;
+
+static const rths_chart *get_chart(void) {
+    if (chart_done) return &chart;
+    rths_error err;
+    assert_int_equal(rths_assembly_from_chain(4, m, c, k, &chart_assembly, &err), RTHS_OK);
+    static rths_split_family fam;
+    fam.assembly = &chart_assembly;
+    fam.roles = roles;
+    rths_chart_options o;
+    rths_chart_options_default(&o);
+    o.tau_min_s = 2e-5, o.tau_max_s = 3e-4, o.tau_points = 29;
+    o.p_min = 0.25, o.p_max = 0.85, o.p_points = 13;
+    o.mdbm_tau_points = 20, o.mdbm_p_points = 13, o.omega_points = 56;
+    assert_int_equal(rths_chart_compute(rths_split_family_build, &fam, &o, &chart, &err), RTHS_OK);
+    chart_done = 1;
+    return &chart;
+}
+
+static int chart_stable_at(double tau, double p) {
+    const rths_chart *ch = get_chart();
+    int bi = 0, bj = 0;
+    for (int i = 0; i < ch->nt; i++)
+        if (fabs(ch->tau[i] - tau) < fabs(ch->tau[bi] - tau)) bi = i;
+    for (int j = 0; j < ch->np; j++)
+        if (fabs(ch->p[j] - p) < fabs(ch->p[bj] - p)) bj = j;
+    /* only a grid point at the requested (tau, p) says something about that point */
+    assert_rel(ch->tau[bi], tau, 1e-9);
+    assert_rel(ch->p[bj], p, 1e-9);
+    return ch->stable[bi + bj * ch->nt];
+}
+
+/* The chart's own consistency: boundary points on D(i w) = 0, labels explained by boundaries,
+ * p <= 1/2 never stable, and its critical delays splitting each row. */
+static void test_chart(void **state) {
+    (void)state;
+    const rths_chart *ch = get_chart();
+    printf("two-interface chart: %d boundary points, %d label changes, max residual %.2e\n",
+           ch->n_boundary, ch->label_changes, ch->b_max_residual);
+    assert_true(ch->n_boundary > 10);
+    assert_true(ch->b_max_residual < 1e-9);
+    assert_int_equal(ch->label_changes_unexplained, 0);
+    assert_int_equal(ch->boundary_unexplained, 0);
+    for (int j = 0; j < ch->np; j++) {
+        double tc = ch->critical_tau[j];
+        if (ch->p[j] <= 0.5) assert_close(tc, 0, 0);
+        for (int i = 0; i < ch->nt; i++) {
+            int st = ch->stable[i + j * ch->nt];
+            if (ch->p[j] <= 0.5) assert_false(st);
+            if (isfinite(tc) && tc > 0 && fabs(ch->tau[i] - tc) > 1e-9)
+                assert_int_equal(st, ch->tau[i] < tc);
+        }
+    }
+}
+
+/* One simulated point: 1 N at 2 Hz on storey 4, as in tests/test_stability.c. */
+typedef struct sim_out {
+    int diverged;
+    double growth_per_s, peak_ratio;
+} sim_out;
+
+static sim_out simulate(double p, double tau, double duration_s) {
+    rths_assembly a;
+    rths_split s;
+    rths_error err;
+    build(p, &a, &s, NULL);
+    const double f[4] = {0, 0, 0, 1.0};
+    rths_delay_sim_result r;
+    assert_int_equal(rths_delay_feedback_simulate(&a, &s, f, 2.0, tau, duration_s, 0, &r, &err),
+                     RTHS_OK);
+    sim_out o = {r.diverged, r.growth_rate_per_s, 0};
+    for (int i = 0; i < r.n; i++)
+        o.peak_ratio = fmax(o.peak_ratio, fabs(r.x_num_m[i]) / r.steady_amplitude_m);
+    rths_dde_label l = label(p, tau);
+    printf("p %.2f tau %.3e s: simulation diverged %d, growth %.4g /s, peak/steady %.3g; "
+           "rightmost root %.4g%+.4gi /s, chain %.4g /s, %s\n",
+           p, tau, o.diverged, o.growth_per_s, o.peak_ratio, l.rightmost_real, l.rightmost_imag,
+           l.essential_per_s, l.stable ? "stable" : "unstable");
+    rths_delay_sim_result_free(&r);
+    release(&a, &s, NULL);
+    return o;
+}
+
+/* The chart's tau grid point nearest to tau (its grid is 2e-5..3e-4 s in steps of 1e-5 s). */
+static double grid_tau(double tau) {
+    const rths_chart *ch = get_chart();
+    double best = ch->tau[0];
+    for (int i = 1; i < ch->nt; i++)
+        if (fabs(ch->tau[i] - tau) < fabs(best - tau)) best = ch->tau[i];
+    return best;
+}
+
+static int chart_row(double p) {
+    const rths_chart *ch = get_chart();
+    for (int j = 0; j < ch->np; j++)
+        if (fabs(ch->p[j] - p) < 1e-9) return j;
+    fail_msg("p = %g is not on the chart's grid", p);
+    return -1;
+}
+
+/* The chain side (p < 1/2): both actuators' delayed accelerations grow by (1-p)/p per delay;
+ * the simulation's fitted growth must match the chain's rate to 25 % (the envelope is fitted
+ * over the few delays before the divergence bound, as for one DoF). 5e-5 s is a chart grid point,
+ * 1e-3 s lies beyond the chart and is compared with the labelling alone. */
+static void test_time_domain_chain(void **state) {
+    (void)state;
+    const double tau[2] = {5e-5, 1e-3}, dur[2] = {0.05, 0.5};
+    for (int i = 0; i < 2; i++) {
+        sim_out o = simulate(0.35, tau[i], dur[i]);
+        rths_dde_label l = label(0.35, tau[i]);
+        assert_true(o.diverged);
+        assert_false(l.stable);
+        assert_rel(o.growth_per_s, l.essential_per_s, 0.25);
+    }
+    assert_false(chart_stable_at(5e-5, 0.35));
+}
+
+/* The mode side (p > 1/2), on two chart rows: the chart's critical delay equals the stand-alone
+ * search (both end in Newton on D(i w; tau) = 0: 1e-9), and at the grid points nearest 0.7 and
+ * 1.4 x the critical delay the chart, the labelling and the simulation agree. Far beyond (1 ms)
+ * the simulated growth matches the rightmost root to 20 %, as for one DoF. */
+static void test_time_domain_modes(void **state) {
+    (void)state;
+    const double ps[2] = {0.6, 0.75};
+    for (int i = 0; i < 2; i++) {
+        double wc, tc = critical_delay(ps[i], &wc);
+        printf("two interface DoFs p %.2f: critical delay %.6e s at %.4f rad/s\n", ps[i], tc, wc);
+        assert_true(tc > 2e-5 && tc < 3e-4);
+        assert_rel(get_chart()->critical_tau[chart_row(ps[i])], tc, 1e-9);
+        /* below: bounded (a start-up transient of a few x the steady amplitude while the lightly
+         * damped modes, zeta ~ 0.1 %, decay), the chart stable with a negative rightmost root */
+        double below = grid_tau(0.7 * tc), above = grid_tau(1.4 * tc);
+        assert_true(below < tc && above > tc);
+        sim_out o = simulate(ps[i], below, 8.0);
+        rths_dde_label l = label(ps[i], below);
+        assert_false(o.diverged);
+        assert_true(l.stable && l.rightmost_real < 0);
+        assert_true(o.peak_ratio < 10);
+        assert_true(chart_stable_at(below, ps[i]));
+        /* above: unstable; the slow growth over 8 s is at least 30 % of the root's (the forced
+         * response still dominates the envelope early on) */
+        o = simulate(ps[i], above, 8.0);
+        l = label(ps[i], above);
+        assert_false(l.stable);
+        assert_false(chart_stable_at(above, ps[i]));
+        assert_true(l.rightmost_real > 0 && o.growth_per_s > 0.3 * l.rightmost_real);
+        /* far: the mode grows fast enough to dominate; the fitted rate is the root's */
+        o = simulate(ps[i], 1e-3, 12.0);
+        l = label(ps[i], 1e-3);
+        assert_true(l.rightmost_real > 0 && l.essential_per_s < 0);
+        assert_rel(o.growth_per_s, l.rightmost_real, 0.2);
+    }
+}
+
+int main(void) {
+    const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_delay_equation_by_hand),
+        cmocka_unit_test(test_double_chain),
+        cmocka_unit_test(test_chart),
+        cmocka_unit_test(test_time_domain_chain),
+        cmocka_unit_test(test_time_domain_modes),
+    };
+    int rc = cmocka_run_group_tests(tests, NULL, NULL);
+    if (chart_done) {
+        rths_chart_free(&chart);
+        rths_assembly_free(&chart_assembly);
+    }
+    return rc;
+}
