@@ -453,12 +453,13 @@ static int load(const char *yaml, rths_config **cfg, rths_error *err) {
     return rths_config_load(yaml_path, NULL, 0, cfg, err);
 }
 
-/* Reads yaml (overriding lines by substring replacement of `from` with `to`) and returns rc. */
+/* Reads yaml as a command would (section reader, then the unknown-key check); *b is filled only
+ * when both pass. */
 static int read_yaml(const char *yaml, rths_beam *b, rths_error *err) {
     rths_config *cfg;
     if (load(yaml, &cfg, err)) fail_msg("%s", err->msg);
     int rc = rths_beam_config_read(cfg, "structure.beam", b, err);
-    if (!rc) rc = rths_config_check_unknown(cfg, err);
+    if (!rc && (rc = rths_config_check_unknown(cfg, err))) rths_beam_free(b);
     rths_config_free(cfg);
     unlink(yaml_path);
     return rc;
