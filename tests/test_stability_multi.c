@@ -11,9 +11,12 @@
  * Checks: the delay equation against a characteristic matrix written by hand from the two
  * substructures' equations (not from the builder's rule), the double neutral chain, and the
  * chart's verdict and rightmost root against the time-domain simulation of the delayed-feedback
- * test at (delay, p) points on both sides of the boundary. */
+ * test at (delay, p) points on both sides of the boundary. Last, the follow-up's beam split
+ * (interface displacement and rotation, two actuators) built with beam.h, against the same
+ * simulation. */
 #include "testlib.h"
 
+#include "rths/beam.h"
 #include "rths/stability.h"
 
 #include <complex.h>
@@ -342,6 +345,161 @@ static void test_time_domain_modes(void **state) {
     }
 }
 
+/* ---- the follow-up's beam split ---- */
+
+/* The steel strip of docs/config/beam.md (EI 0.459317 N m^2, 0.19939 kg/m, clamped at 0), cut at
+ * 0.17 m: numerical root, physical tip, interface w and theta at the cut (a force and a moment
+ * actuator, both delayed). Rayleigh damping 1.1 % at the first two modes (3.0236, 18.9485 Hz).
+ * A coarse mesh (2 + 4 elements, 12 DoFs, highest mode 1.1e4 rad/s) keeps the simulation's RK4
+ * step (tau/40) well inside its stability limit. */
+static void strip(int e1, int e2, int modal, rths_assembly *a, rths_dof_role **roles) {
+    const double x0 = 0;
+    rths_beam_segment segs[2] = {{0.17, e1, 0.459317, 0.19939}, {0.36, e2, 0.459317, 0.19939}};
+    rths_beam_spec spec = {.n_segments = 2, .segments = segs, .n_clamped = 1, .clamped_m = &x0};
+    rths_error err;
+    double alpha, beta;
+    assert_int_equal(
+        rths_beam_rayleigh_from_pairs(3.0236, 0.011, 18.9485, 0.011, &alpha, &beta, &err), 0);
+    spec.damping = modal ? (rths_beam_damping){RTHS_BEAM_DAMPING_MODAL, 0, NULL, 0.011, 0, 0}
+                         : (rths_beam_damping){RTHS_BEAM_DAMPING_RAYLEIGH, 0, NULL, 0, alpha, beta};
+    rths_beam b;
+    assert_int_equal(rths_beam_assemble(&spec, &b, &err), RTHS_OK);
+    assert_int_equal(rths_beam_to_assembly(&b, a, &err), RTHS_OK);
+    int iw = rths_beam_find_dof(&b, 0.17, RTHS_BEAM_W), it = rths_beam_find_dof(&b, 0.17, 1);
+    assert_int_equal(it, iw + 1);
+    *roles = malloc((size_t)b.n * sizeof **roles);
+    for (int i = 0; i < b.n; i++)
+        (*roles)[i] = i < iw ? RTHS_DOF_NUMERICAL : i > it ? RTHS_DOF_PHYSICAL : RTHS_DOF_INTERFACE;
+    rths_beam_free(&b);
+}
+
+typedef struct strip_point {
+    rths_dde_label label;
+    sim_out sim;
+} strip_point;
+
+/* Label and simulate the strip split at (p, tau): 0.01 N at 1 Hz on the tip (off resonance, so
+ * the forced response does not build up like a growth). */
+static strip_point strip_at(double p, double tau, double duration_s) {
+    rths_assembly a;
+    rths_dof_role *roles;
+    rths_split s;
+    rths_dde d;
+    rths_error err;
+    strip(2, 4, 0, &a, &roles);
+    assert_int_equal(rths_split_create(&a, roles, p, NULL, NULL, &s, &err), RTHS_OK);
+    assert_int_equal(rths_dde_from_split(&a, &s, &d, &err), RTHS_OK);
+    strip_point out;
+    assert_int_equal(rths_dde_label_at(&d, tau, 12, &out.label, &err), RTHS_OK);
+    double *f = calloc((size_t)a.n, sizeof *f);
+    f[a.n - 2] = 0.01;
+    rths_delay_sim_result r;
+    assert_int_equal(rths_delay_feedback_simulate(&a, &s, f, 1.0, tau, duration_s, 0, &r, &err),
+                     RTHS_OK);
+    out.sim = (sim_out){r.diverged, r.growth_rate_per_s, 0};
+    for (int i = 0; i < r.n; i++)
+        out.sim.peak_ratio = fmax(out.sim.peak_ratio, fabs(r.x_num_m[i]) / r.steady_amplitude_m);
+    printf("strip p %.2f tau %.3e s: simulation diverged %d, growth %.5g /s, peak/steady %.3g; "
+           "rightmost root %.5g%+.5gi /s, chain %.5g /s, %s\n",
+           p, tau, r.diverged, r.growth_rate_per_s, out.sim.peak_ratio, out.label.rightmost_real,
+           out.label.rightmost_imag, out.label.essential_per_s,
+           out.label.stable ? "stable" : "unstable");
+    free(f);
+    rths_delay_sim_result_free(&r);
+    rths_dde_free(&d);
+    rths_split_free(&s);
+    rths_assembly_free(&a);
+    free(roles);
+    return out;
+}
+
+/* Modal damping gives a full C (M Phi diag Phi^T M couples every DoF), which no split can share
+ * between substructures: refused, so a beam that is to be split takes Rayleigh damping. */
+static void test_strip_modal_damping_not_splittable(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_dof_role *roles;
+    rths_split s;
+    rths_error err;
+    strip(2, 4, 1, &a, &roles);
+    assert_int_equal(rths_split_create(&a, roles, 0.8, NULL, NULL, &s, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "damping couples physical DoF"));
+    rths_assembly_free(&a);
+    free(roles);
+}
+
+/* The consistent mass couples the physical DoFs next to the cut to the interface DoFs; those
+ * couplings sit in interface columns, so M_tau holds more than (1-p) M_ii and the neutral chain
+ * is no longer at ln((1-p)/p)/tau: at p = 0.6, where that formula says -0.405/tau (stable), the
+ * chain is at +0.225/tau (measured). The simulation diverges at the chain's rate (15 %). */
+static void test_strip_chain(void **state) {
+    (void)state;
+    const double taus[2] = {1e-6, 1e-5}, durations[2] = {0.005, 0.05};
+    for (int i = 0; i < 2; i++) {
+        strip_point pt = strip_at(0.6, taus[i], durations[i]);
+        assert_false(pt.label.stable);
+        assert_true(pt.label.essential_per_s * taus[i] > 0.1);
+        assert_true(pt.sim.diverged);
+        assert_rel(pt.sim.growth_per_s, pt.label.essential_per_s, 0.15);
+    }
+}
+
+/* At p = 0.8 the chain is stable (-0.975/tau) and the first bending mode (19.0 rad/s) crosses at
+ * a critical delay of about 12 us: bounded below it (simulated), unstable above (labelled only:
+ * a growth of 0.08 /s would need a minute of simulated time at a step of 0.4 us). Further out,
+ * fast roots far above the bending modes take over; where their growth is slow enough to be
+ * fitted before the divergence bound (2e-5, 3e-5 s) it matches the rightmost root to 15 %
+ * (measured 2 % and 8 %). Refining the mesh to 4 + 8 elements puts an unstable root at
+ * 1.36e6 /s already at 5 us, below the 2 + 4 mesh's critical delay: for a beam model the delayed
+ * feedback's limit is set by the mesh's fast dynamics, not by the strip's bending modes. */
+static void test_strip_modes(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_dof_role *roles;
+    rths_split s;
+    rths_dde d;
+    rths_error err;
+    strip(2, 4, 0, &a, &roles);
+    assert_int_equal(rths_split_create(&a, roles, 0.8, NULL, NULL, &s, &err), RTHS_OK);
+    assert_int_equal(rths_dde_from_split(&a, &s, &d, &err), RTHS_OK);
+    double tc, wc;
+    assert_int_equal(rths_dde_critical_delay(&d, 1e-7, 1e-2, 300, 12, &tc, &wc, &err), RTHS_OK);
+    printf("strip 2 + 4 elements, p 0.8: critical delay %.4e s at %.3f rad/s\n", tc, wc);
+    assert_true(tc > 5e-6 && tc < 5e-5);
+    assert_rel(wc, 2 * M_PI * 3.0236, 0.01);
+    rths_dde_free(&d);
+    rths_split_free(&s);
+    rths_assembly_free(&a);
+    free(roles);
+    strip_point pt = strip_at(0.8, 0.7 * tc, 0.3);
+    assert_true(pt.label.stable);
+    assert_false(pt.sim.diverged);
+    assert_true(pt.sim.peak_ratio < 10);
+    pt = strip_at(0.8, 1.4 * tc, 0.05);
+    assert_false(pt.label.stable);
+    const double taus[2] = {2e-5, 3e-5};
+    for (int i = 0; i < 2; i++) {
+        pt = strip_at(0.8, taus[i], 0.3);
+        assert_true(pt.sim.diverged && pt.label.rightmost_real > 0);
+        assert_rel(pt.sim.growth_per_s, pt.label.rightmost_real, 0.15);
+    }
+    /* the finer mesh at 5 us */
+    strip(4, 8, 0, &a, &roles);
+    assert_int_equal(rths_split_create(&a, roles, 0.8, NULL, NULL, &s, &err), RTHS_OK);
+    assert_int_equal(rths_dde_from_split(&a, &s, &d, &err), RTHS_OK);
+    rths_dde_label fine;
+    assert_int_equal(rths_dde_label_at(&d, 5e-6, 12, &fine, &err), RTHS_OK);
+    printf("strip 4 + 8 elements, p 0.8, tau 5e-6 s: rightmost root %.5g%+.5gi /s\n",
+           fine.rightmost_real, fine.rightmost_imag);
+    assert_false(fine.stable);
+    /* measured: a real root at 1.36e6 /s, far above any bending mode of the strip in range */
+    assert_true(cabs(fine.rightmost_real + I * fine.rightmost_imag) > 1e5);
+    rths_dde_free(&d);
+    rths_split_free(&s);
+    rths_assembly_free(&a);
+    free(roles);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_delay_equation_by_hand),
@@ -349,6 +507,9 @@ int main(void) {
         cmocka_unit_test(test_chart),
         cmocka_unit_test(test_time_domain_chain),
         cmocka_unit_test(test_time_domain_modes),
+        cmocka_unit_test(test_strip_modal_damping_not_splittable),
+        cmocka_unit_test(test_strip_chain),
+        cmocka_unit_test(test_strip_modes),
     };
     int rc = cmocka_run_group_tests(tests, NULL, NULL);
     if (chart_done) {
