@@ -170,7 +170,7 @@ static void test_static_tip_deflection(void **state) {
     assert_rel(w, p * pow(LEN, 3) / (3 * EI), 1e-12);
     assert_rel(th, p * LEN * LEN / (2 * EI), 1e-12);
     rths_beam_free(&b);
-    /* two segments: a = 0.3 m stiff (EI 7), 0.6 m soft (EI 2), a single element each */
+    /* two segments: a = 0.3 m stiff (EI 7, one element), 0.6 m soft (EI 2, three elements) */
     const double a = 0.3, l2 = 0.6, ei1 = 7, ei2 = 2, l = a + l2;
     rths_beam_segment segs[2] = {{a, 1, ei1, MU}, {l2, 3, ei2, 2 * MU}};
     rths_beam_spec spec = {.n_segments = 2, .segments = segs, .n_clamped = 1, .clamped_m = &x0};

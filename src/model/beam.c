@@ -138,11 +138,11 @@ static int check_segments(const rths_beam_spec *spec, beam_fault *f) {
 
 /* Supports and point masses must sit on nodes; a node is clamped or pinned once at most. */
 static int check_positions(const rths_beam_spec *spec, const double *nodes, int n_nodes, double tol,
-                           beam_fault *f) {
+                           beam_fault *f, rths_error *err) {
     const int counts[3] = {spec->n_clamped, spec->n_pinned, spec->n_point_masses};
     const beam_field fields[3] = {F_CLAMPED, F_PINNED, F_PM_POSITION};
     int *support = calloc((size_t)n_nodes, sizeof *support);
-    if (!support) return fault(f, F_SECTION, "out of memory");
+    if (!support) return rths_error_set(err, RTHS_EFAIL, "out of memory (beam)");
     int rc = RTHS_OK;
     for (int kind = 0; kind < 3 && !rc; kind++)
         for (int i = 0; i < counts[kind] && !rc; i++) {
@@ -289,8 +289,8 @@ static int modal_damping(rths_beam *b, const rths_beam_damping *d, beam_fault *f
 }
 
 /* Copies the free rows and columns of the full matrices and lists the free DoFs. */
-static int reduce(rths_beam *b, const double *kg, const double *mg, const int *fixed,
-                  beam_fault *f) {
+static int reduce(rths_beam *b, const double *kg, const double *mg, const int *fixed, beam_fault *f,
+                  rths_error *err) {
     int nd = 2 * b->n_nodes, n = 0;
     for (int d = 0; d < nd; d++)
         n += !fixed[d];
@@ -301,7 +301,7 @@ static int reduce(rths_beam *b, const double *kg, const double *mg, const int *f
     b->stiffness = rths_mat_new(n, n);
     b->dofs = calloc((size_t)n, sizeof *b->dofs);
     if (!b->mass || !b->damping || !b->stiffness || !b->dofs)
-        return fault(f, F_SECTION, "out of memory");
+        return rths_error_set(err, RTHS_EFAIL, "out of memory (beam)");
     for (int d = 0, i = 0; d < nd; d++) {
         if (fixed[d]) continue;
         b->dofs[i] = (rths_beam_dof){d / 2, d % 2 ? RTHS_BEAM_THETA : RTHS_BEAM_W,
@@ -342,7 +342,7 @@ static int assemble(const rths_beam_spec *spec, rths_beam *out, beam_fault *f, r
     /* a node typed as a decimal (0.17) and one summed from lengths differ in the last bits only */
     tol *= 1e-6;
     out->length_m = out->node_position_m[out->n_nodes - 1];
-    rc = check_positions(spec, out->node_position_m, out->n_nodes, tol, f);
+    rc = check_positions(spec, out->node_position_m, out->n_nodes, tol, f, err);
     if (rc) return rc;
     int nd = 2 * out->n_nodes;
     double *kg = rths_mat_new(nd, nd), *mg = rths_mat_new(nd, nd);
@@ -352,7 +352,7 @@ static int assemble(const rths_beam_spec *spec, rths_beam *out, beam_fault *f, r
     } else {
         assemble_full(spec, out->node_position_m, out->n_nodes, tol, kg, mg);
         mark_fixed(spec, out->node_position_m, out->n_nodes, tol, fixed);
-        rc = reduce(out, kg, mg, fixed, f);
+        rc = reduce(out, kg, mg, fixed, f, err);
     }
     rths_mat_free(kg);
     rths_mat_free(mg);
