@@ -185,8 +185,9 @@ static void test_static_tip_deflection(void **state) {
 }
 
 /* A tip mass M_t on a cantilever: x = beta L solves 1 + cos x cosh x + (M_t / (m L)) x (cos x
- * sinh x - sin x cosh x) = 0 (e.g. Blevins, "Formulas for natural frequency and mode shape",
- * table 8-1). */
+ * sinh x - sin x cosh x) = 0 (the clamped-free beam's boundary value problem with the tip mass's
+ * inertia in the shear condition; e.g. Blevins, "Formulas for natural frequency and mode shape").
+ */
 static double tip_mass_beta_l(double ratio) {
     double lo = 0.1, hi = cantilever_beta_l(0);
     for (int i = 0; i < 200; i++) {

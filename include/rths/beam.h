@@ -4,13 +4,15 @@
  * The beam lies along x from 0 (the first segment's start) to its total length. Each segment is
  * meshed into equal two-node elements with cubic Hermite shape functions: per node a transverse
  * displacement w (m) and a rotation theta = dw/dx (rad). Element stiffness EI/l^3 [12 6l -12 6l;
- * 6l 4l^2 -6l 2l^2; ...] and consistent mass (m l / 420) [156 22l 54 -13l; ...] (Przemieniecki,
- * "Theory of matrix structural analysis", 1968, ch. 11). Clamps fix w and theta at a node, pins
- * fix w only; fixed DoFs are removed, so M, C, K are over the free DoFs, listed in `dofs` from
- * the root up (node order, w before theta at each node). Added point masses load w, rotary
- * inertias load theta. Damping is modal (C = M Phi diag(2 zeta_r omega_r) Phi^T M with Phi the
- * M-orthonormal undamped modes, so mode r has exactly ratio zeta_r) or Rayleigh (alpha M + beta
- * K). Matrices column-major (core.h), SI units. */
+ * 6l 4l^2 -6l 2l^2; ...] and consistent mass (m l / 420) [156 22l 54 -13l; ...] (the standard
+ * Hermite beam element, e.g. Przemieniecki, "Theory of matrix structural analysis", 1968). Clamps
+ * fix w and theta at a node, pins fix w only; fixed DoFs are removed, so M, C, K are over the free
+ * DoFs, listed in `dofs` from the root up (node order, w before theta at each node). Added point
+ * masses load w, rotary inertias load theta. Damping is modal (C = M Phi diag(2 zeta_r omega_r)
+ * Phi^T M with Phi the M-orthonormal undamped modes, so mode r has exactly ratio zeta_r) or
+ * Rayleigh (alpha M + beta K). Modal damping's C is full, so no split can share it between
+ * substructures: a beam that is to be split takes Rayleigh damping (docs/config/beam.md,
+ * "Splitting a beam"). Matrices column-major (core.h), SI units. */
 #ifndef RTHS_BEAM_H
 #define RTHS_BEAM_H
 
