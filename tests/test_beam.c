@@ -636,6 +636,35 @@ static void test_follow_up_strip(void **state) {
     rths_beam_free(&b);
 }
 
+/* The example in docs/config/beam.md reads as documented: 106 free DoFs, the cut's w and theta
+ * at DoFs 33 and 34, Rayleigh damping of exactly 1.1 % at the strip's first two frequencies. */
+static void test_doc_example(void **state) {
+    (void)state;
+    FILE *f = fopen(rths_test_source_path("docs/config/beam.md"), "r");
+    assert_non_null(f);
+    static char doc[65536];
+    size_t len = fread(doc, 1, sizeof doc - 1, f);
+    fclose(f);
+    doc[len] = 0;
+    char *start = strstr(doc, "```yaml\n"), *end = start ? strstr(start + 8, "```") : NULL;
+    assert_true(start && end);
+    *end = 0;
+    rths_beam b;
+    rths_error err;
+    if (read_yaml(start + 8, &b, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(b.n, 106);
+    assert_int_equal(rths_beam_find_dof(&b, 0.17, RTHS_BEAM_W) + 1, 33);
+    assert_int_equal(rths_beam_find_dof(&b, 0.17, RTHS_BEAM_THETA) + 1, 34);
+    double *w = omegas(&b);
+    for (int r = 0; r < 2; r++) {
+        double zeta = b.rayleigh_alpha_per_s / (2 * w[r]) + b.rayleigh_beta_s * w[r] / 2;
+        /* the pairs are the documented 4-decimal frequencies, within 1e-4 Hz of the modes' */
+        assert_close(zeta, 0.011, 1e-6);
+    }
+    free(w);
+    rths_beam_free(&b);
+}
+
 static void test_api_refusals(void **state) {
     (void)state;
     rths_beam_segment seg = {0.5, 4, 1, 1};
@@ -669,6 +698,7 @@ int main(void) {
         cmocka_unit_test(test_config_refusals),
         cmocka_unit_test(test_config_missing),
         cmocka_unit_test(test_follow_up_strip),
+        cmocka_unit_test(test_doc_example),
         cmocka_unit_test(test_api_refusals),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
