@@ -3,6 +3,7 @@
  * key for each mistake before any work starts. */
 #include "rths/setup.h"
 
+#include "rths/beam.h"
 #include "rths/mtx.h"
 
 #include <math.h>
@@ -330,25 +331,48 @@ static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+/* structure.beam: Euler-Bernoulli beam elements assembled into matrices (beam.h). */
+static int read_beam(rths_config *cfg, rths_setup *s, rths_error *err) {
+    rths_beam beam;
+    int rc = rths_beam_config_read(cfg, "structure.beam", &beam, err);
+    if (rc) return rc;
+    rths_error local;
+    rc = rths_beam_to_assembly(&beam, &s->assembly, &local);
+    if (rc) rc = rths_config_error_at(cfg, "structure.beam", err, "%s", local.msg);
+    rths_beam_free(&beam);
+    s->chain = 0;
+    return rc;
+}
+
+/* Exactly one of structure.storeys, structure.matrices and structure.beam. */
+static int read_structure(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const forms[3] = {K_STOREYS, K_MATRICES, "structure.beam"};
+    int given = -1;
+    for (int f = 0; f < 3; f++) {
+        if (!rths_config_has(cfg, forms[f])) continue;
+        if (given >= 0)
+            return rths_config_error_at(cfg, forms[f], err,
+                                        "%s and %s both given: give the structure as one of "
+                                        "structure.storeys, structure.matrices or "
+                                        "structure.beam, not both",
+                                        forms[given], forms[f]);
+        given = f;
+    }
+    if (given < 0)
+        return rths_config_error_at(cfg, "structure", err,
+                                    "%s: give structure.storeys (mass_kg, damping_n_s_per_m, "
+                                    "stiffness_n_per_m lists), structure.matrices or "
+                                    "structure.beam",
+                                    rths_config_has(cfg, "structure") ? "must be a mapping"
+                                                                      : "missing");
+    return given == 0   ? read_chain(cfg, s, err)
+           : given == 1 ? read_matrices(cfg, s, err)
+                        : read_beam(cfg, s, err);
+}
+
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
-    int has_chain = rths_config_has(cfg, K_STOREYS),
-        has_matrices = rths_config_has(cfg, K_MATRICES);
-    int rc;
-    if (has_chain && has_matrices)
-        rc = rths_config_error_at(cfg, K_MATRICES, err,
-                                  "give the structure either as structure.storeys or as "
-                                  "structure.matrices, not both");
-    else if (!has_chain && !has_matrices && rths_config_has(cfg, "structure"))
-        rc = rths_config_error_at(cfg, "structure", err,
-                                  "must be a mapping with storeys: (mass_kg, damping_n_s_per_m, "
-                                  "stiffness_n_per_m lists) or matrices:");
-    else if (!has_chain && !has_matrices)
-        rc = rths_config_error_at(cfg, "structure", err,
-                                  "missing: give structure.storeys (mass_kg, damping_n_s_per_m, "
-                                  "stiffness_n_per_m lists) or structure.matrices");
-    else
-        rc = has_chain ? read_chain(cfg, out, err) : read_matrices(cfg, out, err);
+    int rc = read_structure(cfg, out, err);
     if (!rc) rc = read_split(cfg, out, err);
     if (!rc) rc = read_forcing(cfg, out, err);
     if (!rc) rc = read_bilinear(cfg, out, err);

@@ -65,8 +65,13 @@ async function files() {
     else fail(`/api/summary: HTTP ${s.status}`);
   } else if (s.status === 404 && /not ended/.test(JSON.parse(s.body).error)) ok(`/api/summary before the end: 404, ${JSON.parse(s.body).error}`);
   else fail(`/api/summary without summary.json: HTTP ${s.status}`);
+  const liveFile = path.join(runDir, "live.json");
   const l = await request("/api/live");
-  if (l.status === 404 && JSON.parse(l.body).error) ok(`/api/live without live.json: 404 with a message`);
+  if (fs.existsSync(liveFile)) {
+    if (l.status === 200 && JSON.stringify(JSON.parse(l.body)) === JSON.stringify(JSON.parse(fs.readFileSync(liveFile))))
+      ok("/api/live equals live.json");
+    else fail(`/api/live: HTTP ${l.status}`);
+  } else if (l.status === 404 && JSON.parse(l.body).error) ok(`/api/live without live.json: 404 with a message`);
   else fail(`/api/live without live.json: HTTP ${l.status}`);
   const t = await request("/api/truth");
   const truth = csv(path.join(runDir, "truth.csv"));
