@@ -103,12 +103,9 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
     }
     if (!opts[OPT_FREQ].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --frequency F (forcing frequency, Hz)");
-    if ((rc = rths_cli_double("--frequency", opts[OPT_FREQ].value, -INFINITY, 1e5, &a->frequency_hz,
-                              err)))
+    if ((rc = rths_cli_double_ex("--frequency", opts[OPT_FREQ].value, 0, 1e5, RTHS_CONFIG_LO_OPEN,
+                                 &a->frequency_hz, err)))
         return rc;
-    if (!(a->frequency_hz > 0))
-        return rths_error_set(err, RTHS_EINPUT, "option --frequency: must be > 0 Hz (got %s)",
-                              opts[OPT_FREQ].value);
     if (!opts[OPT_PERIODS].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --periods N (forcing periods to run)");
     if ((rc = rths_cli_int("--periods", opts[OPT_PERIODS].value, 1, 100000, &a->periods, err)))
@@ -122,12 +119,9 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
             return rths_error_set(err, RTHS_EINPUT,
                                   "option --trace-periods: feedback mode traces the whole run");
         if (opts[OPT_DELAY].value) {
-            if ((rc = rths_cli_double("--delay", opts[OPT_DELAY].value, -INFINITY, 1.0, &a->delay_s,
-                                      err)))
+            if ((rc = rths_cli_double_ex("--delay", opts[OPT_DELAY].value, 0, 1.0,
+                                         RTHS_CONFIG_LO_OPEN, &a->delay_s, err)))
                 return rc;
-            if (!(a->delay_s > 0))
-                return rths_error_set(err, RTHS_EINPUT, "option --delay: must be > 0 s (got %s)",
-                                      opts[OPT_DELAY].value);
             a->has_delay = 1;
         }
         return RTHS_OK;

@@ -124,11 +124,12 @@ fb p067_1ms 0.67 1e-3 200 true
 bad() { refused simulate "$@"; } # name, regex, args...
 ok=(--frequency 13 --target 1e-4,0 --periods 3)
 bad "frequency not a number" "--frequency.*not a number" "$cfg" --frequency abc --target 1e-4,0 --periods 3
-bad "frequency zero" "--frequency.*> 0" "$cfg" --frequency 0 --target 1e-4,0 --periods 3
+bad "frequency zero" "--frequency: must be in \(0, 100000\] \(got 0\)" "$cfg" --frequency 0 --target 1e-4,0 --periods 3
+bad "frequency too high" "--frequency: must be in \(0, 100000\] \(got 2e5\)" "$cfg" --frequency 2e5 --target 1e-4,0 --periods 3
 bad "frequency negative" "--frequency" "$cfg" --frequency -5 --target 1e-4,0 --periods 3
 bad "frequency missing value" "--frequency needs a value" "$cfg" --target 1e-4,0 --periods 3 --frequency
 bad "frequency missing" "missing --frequency" "$cfg" --target 1e-4,0 --periods 3
-bad "periods zero" "--periods" "$cfg" --frequency 13 --target 1e-4,0 --periods 0
+bad "periods zero" "--periods: must be in \[1, 100000\] \(got 0\)" "$cfg" --frequency 13 --target 1e-4,0 --periods 0
 bad "periods fractional" "--periods.*not an integer" "$cfg" --frequency 13 --target 1e-4,0 --periods 2.5
 bad "periods missing" "missing --periods" "$cfg" --frequency 13 --target 1e-4,0
 bad "target odd count" "--target.*pairs" "$cfg" --frequency 13 --target 1e-4,0,2e-5 --periods 3
@@ -138,7 +139,7 @@ bad "target empty item" "--target" "$cfg" --frequency 13 --target 1e-4,,0 --peri
 bad "target missing" "missing --target" "$cfg" --frequency 13 --periods 3
 bad "mode unknown" "--mode.*'sideways'" "$cfg" "${ok[@]}" --mode sideways
 bad "delay without feedback" "--delay.*feedback" "$cfg" "${ok[@]}" --delay 1e-4
-bad "delay zero" "--delay" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 0
+bad "delay zero" "--delay: must be in \(0, 1\] \(got 0\)" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 0
 bad "delay not a number" "--delay.*not a number" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 1ms
 bad "target in feedback mode" "--target.*feedback" "$cfg" --mode feedback --frequency 13 --periods 3 --target 1e-4,0
 bad "seed negative" "--seed" "$cfg" "${ok[@]}" --seed -1
