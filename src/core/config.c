@@ -450,6 +450,8 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
     size_t got;
     long line = 1, column = 1;
     int rc = RTHS_OK, first = 1, continuation = 0; /* UTF-8 continuation bytes still due */
+    unsigned lead = 0;                             /* the last multi-byte lead and where it was */
+    long lead_line = 0, lead_column = 0;
     while (!rc && (got = fread(buf, 1, sizeof buf, f)) > 0) {
         if (first && got >= 2 &&
             ((buf[0] == 0xff && buf[1] == 0xfe) || (buf[0] == 0xfe && buf[1] == 0xff) ||
@@ -462,24 +464,29 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
         for (size_t i = 0; i < got && !rc; i++, column++) {
             if (buf[i] == '\n') line++, column = 0;
             unsigned char c = buf[i];
-            int bad = 0;
-            if (continuation)
-                bad = (c & 0xc0) != 0x80, continuation--;
-            else if (c >= 0x80) /* lead byte: 110xxxxx, 1110xxxx or 11110xxx (up to U+10FFFF) */
+            if (continuation && (c & 0xc0) == 0x80) {
+                continuation--;
+                continue;
+            }
+            int bad = continuation > 0; /* the character at lead_* stopped short */
+            if (!bad && c >= 0x80) {    /* lead byte: 110xxxxx, 1110xxxx, 11110xxx (<= U+10FFFF) */
                 continuation = c >= 0xc2 && c <= 0xdf   ? 1
                                : c >= 0xe0 && c <= 0xef ? 2
                                : c >= 0xf0 && c <= 0xf4 ? 3
-                                                        : (bad = 1, 0);
-            if (!c)
+                                                        : -1;
+                bad = continuation < 0;
+                lead = c, lead_line = line, lead_column = column;
+            }
+            if (bad)
+                rc = rths_error_set(err, RTHS_EINPUT,
+                                    "%s:%ld:%ld: byte 0x%02X does not start a UTF-8 character "
+                                    "here: save the configuration as UTF-8 text",
+                                    shown, lead_line, lead_column, lead);
+            else if (!c)
                 rc = rths_error_set(err, RTHS_EINPUT,
                                     "%s:%ld:%ld: a NUL byte: the configuration must be UTF-8 text "
                                     "(is it UTF-16?)",
                                     shown, line, column);
-            else if (bad)
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%ld:%ld: byte 0x%02X is not UTF-8: save the configuration "
-                                    "as UTF-8 text",
-                                    shown, line, column, c);
         }
     }
     if (!rc && continuation)
