@@ -652,6 +652,38 @@ static void test_long_paths(void **state) {
     free(ov_text);
 }
 
+/* Keys that are not plain names (quoted in the file, or any text in a --set key) are written back
+ * quoted, so config.yaml stays a configuration the reader accepts (found by make fuzz: a --set key
+ * with '#' and a line break was written raw). */
+static void test_write_odd_keys(void **state) {
+    (void)state;
+    rths_config *cfg = NULL, *back = NULL;
+    rths_error err;
+    const char *ov[] = {"k# x\n y: z=1", "[a]=2"};
+    assert_int_equal(load("\"odd: key\": 1\n'#k': {'- x': 3}\n", ov, 2, &cfg, &err), RTHS_OK);
+    char out[] = "/tmp/rths_test_config_odd_XXXXXX";
+    int fd = mkstemp(out);
+    assert_true(fd >= 0);
+    close(fd);
+    assert_int_equal(rths_config_write(cfg, out, &err), RTHS_OK);
+    assert_int_equal(rths_config_load(out, NULL, 0, &back, &err), RTHS_OK);
+    const char *keys[] = {"odd: key", "#k.- x", "k# x\n y: z", "[a]"};
+    const long want[] = {1, 3, 1, 2};
+    for (int k = 0; k < 4; k++) {
+        long v = 0;
+        assert_int_equal(rths_config_get_int(back, keys[k], 1, 0, 0, 9, &v, &err), RTHS_OK);
+        assert_int_equal(v, want[k]);
+    }
+    assert_int_equal(rths_config_check_unknown(back, &err), RTHS_OK);
+    /* and a --set that is not UTF-8 is refused like such a file */
+    const char *bad[] = {"a=caf\xe9"};
+    rths_config_free(back);
+    assert_int_equal(rths_config_load(NULL, bad, 1, &back, &err), RTHS_EINPUT);
+    msg_has(&err, "not UTF-8 text");
+    unlink(out);
+    done(cfg);
+}
+
 /* One wording for every range: two-sided with its brackets, one-sided without an infinity. */
 static void test_range_text(void **state) {
     (void)state;
@@ -735,6 +767,7 @@ int main(void) {
         cmocka_unit_test(test_long_paths),
         cmocka_unit_test(test_range_text),
         cmocka_unit_test(test_section_read),
+        cmocka_unit_test(test_write_odd_keys),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -425,9 +425,53 @@ static int parse_source(const char *path, const char *text, const char *where, c
     return rc;
 }
 
+/* UTF-8 validation a byte at a time, with the position of the character being read. */
+typedef struct {
+    long line, column; /* of the byte just stepped over (1-based) */
+    int continuation;  /* continuation bytes still due */
+    unsigned lead;     /* the last multi-byte lead byte, and where it was */
+    long lead_line, lead_column;
+} utf8_scan;
+
+enum { UTF8_OK, UTF8_BAD, UTF8_NUL };
+
+static int utf8_step(utf8_scan *u, unsigned char c) {
+    if (u->line == 0) u->line = 1;
+    u->column++;
+    if (u->continuation && (c & 0xc0) == 0x80) {
+        u->continuation--;
+        return UTF8_OK;
+    }
+    int bad = u->continuation > 0; /* the character at lead_* stopped short */
+    if (!bad && c >= 0x80) {       /* lead byte: 110xxxxx, 1110xxxx, 11110xxx (<= U+10FFFF) */
+        u->continuation = c >= 0xc2 && c <= 0xdf   ? 1
+                          : c >= 0xe0 && c <= 0xef ? 2
+                          : c >= 0xf0 && c <= 0xf4 ? 3
+                                                   : -1;
+        bad = u->continuation < 0;
+        u->lead = c, u->lead_line = u->line, u->lead_column = u->column;
+    }
+    if (c == '\n') u->line++, u->column = 0;
+    return bad ? UTF8_BAD : c ? UTF8_OK : UTF8_NUL;
+}
+
+static int utf8_error(const utf8_scan *u, int status, const char *shown, rths_error *err) {
+    if (status == UTF8_NUL)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%ld:%ld: a NUL byte: the configuration must be UTF-8 text (is it "
+                              "UTF-16?)",
+                              shown, u->line, u->column);
+    if (status == UTF8_BAD)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%ld:%ld: byte 0x%02X does not start a UTF-8 character here: "
+                              "save the configuration as UTF-8 text",
+                              shown, u->lead_line, u->lead_column, u->lead);
+    return rths_error_set(err, RTHS_EINPUT, "%s: ends inside a UTF-8 character", shown);
+}
+
 /* What libfyaml would read as an empty or garbled document: a folder, UTF-16 or UTF-32 text (a
- * byte-order mark, or NUL bytes between ASCII characters), any NUL byte. shown: path for messages.
- */
+ * byte-order mark, or NUL bytes between ASCII characters), bytes that are not UTF-8. shown: path
+ * for messages. */
 static int check_config_file(const char *path, const char *shown, rths_error *err) {
     struct stat st;
     if (stat(path, &st) != 0)
@@ -448,10 +492,8 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
     }
     unsigned char buf[4096];
     size_t got;
-    long line = 1, column = 1;
-    int rc = RTHS_OK, first = 1, continuation = 0; /* UTF-8 continuation bytes still due */
-    unsigned lead = 0;                             /* the last multi-byte lead and where it was */
-    long lead_line = 0, lead_column = 0;
+    utf8_scan u = {0};
+    int rc = RTHS_OK, first = 1;
     while (!rc && (got = fread(buf, 1, sizeof buf, f)) > 0) {
         if (first && got >= 2 &&
             ((buf[0] == 0xff && buf[1] == 0xfe) || (buf[0] == 0xfe && buf[1] == 0xff) ||
@@ -461,36 +503,12 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
                                 "save the configuration as UTF-8 text",
                                 shown, buf[0], buf[1]);
         first = 0;
-        for (size_t i = 0; i < got && !rc; i++, column++) {
-            if (buf[i] == '\n') line++, column = 0;
-            unsigned char c = buf[i];
-            if (continuation && (c & 0xc0) == 0x80) {
-                continuation--;
-                continue;
-            }
-            int bad = continuation > 0; /* the character at lead_* stopped short */
-            if (!bad && c >= 0x80) {    /* lead byte: 110xxxxx, 1110xxxx, 11110xxx (<= U+10FFFF) */
-                continuation = c >= 0xc2 && c <= 0xdf   ? 1
-                               : c >= 0xe0 && c <= 0xef ? 2
-                               : c >= 0xf0 && c <= 0xf4 ? 3
-                                                        : -1;
-                bad = continuation < 0;
-                lead = c, lead_line = line, lead_column = column;
-            }
-            if (bad)
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%ld:%ld: byte 0x%02X does not start a UTF-8 character "
-                                    "here: save the configuration as UTF-8 text",
-                                    shown, lead_line, lead_column, lead);
-            else if (!c)
-                rc = rths_error_set(err, RTHS_EINPUT,
-                                    "%s:%ld:%ld: a NUL byte: the configuration must be UTF-8 text "
-                                    "(is it UTF-16?)",
-                                    shown, line, column);
+        for (size_t i = 0; i < got && !rc; i++) {
+            int status = utf8_step(&u, buf[i]);
+            if (status != UTF8_OK) rc = utf8_error(&u, status, shown, err);
         }
     }
-    if (!rc && continuation)
-        rc = rths_error_set(err, RTHS_EINPUT, "%s: ends inside a UTF-8 character", shown);
+    if (!rc && u.continuation) rc = utf8_error(&u, UTF8_OK, shown, err);
     if (!rc && ferror(f))
         rc = rths_error_set(err, RTHS_EINPUT, "%s: cannot read the configuration: %s", shown,
                             strerror(errno));
@@ -565,6 +583,10 @@ static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
     if (text[0] == '.' || text[klen - 1] == '.' || memmem(text, klen, "..", 2))
         return rths_error_set(err, RTHS_EINPUT, "--set %s: the key has an empty part", shown);
     if (!eq[1]) return rths_error_set(err, RTHS_EINPUT, "--set %s: no value after '='", shown);
+    utf8_scan u = {0};
+    for (const char *c = text; *c; c++)
+        if (utf8_step(&u, (unsigned char)*c) != UTF8_OK || (!c[1] && u.continuation))
+            return rths_error_set(err, RTHS_EINPUT, "--set %s: not UTF-8 text", shown);
     int key_depth = 1; /* the root mapping */
     for (size_t i = 0; i < klen; i++)
         key_depth += text[i] == '.';
@@ -1157,17 +1179,14 @@ static int needs_quotes(const char *s) {
     return s[strlen(s) - 1] == ' ';
 }
 
-static void emit_scalar(FILE *f, const cnode *n) {
-    if (!n->quoted && !n->text[0]) {
-        fputc('~', f); /* an empty value stays empty (null), not the text "" */
-        return;
-    }
-    if (!n->quoted && !needs_quotes(n->text)) {
-        fputs(n->text, f);
+/* text as a plain scalar when it reads back as itself, else double-quoted with escapes */
+static void emit_text(FILE *f, const char *text, int quoted) {
+    if (!quoted && !needs_quotes(text)) {
+        fputs(text, f);
         return;
     }
     fputc('"', f);
-    for (const char *p = n->text; *p; p++) {
+    for (const char *p = text; *p; p++) {
         if (*p == '"' || *p == '\\')
             fprintf(f, "\\%c", *p);
         else if (*p == '\n')
@@ -1178,6 +1197,13 @@ static void emit_scalar(FILE *f, const cnode *n) {
             fputc(*p, f);
     }
     fputc('"', f);
+}
+
+static void emit_scalar(FILE *f, const cnode *n) {
+    if (!n->quoted && !n->text[0])
+        fputc('~', f); /* an empty value stays empty (null), not the text "" */
+    else
+        emit_text(f, n->text, n->quoted);
 }
 
 static void emit_flow(FILE *f, const cnode *n) {
@@ -1193,7 +1219,9 @@ static void emit_flow(FILE *f, const cnode *n) {
     } else {
         fputc('{', f);
         for (int i = 0; i < n->count; i++) {
-            fprintf(f, "%s%s: ", i ? ", " : "", n->keys[i]);
+            fputs(i ? ", " : "", f);
+            emit_text(f, n->keys[i], 0);
+            fputs(": ", f);
             emit_flow(f, n->items[i]);
         }
         fputc('}', f);
@@ -1203,7 +1231,9 @@ static void emit_flow(FILE *f, const cnode *n) {
 static void emit_block(FILE *f, const cnode *map, int indent) {
     for (int i = 0; i < map->count; i++) {
         const cnode *v = map->items[i];
-        fprintf(f, "%*s%s:", indent, "", map->keys[i]);
+        fprintf(f, "%*s", indent, "");
+        emit_text(f, map->keys[i], 0);
+        fputc(':', f);
         if (v->type == NODE_MAPPING && v->count > 0) {
             fputc('\n', f);
             emit_block(f, v, indent + 2);
