@@ -1,5 +1,6 @@
 /* rths chart: stability chart of the conventional delayed-feedback hybrid test over (tau, p)
- * (SPEC §4, seed Fig. 4) for the configured structure and split. */
+ * (docs/method.md, "Delayed-feedback stability"; seed Fig. 4) for the configured structure and
+ * split. */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/stability.h"
@@ -15,7 +16,7 @@ static const char usage[] =
     "\n"
     "Substructurability of the conventional real-time hybrid test, in which the physical\n"
     "interface follows the numerical one through an actuator with a pure delay tau. For every\n"
-    "(tau, p) on a grid (p = numerical share of the interface mass, SPEC erratum 1) the neutral\n"
+    "(tau, p) on a grid (p = numerical share of the interface mass, docs/method.md erratum 1) the neutral\n"
     "delay equation of the configured split is labelled stable or unstable from its rightmost\n"
     "characteristic roots (Chebyshev collocation, then root tracking in tau) and its essential\n"
     "spectrum (the neutral root chains, from det(M_0 + z M_tau) = 0); the boundaries\n"
@@ -41,59 +42,6 @@ static const char usage[] =
     "  --help             this text\n"
     "\n"
     "Exit status: 0 success, 1 failure, 2 bad usage or input (nothing written).\n";
-
-static int read_options(rths_config *cfg, rths_chart_options *o, rths_error *err) {
-    rths_chart_options_default(o);
-    long tp, pp, wp, mt, mp, mr, cn;
-    int rc;
-    if ((rc = rths_config_get_double(cfg, "stability.tau_min_s", 0, o->tau_min_s, 1e-12, 1e3,
-                                     &o->tau_min_s, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.tau_max_s", 0, o->tau_max_s, 1e-12, 1e3,
-                                     &o->tau_max_s, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.tau_points", 0, o->tau_points, 2, 5000, &tp,
-                                  err)) ||
-        (rc = rths_config_get_double(cfg, "stability.p_min", 0, o->p_min, 1e-6, 1 - 1e-6, &o->p_min,
-                                     err)) ||
-        (rc = rths_config_get_double(cfg, "stability.p_max", 0, o->p_max, 1e-6, 1 - 1e-6, &o->p_max,
-                                     err)) ||
-        (rc = rths_config_get_int(cfg, "stability.p_points", 0, o->p_points, 1, 5000, &pp, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.omega_min_rad_s", 0, o->omega_min_rad_s, 0,
-                                     1e9, &o->omega_min_rad_s, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.omega_max_rad_s", 0, o->omega_max_rad_s, 1e-9,
-                                     1e9, &o->omega_max_rad_s, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.omega_points", 0, o->omega_points, 2, 100000, &wp,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_tau_points", 0, o->mdbm_tau_points, 2, 5000,
-                                  &mt, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_p_points", 0, o->mdbm_p_points, 2, 5000, &mp,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_refine", 0, o->mdbm_refine, 0, 8, &mr,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.chebyshev_nodes", 0, o->chebyshev_nodes, 4, 200,
-                                  &cn, err)))
-        return rc;
-    if (!(o->tau_max_s > o->tau_min_s))
-        return rths_config_error_at(cfg, "stability.tau_max_s", err,
-                                    "must be above stability.tau_min_s (%g s), got %g s",
-                                    o->tau_min_s, o->tau_max_s);
-    if (!(o->p_max >= o->p_min))
-        return rths_config_error_at(cfg, "stability.p_max", err,
-                                    "must not be below stability.p_min (%g), got %g", o->p_min,
-                                    o->p_max);
-    if (!(o->omega_max_rad_s > o->omega_min_rad_s))
-        return rths_config_error_at(cfg, "stability.omega_max_rad_s", err,
-                                    "must be above stability.omega_min_rad_s (%g rad/s), got %g",
-                                    o->omega_min_rad_s, o->omega_max_rad_s);
-    if ((double)mt * (double)(pp > 1 ? mp : 1) * (double)wp > 5e7)
-        return rths_config_error_at(cfg, "stability.omega_points", err,
-                                    "the MDBM grid (%ld x %ld x %ld) is too large: keep "
-                                    "mdbm_tau_points x mdbm_p_points x omega_points below 5e7",
-                                    mt, mp, wp);
-    o->tau_points = (int)tp, o->p_points = (int)pp, o->omega_points = (int)wp;
-    o->mdbm_tau_points = (int)mt, o->mdbm_p_points = (int)mp, o->mdbm_refine = (int)mr;
-    o->chebyshev_nodes = (int)cn;
-    return RTHS_OK;
-}
 
 static int write_csvs(rths_report *rep, const rths_chart *c, rths_error *err) {
     static const char *const h_chart[] = {"tau_s", "p", "max_real_part_per_s", "stable"};
@@ -164,18 +112,6 @@ static int write_csvs(rths_report *rep, const rths_chart *c, rths_error *err) {
     return rc;
 }
 
-/* p where the essential bound changes sign along the chart's rows (linear interpolation of
- * ln-rates), NaN when it does not. */
-static double essential_limit(const rths_chart *c) {
-    for (int j = 0; j + 1 < c->np; j++) {
-        double a = c->essential_rate_times_tau[j], b = c->essential_rate_times_tau[j + 1];
-        if (!isfinite(a) || !isfinite(b)) continue;
-        if ((a < 0) != (b < 0)) return c->p[j] + (c->p[j + 1] - c->p[j]) * a / (a - b);
-        if (a == 0) return c->p[j];
-    }
-    return NAN;
-}
-
 static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_split *sp,
                 rths_error *err) {
     char ifaces[128] = "";
@@ -234,30 +170,21 @@ int rths_cmd_chart(int argc, char **argv) {
     double *cint = NULL, *kint = NULL;
     rths_chart_options o;
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    if ((rc = read_options(cfg, &o, &err)) ||
+    if ((rc = rths_chart_config_read(cfg, &o, &err)) ||
         (rc = rths_cli_check_config_own(cfg, own_sections, &err)))
         goto done;
     /* the configured split's interface damping/stiffness shares hold for every p */
-    const rths_split *sp = &setup.split;
-    int ni = sp->n_int;
-    cint = malloc((size_t)ni * ni * sizeof *cint);
-    kint = malloc((size_t)ni * ni * sizeof *kint);
-    if (!cint || !kint) {
-        rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
+    int ni = setup.split.n_int;
+    rths_split_family fam;
+    if ((rc = rths_split_family_of(&setup.assembly, setup.roles, &setup.split, &fam, &cint, &kint,
+                                   &err)))
         goto done;
-    }
-    for (int i = 0; i < ni; i++)
-        for (int j = 0; j < ni; j++) {
-            cint[i + j * ni] = RTHS_AT(sp->damping_phys, sp->np, sp->n_phys + i, sp->n_phys + j);
-            kint[i + j * ni] = RTHS_AT(sp->stiffness_phys, sp->np, sp->n_phys + i, sp->n_phys + j);
-        }
-    rths_split_family fam = {&setup.assembly, setup.roles, cint, kint};
     o.progress = rths_progress_enabled(cli.quiet);
     double t0 = rths_monotonic_s();
     if ((rc = rths_chart_compute(rths_split_family_build, &fam, &o, &chart, &err))) goto done;
     have_chart = 1;
     double seconds = rths_monotonic_s() - t0;
-    double p_ess = essential_limit(&chart);
+    double p_ess = rths_chart_essential_limit(&chart);
 
     /* critical delays at a few p of interest and at the configured one, located stand-alone */
     double probe[4] = {setup.split.mass_ratio, 0.6, 0.67, 0.8};
