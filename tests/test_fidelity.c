@@ -1,6 +1,8 @@
-/* Integration fidelity of the hybrid test (SPEC §8) against independent truths:
- *  - SPEC §2/§8 seed numbers (computed independently of this project): true storey-3 peak 3.42e-4 m
- *    at 13.47 Hz; implicit Euler at h = 1e-4 s, p = 0.5 gives about 2.53e-4 m;
+/* Integration fidelity of the hybrid test (docs/method.md, "Numerical substructure integration")
+ * against independent truths:
+ *  - the seed paper's numbers (docs/method.md, "The seed structure"; computed independently of
+ *    this project): true storey-3 peak 3.42e-4 m at 13.47 Hz; implicit Euler at h = 1e-4 s,
+ *    p = 0.5 gives about 2.53e-4 m;
  *  - closed-form discrete transfer functions of a free mass (double integrator) under each hold,
  *    coupled by hand to a continuous 1-DoF physical side;
  *  - the continuous hybrid with a pure half-sample input delay (what a zero-order hold amounts to);
@@ -62,10 +64,11 @@ static double peak(const fixture *fx, int curve, int dof, double *hz) {
     return amp;
 }
 
-/* SPEC §2 and §8, p = 0.5, h = 1e-4 s, 1 N on storey 4, storey 3 (DoF 2). The seed numbers are
- * given to three significant figures, so half a unit in the third figure (0.005e-4 m) is the
- * tolerance. The FOH bound is the SPEC's 0.5 %. The ZOH hold lags the force by h/2 = 50 us, an
- * actuator-like delay: "several percent" low, asserted as 3 %..15 % below the true peak. */
+/* docs/method.md, "The seed structure" and "Numerical substructure integration", p = 0.5, h = 1e-4
+ * s, 1 N on storey 4, storey 3 (DoF 2). The seed numbers are given to three significant figures, so
+ * half a unit in the third figure (0.005e-4 m) is the tolerance. The FOH bound is docs/method.md's
+ * 0.5 %. The ZOH hold lags the force by h/2 = 50 us, an actuator-like delay: "several percent" low,
+ * asserted as 3 %..15 % below the true peak. */
 static void test_seed_peaks(void **state) {
     (void)state;
     fixture fx;

@@ -1,12 +1,14 @@
-/* rths stability: substructurability of the conventional (delayed-feedback) hybrid test (SPEC §4).
+/* rths stability: substructurability of the conventional (delayed-feedback) hybrid test
+ * (docs/method.md, "Delayed-feedback stability").
  *
  * The delayed-feedback test. The physical substructure (internal DoFs x_p, interface x_i) and the
  * numerical one (interface xi_i, internal xi_n) each obey their own equations (model.h's split:
  * physical matrices P in order (phys, int), numerical N in order (int, num), the interface mass
- * divided as P_ii = (1 - p) M_ii, N_ii = p M_ii, SPEC erratum 1). The actuator makes the physical
- * interface follow the numerical one with a pure delay, x_i(t) = xi_i(t - tau), and the measured
- * interface force is fed back without delay, F_i^phys = -F_i^num. Eliminating x_i and F_i gives one
- * neutral delay equation in q = the assembly's DoFs (interface DoFs carry the numerical xi_i):
+ * divided as P_ii = (1 - p) M_ii, N_ii = p M_ii, erratum 1 in docs/method.md, "Errata of the seed
+ * paper"). The actuator makes the physical interface follow the numerical one with a pure delay,
+ * x_i(t) = xi_i(t - tau), and the measured interface force is fed back without delay, F_i^phys =
+ * -F_i^num. Eliminating x_i and F_i gives one neutral delay equation in q = the assembly's DoFs
+ * (interface DoFs carry the numerical xi_i):
  *
  *   M_tau q''(t-tau) + M_0 q''(t) + C_tau q'(t-tau) + C_0 q'(t) + K_tau q(t-tau) + K_0 q(t) = F(t).
  *
@@ -82,11 +84,11 @@ int rths_dde_essential(const rths_dde *d, double *rate_times_tau, double complex
 
 /* ---- rightmost roots by Chebyshev collocation ---- */
 
-/* Roots of D from the spectral discretisation of the DAE form (SPEC §4) on nodes+1 Chebyshev
- * nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root is accepted only when the
- * relative residual rths_dde_residual of the raw eigenvalue is below accept_tol (<= 0: 1e-6);
- * accepted roots are polished by Newton and returned with Im >= 0 (one of each conjugate pair),
- * sorted by decreasing real part. *roots is malloc'ed. */
+/* Roots of D from the spectral discretisation of the DAE form (docs/method.md, "Delayed-feedback
+ * stability") on nodes+1 Chebyshev nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root
+ * is accepted only when the relative residual rths_dde_residual of the raw eigenvalue is below
+ * accept_tol (<= 0: 1e-6); accepted roots are polished by Newton and returned with Im >= 0 (one of
+ * each conjugate pair), sorted by decreasing real part. *roots is malloc'ed. */
 int rths_dde_spectral_roots(const rths_dde *d, double tau, int nodes, double accept_tol,
                             double complex **roots, int *n_roots, rths_error *err);
 

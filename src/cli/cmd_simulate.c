@@ -392,10 +392,10 @@ static int run_iterative(rths_rig *rig, const rths_setup *setup, const sim_args 
 
 /* Hook for the pure-delay feedback model (helper B's rths_delay_feedback_simulate); filled in
  * when it lands. Fills a uniformly sampled trace starting at t = 0. */
-/* The seed's model of the conventional test (SPEC §4): an ideal actuator makes the physical
- * interface follow the numerical one with a pure delay; simulated by the stability module in
- * continuous time. The actuator's command (target) is the numerical interface now; there is no
- * load cell or demand in this model, so those columns are NaN. */
+/* The seed's model of the conventional test (docs/method.md, "Delayed-feedback stability"): an
+ * ideal actuator makes the physical interface follow the numerical one with a pure delay; simulated
+ * by the stability module in continuous time. The actuator's command (target) is the numerical
+ * interface now; there is no load cell or demand in this model, so those columns are NaN. */
 static int run_feedback_delay(const rths_setup *setup, const sim_args *a, sim_result *r,
                               rths_error *err) {
     rths_delay_sim_result res;

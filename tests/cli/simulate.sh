@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # rths simulate on the seed (examples/four_storey.yaml), kept short with --set and few periods:
-# iterative mode files/columns/summary; feedback mode against the seed's stability facts (SPEC §4,
+# iterative mode files/columns/summary; feedback mode against the seed's stability facts (docs/method.md, "Delayed-feedback stability";
 # issue 3): p = 0.33 diverges for any delay, p = 0.67 stays bounded with a 50 us pure delay and
 # diverges with 1 ms; every bad argument exits 2 with a message and writes nothing.
 set -u
@@ -78,7 +78,7 @@ cmp -s "$work/noise_a/coefficients.csv" "$work/noise_c/coefficients.csv" &&
     fail "different seeds, identical coefficients (is the noise off?)"
 
 # --- feedback mode through the rig's shaker and PD (no --delay): the shaker's transport delay
-# and lag (hundreds of microseconds, SPEC §5) are beyond the seed's critical delay of about
+# and lag (hundreds of microseconds, docs/method.md, "The virtual rig") are beyond the seed's critical delay of about
 # 1e-4 s, so even p = 0.67 diverges, and p = 0.33 does for any delay ---
 for p in 0.33 0.67; do
     o="$work/rigfb_$p"
@@ -114,7 +114,7 @@ PY
 fb p033_10us 0.33 1e-5 3 true
 fb p033_50us 0.33 5e-5 3 true
 fb p033_1ms 0.33 1e-3 3 true
-# p = 0.67: the critical delay is of the order of 1e-4 s (SPEC §4); at 1 ms the first mode grows
+# p = 0.67: the critical delay is of the order of 1e-4 s (docs/method.md, "Delayed-feedback stability"); at 1 ms the first mode grows
 # slowly (about 0.2 1/s), so that run is long enough (200 periods, 15 s) for the unforced part to
 # grow several-fold
 fb p067_50us 0.67 5e-5 40 false
