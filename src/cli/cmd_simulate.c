@@ -477,6 +477,80 @@ static int add_divergence(json_object *summary, const rths_cli *cli, const rths_
     return RTHS_OK;
 }
 
+/* Everything the rig can refuse is checked before the output folder exists: the frequency and the
+ * target's top harmonic against the controller's sample rate, then the forcing and the target. */
+static int arm_rig(rths_rig *rig, rths_config *cfg, const rths_setup *setup, const sim_args *a,
+                   rths_error *err) {
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    int rc = rths_controller_config_read(cfg, &copt, err);
+    if (rc) return rc;
+    int top = a->feedback ? 1 : a->harmonics;
+    if (!(a->frequency_hz < 0.25 * copt.sample_rate_hz))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --frequency: %g Hz must be below a quarter of the "
+                              "controller's sample rate (controller.sample_rate_hz = %g Hz)",
+                              a->frequency_hz, copt.sample_rate_hz);
+    if (top * a->frequency_hz >= 0.5 * copt.sample_rate_hz)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --target: harmonic %d of %g Hz is at or beyond the "
+                              "controller's Nyquist frequency (%g Hz)",
+                              top, a->frequency_hz, 0.5 * copt.sample_rate_hz);
+    if ((rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err)))
+        return rc;
+    if (!a->feedback) rc = rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err);
+    return rc;
+}
+
+/* summary.json's description of the run and its last period (printed too). */
+static void add_run_summary(json_object *summary, const rths_cli *cli, const rths_setup *setup,
+                            const sim_args *a, const sim_result *r, rths_rig *rig, int harmonics) {
+    json_object_object_add(summary, "mode",
+                           json_object_new_string(a->feedback ? "feedback" : "iterative"));
+    json_object_object_add(summary, "frequency_hz", json_object_new_double(a->frequency_hz));
+    json_object_object_add(summary, "forcing_amplitude_n",
+                           json_object_new_double(setup->forcing_amplitude_n));
+    json_object_object_add(summary, "mass_ratio", json_object_new_double(setup->split.mass_ratio));
+    json_object_object_add(summary, "periods", json_object_new_int(r->n_periods));
+    json_object_object_add(summary, "harmonics", json_object_new_int(harmonics));
+    if (rig)
+        json_object_object_add(summary, "rig", json_object_new_string(rths_rig_description(rig)));
+    json_object_object_add(
+        summary, "fault",
+        json_object_new_string(r->fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r->fault)));
+    json_object_object_add(summary, "rig_time_s", json_object_new_double(r->rig_time_s));
+    if (!a->feedback) {
+        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
+        for (int k = 0; k < a->harmonics; k++) {
+            json_object_array_add(ta, json_object_new_double(a->target_a[k]));
+            json_object_array_add(tb, json_object_new_double(a->target_b[k]));
+        }
+        json_object *tg = json_object_new_object();
+        json_object_object_add(tg, "a_m", ta);
+        json_object_object_add(tg, "b_m", tb);
+        json_object_object_add(summary, "target", tg);
+    }
+    if (r->n_periods > 0) {
+        const rths_period *last = &r->periods[r->n_periods - 1];
+        json_object *errs = json_object_new_array(), *rel = json_object_new_array();
+        for (int k = 1; k <= harmonics; k++) {
+            double e = interface_error(&last->phys, &last->num, k);
+            double amp = hypot(last->num.a[k], last->num.b[k]);
+            json_object_array_add(errs, json_object_new_double(e));
+            json_object_array_add(rel, json_object_new_double(amp > 0 ? e / amp : NAN));
+        }
+        json_object_object_add(summary, "final_interface_error_m", errs);
+        json_object_object_add(summary, "final_interface_error_relative", rel);
+        json_object_object_add(summary, "final_phys", fourier_json(&last->phys, harmonics));
+        json_object_object_add(summary, "final_num", fourier_json(&last->num, harmonics));
+        rths_cli_print(cli,
+                       "%d periods at %g Hz; last period: physical a1 = %.6e m, b1 = %.6e m; "
+                       "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
+                       r->n_periods, a->frequency_hz, last->phys.a[1], last->phys.b[1],
+                       last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
+    }
+}
+
 int rths_cmd_simulate(int argc, char **argv) {
     rths_cli_opt opts[OPT_COUNT] = {
         [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
@@ -517,31 +591,7 @@ int rths_cmd_simulate(int argc, char **argv) {
                (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err))) {
         goto done;
     }
-    if (rig) {
-        /* everything the rig can refuse is checked here, before the output folder exists */
-        rths_controller_options copt;
-        rths_controller_defaults(&copt);
-        if ((rc = rths_controller_config_read(cfg, &copt, &err))) goto done;
-        int top = a.feedback ? 1 : a.harmonics;
-        if (!(a.frequency_hz < 0.25 * copt.sample_rate_hz)) {
-            rc = rths_error_set(&err, RTHS_EINPUT,
-                                "option --frequency: %g Hz must be below a quarter of the "
-                                "controller's sample rate (controller.sample_rate_hz = %g Hz)",
-                                a.frequency_hz, copt.sample_rate_hz);
-            goto done;
-        }
-        if (top * a.frequency_hz >= 0.5 * copt.sample_rate_hz) {
-            rc = rths_error_set(&err, RTHS_EINPUT,
-                                "option --target: harmonic %d of %g Hz is at or beyond the "
-                                "controller's Nyquist frequency (%g Hz)",
-                                top, a.frequency_hz, 0.5 * copt.sample_rate_hz);
-            goto done;
-        }
-        if ((rc = rths_rig_set_forcing(rig, a.frequency_hz, setup.forcing_amplitude_n, &err)) ||
-            (!a.feedback &&
-             (rc = rths_rig_set_target(rig, a.harmonics, a.target_a, a.target_b, &err))))
-            goto done;
-    }
+    if (rig && (rc = arm_rig(rig, cfg, &setup, &a, &err))) goto done;
     /* the virtual rig read the rig and controller sections: a misspelt key there is an error */
     static const char *const rig_sections[] = {"rig", "controller", NULL};
     if ((rc = rths_cli_check_config_own(cfg, rig && !rig_uri ? rig_sections : NULL, &err)))
@@ -572,50 +622,7 @@ int rths_cmd_simulate(int argc, char **argv) {
         goto done;
 
     summary = rths_cli_summary_new(&cli);
-    json_object_object_add(summary, "mode",
-                           json_object_new_string(a.feedback ? "feedback" : "iterative"));
-    json_object_object_add(summary, "frequency_hz", json_object_new_double(a.frequency_hz));
-    json_object_object_add(summary, "forcing_amplitude_n",
-                           json_object_new_double(setup.forcing_amplitude_n));
-    json_object_object_add(summary, "mass_ratio", json_object_new_double(setup.split.mass_ratio));
-    json_object_object_add(summary, "periods", json_object_new_int(r.n_periods));
-    json_object_object_add(summary, "harmonics", json_object_new_int(harmonics));
-    if (rig)
-        json_object_object_add(summary, "rig", json_object_new_string(rths_rig_description(rig)));
-    json_object_object_add(
-        summary, "fault",
-        json_object_new_string(r.fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r.fault)));
-    json_object_object_add(summary, "rig_time_s", json_object_new_double(r.rig_time_s));
-    if (!a.feedback) {
-        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
-        for (int k = 0; k < a.harmonics; k++) {
-            json_object_array_add(ta, json_object_new_double(a.target_a[k]));
-            json_object_array_add(tb, json_object_new_double(a.target_b[k]));
-        }
-        json_object *tg = json_object_new_object();
-        json_object_object_add(tg, "a_m", ta);
-        json_object_object_add(tg, "b_m", tb);
-        json_object_object_add(summary, "target", tg);
-    }
-    if (r.n_periods > 0) {
-        const rths_period *last = &r.periods[r.n_periods - 1];
-        json_object *errs = json_object_new_array(), *rel = json_object_new_array();
-        for (int k = 1; k <= harmonics; k++) {
-            double e = interface_error(&last->phys, &last->num, k);
-            double amp = hypot(last->num.a[k], last->num.b[k]);
-            json_object_array_add(errs, json_object_new_double(e));
-            json_object_array_add(rel, json_object_new_double(amp > 0 ? e / amp : NAN));
-        }
-        json_object_object_add(summary, "final_interface_error_m", errs);
-        json_object_object_add(summary, "final_interface_error_relative", rel);
-        json_object_object_add(summary, "final_phys", fourier_json(&last->phys, harmonics));
-        json_object_object_add(summary, "final_num", fourier_json(&last->num, harmonics));
-        rths_cli_print(&cli,
-                       "%d periods at %g Hz; last period: physical a1 = %.6e m, b1 = %.6e m; "
-                       "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
-                       r.n_periods, a.frequency_hz, last->phys.a[1], last->phys.b[1],
-                       last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
-    }
+    add_run_summary(summary, &cli, &setup, &a, &r, rig, harmonics);
     if (a.feedback) {
         if ((rc = add_divergence(summary, &cli, &setup, &a, &r,
                                  rig ? rths_rig_noise_level_m(rig) : 0.0, &err)))
