@@ -602,6 +602,14 @@ static void test_not_utf8_text(void **state) {
     assert_int_equal(load_bytes("a: 1\nb: \xff\n", 9, &cfg, &err), RTHS_EINPUT);
     msg_has(&err, "%s:2:4: byte 0xFF does not start a UTF-8 character here", path);
     unlink(path);
+    /* overlong (E0 96 ...), a surrogate (ED A0 80), beyond U+10FFFF (F4 90 ...): not UTF-8 either
+     * (an overlong one reached config.yaml through a --set and failed to reload: make fuzz) */
+    const char *not_utf8[] = {"a: \xe0\x96\x91\n", "a: \xed\xa0\x80\n", "a: \xf4\x90\x80\x80\n"};
+    for (int k = 0; k < 3; k++) {
+        assert_int_equal(load_bytes(not_utf8[k], strlen(not_utf8[k]), &cfg, &err), RTHS_EINPUT);
+        msg_has(&err, "%s:1:4: byte 0x", path);
+        unlink(path);
+    }
     assert_int_equal(load_bytes("a: caf\xc3", 7, &cfg, &err), RTHS_EINPUT);
     msg_has(&err, "%s: ends inside a UTF-8 character", path);
     unlink(path);

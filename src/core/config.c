@@ -429,6 +429,7 @@ static int parse_source(const char *path, const char *text, const char *where, c
 typedef struct {
     long line, column; /* of the byte just stepped over (1-based) */
     int continuation;  /* continuation bytes still due */
+    unsigned lo, hi;   /* the range of the next continuation byte */
     unsigned lead;     /* the last multi-byte lead byte, and where it was */
     long lead_line, lead_column;
 } utf8_scan;
@@ -438,8 +439,9 @@ enum { UTF8_OK, UTF8_BAD, UTF8_NUL };
 static int utf8_step(utf8_scan *u, unsigned char c) {
     if (u->line == 0) u->line = 1;
     u->column++;
-    if (u->continuation && (c & 0xc0) == 0x80) {
+    if (u->continuation && (c & 0xc0) == 0x80 && c >= u->lo && c <= u->hi) {
         u->continuation--;
+        u->lo = 0x80, u->hi = 0xbf;
         return UTF8_OK;
     }
     int bad = u->continuation > 0; /* the character at lead_* stopped short */
@@ -450,6 +452,9 @@ static int utf8_step(utf8_scan *u, unsigned char c) {
                                                    : -1;
         bad = u->continuation < 0;
         u->lead = c, u->lead_line = u->line, u->lead_column = u->column;
+        /* the second byte's range excludes overlong forms, surrogates and beyond U+10FFFF */
+        u->lo = c == 0xe0 ? 0xa0 : c == 0xf0 ? 0x90 : 0x80;
+        u->hi = c == 0xed ? 0x9f : c == 0xf4 ? 0x8f : 0xbf;
     }
     if (c == '\n') u->line++, u->column = 0;
     return bad ? UTF8_BAD : c ? UTF8_OK : UTF8_NUL;
