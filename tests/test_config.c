@@ -613,6 +613,15 @@ static void test_not_utf8_text(void **state) {
     assert_int_equal(load_bytes("a: caf\xc3", 7, &cfg, &err), RTHS_EINPUT);
     msg_has(&err, "%s: ends inside a UTF-8 character", path);
     unlink(path);
+    /* libfyaml 0.7 loops forever in its directive scanner on '%' followed by a byte that is not
+     * UTF-8 (libfyaml issue 101, fixed upstream in 2023): refused before libfyaml sees it, from a
+     * file and from a --set */
+    assert_int_equal(load_bytes("%\"\xa6", 3, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:1:3: byte 0xA6 does not start a UTF-8 character here", path);
+    unlink(path);
+    const char *directive[] = {"a=%\"\xa6"};
+    assert_int_equal(rths_config_load(NULL, directive, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "not UTF-8 text");
     /* valid UTF-8 (a BOM included) passes */
     assert_int_equal(load_bytes("\xef\xbb\xbf"
                                 "a: caf\xc3\xa9\n",

@@ -32,6 +32,12 @@ python3 -c "import sys; open(sys.argv[1], 'wb').write(open(sys.argv[2], encoding
 python3 -c "import sys; open(sys.argv[1], 'wb').write(open(sys.argv[2], encoding='utf-8').read().encode('utf-16-le'))" \
     "$work/utf16_nobom.yaml" "$cfg"
 mkdir -p "$work/a_folder"
+# three bytes on which libfyaml 0.7 loops forever ('%' then a byte that is not UTF-8)
+printf '%%"\xa6' >"$work/directive_hang.yaml"
+timeout 60 "$bin" model "$work/directive_hang.yaml" --out "$work/o_hang" >/dev/null 2>"$work/bstderr"
+rc=$?
+[ "$rc" -eq 2 ] && grep -q "directive_hang.yaml:1:3: byte 0xA6 does not start a UTF-8 character" "$work/bstderr" ||
+    fail "'%\"\\xa6' config: exit $rc (124 = hung), $(cut -c1-200 "$work/bstderr")"
 refused model "byte-order mark only" "bom.yaml: starts with a UTF-16/UTF-32 byte-order mark \(FF FE\)" "$work/bom.yaml"
 refused model "UTF-16 file" "utf16.yaml: starts with a UTF-16/UTF-32 byte-order mark" "$work/utf16.yaml"
 refused simulate "UTF-16 without a mark" "utf16_nobom.yaml:1:2: a NUL byte" "$work/utf16_nobom.yaml" --frequency 13 --target 1e-4,0 --periods 1
