@@ -48,14 +48,22 @@ bench: build
 	cmake --build $(BUILD) -j $(JOBS) --target rths_bench
 	$(BUILD)/rths_bench
 
-# libFuzzer on the controller link's frame decoder (clang), bounded in time; new inputs it finds
-# go to build-fuzz/corpus, the checked-in seeds in fuzz/corpus are only read.
+# libFuzzer (clang), bounded in time, on the controller link's frame decoder and on the
+# configuration reader (inputs up to 64 KiB, 10 s each: a hang is a finding; the reader bounds
+# nesting itself). New inputs go to build-fuzz/corpus*, findings to build-fuzz/; the checked-in
+# seeds (fuzz/corpus, examples, tests/data/bad_configs) are only read.
 FUZZ_SECONDS ?= 60
+FUZZ_FLAGS := -std=c11 -D_GNU_SOURCE -g -O1 -Iinclude -fsanitize=fuzzer,address,undefined \
+  -fno-sanitize-recover=all
 fuzz: deps
-	mkdir -p build-fuzz/corpus
-	clang -std=c11 -D_GNU_SOURCE -g -O1 -Iinclude -fsanitize=fuzzer,address,undefined \
-	  -fno-sanitize-recover=all fuzz/fuzz_frame.c src/controller/protocol.c -lm -o build-fuzz/fuzz_frame
+	mkdir -p build-fuzz/corpus build-fuzz/corpus_config
+	clang $(FUZZ_FLAGS) fuzz/fuzz_frame.c src/controller/protocol.c -lm -o build-fuzz/fuzz_frame
 	build-fuzz/fuzz_frame -max_total_time=$(FUZZ_SECONDS) -print_final_stats=1 build-fuzz/corpus fuzz/corpus
+	clang $(FUZZ_FLAGS) fuzz/fuzz_config.c src/core/config.c src/core/linalg.c \
+	  $$(pkg-config --cflags --libs libfyaml lapacke openblas) -lm -o build-fuzz/fuzz_config
+	build-fuzz/fuzz_config -max_total_time=$(FUZZ_SECONDS) -max_len=65536 -timeout=10 \
+	  -artifact_prefix=build-fuzz/ -print_final_stats=1 build-fuzz/corpus_config examples \
+	  tests/data/bad_configs
 
 format:
 	clang-format -i $$(git ls-files '*.c' '*.h')

@@ -468,6 +468,285 @@ static void test_write_round_trip(void **state) {
     done(cfg);
 }
 
+/* Writes len raw bytes (NULs, byte-order marks) to a fresh temporary file and loads it. */
+static int load_bytes(const char *bytes, size_t len, rths_config **cfg, rths_error *err) {
+    snprintf(path, sizeof path, "/tmp/rths_test_config_XXXXXX");
+    int fd = mkstemp(path);
+    assert_true(fd >= 0);
+    assert_int_equal(write(fd, bytes, len), (ssize_t)len);
+    close(fd);
+    return rths_config_load(path, NULL, 0, cfg, err);
+}
+
+/* "x: [[...]]" with `levels` brackets (the root mapping is one more level). */
+static char *nested_list(const char *prefix, int levels) {
+    size_t pl = strlen(prefix);
+    char *t = malloc(pl + 2 * (size_t)levels + 2);
+    assert_non_null(t);
+    memcpy(t, prefix, pl);
+    memset(t + pl, '[', (size_t)levels);
+    memset(t + pl + levels, ']', (size_t)levels);
+    strcpy(t + pl + 2 * (size_t)levels, "\n");
+    return t;
+}
+
+/* Nesting is bounded (the tree is built, checked, written and freed by recursion: 60 000 levels
+ * overflowed the stack): RTHS_CONFIG_MAX_DEPTH levels pass, one more is refused where it opens. */
+static void test_depth_limit(void **state) {
+    (void)state;
+    rths_config *cfg = NULL;
+    rths_error err;
+    char *ok = nested_list("x: ", RTHS_CONFIG_MAX_DEPTH - 1);
+    assert_int_equal(load(ok, NULL, 0, &cfg, &err), RTHS_OK);
+    done(cfg);
+    free(ok);
+    const int too_deep[] = {RTHS_CONFIG_MAX_DEPTH, 60000};
+    for (int k = 0; k < 2; k++) {
+        char *deep = nested_list("x: ", too_deep[k]);
+        assert_int_equal(load(deep, NULL, 0, &cfg, &err), RTHS_EINPUT);
+        assert_null(cfg);
+        /* the 64th '[' opens level 65: column 3 + 64 */
+        msg_has(&err, "%s:1:%d: nested deeper than %d levels", path, 3 + RTHS_CONFIG_MAX_DEPTH,
+                RTHS_CONFIG_MAX_DEPTH);
+        unlink(path);
+        free(deep);
+    }
+    /* flow mappings under a key nobody reads are bounded alike */
+    char flow[8192] = "zz: ";
+    for (int i = 0; i < 1000; i++)
+        strcat(flow, "{a: ");
+    assert_int_equal(load(flow, NULL, 0, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:1:%d: nested deeper than", path, 5 + 4 * (RTHS_CONFIG_MAX_DEPTH - 1));
+    unlink(path);
+    /* --set: the key's levels count (root, a, b: the value's list is level 3) */
+    char *set_ok = nested_list("a.b=", RTHS_CONFIG_MAX_DEPTH - 2);
+    set_ok[strlen(set_ok) - 1] = 0;
+    const char *ov[] = {set_ok};
+    assert_int_equal(load("a: {}\n", ov, 1, &cfg, &err), RTHS_OK);
+    done(cfg);
+    char *set_deep = nested_list("a.b=", RTHS_CONFIG_MAX_DEPTH - 1);
+    set_deep[strlen(set_deep) - 1] = 0;
+    ov[0] = set_deep;
+    assert_int_equal(load("a: {}\n", ov, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "nested deeper than %d levels", RTHS_CONFIG_MAX_DEPTH);
+    assert_true(strncmp(err.msg, "--set a.b=[[[", 13) == 0);
+    unlink(path);
+    free(set_ok);
+    free(set_deep);
+    /* a dotted key alone deeper than the limit */
+    char key[4 * RTHS_CONFIG_MAX_DEPTH + 8] = "";
+    for (int i = 0; i < RTHS_CONFIG_MAX_DEPTH; i++)
+        strcat(key, "a.");
+    strcat(key, "b=1");
+    ov[0] = key;
+    assert_int_equal(load("a: {}\n", ov, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "the key is nested deeper than %d levels", RTHS_CONFIG_MAX_DEPTH);
+    unlink(path);
+}
+
+/* A mapping of many keys: every key readable, and a duplicate found however far apart (the
+ * keys' hash grows from 16 slots to 262 144 on the way, so every rehash is crossed). */
+static void test_many_keys(void **state) {
+    (void)state;
+    enum { KEYS = 80000 };
+    size_t cap = (size_t)KEYS * 24 + 64, len = 0;
+    char *yaml = malloc(cap);
+    assert_non_null(yaml);
+    len += (size_t)snprintf(yaml + len, cap - len, "big:\n");
+    for (int i = 0; i < KEYS; i++)
+        len += (size_t)snprintf(yaml + len, cap - len, "  k%d: %d\n", i, i);
+    rths_config *cfg = NULL;
+    rths_error err;
+    assert_int_equal(load(yaml, NULL, 0, &cfg, &err), RTHS_OK);
+    long v;
+    for (int i = 0; i < KEYS; i += 7919) {
+        char key[32];
+        snprintf(key, sizeof key, "big.k%d", i);
+        assert_int_equal(rths_config_get_int(cfg, key, 1, -1, 0, KEYS, &v, &err), RTHS_OK);
+        assert_int_equal(v, i);
+    }
+    done(cfg);
+    /* the first key again at the end: line 2 first, line KEYS + 2 the duplicate */
+    snprintf(yaml + len, cap - len, "  k0: 1\n");
+    assert_int_equal(load(yaml, NULL, 0, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:%d:3: duplicate key 'k0' in this mapping (first at line 2)", path, KEYS + 2);
+    unlink(path);
+    free(yaml);
+}
+
+/* What libfyaml reads as an empty document (a folder, a UTF-16 file, a lone byte-order mark) or
+ * as text (NUL, bytes that are not UTF-8) is named for what it is, not "structure missing". */
+static void test_not_utf8_text(void **state) {
+    (void)state;
+    rths_config *cfg = NULL;
+    rths_error err;
+    assert_int_equal(load_bytes("\xff\xfe", 2, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s: starts with a UTF-16/UTF-32 byte-order mark (FF FE)", path);
+    unlink(path);
+    /* "a: 1\n" in UTF-16 big-endian with its mark */
+    assert_int_equal(load_bytes("\xfe\xff\0a\0:\0 \0"
+                                "1\0\n",
+                                12, &cfg, &err),
+                     RTHS_EINPUT);
+    msg_has(&err, "byte-order mark (FE FF)");
+    unlink(path);
+    /* UTF-16 little-endian without a mark: a NUL after the first character */
+    assert_int_equal(load_bytes("a\0:\0 \0"
+                                "1\0\n\0",
+                                10, &cfg, &err),
+                     RTHS_EINPUT);
+    msg_has(&err, "%s:1:2: a NUL byte: the configuration must be UTF-8 text", path);
+    unlink(path);
+    assert_int_equal(load_bytes("a: 1\nb: caf\xe9\n", 13, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:2:7: byte 0xE9 does not start a UTF-8 character here", path);
+    assert_int_equal(load_bytes("a: 1\nb: \xff\n", 9, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:2:4: byte 0xFF does not start a UTF-8 character here", path);
+    unlink(path);
+    /* overlong (E0 96 ...), a surrogate (ED A0 80), beyond U+10FFFF (F4 90 ...): not UTF-8 either
+     * (an overlong one reached config.yaml through a --set and failed to reload: make fuzz) */
+    const char *not_utf8[] = {"a: \xe0\x96\x91\n", "a: \xed\xa0\x80\n", "a: \xf4\x90\x80\x80\n"};
+    for (int k = 0; k < 3; k++) {
+        assert_int_equal(load_bytes(not_utf8[k], strlen(not_utf8[k]), &cfg, &err), RTHS_EINPUT);
+        msg_has(&err, "%s:1:4: byte 0x", path);
+        unlink(path);
+    }
+    assert_int_equal(load_bytes("a: caf\xc3", 7, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s: ends inside a UTF-8 character", path);
+    unlink(path);
+    /* libfyaml 0.7 loops forever in its directive scanner on '%' followed by a byte that is not
+     * UTF-8 (libfyaml issue 101, fixed upstream in 2023): refused before libfyaml sees it, from a
+     * file and from a --set */
+    assert_int_equal(load_bytes("%\"\xa6", 3, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:1:3: byte 0xA6 does not start a UTF-8 character here", path);
+    unlink(path);
+    const char *directive[] = {"a=%\"\xa6"};
+    assert_int_equal(rths_config_load(NULL, directive, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "not UTF-8 text");
+    /* valid UTF-8 (a BOM included) passes */
+    assert_int_equal(load_bytes("\xef\xbb\xbf"
+                                "a: caf\xc3\xa9\n",
+                                12, &cfg, &err),
+                     RTHS_OK);
+    const char *text;
+    assert_int_equal(rths_config_get_string(cfg, "a", 1, NULL, &text, &err), RTHS_OK);
+    assert_string_equal(text, "caf\xc3\xa9");
+    done(cfg);
+    assert_int_equal(rths_config_load("/tmp", NULL, 0, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "/tmp: is a folder; the configuration is a YAML file");
+}
+
+/* A path of any length keeps the reason at the end of the message. */
+static void test_long_paths(void **state) {
+    (void)state;
+    rths_config *cfg = NULL;
+    rths_error err;
+    size_t len = 6000;
+    char *p = malloc(len + 1);
+    assert_non_null(p);
+    memset(p, 'a', len);
+    memcpy(p, "/tmp/", 5);
+    for (size_t i = 100; i < len; i += 100)
+        p[i] = '/'; /* names within NAME_MAX, the whole beyond PATH_MAX */
+    p[len] = 0;
+    assert_int_equal(rths_config_load(p, NULL, 0, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "cannot read the configuration: File name too long");
+    assert_true(strlen(err.msg) < 1200);
+    memset(p + 5, 'a', 295); /* one name of 295 bytes */
+    p[300] = 0;
+    assert_int_equal(rths_config_load(p, NULL, 0, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "%s: cannot read the configuration: File name too long", p);
+    free(p);
+    /* a --set text of any length, too */
+    char *ov_text = malloc(20000);
+    assert_non_null(ov_text);
+    strcpy(ov_text, "a=");
+    memset(ov_text + 2, 'x', 19990);
+    strcpy(ov_text + 19992, ": [");
+    const char *ov[] = {ov_text};
+    assert_int_equal(load("a: 1\n", ov, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "not valid YAML");
+    unlink(path);
+    free(ov_text);
+}
+
+/* Keys that are not plain names (quoted in the file, or any text in a --set key) are written back
+ * quoted, so config.yaml stays a configuration the reader accepts (found by make fuzz: a --set key
+ * with '#' and a line break was written raw). */
+static void test_write_odd_keys(void **state) {
+    (void)state;
+    rths_config *cfg = NULL, *back = NULL;
+    rths_error err;
+    const char *ov[] = {"k# x\n y: z=1", "[a]=2"};
+    assert_int_equal(load("\"odd: key\": 1\n'#k': {'- x': 3}\n", ov, 2, &cfg, &err), RTHS_OK);
+    char out[] = "/tmp/rths_test_config_odd_XXXXXX";
+    int fd = mkstemp(out);
+    assert_true(fd >= 0);
+    close(fd);
+    assert_int_equal(rths_config_write(cfg, out, &err), RTHS_OK);
+    assert_int_equal(rths_config_load(out, NULL, 0, &back, &err), RTHS_OK);
+    const char *keys[] = {"odd: key", "#k.- x", "k# x\n y: z", "[a]"};
+    const long want[] = {1, 3, 1, 2};
+    for (int k = 0; k < 4; k++) {
+        long v = 0;
+        assert_int_equal(rths_config_get_int(back, keys[k], 1, 0, 0, 9, &v, &err), RTHS_OK);
+        assert_int_equal(v, want[k]);
+    }
+    assert_int_equal(rths_config_check_unknown(back, &err), RTHS_OK);
+    /* and a --set that is not UTF-8 is refused like such a file */
+    const char *bad[] = {"a=caf\xe9"};
+    rths_config_free(back);
+    assert_int_equal(rths_config_load(NULL, bad, 1, &back, &err), RTHS_EINPUT);
+    msg_has(&err, "not UTF-8 text");
+    unlink(out);
+    done(cfg);
+}
+
+/* One wording for every range: two-sided with its brackets, one-sided without an infinity. */
+static void test_range_text(void **state) {
+    (void)state;
+    char b[128];
+    assert_string_equal(rths_config_range_text(0, 1, 0, b, sizeof b), "in [0, 1]");
+    assert_string_equal(
+        rths_config_range_text(0, 1, RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, b, sizeof b),
+        "in (0, 1)");
+    assert_string_equal(rths_config_range_text(0, 1e5, RTHS_CONFIG_LO_OPEN, b, sizeof b),
+                        "in (0, 100000]");
+    assert_string_equal(rths_config_range_text(-INFINITY, 1e5, 0, b, sizeof b), "<= 100000");
+    assert_string_equal(rths_config_range_text(-INFINITY, 1, RTHS_CONFIG_HI_OPEN, b, sizeof b),
+                        "< 1");
+    assert_string_equal(rths_config_range_text(0, INFINITY, RTHS_CONFIG_LO_OPEN, b, sizeof b),
+                        "> 0");
+    rths_config *cfg = NULL;
+    rths_error err;
+    double v;
+    assert_int_equal(load("p: 1\nf: 2e5\n", NULL, 0, &cfg, &err), RTHS_OK);
+    assert_int_equal(rths_config_get_double_ex(cfg, "p", 1, 0.5, 0, 1,
+                                               RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, &v, &err),
+                     RTHS_EINPUT);
+    msg_has(&err, "%s:1:4: key 'p': must be in (0, 1) (got 1)", path);
+    assert_int_equal(rths_config_get_double(cfg, "f", 1, 0, -INFINITY, 1e5, &v, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:2:4: key 'f': must be <= 100000 (got 2e5)", path);
+    done(cfg);
+}
+
+/* A section counts as read once a getter asked for one of its keys, present or not. */
+static void test_section_read(void **state) {
+    (void)state;
+    rths_config *cfg = NULL;
+    rths_error err;
+    assert_int_equal(load("rig:\n  nosie: false\nrigging: 1\n", NULL, 0, &cfg, &err), RTHS_OK);
+    assert_false(rths_config_section_read(cfg, "rig"));
+    int b;
+    assert_int_equal(rths_config_get_bool(cfg, "rigging2.x", 0, 1, &b, &err), RTHS_OK);
+    assert_false(rths_config_section_read(cfg, "rig"));
+    rths_config_mark_known(cfg, "rig"); /* accepting a section whole is not reading it */
+    assert_false(rths_config_section_read(cfg, "rig"));
+    assert_int_equal(rths_config_get_bool(cfg, "rig.noise", 0, 1, &b, &err), RTHS_OK);
+    assert_true(rths_config_section_read(cfg, "rig"));
+    assert_false(rths_config_section_read(cfg, "ri"));
+    done(cfg);
+}
+
 /* '.' is the decimal point whatever LC_NUMERIC the process runs in. */
 static void test_locale_independent(void **state) {
     (void)state;
@@ -499,6 +778,13 @@ int main(void) {
         cmocka_unit_test(test_error_at),
         cmocka_unit_test(test_write_round_trip),
         cmocka_unit_test(test_locale_independent),
+        cmocka_unit_test(test_depth_limit),
+        cmocka_unit_test(test_many_keys),
+        cmocka_unit_test(test_not_utf8_text),
+        cmocka_unit_test(test_long_paths),
+        cmocka_unit_test(test_range_text),
+        cmocka_unit_test(test_section_read),
+        cmocka_unit_test(test_write_odd_keys),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

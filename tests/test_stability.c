@@ -482,6 +482,213 @@ static void test_time_domain_cross_check(void **state) {
     assert_true(re > 0 && rate > 0.3 * re);
 }
 
+/* ---- analysis of a feedback test's trace (src/stability/feedback_analysis.c) ---- */
+
+/* n samples of x(t) on t = i dt */
+static double *sampled(int n, double dt, double (*x)(double t, const double *q), const double *q,
+                       double **t_out) {
+    double *t = malloc((size_t)n * sizeof *t), *v = malloc((size_t)n * sizeof *v);
+    assert_true(t && v);
+    for (int i = 0; i < n; i++)
+        t[i] = i * dt, v[i] = x(t[i], q);
+    *t_out = t;
+    return v;
+}
+
+/* q = {a0, a1, b1, a2, b2, a3, b3, w}: a Fourier series of three harmonics */
+static double series(double t, const double *q) {
+    double x = q[0];
+    for (int k = 1; k <= 3; k++)
+        x += q[2 * k - 1] * cos(k * q[7] * t) + q[2 * k] * sin(k * q[7] * t);
+    return x;
+}
+
+/* A three-harmonic series sampled 200 times per period over 3.5 periods: three whole periods, each
+ * with the series' own coefficients. Uniform samples over a whole period make the discrete sums
+ * orthogonal, so the only error is rounding (1e-12 of amplitudes of order 1). */
+static void test_whole_period_fourier(void **state) {
+    (void)state;
+    const double f_hz = 13.0, w = 2 * M_PI * f_hz;
+    const double q[8] = {0.3, 2.0, -1.5, 0.0, 0.25, 0.7, 0.0, w};
+    double *t, *x = sampled(700, 1.0 / (200 * f_hz), series, q, &t);
+    double coef[5 * 7];
+    int samples[5];
+    int periods = rths_whole_period_fourier(t, x, 700, f_hz, 3, 5, coef, samples);
+    assert_int_equal(periods, 3);
+    for (int j = 0; j < periods; j++) {
+        assert_int_equal(samples[j], 200);
+        for (int c = 0; c < 7; c++)
+            assert_close(coef[j * 7 + c], q[c], 1e-12);
+    }
+    /* fewer harmonics asked: the same leading coefficients; max_periods caps the count */
+    assert_int_equal(rths_whole_period_fourier(t, x, 700, f_hz, 1, 2, coef, NULL), 2);
+    assert_close(coef[3 + 1], 2.0, 1e-12);
+    assert_close(coef[3 + 2], -1.5, 1e-12);
+    free(t);
+    free(x);
+}
+
+/* q = {forced amplitude, forcing w, sigma, transient w}: a forced steady state plus a transient
+ * e^{sigma t} cos(w_t t) of known rate sigma */
+static double forced_plus_transient(double t, const double *q) {
+    return q[0] * cos(q[1] * t) + exp(q[2] * t) * cos(q[3] * t);
+}
+
+static double pure_exponential(double t, const double *q) {
+    return exp(q[0] * t);
+}
+
+/* The growth rate against the closed form sigma. x(t) - x(t - T) removes the forced part and
+ * leaves e^{sigma t} R cos(w_t t + phi); the windows (one period of the 3 Hz transient) each see
+ * its maximum at the same phase, so ln(max) rises exactly by sigma per second. What is left is
+ * the sampling of the maximum ((w_t dt)^2 / 2 = 2e-4 relative) and the linear interpolation of
+ * x(t - T) ((w_f dt)^2 / 8 of the forced amplitude, 1e-3 here): 2e-3 1/s covers both. */
+static void test_growth_rate_closed_form(void **state) {
+    (void)state;
+    const double f_hz = 13.0, dt = 1e-3;
+    const double sigmas[3] = {-0.5, 0.3, 0.0};
+    for (int k = 0; k < 3; k++) {
+        const double q[4] = {1e-3, 2 * M_PI * f_hz, sigmas[k], 2 * M_PI * 3.0};
+        double *t, *x = sampled(12001, dt, forced_plus_transient, q, &t), env, span;
+        double g = rths_feedback_growth_rate(t, x, 12001, 1.0 / f_hz, 1.0 / 3.0, &env, &span);
+        printf("  sigma %+.2f: growth rate %+.6f 1/s over %.3f s\n", sigmas[k], g, span);
+        assert_close(g, sigmas[k], 2e-3);
+        /* the second half of 11.92 s in windows of 1/3 s */
+        assert_true(span > 5 && span < 6);
+        free(t);
+        free(x);
+    }
+    /* a pure exponential: d(t) = e^{sigma t}(1 - e^{-sigma T}) is one too */
+    const double q[1] = {0.2};
+    double *t, *x = sampled(5001, dt, pure_exponential, q, &t), env, span;
+    double g = rths_feedback_growth_rate(t, x, 5001, 1.0 / f_hz, 0.25, &env, &span);
+    assert_close(g, 0.2, 1e-6);
+    /* the last window of 0.25 s ends at T + 19 x 0.25 s; its last sample is within dt of that */
+    double t_end = 1.0 / f_hz + 19 * 0.25;
+    assert_close(env, exp(0.2 * t_end) * (1 - exp(-0.2 / f_hz)), 1e-3 * env);
+    /* too short to say */
+    assert_true(isnan(rths_feedback_growth_rate(t, x, 7, 1.0 / f_hz, 0.25, &env, &span)));
+    free(t);
+    free(x);
+}
+
+/* The divergence verdict's cases, on the seed assembly (slowest mode 4.9 Hz). */
+static void test_feedback_assess(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_error err;
+    assert_int_equal(rths_assembly_from_chain(4, seed_m, seed_c, seed_k, &a, &err), RTHS_OK);
+    const double f_hz = 13.0, dt = 1e-3;
+    rths_feedback_verdict v;
+    /* growing at 0.5 1/s over 10 s: diverged, at that rate */
+    double q[4] = {1e-3, 2 * M_PI * f_hz, 0.5, 2 * M_PI * 4.9};
+    double *t, *x = sampled(10001, dt, forced_plus_transient, q, &t);
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 10.0, 0, 0, 1e-9, &v);
+    assert_true(v.diverged);
+    assert_string_equal(v.reason,
+                        "the response grows (its unforced part more than doubled over the second "
+                        "half)");
+    assert_close(v.growth_rate_per_s, 0.5, 0.01);
+    assert_close(v.reached_s, 10.0, 1e-9);
+    /* the same trace within the sensor noise (its unforced part reaches e^5 = 148 at the end,
+     * less than 10 x 100): a note, not divergence */
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 10.0, 0, 0, 100.0, &v);
+    assert_false(v.diverged);
+    assert_non_null(v.note);
+    /* a limit trip and an early stop are divergence whatever the rate */
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 10.0, 1, 0, 1e-9, &v);
+    assert_string_equal(v.reason, "a safety limit tripped");
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 11.0, 0, 0, 1e-9, &v);
+    assert_string_equal(v.reason,
+                        "the response grew beyond bounds (1000 x the true steady amplitude)");
+    x[5000] = NAN;
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 10.0, 0, 0, 1e-9, &v);
+    assert_string_equal(v.reason, "the response became non-finite");
+    free(t);
+    free(x);
+    /* decaying: bounded, no note, max |x| is the first sample's 1 + 1e-3 */
+    q[2] = -0.5;
+    x = sampled(10001, dt, forced_plus_transient, q, &t);
+    rths_feedback_assess(&a, t, x, x, 10001, f_hz, 10.0, 0, 0, 1e-9, &v);
+    assert_false(v.diverged);
+    assert_null(v.note);
+    assert_close(v.growth_rate_per_s, -0.5, 0.01);
+    assert_close(v.max_abs_x_num_m, 1.001, 1e-12);
+    free(t);
+    free(x);
+    rths_assembly_free(&a);
+}
+
+/* The stability section's reader: defaults, values, and located refusals. */
+static void test_chart_config(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_error err;
+    rths_chart_options o, def;
+    rths_chart_options_default(&def);
+    assert_int_equal(rths_config_load(NULL, NULL, 0, &cfg, &err), RTHS_OK);
+    assert_int_equal(rths_chart_config_read(cfg, &o, &err), RTHS_OK);
+    assert_memory_equal(&o, &def, sizeof o);
+    rths_config_free(cfg);
+    const char *ov[] = {"stability.tau_points=30", "stability.p_min=0.4",
+                        "stability.mdbm_refine=2"};
+    assert_int_equal(rths_config_load(NULL, ov, 3, &cfg, &err), RTHS_OK);
+    assert_int_equal(rths_chart_config_read(cfg, &o, &err), RTHS_OK);
+    assert_int_equal(o.tau_points, 30);
+    assert_true(o.p_min == 0.4);
+    assert_int_equal(o.mdbm_refine, 2);
+    assert_int_equal(rths_config_check_unknown(cfg, &err), RTHS_OK);
+    rths_config_free(cfg);
+    const char *bad[][2] = {
+        {"stability.tau_min_s=4e-4", "--set stability.tau_min_s=4e-4: key 'stability.tau_max_s': "
+                                     "must be above stability.tau_min_s"},
+        {"stability.p_max=0.005", "key 'stability.p_max': must not be below stability.p_min"},
+        {"stability.omega_points=100000", "the MDBM grid (50 x 50 x 100000) is too large"},
+        {"stability.chebyshev_nodes=2", "key 'stability.chebyshev_nodes': must be in [4, 200]"},
+    };
+    for (int k = 0; k < 4; k++) {
+        assert_int_equal(rths_config_load(NULL, &bad[k][0], 1, &cfg, &err), RTHS_OK);
+        assert_int_equal(rths_chart_config_read(cfg, &o, &err), RTHS_EINPUT);
+        if (!strstr(err.msg, bad[k][1])) fail_msg("'%s' lacks '%s'", err.msg, bad[k][1]);
+        rths_config_free(cfg);
+    }
+}
+
+/* The family of a configured split gives back that split's delay equation at its own p (its
+ * interface shares kept), and the essential limit interpolates the sign change of the bound. */
+static void test_split_family_and_essential_limit(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_dde want, got;
+    rths_error err;
+    seed_dde(0.67, &a, &want);
+    rths_split s;
+    assert_int_equal(rths_split_create(&a, seed_roles, 0.67, NULL, NULL, &s, &err), RTHS_OK);
+    rths_split_family fam;
+    double *ci, *ki;
+    assert_int_equal(rths_split_family_of(&a, seed_roles, &s, &fam, &ci, &ki, &err), RTHS_OK);
+    assert_int_equal(rths_split_family_build(&fam, 0.67, &got, &err), RTHS_OK);
+    size_t bytes = sizeof(double) * 16;
+    assert_memory_equal(got.m0, want.m0, bytes);
+    assert_memory_equal(got.mt, want.mt, bytes);
+    assert_memory_equal(got.c0, want.c0, bytes);
+    assert_memory_equal(got.ct, want.ct, bytes);
+    assert_memory_equal(got.k0, want.k0, bytes);
+    assert_memory_equal(got.kt, want.kt, bytes);
+    rths_dde_free(&got);
+    rths_dde_free(&want);
+    free(ci);
+    free(ki);
+    rths_split_free(&s);
+    rths_assembly_free(&a);
+    /* rate x tau 0.2, 0.1, -0.1 at p 0.4, 0.5, 0.6: zero at 0.55 */
+    double p[3] = {0.4, 0.5, 0.6}, rate[3] = {0.2, 0.1, -0.1};
+    rths_chart c = {.np = 3, .p = p, .essential_rate_times_tau = rate};
+    assert_close(rths_chart_essential_limit(&c), 0.55, 1e-15);
+    rate[2] = 0.05;
+    assert_true(isnan(rths_chart_essential_limit(&c)));
+}
+
 static void test_bad_input(void **state) {
     (void)state;
     rths_dde d;
@@ -553,6 +760,11 @@ int main(void) {
         cmocka_unit_test(test_time_domain_cross_check),
         cmocka_unit_test(test_five_storey),
         cmocka_unit_test(test_bad_input),
+        cmocka_unit_test(test_whole_period_fourier),
+        cmocka_unit_test(test_growth_rate_closed_form),
+        cmocka_unit_test(test_feedback_assess),
+        cmocka_unit_test(test_chart_config),
+        cmocka_unit_test(test_split_family_and_essential_limit),
     };
     return cmocka_run_group_tests(tests, NULL, teardown_chart);
 }

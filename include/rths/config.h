@@ -12,6 +12,10 @@
 
 typedef struct rths_config rths_config;
 
+/* Mappings and lists nest at most this deep (a configuration needs about five levels); deeper
+ * input, from the file or a --set, is refused with its location instead of exhausting the stack. */
+#define RTHS_CONFIG_MAX_DEPTH 64
+
 /* Loads path (NULL: an empty document, so everything takes defaults), then applies each override
  * "dotted.key=value" in order; value is parsed as a YAML flow scalar/sequence ("0.33", "[1, 2]").
  */
@@ -29,6 +33,9 @@ int rths_config_get_double(rths_config *cfg, const char *key, int required, doub
 enum { RTHS_CONFIG_LO_OPEN = 1, RTHS_CONFIG_HI_OPEN = 2 };
 int rths_config_get_double_ex(rths_config *cfg, const char *key, int required, double def,
                               double lo, double hi, unsigned flags, double *out, rths_error *err);
+/* The range [lo, hi] (with flags' open ends) as the getters word it, one style for every message:
+ * "in [0, 1]", "in (0, 1)", ">= 0", "> 0", "<= 100000", "< 1". Returns buf. */
+const char *rths_config_range_text(double lo, double hi, unsigned flags, char *buf, size_t size);
 int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo, long hi,
                         long *out, rths_error *err);
 int rths_config_get_bool(rths_config *cfg, const char *key, int required, int def, int *out,
@@ -55,6 +62,10 @@ void rths_config_mark_known(rths_config *cfg, const char *key_prefix);
  * prefixed with the key's location exactly like the getters' errors. Returns RTHS_EINPUT. */
 int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *err, const char *fmt,
                          ...) __attribute__((format(printf, 4, 5)));
+
+/* Whether some getter asked for a key under section (e.g. "rig": any "rig.*"), present or not:
+ * the section's reader ran in this program. */
+int rths_config_section_read(const rths_config *cfg, const char *section);
 
 /* Fails on the first key in the document that no getter asked for. */
 int rths_config_check_unknown(const rths_config *cfg, rths_error *err);

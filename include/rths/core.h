@@ -13,7 +13,8 @@ enum {
     RTHS_EINPUT = 2, /* bad usage or input: config, CLI, out-of-range numbers */
 };
 
-#define RTHS_ERROR_MSG_LEN 1024
+/* Room for two paths of PATH_MAX (4096) bytes and the reason after them. */
+#define RTHS_ERROR_MSG_LEN 8192
 
 typedef struct rths_error {
     int code;

@@ -1,5 +1,6 @@
 /* rths fidelity: what the numerical substructure's integration scheme does to a hybrid test's
- * result (SPEC §8), computed in the frequency domain without time stepping.
+ * result (docs/method.md, "Numerical substructure integration"), computed in the frequency domain
+ * without time stepping.
  *
  * The model of a converged iterative hybrid test at a perfect interface match:
  *   - the physical substructure (split->mass_phys, ...) is continuous time:
@@ -22,6 +23,7 @@
 #ifndef RTHS_FIDELITY_H
 #define RTHS_FIDELITY_H
 
+#include "rths/config.h"
 #include "rths/model.h"
 
 #include <complex.h>
@@ -49,5 +51,28 @@ int rths_fidelity_response(const rths_fidelity *f, int curve, double omega_rad_s
  * long as the scan separates the peak from its neighbours. */
 int rths_fidelity_peak(const rths_fidelity *f, int curve, int dof, double lo_hz, double hi_hz,
                        int points, double *peak_hz, double *peak_amplitude_m, rths_error *err);
+
+/* The sweep of `rths fidelity` (docs/config/fidelity.md). */
+typedef struct rths_fidelity_options {
+    double start_hz, end_hz; /* default: +-10 % around the second natural frequency */
+    int points;              /* uniform frequencies, default 1001 */
+} rths_fidelity_options;
+
+/* Reads fidelity.start_hz, end_hz and points; the defaults come from assembly a's modes (the
+ * second mode, where the seed's hybrid test is hardest; the first for a one-DoF structure).
+ * Refuses, located, values out of range and end_hz <= start_hz. */
+int rths_fidelity_config_read(rths_config *cfg, const rths_assembly *a, rths_fidelity_options *o,
+                              rths_error *err);
+
+/* The frequencies to tabulate: o's uniform grid merged with `extra` (e.g. every curve's exact
+ * peak), sorted, duplicates removed. *freqs is malloc'ed. */
+int rths_fidelity_frequencies(const rths_fidelity_options *o, const double *extra, int n_extra,
+                              double **freqs, int *count, rths_error *err);
+
+/* The half-power distance of curve's peak of DoF dof (peak_amplitude_m at peak_hz) above it:
+ * the first frequency, stepping by step_hz from the peak up to end_hz, where the amplitude falls
+ * below peak / sqrt(2), minus peak_hz; 0 when it does not fall within that range. */
+double rths_fidelity_half_power_hz(const rths_fidelity *f, int curve, int dof, double peak_hz,
+                                   double peak_amplitude_m, double end_hz, double step_hz);
 
 #endif

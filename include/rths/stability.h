@@ -1,12 +1,14 @@
-/* rths stability: substructurability of the conventional (delayed-feedback) hybrid test (SPEC §4).
+/* rths stability: substructurability of the conventional (delayed-feedback) hybrid test
+ * (docs/method.md, "Delayed-feedback stability").
  *
  * The delayed-feedback test. The physical substructure (internal DoFs x_p, interface x_i) and the
  * numerical one (interface xi_i, internal xi_n) each obey their own equations (model.h's split:
  * physical matrices P in order (phys, int), numerical N in order (int, num), the interface mass
- * divided as P_ii = (1 - p) M_ii, N_ii = p M_ii, SPEC erratum 1). The actuator makes the physical
- * interface follow the numerical one with a pure delay, x_i(t) = xi_i(t - tau), and the measured
- * interface force is fed back without delay, F_i^phys = -F_i^num. Eliminating x_i and F_i gives one
- * neutral delay equation in q = the assembly's DoFs (interface DoFs carry the numerical xi_i):
+ * divided as P_ii = (1 - p) M_ii, N_ii = p M_ii, erratum 1 in docs/method.md, "Errata of the seed
+ * paper"). The actuator makes the physical interface follow the numerical one with a pure delay,
+ * x_i(t) = xi_i(t - tau), and the measured interface force is fed back without delay, F_i^phys =
+ * -F_i^num. Eliminating x_i and F_i gives one neutral delay equation in q = the assembly's DoFs
+ * (interface DoFs carry the numerical xi_i):
  *
  *   M_tau q''(t-tau) + M_0 q''(t) + C_tau q'(t-tau) + C_0 q'(t) + K_tau q(t-tau) + K_0 q(t) = F(t).
  *
@@ -30,6 +32,7 @@
 #ifndef RTHS_STABILITY_H
 #define RTHS_STABILITY_H
 
+#include "rths/config.h"
 #include "rths/core.h"
 #include "rths/model.h"
 
@@ -81,11 +84,11 @@ int rths_dde_essential(const rths_dde *d, double *rate_times_tau, double complex
 
 /* ---- rightmost roots by Chebyshev collocation ---- */
 
-/* Roots of D from the spectral discretisation of the DAE form (SPEC §4) on nodes+1 Chebyshev
- * nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root is accepted only when the
- * relative residual rths_dde_residual of the raw eigenvalue is below accept_tol (<= 0: 1e-6);
- * accepted roots are polished by Newton and returned with Im >= 0 (one of each conjugate pair),
- * sorted by decreasing real part. *roots is malloc'ed. */
+/* Roots of D from the spectral discretisation of the DAE form (docs/method.md, "Delayed-feedback
+ * stability") on nodes+1 Chebyshev nodes over [-tau, 0] (generalised eigenproblem, dggev3). A root
+ * is accepted only when the relative residual rths_dde_residual of the raw eigenvalue is below
+ * accept_tol (<= 0: 1e-6); accepted roots are polished by Newton and returned with Im >= 0 (one of
+ * each conjugate pair), sorted by decreasing real part. *roots is malloc'ed. */
 int rths_dde_spectral_roots(const rths_dde *d, double tau, int nodes, double accept_tol,
                             double complex **roots, int *n_roots, rths_error *err);
 
@@ -162,6 +165,24 @@ typedef struct rths_split_family {
 } rths_split_family;
 int rths_split_family_build(void *ctx, double p, rths_dde *out, rths_error *err);
 
+/* The family of a configured split s of assembly a: the interface damping and stiffness shares
+ * s holds (its physical interface blocks) kept for every p. The shares are malloc'ed into
+ * *damping_int, *stiffness_int (n_int x n_int; free both with free()). */
+int rths_split_family_of(const rths_assembly *a, const rths_dof_role *roles, const rths_split *s,
+                         rths_split_family *out, double **damping_int, double **stiffness_int,
+                         rths_error *err);
+
+/* The p where the essential-spectrum bound changes sign along the chart's rows (linear
+ * interpolation of rate x tau between neighbouring p), NaN when it keeps its sign. */
+double rths_chart_essential_limit(const rths_chart *c);
+
+/* Reads the chart options from the configuration's stability section (docs/config/stability.md):
+ * tau_min_s, tau_max_s, tau_points, p_min, p_max, p_points, omega_min_rad_s, omega_max_rad_s,
+ * omega_points, mdbm_tau_points, mdbm_p_points, mdbm_refine, chebyshev_nodes; absent keys keep
+ * rths_chart_options_default's values. Refuses (located, RTHS_EINPUT) values out of range, an
+ * empty tau or omega range, p_max < p_min and an MDBM grid of more than 5e7 cells. */
+int rths_chart_config_read(rths_config *cfg, rths_chart_options *o, rths_error *err);
+
 /* ---- time-domain simulation of the delayed-feedback test ---- */
 
 typedef struct rths_delay_sim_result {
@@ -185,5 +206,49 @@ int rths_delay_feedback_simulate(const rths_assembly *a, const rths_split *s,
                                  double duration_s, double h_s, rths_delay_sim_result *out,
                                  rths_error *err);
 void rths_delay_sim_result_free(rths_delay_sim_result *r);
+
+/* ---- analysis of a feedback test's time trace ---- */
+
+/* Fourier coefficients over whole forcing periods of a signal x sampled uniformly from t = 0 (the
+ * forcing phase): for period j (samples with j T <= t < (j + 1) T, T = 1 / frequency_hz),
+ *   coef[j * (1 + 2 harmonics)] = a0 (the mean), then a_k, b_k for k = 1..harmonics, with
+ *   x(t) ~ a0 + sum_k a_k cos(k w t) + b_k sin(k w t)   (a_k = 2/m sum x cos(k w t), m samples).
+ * The last period counts only when the samples cover it to its end. coef holds max_periods rows;
+ * samples (may be NULL) gets m per period. Returns the number of whole periods. */
+int rths_whole_period_fourier(const double *t_s, const double *x, int n, double frequency_hz,
+                              int harmonics, int max_periods, double *coef, int *samples);
+
+/* Growth of a feedback test's response, free of the forced part: for a linear test under
+ * T-periodic forcing, d(t) = x(t) - x(t - T) solves the unforced equations (the periodic steady
+ * state cancels), so the slope of ln max|d| per window, fitted over the second half of the run,
+ * is the real part of the dominant characteristic root: negative when the loop is stable,
+ * positive when it is not. Windows span at least one period of the slowest mode (slowest_s) so
+ * its envelope is seen. A run shorter than 1.5 T uses x itself. NAN when too short;
+ * *last_envelope gets the last window's max |d| and *fit_span_s the fitted span. */
+double rths_feedback_growth_rate(const double *t_s, const double *x, int n, double period_s,
+                                 double slowest_s, double *last_envelope, double *fit_span_s);
+
+typedef struct rths_feedback_verdict {
+    int diverged;
+    const char *reason;       /* why it diverged (static text), NULL when it did not */
+    const char *note;         /* e.g. a positive rate over too short a span (static), or NULL */
+    double growth_rate_per_s; /* rths_feedback_growth_rate of x_num */
+    double fit_span_s;
+    double max_abs_x_num_m; /* over the finite samples */
+    double reached_s;       /* time of the last sample */
+} rths_feedback_verdict;
+
+/* Whether a feedback test diverged (docs/method.md, "Delayed-feedback stability": growth beyond
+ * bounds or a limit trip), from the full-resolution trace (t_s, x_num_m, x_phys_m; n samples from
+ * t = 0) of a run of requested_s at forcing_hz on assembly a. In order: a non-finite sample; a
+ * safety limit tripped (limit_tripped); beyond_bounds set by the simulation or the run stopped
+ * more than two forcing periods early; the unforced part at least doubled over the fitted span
+ * and stands clear of the sensor noise (10 noise_m). A positive rate with less growth than that
+ * is not called divergence (a short run of a stable test can show a transient rise, mode
+ * beating) but gets a note. */
+void rths_feedback_assess(const rths_assembly *a, const double *t_s, const double *x_num_m,
+                          const double *x_phys_m, int n, double forcing_hz, double requested_s,
+                          int limit_tripped, int beyond_bounds, double noise_m,
+                          rths_feedback_verdict *out);
 
 #endif

@@ -2,6 +2,7 @@
 #include "cli/cli_common.h"
 
 #include <errno.h>
+#include <limits.h>
 #include <json-c/json.h>
 #include <math.h>
 #include <stdarg.h>
@@ -54,6 +55,27 @@ static const char *option_value(int argc, char **argv, int *i, const char *name,
     return argv[++*i];
 }
 
+/* A path the system would refuse only later, with a message of unbounded length (or after part of
+ * the output was made): the whole path within PATH_MAX, each name within NAME_MAX. */
+static int path_fits(const rths_cli *cli, const char *what, const char *path) {
+    size_t len = strlen(path);
+    if (len >= PATH_MAX) {
+        usage_error(cli, "%s: the path is %zu bytes long; the system allows %d", what, len,
+                    PATH_MAX - 1);
+        return 0;
+    }
+    for (const char *p = path; *p;) {
+        size_t name = strcspn(p, "/");
+        if (name > NAME_MAX) {
+            usage_error(cli, "%s: the name '%.40s...' is %zu bytes long; the system allows %d",
+                        what, p, name, NAME_MAX);
+            return 0;
+        }
+        p += name + (p[name] == '/');
+    }
+    return 1;
+}
+
 int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *usage,
                    rths_cli_opt *opts, int n_opts) {
     memset(cli, 0, sizeof *cli);
@@ -87,12 +109,17 @@ int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *
         if ((flags & RTHS_CLI_OUT) &&
             ((v = option_value(argc, argv, &i, "--out", &matched)) || matched)) {
             if (!v || !v[0]) return usage_error(cli, "option --out needs a directory");
+            if (cli->out_dir) /* which one was meant? taking the last hid the first */
+                return usage_error(cli, "option --out given twice ('%s' and '%s')", cli->out_dir,
+                                   v);
             cli->out_dir = v;
             continue;
         }
         if ((flags & RTHS_CLI_SEED) &&
             ((v = option_value(argc, argv, &i, "--seed", &matched)) || matched)) {
             if (!v) return usage_error(cli, "option --seed needs a value");
+            if (seed_text)
+                return usage_error(cli, "option --seed given twice ('%s' and '%s')", seed_text, v);
             seed_text = v;
             continue;
         }
@@ -107,6 +134,9 @@ int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *
             if (!v)
                 return usage_error(cli, "option %s needs a value %s", opts[k].name,
                                    opts[k].metavar);
+            if (opts[k].value)
+                return usage_error(cli, "option %s given twice ('%s' and '%s')", opts[k].name,
+                                   opts[k].value, v);
             opts[k].value = v;
             found = 1;
         }
@@ -121,6 +151,8 @@ int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *
                                 "examples/four_storey.yaml)");
     if ((flags & RTHS_CLI_OUT) && !cli->out_dir)
         return usage_error(cli, "missing --out DIR (the folder the results go to)");
+    if (cli->out_dir && !path_fits(cli, "--out", cli->out_dir)) return RTHS_EINPUT;
+    if (cli->config_path && !path_fits(cli, "CONFIG", cli->config_path)) return RTHS_EINPUT;
     if (seed_text) {
         char *end;
         errno = 0;
@@ -133,8 +165,8 @@ int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *
     return RTHS_OK;
 }
 
-int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
-                    rths_error *err) {
+int rths_cli_double_ex(const char *opt, const char *text, double lo, double hi, unsigned flags,
+                       double *out, rths_error *err) {
     char *end;
     errno = 0;
     double v = strtod(text, &end);
@@ -143,14 +175,19 @@ int rths_cli_double(const char *opt, const char *text, double lo, double hi, dou
     if (!isfinite(v) || errno == ERANGE)
         return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not a finite number", opt,
                               text);
-    if (v < lo || v > hi) {
-        if (isinf(hi))
-            return rths_error_set(err, RTHS_EINPUT, "option %s: %g must be >= %g", opt, v, lo);
-        return rths_error_set(err, RTHS_EINPUT, "option %s: %g is outside [%g, %g]", opt, v, lo,
-                              hi);
+    if (v < lo || v > hi || ((flags & RTHS_CONFIG_LO_OPEN) && v == lo) ||
+        ((flags & RTHS_CONFIG_HI_OPEN) && v == hi)) {
+        char range[128];
+        return rths_error_set(err, RTHS_EINPUT, "option %s: must be %s (got %s)", opt,
+                              rths_config_range_text(lo, hi, flags, range, sizeof range), text);
     }
     *out = v;
     return RTHS_OK;
+}
+
+int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
+                    rths_error *err) {
+    return rths_cli_double_ex(opt, text, lo, hi, 0, out, err);
 }
 
 int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out, rths_error *err) {
@@ -159,9 +196,9 @@ int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out,
     long v = strtol(text, &end, 10);
     if (end == text || *end != '\0' || errno == ERANGE)
         return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not an integer", opt, text);
-    if (v < lo || v > hi)
-        return rths_error_set(err, RTHS_EINPUT, "option %s: %ld is outside [%ld, %ld]", opt, v, lo,
-                              hi);
+    if (v < lo || v > hi) /* worded as the configuration's integer getter does */
+        return rths_error_set(err, RTHS_EINPUT, "option %s: must be in [%ld, %ld] (got %ld)", opt,
+                              lo, hi, v);
     *out = v;
     return RTHS_OK;
 }
@@ -221,8 +258,14 @@ void rths_cli_unload(rths_config *cfg, rths_setup *setup) {
 int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err) {
     static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
                                            "stability", "fidelity",   "output",    "server"};
+    /* A section is accepted whole only when this command has no reader for it: once a reader
+     * asked for one of its keys (the virtual rig reads rig and controller), a key it did not ask
+     * for is a typo that would otherwise change nothing, silently. */
+    int read[sizeof sections / sizeof sections[0]];
+    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++)
+        read[k] = rths_config_section_read(cfg, sections[k]);
     for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
-        int mine = 0;
+        int mine = read[k];
         for (int j = 0; own && own[j] && !mine; j++)
             mine = !strcmp(own[j], sections[k]);
         if (!mine) rths_config_mark_known(cfg, sections[k]);

@@ -37,7 +37,9 @@ enum {
 };
 
 /* A command-specific option. metavar NULL: a flag (value becomes "1" when given). Otherwise it
- * takes a value ("--name V" or "--name=V"); the last occurrence wins. value is NULL when absent. */
+ * takes a value ("--name V" or "--name=V"), at most once: an option given twice is refused (as
+ * are --out and --seed), so the one the user meant is never silently dropped. value is NULL when
+ * absent. */
 typedef struct rths_cli_opt {
     const char *name;    /* with the dashes: "--frequency" */
     const char *metavar; /* "F", or NULL for a flag */
@@ -74,6 +76,10 @@ void rths_cli_print(const rths_cli *cli, const char *fmt, ...)
  * RTHS_EINPUT with "option --name: ..." in err. */
 int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
                     rths_error *err);
+/* The same with open ends where flagged (RTHS_CONFIG_LO_OPEN: lo < x), worded as the
+ * configuration's getters word a range ("must be in (0, 100000] (got 0)"). */
+int rths_cli_double_ex(const char *opt, const char *text, double lo, double hi, unsigned flags,
+                       double *out, rths_error *err);
 int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out, rths_error *err);
 /* Comma-separated numbers "1e-4,0,-2e-5" (at most max_count); *count how many. */
 int rths_cli_double_list(const char *opt, const char *text, double *out, int max_count, int *count,
@@ -86,9 +92,10 @@ void rths_cli_unload(rths_config *cfg, rths_setup *setup);
 
 /* Refuses unknown keys (typos, unknown sections) after the command has read its sections with the
  * getters (which check types and ranges). The setup's sections (structure, split, forcing, model)
- * are checked key by key; every other section the rths configuration knows of (rig, controller,
- * iteration, continuation, stability, fidelity, output) is accepted whole, so one config file
- * serves every command. */
+ * and every section a reader of this command asked a key of (e.g. rig and controller, read by the
+ * virtual rig) are checked key by key; the other sections the rths configuration knows of (rig,
+ * controller, iteration, continuation, stability, fidelity, output, server) are accepted whole,
+ * so one config file serves every command. */
 int rths_cli_check_config(rths_config *cfg, rths_error *err);
 /* The same, but the command's own sections (own: NULL-terminated, e.g. {"fidelity", NULL}) are
  * also checked key by key, so a misspelt key there is refused instead of ignored. */

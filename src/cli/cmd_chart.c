@@ -1,5 +1,6 @@
 /* rths chart: stability chart of the conventional delayed-feedback hybrid test over (tau, p)
- * (SPEC §4, seed Fig. 4) for the configured structure and split. */
+ * (docs/method.md, "Delayed-feedback stability"; seed Fig. 4) for the configured structure and
+ * split. */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/stability.h"
@@ -15,7 +16,8 @@ static const char usage[] =
     "\n"
     "Substructurability of the conventional real-time hybrid test, in which the physical\n"
     "interface follows the numerical one through an actuator with a pure delay tau. For every\n"
-    "(tau, p) on a grid (p = numerical share of the interface mass, SPEC erratum 1) the neutral\n"
+    "(tau, p) on a grid (p = numerical share of the interface mass, docs/method.md erratum 1) the "
+    "neutral\n"
     "delay equation of the configured split is labelled stable or unstable from its rightmost\n"
     "characteristic roots (Chebyshev collocation, then root tracking in tau) and its essential\n"
     "spectrum (the neutral root chains, from det(M_0 + z M_tau) = 0); the boundaries\n"
@@ -41,59 +43,6 @@ static const char usage[] =
     "  --help             this text\n"
     "\n"
     "Exit status: 0 success, 1 failure, 2 bad usage or input (nothing written).\n";
-
-static int read_options(rths_config *cfg, rths_chart_options *o, rths_error *err) {
-    rths_chart_options_default(o);
-    long tp, pp, wp, mt, mp, mr, cn;
-    int rc;
-    if ((rc = rths_config_get_double(cfg, "stability.tau_min_s", 0, o->tau_min_s, 1e-12, 1e3,
-                                     &o->tau_min_s, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.tau_max_s", 0, o->tau_max_s, 1e-12, 1e3,
-                                     &o->tau_max_s, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.tau_points", 0, o->tau_points, 2, 5000, &tp,
-                                  err)) ||
-        (rc = rths_config_get_double(cfg, "stability.p_min", 0, o->p_min, 1e-6, 1 - 1e-6, &o->p_min,
-                                     err)) ||
-        (rc = rths_config_get_double(cfg, "stability.p_max", 0, o->p_max, 1e-6, 1 - 1e-6, &o->p_max,
-                                     err)) ||
-        (rc = rths_config_get_int(cfg, "stability.p_points", 0, o->p_points, 1, 5000, &pp, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.omega_min_rad_s", 0, o->omega_min_rad_s, 0,
-                                     1e9, &o->omega_min_rad_s, err)) ||
-        (rc = rths_config_get_double(cfg, "stability.omega_max_rad_s", 0, o->omega_max_rad_s, 1e-9,
-                                     1e9, &o->omega_max_rad_s, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.omega_points", 0, o->omega_points, 2, 100000, &wp,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_tau_points", 0, o->mdbm_tau_points, 2, 5000,
-                                  &mt, err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_p_points", 0, o->mdbm_p_points, 2, 5000, &mp,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.mdbm_refine", 0, o->mdbm_refine, 0, 8, &mr,
-                                  err)) ||
-        (rc = rths_config_get_int(cfg, "stability.chebyshev_nodes", 0, o->chebyshev_nodes, 4, 200,
-                                  &cn, err)))
-        return rc;
-    if (!(o->tau_max_s > o->tau_min_s))
-        return rths_config_error_at(cfg, "stability.tau_max_s", err,
-                                    "must be above stability.tau_min_s (%g s), got %g s",
-                                    o->tau_min_s, o->tau_max_s);
-    if (!(o->p_max >= o->p_min))
-        return rths_config_error_at(cfg, "stability.p_max", err,
-                                    "must not be below stability.p_min (%g), got %g", o->p_min,
-                                    o->p_max);
-    if (!(o->omega_max_rad_s > o->omega_min_rad_s))
-        return rths_config_error_at(cfg, "stability.omega_max_rad_s", err,
-                                    "must be above stability.omega_min_rad_s (%g rad/s), got %g",
-                                    o->omega_min_rad_s, o->omega_max_rad_s);
-    if ((double)mt * (double)(pp > 1 ? mp : 1) * (double)wp > 5e7)
-        return rths_config_error_at(cfg, "stability.omega_points", err,
-                                    "the MDBM grid (%ld x %ld x %ld) is too large: keep "
-                                    "mdbm_tau_points x mdbm_p_points x omega_points below 5e7",
-                                    mt, mp, wp);
-    o->tau_points = (int)tp, o->p_points = (int)pp, o->omega_points = (int)wp;
-    o->mdbm_tau_points = (int)mt, o->mdbm_p_points = (int)mp, o->mdbm_refine = (int)mr;
-    o->chebyshev_nodes = (int)cn;
-    return RTHS_OK;
-}
 
 static int write_csvs(rths_report *rep, const rths_chart *c, rths_error *err) {
     static const char *const h_chart[] = {"tau_s", "p", "max_real_part_per_s", "stable"};
@@ -164,18 +113,6 @@ static int write_csvs(rths_report *rep, const rths_chart *c, rths_error *err) {
     return rc;
 }
 
-/* p where the essential bound changes sign along the chart's rows (linear interpolation of
- * ln-rates), NaN when it does not. */
-static double essential_limit(const rths_chart *c) {
-    for (int j = 0; j + 1 < c->np; j++) {
-        double a = c->essential_rate_times_tau[j], b = c->essential_rate_times_tau[j + 1];
-        if (!isfinite(a) || !isfinite(b)) continue;
-        if ((a < 0) != (b < 0)) return c->p[j] + (c->p[j + 1] - c->p[j]) * a / (a - b);
-        if (a == 0) return c->p[j];
-    }
-    return NAN;
-}
-
 static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_split *sp,
                 rths_error *err) {
     char ifaces[128] = "";
@@ -218,6 +155,104 @@ static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_
     return rths_plot(rep, rths_report_dir(rep), "chart", 1000, 800, body, err);
 }
 
+/* Critical delays located stand-alone at four p (the configured one first), and the neutral
+ * chains' roots z at the configured p. */
+typedef struct {
+    double p[4], tau_s[4], omega_rad_s[4];
+    double rate_times_tau; /* the chain bound at the configured p */
+    double complex z[64];
+    int nz;
+} probes;
+
+static int probe_chart(rths_split_family *fam, const rths_chart_options *o, int n, probes *pr,
+                       rths_error *err) {
+    int rc = RTHS_OK;
+    for (int k = 0; k < 4 && !rc; k++) {
+        rths_dde d;
+        if ((rc = rths_split_family_build(fam, pr->p[k], &d, err))) break;
+        rc = rths_dde_critical_delay(&d, o->tau_min_s * 1e-3, 10 * o->tau_max_s, 400,
+                                     o->chebyshev_nodes, &pr->tau_s[k], &pr->omega_rad_s[k], err);
+        rths_dde_free(&d);
+    }
+    if (rc) return rc;
+    rths_dde dcfg;
+    if ((rc = rths_split_family_build(fam, pr->p[0], &dcfg, err))) return rc;
+    rc = n <= 64 ? rths_dde_essential(&dcfg, &pr->rate_times_tau, pr->z, &pr->nz, err)
+                 : rths_dde_essential(&dcfg, &pr->rate_times_tau, NULL, NULL, err);
+    rths_dde_free(&dcfg);
+    return rc;
+}
+
+static json_object *grid_json(const rths_chart_options *o) {
+    json_object *g = json_object_new_object();
+    json_object_object_add(g, "tau_min_s", json_object_new_double(o->tau_min_s));
+    json_object_object_add(g, "tau_max_s", json_object_new_double(o->tau_max_s));
+    json_object_object_add(g, "tau_points", json_object_new_int(o->tau_points));
+    json_object_object_add(g, "p_min", json_object_new_double(o->p_min));
+    json_object_object_add(g, "p_max", json_object_new_double(o->p_max));
+    json_object_object_add(g, "p_points", json_object_new_int(o->p_points));
+    json_object_object_add(g, "omega_min_rad_s", json_object_new_double(o->omega_min_rad_s));
+    json_object_object_add(g, "omega_max_rad_s", json_object_new_double(o->omega_max_rad_s));
+    json_object_object_add(g, "omega_points", json_object_new_int(o->omega_points));
+    json_object_object_add(g, "mdbm_tau_points", json_object_new_int(o->mdbm_tau_points));
+    json_object_object_add(g, "mdbm_p_points", json_object_new_int(o->mdbm_p_points));
+    json_object_object_add(g, "mdbm_refine", json_object_new_int(o->mdbm_refine));
+    json_object_object_add(g, "chebyshev_nodes", json_object_new_int(o->chebyshev_nodes));
+    return g;
+}
+
+static void essential_statement(const rths_chart *c, double p_ess, const rths_chart_options *o,
+                                char *stmt, size_t size) {
+    if (isfinite(p_ess))
+        snprintf(stmt, size,
+                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
+                 "det(M_0 + z M_tau) = 0; they are in the left half-plane (necessary for "
+                 "stability at any delay) only for p > %.6f",
+                 p_ess);
+    else
+        snprintf(stmt, size,
+                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
+                 "det(M_0 + z M_tau) = 0; their side does not change over p in [%g, %g]: %s",
+                 o->p_min, o->p_max,
+                 c->essential_rate_times_tau[0] < 0 ? "left half-plane (stable chains)"
+                                                    : "right half-plane or on the axis "
+                                                      "(unstable for every delay)");
+}
+
+static json_object *essential_json(const char *stmt, double p_ess, double p_cfg, const probes *pr) {
+    json_object *ess = json_object_new_object();
+    json_object_object_add(ess, "statement", json_object_new_string(stmt));
+    json_object_object_add(ess, "p_limit", isfinite(p_ess) ? json_object_new_double(p_ess) : NULL);
+    json_object_object_add(ess, "config_p", json_object_new_double(p_cfg));
+    json_object_object_add(ess, "config_rate_times_tau",
+                           isfinite(pr->rate_times_tau) ? json_object_new_double(pr->rate_times_tau)
+                                                        : NULL);
+    json_object *zs = json_object_new_array();
+    for (int k = 0; k < pr->nz; k++) {
+        json_object *zz = json_object_new_array();
+        json_object_array_add(zz, json_object_new_double(creal(pr->z[k])));
+        json_object_array_add(zz, json_object_new_double(cimag(pr->z[k])));
+        json_object_array_add(zs, zz);
+    }
+    json_object_object_add(ess, "config_z_roots_re_im", zs);
+    return ess;
+}
+
+static json_object *critical_json(const probes *pr) {
+    json_object *cr = json_object_new_array();
+    for (int k = 0; k < 4; k++) {
+        json_object *e = json_object_new_object();
+        json_object_object_add(e, "p", json_object_new_double(pr->p[k]));
+        json_object_object_add(e, "critical_delay_s",
+                               isnan(pr->tau_s[k]) ? NULL : json_object_new_double(pr->tau_s[k]));
+        json_object_object_add(
+            e, "crossing_omega_rad_s",
+            isnan(pr->omega_rad_s[k]) ? NULL : json_object_new_double(pr->omega_rad_s[k]));
+        json_object_array_add(cr, e);
+    }
+    return cr;
+}
+
 int rths_cmd_chart(int argc, char **argv) {
     static const char *const own_sections[] = {"stability", NULL};
     rths_cli cli;
@@ -234,52 +269,25 @@ int rths_cmd_chart(int argc, char **argv) {
     double *cint = NULL, *kint = NULL;
     rths_chart_options o;
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    if ((rc = read_options(cfg, &o, &err)) ||
+    if ((rc = rths_chart_config_read(cfg, &o, &err)) ||
         (rc = rths_cli_check_config_own(cfg, own_sections, &err)))
         goto done;
     /* the configured split's interface damping/stiffness shares hold for every p */
-    const rths_split *sp = &setup.split;
-    int ni = sp->n_int;
-    cint = malloc((size_t)ni * ni * sizeof *cint);
-    kint = malloc((size_t)ni * ni * sizeof *kint);
-    if (!cint || !kint) {
-        rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
+    int ni = setup.split.n_int;
+    rths_split_family fam;
+    if ((rc = rths_split_family_of(&setup.assembly, setup.roles, &setup.split, &fam, &cint, &kint,
+                                   &err)))
         goto done;
-    }
-    for (int i = 0; i < ni; i++)
-        for (int j = 0; j < ni; j++) {
-            cint[i + j * ni] = RTHS_AT(sp->damping_phys, sp->np, sp->n_phys + i, sp->n_phys + j);
-            kint[i + j * ni] = RTHS_AT(sp->stiffness_phys, sp->np, sp->n_phys + i, sp->n_phys + j);
-        }
-    rths_split_family fam = {&setup.assembly, setup.roles, cint, kint};
     o.progress = rths_progress_enabled(cli.quiet);
     double t0 = rths_monotonic_s();
     if ((rc = rths_chart_compute(rths_split_family_build, &fam, &o, &chart, &err))) goto done;
     have_chart = 1;
     double seconds = rths_monotonic_s() - t0;
-    double p_ess = essential_limit(&chart);
+    double p_ess = rths_chart_essential_limit(&chart);
 
-    /* critical delays at a few p of interest and at the configured one, located stand-alone */
-    double probe[4] = {setup.split.mass_ratio, 0.6, 0.67, 0.8};
-    double probe_tau[4], probe_w[4];
-    for (int k = 0; k < 4 && !rc; k++) {
-        rths_dde d;
-        if ((rc = rths_split_family_build(&fam, probe[k], &d, &err))) break;
-        rc = rths_dde_critical_delay(&d, o.tau_min_s * 1e-3, 10 * o.tau_max_s, 400,
-                                     o.chebyshev_nodes, &probe_tau[k], &probe_w[k], &err);
-        rths_dde_free(&d);
-    }
-    if (rc) goto done;
-    /* the chain roots at the configured p */
-    rths_dde dcfg;
-    double rt_cfg;
-    double complex z[64];
-    int nz = 0;
-    if ((rc = rths_split_family_build(&fam, setup.split.mass_ratio, &dcfg, &err))) goto done;
-    rc = setup.assembly.n <= 64 ? rths_dde_essential(&dcfg, &rt_cfg, z, &nz, &err)
-                                : rths_dde_essential(&dcfg, &rt_cfg, NULL, NULL, &err);
-    rths_dde_free(&dcfg);
-    if (rc) goto done;
+    /* critical delays at a few p of interest and at the configured one, the chains at it */
+    probes pr = {{setup.split.mass_ratio, 0.6, 0.67, 0.8}, {0}, {0}, 0, {0}, 0};
+    if ((rc = probe_chart(&fam, &o, setup.assembly.n, &pr, &err))) goto done;
 
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
     if ((rc = write_csvs(rep, &chart, &err))) goto done;
@@ -287,22 +295,10 @@ int rths_cmd_chart(int argc, char **argv) {
     for (int k = 0; k < chart.nt * chart.np; k++)
         n_stable += chart.stable[k];
 
+    char stmt[512];
+    essential_statement(&chart, p_ess, &o, stmt, sizeof stmt);
     summary = rths_cli_summary_new(&cli);
-    json_object *g = json_object_new_object();
-    json_object_object_add(g, "tau_min_s", json_object_new_double(o.tau_min_s));
-    json_object_object_add(g, "tau_max_s", json_object_new_double(o.tau_max_s));
-    json_object_object_add(g, "tau_points", json_object_new_int(o.tau_points));
-    json_object_object_add(g, "p_min", json_object_new_double(o.p_min));
-    json_object_object_add(g, "p_max", json_object_new_double(o.p_max));
-    json_object_object_add(g, "p_points", json_object_new_int(o.p_points));
-    json_object_object_add(g, "omega_min_rad_s", json_object_new_double(o.omega_min_rad_s));
-    json_object_object_add(g, "omega_max_rad_s", json_object_new_double(o.omega_max_rad_s));
-    json_object_object_add(g, "omega_points", json_object_new_int(o.omega_points));
-    json_object_object_add(g, "mdbm_tau_points", json_object_new_int(o.mdbm_tau_points));
-    json_object_object_add(g, "mdbm_p_points", json_object_new_int(o.mdbm_p_points));
-    json_object_object_add(g, "mdbm_refine", json_object_new_int(o.mdbm_refine));
-    json_object_object_add(g, "chebyshev_nodes", json_object_new_int(o.chebyshev_nodes));
-    json_object_object_add(summary, "grid", g);
+    json_object_object_add(summary, "grid", grid_json(&o));
     json_object_object_add(summary, "interface_dofs", json_object_new_int(ni));
     json_object_object_add(summary, "points", json_object_new_int(chart.nt * chart.np));
     json_object_object_add(summary, "stable_points", json_object_new_int(n_stable));
@@ -316,47 +312,9 @@ int rths_cmd_chart(int argc, char **argv) {
     json_object_object_add(xc, "boundary_points_inside_stable_region",
                            json_object_new_int(chart.boundary_unexplained));
     json_object_object_add(summary, "labels_vs_boundaries", xc);
-    json_object *ess = json_object_new_object();
-    char stmt[512];
-    if (isfinite(p_ess))
-        snprintf(stmt, sizeof stmt,
-                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
-                 "det(M_0 + z M_tau) = 0; they are in the left half-plane (necessary for "
-                 "stability at any delay) only for p > %.6f",
-                 p_ess);
-    else
-        snprintf(stmt, sizeof stmt,
-                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
-                 "det(M_0 + z M_tau) = 0; their side does not change over p in [%g, %g]: %s",
-                 o.p_min, o.p_max,
-                 chart.essential_rate_times_tau[0] < 0 ? "left half-plane (stable chains)"
-                                                       : "right half-plane or on the axis "
-                                                         "(unstable for every delay)");
-    json_object_object_add(ess, "statement", json_object_new_string(stmt));
-    json_object_object_add(ess, "p_limit", isfinite(p_ess) ? json_object_new_double(p_ess) : NULL);
-    json_object_object_add(ess, "config_p", json_object_new_double(setup.split.mass_ratio));
-    json_object_object_add(ess, "config_rate_times_tau",
-                           isfinite(rt_cfg) ? json_object_new_double(rt_cfg) : NULL);
-    json_object *zs = json_object_new_array();
-    for (int k = 0; k < nz; k++) {
-        json_object *zz = json_object_new_array();
-        json_object_array_add(zz, json_object_new_double(creal(z[k])));
-        json_object_array_add(zz, json_object_new_double(cimag(z[k])));
-        json_object_array_add(zs, zz);
-    }
-    json_object_object_add(ess, "config_z_roots_re_im", zs);
-    json_object_object_add(summary, "essential_spectrum", ess);
-    json_object *cr = json_object_new_array();
-    for (int k = 0; k < 4; k++) {
-        json_object *e = json_object_new_object();
-        json_object_object_add(e, "p", json_object_new_double(probe[k]));
-        json_object_object_add(e, "critical_delay_s",
-                               isnan(probe_tau[k]) ? NULL : json_object_new_double(probe_tau[k]));
-        json_object_object_add(e, "crossing_omega_rad_s",
-                               isnan(probe_w[k]) ? NULL : json_object_new_double(probe_w[k]));
-        json_object_array_add(cr, e);
-    }
-    json_object_object_add(summary, "critical_delays", cr);
+    json_object_object_add(summary, "essential_spectrum",
+                           essential_json(stmt, p_ess, setup.split.mass_ratio, &pr));
+    json_object_object_add(summary, "critical_delays", critical_json(&pr));
     json_object_object_add(summary, "compute_seconds", json_object_new_double(seconds));
     if ((rc = rths_cli_write_summary(rep, "summary.json", summary, &err))) goto done;
 
@@ -368,7 +326,7 @@ int rths_cmd_chart(int argc, char **argv) {
     rths_cli_print(&cli, "Essential spectrum: %s\n", stmt);
     rths_cli_print(&cli, "%-10s %18s %22s\n", "p", "critical_delay_s", "crossing_omega_rad_s");
     for (int k = 0; k < 4; k++)
-        rths_cli_print(&cli, "%-10.4g %18.6e %22.4f%s\n", probe[k], probe_tau[k], probe_w[k],
+        rths_cli_print(&cli, "%-10.4g %18.6e %22.4f%s\n", pr.p[k], pr.tau_s[k], pr.omega_rad_s[k],
                        k == 0 ? "   (configured split)" : "");
     rths_cli_print(&cli,
                    "Labels vs boundaries: %d label changes, %d without a boundary, %d "

@@ -1,5 +1,6 @@
 /* rths fidelity: the hybrid test's steady-state FRF at a perfect interface match for every
- * integration scheme of the numerical substructure, against the true assembly (SPEC §8). */
+ * integration scheme of the numerical substructure, against the true assembly (docs/method.md,
+ * "Numerical substructure integration"). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/controller.h"
@@ -16,7 +17,7 @@ static const char usage[] =
     "\n"
     "What the numerical substructure's integration scheme does to the result "
     "of a hybrid test\n"
-    "(SPEC §8). For each scheme (implicit_euler, trapezoidal, exact_zoh, "
+    "(docs/method.md). For each scheme (implicit_euler, trapezoidal, exact_zoh, "
     "exact_foh) the converged\n"
     "hybrid test is computed in the frequency domain: the physical "
     "substructure in continuous "
@@ -51,33 +52,17 @@ static const char usage[] =
 #define N_CURVES (RTHS_SCHEME_COUNT + 1)
 
 typedef struct {
-    double start_hz, end_hz, sample_rate_hz;
+    rths_fidelity_options sweep;
+    double start_hz, end_hz, sample_rate_hz; /* the sweep's range, for the plot */
     int points;
     int dof; /* 0-based: the (first) interface DoF */
 } fidelity_options;
 
 static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_options *o,
                         rths_error *err) {
-    rths_modes modes;
-    int rc = rths_modal_analysis(&setup->assembly, &modes, err);
+    int rc = rths_fidelity_config_read(cfg, &setup->assembly, &o->sweep, err);
     if (rc) return rc;
-    /* the second mode is where the seed's hybrid test is hardest (SPEC §8); fall back to the first
-     * for a one-DoF structure */
-    double f_mode = modes.frequency_hz[modes.n >= 2 ? 1 : 0];
-    rths_modes_free(&modes);
-    long points;
-    if ((rc = rths_config_get_double(cfg, "fidelity.start_hz", 0, 0.9 * f_mode, 1e-6, 1e6,
-                                     &o->start_hz, err)) ||
-        (rc = rths_config_get_double(cfg, "fidelity.end_hz", 0,
-                                     fmax(1.1 * f_mode, 1.1 * o->start_hz), 1e-6, 1e6, &o->end_hz,
-                                     err)) ||
-        (rc = rths_config_get_int(cfg, "fidelity.points", 0, 1001, 3, 1000000, &points, err)))
-        return rc;
-    if (!(o->end_hz > o->start_hz))
-        return rths_config_error_at(cfg, "fidelity.end_hz", err,
-                                    "must be above fidelity.start_hz (%g Hz), got %g Hz",
-                                    o->start_hz, o->end_hz);
-    o->points = (int)points;
+    o->start_hz = o->sweep.start_hz, o->end_hz = o->sweep.end_hz, o->points = o->sweep.points;
     /* the controller's own reader: one default and range for the sample rate, and the rest of
      * the controller section is checked too */
     rths_controller_options copt;
@@ -86,11 +71,6 @@ static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_opti
     o->sample_rate_hz = copt.sample_rate_hz;
     o->dof = setup->split.int_dofs[0];
     return RTHS_OK;
-}
-
-static int compare_double(const void *a, const void *b) {
-    double x = *(const double *)a, y = *(const double *)b;
-    return (x > y) - (x < y);
 }
 
 static const char *curve_name(int c) {
@@ -209,19 +189,9 @@ int rths_cmd_fidelity(int argc, char **argv) {
         rc = rths_fidelity_peak(f, c, o.dof, o.start_hz, o.end_hz, o.points, &peak_hz[c + 1],
                                 &peak_m[c + 1], &err);
     if (rc) goto done;
-    int count = o.points + N_CURVES;
-    freqs = malloc((size_t)count * sizeof *freqs);
-    if (!freqs) {
-        rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
+    int unique;
+    if ((rc = rths_fidelity_frequencies(&o.sweep, peak_hz, N_CURVES, &freqs, &unique, &err)))
         goto done;
-    }
-    for (int i = 0; i < o.points; i++)
-        freqs[i] = o.start_hz + (o.end_hz - o.start_hz) * i / (o.points - 1);
-    memcpy(freqs + o.points, peak_hz, sizeof peak_hz);
-    qsort(freqs, (size_t)count, sizeof *freqs, compare_double);
-    int unique = 0;
-    for (int i = 0; i < count; i++)
-        if (unique == 0 || freqs[i] != freqs[unique - 1]) freqs[unique++] = freqs[i];
 
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
     if ((rc = write_csv(rep, f, &o, freqs, unique, &err))) goto done;
@@ -270,19 +240,9 @@ int rths_cmd_fidelity(int argc, char **argv) {
     if ((rc = rths_cli_write_summary(rep, "summary.json", summary, &err))) goto done;
     /* zoom: a few half-power bandwidths of the true peak (found on the analytic curve), wide enough
      * for every scheme's shifted peak */
-    double half_power_hz = 0;
-    {
-        double complex *x = malloc((size_t)setup.assembly.n * sizeof *x);
-        double step = (o.end_hz - o.start_hz) / (o.points - 1);
-        for (double hz = peak_hz[0]; x && hz < o.end_hz; hz += 0.1 * step) {
-            if (rths_fidelity_response(f, RTHS_FIDELITY_TRUE, 2 * M_PI * hz, x, &err)) break;
-            if (cabs(x[o.dof]) < peak_m[0] / sqrt(2.0)) {
-                half_power_hz = hz - peak_hz[0];
-                break;
-            }
-        }
-        free(x);
-    }
+    double half_power_hz =
+        rths_fidelity_half_power_hz(f, RTHS_FIDELITY_TRUE, o.dof, peak_hz[0], peak_m[0], o.end_hz,
+                                    0.1 * ((o.end_hz - o.start_hz) / (o.points - 1)));
     double half_width = fmax(6 * half_power_hz, 3 * widest);
     if (!(half_width > 0)) half_width = 0.5 * (o.end_hz - o.start_hz);
     rc = plot(rep, &o, setup.split.mass_ratio, peak_hz[0], peak_m[0], half_width, &err);

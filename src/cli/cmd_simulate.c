@@ -103,12 +103,9 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
     }
     if (!opts[OPT_FREQ].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --frequency F (forcing frequency, Hz)");
-    if ((rc = rths_cli_double("--frequency", opts[OPT_FREQ].value, -INFINITY, 1e5, &a->frequency_hz,
-                              err)))
+    if ((rc = rths_cli_double_ex("--frequency", opts[OPT_FREQ].value, 0, 1e5, RTHS_CONFIG_LO_OPEN,
+                                 &a->frequency_hz, err)))
         return rc;
-    if (!(a->frequency_hz > 0))
-        return rths_error_set(err, RTHS_EINPUT, "option --frequency: must be > 0 Hz (got %s)",
-                              opts[OPT_FREQ].value);
     if (!opts[OPT_PERIODS].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --periods N (forcing periods to run)");
     if ((rc = rths_cli_int("--periods", opts[OPT_PERIODS].value, 1, 100000, &a->periods, err)))
@@ -122,12 +119,9 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
             return rths_error_set(err, RTHS_EINPUT,
                                   "option --trace-periods: feedback mode traces the whole run");
         if (opts[OPT_DELAY].value) {
-            if ((rc = rths_cli_double("--delay", opts[OPT_DELAY].value, -INFINITY, 1.0, &a->delay_s,
-                                      err)))
+            if ((rc = rths_cli_double_ex("--delay", opts[OPT_DELAY].value, 0, 1.0,
+                                         RTHS_CONFIG_LO_OPEN, &a->delay_s, err)))
                 return rc;
-            if (!(a->delay_s > 0))
-                return rths_error_set(err, RTHS_EINPUT, "option --delay: must be > 0 s (got %s)",
-                                      opts[OPT_DELAY].value);
             a->has_delay = 1;
         }
         return RTHS_OK;
@@ -288,97 +282,59 @@ static void sim_result_free(sim_result *r) {
     memset(r, 0, sizeof *r);
 }
 
-/* Fourier coefficients of whole forcing periods from a uniformly sampled trace (the feedback
- * model has no rig computing running sums). The trace starts at t = 0 with the forcing phase. */
-static int periods_from_trace(const rths_trace_sample *t, int n, double f_hz, int harmonics,
-                              rths_period **out, int *count, rths_error *err) {
-    double period = 1.0 / f_hz, w = 2 * M_PI * f_hz;
-    /* the samples cover [0, t_last + dt): a period is whole when its end is within that */
-    double dt = n > 1 ? (t[n - 1].time_s - t[0].time_s) / (n - 1) : 0;
-    int total = (int)floor((t[n - 1].time_s + dt) / period + 1e-9);
-    *out = calloc((size_t)(total > 0 ? total : 1), sizeof **out);
-    *count = 0;
-    if (!*out) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    int i = 0;
-    for (int j = 0; j < total; j++) {
-        rths_period *p = &(*out)[j];
-        double end = (j + 1) * period;
-        int m = 0;
-        for (; i < n && t[i].time_s < end - 1e-12; i++, m++) {
-            double ph = w * t[i].time_s, xs[2] = {t[i].x_phys_m, t[i].x_num_m};
-            rths_fourier *f[2] = {&p->phys, &p->num};
-            for (int s = 0; s < 2; s++) {
-                f[s]->a[0] += xs[s];
-                for (int k = 1; k <= harmonics; k++) {
-                    f[s]->a[k] += xs[s] * cos(k * ph);
-                    f[s]->b[k] += xs[s] * sin(k * ph);
-                }
-            }
-            p->force.a[0] += t[i].force_n;
-            p->force.a[1] += t[i].force_n * cos(ph);
-            p->force.b[1] += t[i].force_n * sin(ph);
-        }
-        if (m == 0) break;
-        rths_fourier *f[3] = {&p->phys, &p->num, &p->force};
-        for (int s = 0; s < 3; s++) {
-            f[s]->a[0] /= m;
-            for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
-                f[s]->a[k] *= 2.0 / m, f[s]->b[k] *= 2.0 / m;
-        }
-        p->frequency_hz = f_hz;
-        p->end_time_s = end;
-        p->samples = m;
-        ++*count;
-    }
-    return RTHS_OK;
+/* One column of the trace (which, 0..3: time, x_phys, x_num, force), malloc'ed. */
+static double *trace_column(const rths_trace_sample *t, int n, int which) {
+    double *c = malloc((size_t)(n > 0 ? n : 1) * sizeof *c);
+    for (int i = 0; c && i < n; i++)
+        c[i] = which == 0   ? t[i].time_s
+               : which == 1 ? t[i].x_phys_m
+               : which == 2 ? t[i].x_num_m
+                            : t[i].force_n;
+    return c;
 }
 
-/* Growth of the response, free of the forced part: for a linear test under T-periodic forcing,
- * d(t) = x_num(t) - x_num(t - T) solves the unforced equations (the periodic steady state cancels),
- * so the slope of ln max|d| per window, fitted over the second half of the run, is the real part of
- * the dominant characteristic root: negative when the loop is stable (transients decay), positive
- * when it is not. Windows span at least one period of the slowest mode so its envelope is seen.
- * A run that blew up before one forcing period uses x_num itself. Returns NAN when too short. */
-static double growth_rate(const rths_trace_sample *t, int n, double period_s, double slowest_s,
-                          double *last_env, double *fit_span_s) {
-    *last_env = NAN;
-    *fit_span_s = 0;
-    if (n < 8) return NAN;
-    double t0 = t[0].time_s, t1 = t[n - 1].time_s;
-    int use_diff = t1 - t0 > 1.5 * period_s;
-    double start = use_diff ? t0 + period_s : t0;
-    double window = fmax(period_s, slowest_s);
-    if ((t1 - start) / window < 4) window = (t1 - start) / 4;
-    if (!(window > 0)) return NAN;
-    int w_count = (int)floor((t1 - start) / window);
-    double sx = 0, sy = 0, sxx = 0, sxy = 0;
-    int used = 0, i = 0, j = 0;
-    while (i < n && t[i].time_s < start)
-        i++;
-    for (int w = 0; w < w_count; w++) {
-        double env = 0, t_end = start + (w + 1) * window;
-        for (; i < n && t[i].time_s < t_end; i++) {
-            double v = t[i].x_num_m;
-            if (use_diff) {
-                /* x_num(t - T), linear between the samples around it */
-                double tp = t[i].time_s - period_s;
-                while (j + 1 < i && t[j + 1].time_s <= tp)
-                    j++;
-                double span = t[j + 1].time_s - t[j].time_s;
-                double u = span > 0 ? (tp - t[j].time_s) / span : 0;
-                v -= (1 - u) * t[j].x_num_m + u * t[j + 1].x_num_m;
-            }
-            if (isfinite(v)) env = fmax(env, fabs(v));
-        }
-        if (!(env > 0)) continue;
-        *last_env = env;
-        if (w < w_count / 2) continue;
-        double x = t_end - 0.5 * window, y = log(env);
-        sx += x, sy += y, sxx += x * x, sxy += x * y, used++;
+/* Fourier coefficients of whole forcing periods from the uniformly sampled trace of a feedback
+ * run (no rig computed running sums), in the rig's per-period form. */
+static int periods_from_trace(const rths_trace_sample *t, int n, double f_hz, int harmonics,
+                              rths_period **out, int *count, rths_error *err) {
+    double *col[4] = {NULL};
+    /* at most the periods up to one sample spacing past the last sample */
+    double dt = n > 1 ? (t[n - 1].time_s - t[0].time_s) / (n - 1) : 0;
+    int total = (int)floor((t[n - 1].time_s + dt) * f_hz) + 1, width = 1 + 2 * harmonics;
+    int *samples = calloc((size_t)total, sizeof *samples);
+    double *coef[3] = {calloc((size_t)total * (size_t)width, sizeof(double)),
+                       calloc((size_t)total * (size_t)width, sizeof(double)),
+                       calloc((size_t)total * 3, sizeof(double))};
+    *out = calloc((size_t)total, sizeof **out);
+    *count = 0;
+    int ok = samples && coef[0] && coef[1] && coef[2] && *out;
+    for (int c = 0; c < 4; c++)
+        ok = ok && (col[c] = trace_column(t, n, c)) != NULL;
+    if (ok) {
+        /* the force's fundamental only, as the rig's load-cell sums */
+        *count =
+            rths_whole_period_fourier(col[0], col[1], n, f_hz, harmonics, total, coef[0], samples);
+        rths_whole_period_fourier(col[0], col[2], n, f_hz, harmonics, total, coef[1], NULL);
+        rths_whole_period_fourier(col[0], col[3], n, f_hz, 1, total, coef[2], NULL);
     }
-    if (used < 2) return NAN;
-    *fit_span_s = (used - 1) * window;
-    return (used * sxy - sx * sy) / (used * sxx - sx * sx);
+    for (int j = 0; j < *count; j++) {
+        rths_period *p = &(*out)[j];
+        rths_fourier *f[3] = {&p->phys, &p->num, &p->force};
+        for (int s = 0; s < 3; s++) {
+            int h = s < 2 ? harmonics : 1;
+            const double *c = coef[s] + (size_t)j * (size_t)(1 + 2 * h);
+            f[s]->a[0] = c[0];
+            for (int k = 1; k <= h; k++)
+                f[s]->a[k] = c[2 * k - 1], f[s]->b[k] = c[2 * k];
+        }
+        p->frequency_hz = f_hz;
+        p->end_time_s = (j + 1) * (1.0 / f_hz);
+        p->samples = samples[j];
+    }
+    for (int c = 0; c < 4; c++)
+        free(col[c]);
+    free(coef[0]), free(coef[1]), free(coef[2]), free(samples);
+    return ok ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
 }
 
 static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const rths_cli *cli,
@@ -436,10 +392,10 @@ static int run_iterative(rths_rig *rig, const rths_setup *setup, const sim_args 
 
 /* Hook for the pure-delay feedback model (helper B's rths_delay_feedback_simulate); filled in
  * when it lands. Fills a uniformly sampled trace starting at t = 0. */
-/* The seed's model of the conventional test (SPEC §4): an ideal actuator makes the physical
- * interface follow the numerical one with a pure delay; simulated by the stability module in
- * continuous time. The actuator's command (target) is the numerical interface now; there is no
- * load cell or demand in this model, so those columns are NaN. */
+/* The seed's model of the conventional test (docs/method.md, "Delayed-feedback stability"): an
+ * ideal actuator makes the physical interface follow the numerical one with a pure delay; simulated
+ * by the stability module in continuous time. The actuator's command (target) is the numerical
+ * interface now; there is no load cell or demand in this model, so those columns are NaN. */
 static int run_feedback_delay(const rths_setup *setup, const sim_args *a, sim_result *r,
                               rths_error *err) {
     rths_delay_sim_result res;
@@ -488,57 +444,111 @@ static rths_trace_sample *decimate(const rths_trace_sample *t, int n, int max_ro
     return d;
 }
 
-/* "diverged" (SPEC §4: growth beyond bounds or a limit trip) and the growth rate, from the
- * full-resolution trace of a feedback test. Growth alone counts as divergence only when the
- * envelope of the unforced part at least doubled over the fitted span and stands clear of the
- * sensor noise: a short run of a stable test can show a transient rise (mode beating), so a
- * positive rate over too short a span is reported with a note, not as divergence. */
-static void add_divergence(json_object *summary, const rths_cli *cli, const rths_setup *setup,
-                           const sim_args *a, const sim_result *r, double noise_m) {
-    rths_modes modes;
-    rths_error err;
-    double slowest = 0;
-    if (!rths_modal_analysis(&setup->assembly, &modes, &err)) {
-        slowest = 1.0 / modes.frequency_hz[0];
-        rths_modes_free(&modes);
-    }
-    double last_env, span;
-    double g = growth_rate(r->trace, r->n_trace, 1.0 / a->frequency_hz, slowest, &last_env, &span);
-    double max_x = 0;
-    int finite = 1;
-    for (int i = 0; i < r->n_trace; i++) {
-        if (!isfinite(r->trace[i].x_num_m) || !isfinite(r->trace[i].x_phys_m))
-            finite = 0;
-        else
-            max_x = fmax(max_x, fabs(r->trace[i].x_num_m));
-    }
-    double requested = a->periods / a->frequency_hz;
-    double reached = r->n_trace > 0 ? r->trace[r->n_trace - 1].time_s : 0;
-    const char *why = NULL, *note = NULL;
-    if (!finite)
-        why = "the response became non-finite";
-    else if (r->fault != RTHS_RIG_OK)
-        why = "a safety limit tripped";
-    else if (r->beyond_bounds || reached < requested - 2.0 / a->frequency_hz)
-        why = "the response grew beyond bounds (1000 x the true steady amplitude)";
-    else if (g > 0 && g * span > log(2.0) && last_env > 10 * noise_m)
-        why = "the response grows (its unforced part more than doubled over the second half)";
-    else if (g > 0)
-        note = "positive growth rate but too little growth over this run to call it divergence; "
-               "run more periods to decide";
-    json_object_object_add(summary, "diverged", json_object_new_boolean(why != NULL));
-    json_object_object_add(summary, "growth_rate_per_s", json_object_new_double(g));
-    json_object_object_add(summary, "growth_fit_span_s", json_object_new_double(span));
-    json_object_object_add(summary, "divergence_reason", why ? json_object_new_string(why) : NULL);
-    if (note) json_object_object_add(summary, "note", json_object_new_string(note));
-    json_object_object_add(summary, "max_abs_x_num_m", json_object_new_double(max_x));
-    json_object_object_add(summary, "simulated_s", json_object_new_double(reached));
+/* summary.json's divergence fields and the printed verdict of a feedback test (the verdict is
+ * the stability module's, from the full-resolution trace). */
+static int add_divergence(json_object *summary, const rths_cli *cli, const rths_setup *setup,
+                          const sim_args *a, const sim_result *r, double noise_m, rths_error *err) {
+    double *col[3] = {trace_column(r->trace, r->n_trace, 0), trace_column(r->trace, r->n_trace, 2),
+                      trace_column(r->trace, r->n_trace, 1)};
+    int ok = col[0] && col[1] && col[2];
+    rths_feedback_verdict v;
+    if (ok)
+        rths_feedback_assess(&setup->assembly, col[0], col[1], col[2], r->n_trace, a->frequency_hz,
+                             a->periods / a->frequency_hz, r->fault != RTHS_RIG_OK,
+                             r->beyond_bounds, noise_m, &v);
+    for (int c = 0; c < 3; c++)
+        free(col[c]);
+    if (!ok) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    json_object_object_add(summary, "diverged", json_object_new_boolean(v.diverged));
+    json_object_object_add(summary, "growth_rate_per_s",
+                           json_object_new_double(v.growth_rate_per_s));
+    json_object_object_add(summary, "growth_fit_span_s", json_object_new_double(v.fit_span_s));
+    json_object_object_add(summary, "divergence_reason",
+                           v.reason ? json_object_new_string(v.reason) : NULL);
+    if (v.note) json_object_object_add(summary, "note", json_object_new_string(v.note));
+    json_object_object_add(summary, "max_abs_x_num_m", json_object_new_double(v.max_abs_x_num_m));
+    json_object_object_add(summary, "simulated_s", json_object_new_double(v.reached_s));
     if (r->steady_amplitude_m > 0)
         json_object_object_add(summary, "true_steady_amplitude_m",
                                json_object_new_double(r->steady_amplitude_m));
     rths_cli_print(cli, "feedback test %s: growth rate %.4g 1/s%s%s\n",
-                   why ? "DIVERGED" : "stayed bounded over this run", g, (why || note) ? "; " : "",
-                   why ? why : (note ? note : ""));
+                   v.reason ? "DIVERGED" : "stayed bounded over this run", v.growth_rate_per_s,
+                   (v.reason || v.note) ? "; " : "", v.reason ? v.reason : (v.note ? v.note : ""));
+    return RTHS_OK;
+}
+
+/* Everything the rig can refuse is checked before the output folder exists: the frequency and the
+ * target's top harmonic against the controller's sample rate, then the forcing and the target. */
+static int arm_rig(rths_rig *rig, rths_config *cfg, const rths_setup *setup, const sim_args *a,
+                   rths_error *err) {
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    int rc = rths_controller_config_read(cfg, &copt, err);
+    if (rc) return rc;
+    int top = a->feedback ? 1 : a->harmonics;
+    if (!(a->frequency_hz < 0.25 * copt.sample_rate_hz))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --frequency: %g Hz must be below a quarter of the "
+                              "controller's sample rate (controller.sample_rate_hz = %g Hz)",
+                              a->frequency_hz, copt.sample_rate_hz);
+    if (top * a->frequency_hz >= 0.5 * copt.sample_rate_hz)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --target: harmonic %d of %g Hz is at or beyond the "
+                              "controller's Nyquist frequency (%g Hz)",
+                              top, a->frequency_hz, 0.5 * copt.sample_rate_hz);
+    if ((rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err)))
+        return rc;
+    if (!a->feedback) rc = rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err);
+    return rc;
+}
+
+/* summary.json's description of the run and its last period (printed too). */
+static void add_run_summary(json_object *summary, const rths_cli *cli, const rths_setup *setup,
+                            const sim_args *a, const sim_result *r, rths_rig *rig, int harmonics) {
+    json_object_object_add(summary, "mode",
+                           json_object_new_string(a->feedback ? "feedback" : "iterative"));
+    json_object_object_add(summary, "frequency_hz", json_object_new_double(a->frequency_hz));
+    json_object_object_add(summary, "forcing_amplitude_n",
+                           json_object_new_double(setup->forcing_amplitude_n));
+    json_object_object_add(summary, "mass_ratio", json_object_new_double(setup->split.mass_ratio));
+    json_object_object_add(summary, "periods", json_object_new_int(r->n_periods));
+    json_object_object_add(summary, "harmonics", json_object_new_int(harmonics));
+    if (rig)
+        json_object_object_add(summary, "rig", json_object_new_string(rths_rig_description(rig)));
+    json_object_object_add(
+        summary, "fault",
+        json_object_new_string(r->fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r->fault)));
+    json_object_object_add(summary, "rig_time_s", json_object_new_double(r->rig_time_s));
+    if (!a->feedback) {
+        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
+        for (int k = 0; k < a->harmonics; k++) {
+            json_object_array_add(ta, json_object_new_double(a->target_a[k]));
+            json_object_array_add(tb, json_object_new_double(a->target_b[k]));
+        }
+        json_object *tg = json_object_new_object();
+        json_object_object_add(tg, "a_m", ta);
+        json_object_object_add(tg, "b_m", tb);
+        json_object_object_add(summary, "target", tg);
+    }
+    if (r->n_periods > 0) {
+        const rths_period *last = &r->periods[r->n_periods - 1];
+        json_object *errs = json_object_new_array(), *rel = json_object_new_array();
+        for (int k = 1; k <= harmonics; k++) {
+            double e = interface_error(&last->phys, &last->num, k);
+            double amp = hypot(last->num.a[k], last->num.b[k]);
+            json_object_array_add(errs, json_object_new_double(e));
+            json_object_array_add(rel, json_object_new_double(amp > 0 ? e / amp : NAN));
+        }
+        json_object_object_add(summary, "final_interface_error_m", errs);
+        json_object_object_add(summary, "final_interface_error_relative", rel);
+        json_object_object_add(summary, "final_phys", fourier_json(&last->phys, harmonics));
+        json_object_object_add(summary, "final_num", fourier_json(&last->num, harmonics));
+        rths_cli_print(cli,
+                       "%d periods at %g Hz; last period: physical a1 = %.6e m, b1 = %.6e m; "
+                       "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
+                       r->n_periods, a->frequency_hz, last->phys.a[1], last->phys.b[1],
+                       last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
+    }
 }
 
 int rths_cmd_simulate(int argc, char **argv) {
@@ -581,31 +591,7 @@ int rths_cmd_simulate(int argc, char **argv) {
                (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err))) {
         goto done;
     }
-    if (rig) {
-        /* everything the rig can refuse is checked here, before the output folder exists */
-        rths_controller_options copt;
-        rths_controller_defaults(&copt);
-        if ((rc = rths_controller_config_read(cfg, &copt, &err))) goto done;
-        int top = a.feedback ? 1 : a.harmonics;
-        if (!(a.frequency_hz < 0.25 * copt.sample_rate_hz)) {
-            rc = rths_error_set(&err, RTHS_EINPUT,
-                                "option --frequency: %g Hz must be below a quarter of the "
-                                "controller's sample rate (controller.sample_rate_hz = %g Hz)",
-                                a.frequency_hz, copt.sample_rate_hz);
-            goto done;
-        }
-        if (top * a.frequency_hz >= 0.5 * copt.sample_rate_hz) {
-            rc = rths_error_set(&err, RTHS_EINPUT,
-                                "option --target: harmonic %d of %g Hz is at or beyond the "
-                                "controller's Nyquist frequency (%g Hz)",
-                                top, a.frequency_hz, 0.5 * copt.sample_rate_hz);
-            goto done;
-        }
-        if ((rc = rths_rig_set_forcing(rig, a.frequency_hz, setup.forcing_amplitude_n, &err)) ||
-            (!a.feedback &&
-             (rc = rths_rig_set_target(rig, a.harmonics, a.target_a, a.target_b, &err))))
-            goto done;
-    }
+    if (rig && (rc = arm_rig(rig, cfg, &setup, &a, &err))) goto done;
     /* the virtual rig read the rig and controller sections: a misspelt key there is an error */
     static const char *const rig_sections[] = {"rig", "controller", NULL};
     if ((rc = rths_cli_check_config_own(cfg, rig && !rig_uri ? rig_sections : NULL, &err)))
@@ -636,52 +622,11 @@ int rths_cmd_simulate(int argc, char **argv) {
         goto done;
 
     summary = rths_cli_summary_new(&cli);
-    json_object_object_add(summary, "mode",
-                           json_object_new_string(a.feedback ? "feedback" : "iterative"));
-    json_object_object_add(summary, "frequency_hz", json_object_new_double(a.frequency_hz));
-    json_object_object_add(summary, "forcing_amplitude_n",
-                           json_object_new_double(setup.forcing_amplitude_n));
-    json_object_object_add(summary, "mass_ratio", json_object_new_double(setup.split.mass_ratio));
-    json_object_object_add(summary, "periods", json_object_new_int(r.n_periods));
-    json_object_object_add(summary, "harmonics", json_object_new_int(harmonics));
-    if (rig)
-        json_object_object_add(summary, "rig", json_object_new_string(rths_rig_description(rig)));
-    json_object_object_add(
-        summary, "fault",
-        json_object_new_string(r.fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r.fault)));
-    json_object_object_add(summary, "rig_time_s", json_object_new_double(r.rig_time_s));
-    if (!a.feedback) {
-        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
-        for (int k = 0; k < a.harmonics; k++) {
-            json_object_array_add(ta, json_object_new_double(a.target_a[k]));
-            json_object_array_add(tb, json_object_new_double(a.target_b[k]));
-        }
-        json_object *tg = json_object_new_object();
-        json_object_object_add(tg, "a_m", ta);
-        json_object_object_add(tg, "b_m", tb);
-        json_object_object_add(summary, "target", tg);
-    }
-    if (r.n_periods > 0) {
-        const rths_period *last = &r.periods[r.n_periods - 1];
-        json_object *errs = json_object_new_array(), *rel = json_object_new_array();
-        for (int k = 1; k <= harmonics; k++) {
-            double e = interface_error(&last->phys, &last->num, k);
-            double amp = hypot(last->num.a[k], last->num.b[k]);
-            json_object_array_add(errs, json_object_new_double(e));
-            json_object_array_add(rel, json_object_new_double(amp > 0 ? e / amp : NAN));
-        }
-        json_object_object_add(summary, "final_interface_error_m", errs);
-        json_object_object_add(summary, "final_interface_error_relative", rel);
-        json_object_object_add(summary, "final_phys", fourier_json(&last->phys, harmonics));
-        json_object_object_add(summary, "final_num", fourier_json(&last->num, harmonics));
-        rths_cli_print(&cli,
-                       "%d periods at %g Hz; last period: physical a1 = %.6e m, b1 = %.6e m; "
-                       "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
-                       r.n_periods, a.frequency_hz, last->phys.a[1], last->phys.b[1],
-                       last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
-    }
+    add_run_summary(summary, &cli, &setup, &a, &r, rig, harmonics);
     if (a.feedback) {
-        add_divergence(summary, &cli, &setup, &a, &r, rig ? rths_rig_noise_level_m(rig) : 0.0);
+        if ((rc = add_divergence(summary, &cli, &setup, &a, &r,
+                                 rig ? rths_rig_noise_level_m(rig) : 0.0, &err)))
+            goto done;
         json_object_object_add(summary, "delay_s",
                                pure_delay ? json_object_new_double(a.delay_s) : NULL);
     }

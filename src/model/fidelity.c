@@ -1,5 +1,5 @@
-/* Hybrid steady state at a perfect interface match, per integration scheme (SPEC §8); see
- * include/rths/fidelity.h for the model. */
+/* Hybrid steady state at a perfect interface match, per integration scheme (docs/method.md,
+ * "Numerical substructure integration"); see include/rths/fidelity.h for the model. */
 #include "rths/fidelity.h"
 
 #include <math.h>
@@ -250,4 +250,20 @@ int rths_fidelity_peak(const rths_fidelity *f, int curve, int dof, double lo_hz,
     }
     free(work);
     return rc;
+}
+
+double rths_fidelity_half_power_hz(const rths_fidelity *f, int curve, int dof, double peak_hz,
+                                   double peak_amplitude_m, double end_hz, double step_hz) {
+    double complex *x = malloc((size_t)f->n * sizeof *x);
+    double half_power_hz = 0;
+    rths_error err;
+    for (double hz = peak_hz; x && step_hz > 0 && hz < end_hz; hz += step_hz) {
+        if (rths_fidelity_response(f, curve, 2 * M_PI * hz, x, &err)) break;
+        if (cabs(x[dof]) < peak_amplitude_m / sqrt(2.0)) {
+            half_power_hz = hz - peak_hz;
+            break;
+        }
+    }
+    free(x);
+    return half_power_hz;
 }

@@ -35,7 +35,7 @@ for f in "$src"/tests/data/bad_configs/*.yaml; do
 done
 
 good="$src/examples/four_storey.yaml"
-check "--set out of range" "--set split.mass_ratio.*strictly between 0 and 1|--set split.mass_ratio.*\[0, 1\]" \
+check "--set out of range" "--set split.mass_ratio.*(strictly between 0 and 1|\[0, 1\]|\(0, 1\))" \
     "$bin" model "$good" --set split.mass_ratio=1.0
 check "--set not a number" "--set forcing.amplitude_n.*number" "$bin" model "$good" --set forcing.amplitude_n=abc
 check "--set unknown key" "unknown key 'split.colour'" "$bin" model "$good" --set split.colour=3

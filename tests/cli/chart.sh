@@ -32,7 +32,7 @@ rows=$(($(wc -l <"$out/chart.csv") - 1))
 crit_rows=$(($(wc -l <"$out/critical.csv") - 1))
 [ "$crit_rows" -eq 25 ] || fail "critical.csv has $crit_rows rows, expected 25"
 # chart rows: 4 fields, tau inside the default range, stable is 0/1 and agrees with the sign of
-# max_real_part; p <= 1/2 never stable (SPEC §4)
+# max_real_part; p <= 1/2 never stable (docs/method.md, "Delayed-feedback stability")
 awk -F, 'NR > 1 { if (NF != 4) { print "fields at " NR; exit 1 }
                   if ($1 < 5e-5 * (1 - 1e-12) || $1 > 3e-4 * (1 + 1e-12)) { print "tau " $1; exit 1 }
                   if ($4 != 0 && $4 != 1) { print "stable " $4; exit 1 }

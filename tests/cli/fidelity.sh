@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# rths fidelity on the seed: files and columns, the printed peak errors against SPEC §8 (implicit
-# Euler about a quarter low at p = 0.5, exact FOH within 0.5 %, exact ZOH several percent low),
+# rths fidelity on the seed: files and columns, the printed peak errors against docs/method.md,
+# "Numerical substructure integration" (implicit Euler about a quarter low at p = 0.5, exact FOH within 0.5 %, exact ZOH several percent low),
 # --set reaching the sweep and the sample rate, and bad input refused with exit 2 and nothing written.
 set -u
 bin=$1
@@ -26,7 +26,7 @@ rows=$(($(wc -l <"$out/fidelity.csv") - 1))
 # 101 grid points plus up to 5 refined peak frequencies
 [ "$rows" -ge 101 ] && [ "$rows" -le 106 ] || fail "fidelity.csv has $rows rows, expected 101..106"
 # every row has 6 finite positive numbers; frequencies ascending; default range is +-10 % around
-# the second natural frequency 13.473 Hz (SPEC §2)
+# the second natural frequency 13.473 Hz (docs/method.md, "The seed structure")
 awk -F, 'NR > 1 { if (NF != 6) { print "bad field count at line " NR; exit 1 }
                   for (i = 1; i <= 6; i++) if (!($i + 0 > 0)) { print "non-positive at line " NR; exit 1 }
                   if (NR > 2 && $1 <= prev) { print "not ascending at line " NR; exit 1 }
@@ -35,7 +35,7 @@ awk -F, 'NR == 2 { if ($1 < 12.1 || $1 > 12.2) { print "start " $1; exit 1 } }
          END { if ($1 < 14.8 || $1 > 14.9) { print "end " $1; exit 1 } }' "$out/fidelity.csv" ||
     fail "default sweep range is not 0.9..1.1 x 13.473 Hz"
 
-# printed peak errors (SPEC §8): implicit_euler 2.53e-4 vs 3.42e-4 m -> about -26 %; FOH within
+# printed peak errors (docs/method.md, "Numerical substructure integration"): implicit_euler 2.53e-4 vs 3.42e-4 m -> about -26 %; FOH within
 # 0.5 %; ZOH several percent low (-3 % .. -15 %)
 err_of() { awk -v s="$1" '$1 == s { print $4 }' "$work/stdout"; }
 ie=$(err_of implicit_euler)
@@ -46,7 +46,7 @@ awk -v e="$ie" 'BEGIN { exit !(e < -24 && e > -28) }' || fail "implicit Euler pe
 awk -v e="$foh" 'BEGIN { exit !(e > -0.5 && e < 0.5) }' || fail "exact FOH peak error '$foh' %, expected within 0.5 %"
 awk -v e="$trap_e" 'BEGIN { exit !(e > -0.5 && e < 0.5) }' || fail "trapezoidal peak error '$trap_e' %"
 awk -v e="$zoh" 'BEGIN { exit !(e < -3 && e > -15) }' || fail "exact ZOH peak error '$zoh' %, expected -3..-15 %"
-# the true peak printed and in summary.json: 3.42e-4 m at 13.47 Hz (SPEC §2)
+# the true peak printed and in summary.json: 3.42e-4 m at 13.47 Hz (docs/method.md, "The seed structure")
 python3 - "$out/summary.json" <<'PY' || fail "summary.json content"
 import json, sys
 s = json.load(open(sys.argv[1]))

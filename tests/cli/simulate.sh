@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # rths simulate on the seed (examples/four_storey.yaml), kept short with --set and few periods:
-# iterative mode files/columns/summary; feedback mode against the seed's stability facts (SPEC §4,
+# iterative mode files/columns/summary; feedback mode against the seed's stability facts (docs/method.md, "Delayed-feedback stability";
 # issue 3): p = 0.33 diverges for any delay, p = 0.67 stays bounded with a 50 us pure delay and
 # diverges with 1 ms; every bad argument exits 2 with a message and writes nothing.
 set -u
@@ -78,7 +78,7 @@ cmp -s "$work/noise_a/coefficients.csv" "$work/noise_c/coefficients.csv" &&
     fail "different seeds, identical coefficients (is the noise off?)"
 
 # --- feedback mode through the rig's shaker and PD (no --delay): the shaker's transport delay
-# and lag (hundreds of microseconds, SPEC §5) are beyond the seed's critical delay of about
+# and lag (hundreds of microseconds, docs/method.md, "The virtual rig") are beyond the seed's critical delay of about
 # 1e-4 s, so even p = 0.67 diverges, and p = 0.33 does for any delay ---
 for p in 0.33 0.67; do
     o="$work/rigfb_$p"
@@ -114,7 +114,7 @@ PY
 fb p033_10us 0.33 1e-5 3 true
 fb p033_50us 0.33 5e-5 3 true
 fb p033_1ms 0.33 1e-3 3 true
-# p = 0.67: the critical delay is of the order of 1e-4 s (SPEC §4); at 1 ms the first mode grows
+# p = 0.67: the critical delay is of the order of 1e-4 s (docs/method.md, "Delayed-feedback stability"); at 1 ms the first mode grows
 # slowly (about 0.2 1/s), so that run is long enough (200 periods, 15 s) for the unforced part to
 # grow several-fold
 fb p067_50us 0.67 5e-5 40 false
@@ -124,11 +124,12 @@ fb p067_1ms 0.67 1e-3 200 true
 bad() { refused simulate "$@"; } # name, regex, args...
 ok=(--frequency 13 --target 1e-4,0 --periods 3)
 bad "frequency not a number" "--frequency.*not a number" "$cfg" --frequency abc --target 1e-4,0 --periods 3
-bad "frequency zero" "--frequency.*> 0" "$cfg" --frequency 0 --target 1e-4,0 --periods 3
+bad "frequency zero" "--frequency: must be in \(0, 100000\] \(got 0\)" "$cfg" --frequency 0 --target 1e-4,0 --periods 3
+bad "frequency too high" "--frequency: must be in \(0, 100000\] \(got 2e5\)" "$cfg" --frequency 2e5 --target 1e-4,0 --periods 3
 bad "frequency negative" "--frequency" "$cfg" --frequency -5 --target 1e-4,0 --periods 3
 bad "frequency missing value" "--frequency needs a value" "$cfg" --target 1e-4,0 --periods 3 --frequency
 bad "frequency missing" "missing --frequency" "$cfg" --target 1e-4,0 --periods 3
-bad "periods zero" "--periods" "$cfg" --frequency 13 --target 1e-4,0 --periods 0
+bad "periods zero" "--periods: must be in \[1, 100000\] \(got 0\)" "$cfg" --frequency 13 --target 1e-4,0 --periods 0
 bad "periods fractional" "--periods.*not an integer" "$cfg" --frequency 13 --target 1e-4,0 --periods 2.5
 bad "periods missing" "missing --periods" "$cfg" --frequency 13 --target 1e-4,0
 bad "target odd count" "--target.*pairs" "$cfg" --frequency 13 --target 1e-4,0,2e-5 --periods 3
@@ -138,7 +139,7 @@ bad "target empty item" "--target" "$cfg" --frequency 13 --target 1e-4,,0 --peri
 bad "target missing" "missing --target" "$cfg" --frequency 13 --periods 3
 bad "mode unknown" "--mode.*'sideways'" "$cfg" "${ok[@]}" --mode sideways
 bad "delay without feedback" "--delay.*feedback" "$cfg" "${ok[@]}" --delay 1e-4
-bad "delay zero" "--delay" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 0
+bad "delay zero" "--delay: must be in \(0, 1\] \(got 0\)" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 0
 bad "delay not a number" "--delay.*not a number" "$cfg" --mode feedback --frequency 13 --periods 3 --delay 1ms
 bad "target in feedback mode" "--target.*feedback" "$cfg" --mode feedback --frequency 13 --periods 3 --target 1e-4,0
 bad "seed negative" "--seed" "$cfg" "${ok[@]}" --seed -1
