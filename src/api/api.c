@@ -52,16 +52,7 @@ void rths_api_unload(rths_config *c, rths_setup *setup) {
 }
 
 int rths_api_check_config(rths_config *c, const char *const *own, rths_error *err) {
-    /* the sections of the rths configuration besides the setup's (docs/config.md) */
-    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
-                                           "stability", "fidelity",   "output",    "server"};
-    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
-        int mine = 0;
-        for (int j = 0; own && own[j] && !mine; j++)
-            mine = !strcmp(own[j], sections[k]);
-        if (!mine) rths_config_mark_known(c, sections[k]);
-    }
-    return rths_config_check_unknown(c, err);
+    return rths_config_check_sections(c, own, err);
 }
 
 int rths_api_config_load(const char *path, const char *const *overrides, int n_overrides,

@@ -46,13 +46,4 @@ int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_er
 int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
                              const char *command, rths_error *err);
 
-/* `rths chart`'s pieces, shared with the CLI (src/cli/cmd_chart.c can call these instead of its
- * own copies): the stability.* keys into options (ranges and messages as documented in
- * docs/config/stability.md), and the p where the essential-spectrum bound changes sign along the
- * chart (linear interpolation of ln-rates; NaN when it does not). */
-struct rths_chart_options;
-struct rths_chart;
-int rths_api_chart_options_read(rths_config *cfg, struct rths_chart_options *o, rths_error *err);
-double rths_api_chart_essential_limit(const struct rths_chart *c);
-
 #endif

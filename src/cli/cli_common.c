@@ -256,21 +256,7 @@ void rths_cli_unload(rths_config *cfg, rths_setup *setup) {
 }
 
 int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err) {
-    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
-                                           "stability", "fidelity",   "output",    "server"};
-    /* A section is accepted whole only when this command has no reader for it: once a reader
-     * asked for one of its keys (the virtual rig reads rig and controller), a key it did not ask
-     * for is a typo that would otherwise change nothing, silently. */
-    int read[sizeof sections / sizeof sections[0]];
-    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++)
-        read[k] = rths_config_section_read(cfg, sections[k]);
-    for (size_t k = 0; k < sizeof sections / sizeof sections[0]; k++) {
-        int mine = read[k];
-        for (int j = 0; own && own[j] && !mine; j++)
-            mine = !strcmp(own[j], sections[k]);
-        if (!mine) rths_config_mark_known(cfg, sections[k]);
-    }
-    return rths_config_check_unknown(cfg, err);
+    return rths_config_check_sections(cfg, own, err);
 }
 
 int rths_cli_check_config(rths_config *cfg, rths_error *err) {

@@ -1275,3 +1275,19 @@ int rths_config_write(const rths_config *cfg, const char *path, rths_error *err)
     free(tmp);
     return RTHS_OK;
 }
+
+int rths_config_check_sections(rths_config *cfg, const char *const *own, rths_error *err) {
+    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
+                                           "stability", "fidelity",   "output",    "server"};
+    enum { N_SECTIONS = sizeof sections / sizeof sections[0] };
+    int read[N_SECTIONS];
+    for (int k = 0; k < N_SECTIONS; k++) /* before any marking: marks count as reads */
+        read[k] = rths_config_section_read(cfg, sections[k]);
+    for (int k = 0; k < N_SECTIONS; k++) {
+        int mine = read[k];
+        for (int j = 0; own && own[j] && !mine; j++)
+            mine = !strcmp(own[j], sections[k]);
+        if (!mine) rths_config_mark_known(cfg, sections[k]);
+    }
+    return rths_config_check_unknown(cfg, err);
+}

@@ -199,12 +199,10 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
     if (!rc)
         rc = assign_roles(cfg, "split.interface", iface, n_iface, RTHS_DOF_INTERFACE, assigned, s,
                           err);
-    if (!rc) rc = rths_config_get_double(cfg, "split.mass_ratio", 1, 0.5, 0, 1, &p, err);
-    if (!rc && !(p > 0 && p < 1))
-        rc = rths_config_error_at(cfg, "split.mass_ratio", err,
-                                  "p (numerical share of the interface mass) must be strictly "
-                                  "between 0 and 1 (got %g)",
-                                  p);
+    /* p is the numerical share of the interface mass: both sides must keep some of it */
+    if (!rc)
+        rc = rths_config_get_double_ex(cfg, "split.mass_ratio", 1, 0.5, 0, 1,
+                                       RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, &p, err);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.physical", 0, &phys, &n_phys, err);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.numerical", 0, &num, &n_num, err);
     if (!rc)

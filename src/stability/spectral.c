@@ -1,5 +1,5 @@
 /* Rightmost characteristic roots by Chebyshev collocation of the infinitesimal generator
- * (Breda-Maset-Vermiglio style), on the DAE form of SPEC §4:
+ * (Breda-Maset-Vermiglio style), on the DAE form of docs/method.md, "Delayed-feedback stability":
  *   q' = u,  w' = -C_0 u - K_0 q - K_tau q(t-tau),  0 = w - M_0 u - M_tau u(t-tau) - C_tau
  * q(t-tau). The state is y = (q, u, w) on nodes theta_k = tau (x_k - 1) / 2, x_k = cos(k pi / N), k
  * = 0..N. Rows k >= 1 say lambda y_k = (D y)_k (the history is an exponential); rows k = 0 are the

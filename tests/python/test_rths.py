@@ -256,6 +256,14 @@ class Frf(unittest.TestCase):
         np.testing.assert_allclose([r["amplitude_m"] for r in rows], want["amplitude_m"],
                                    rtol=1e-12)
 
+    def test_typo_in_a_read_section_refused(self):
+        # the virtual rig reads rig.*: a misspelt rig key would run with noise on, silently
+        out = folder("frf_typo")
+        cfg = rths.Config.load(LINEAR_CFG, set={"rig.nosie": "false"})
+        with self.assertRaisesRegex(rths.InputError, r"rig\.nosie.*did you mean 'rig\.noise'"):
+            rths.frf(cfg, out=out)
+        self.assertFalse(os.path.exists(out))
+
     def test_raising_callback_stops_cleanly(self):
         out = folder("frf_raise")
 
