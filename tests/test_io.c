@@ -188,7 +188,7 @@ static int fake_read(void *device, rths_sensor_sample *out) {
     (void)device;
     memset(out, 0, sizeof *out);
     out->n = 2;
-    return ++calls.reads > 100;
+    return ++calls.reads > 100 ? -1 : 0;
 }
 static void fake_write(void *device, const rths_io_demand *d) {
     (void)device, (void)d;

@@ -57,8 +57,10 @@ typedef struct rths_io_demand {
 } rths_io_demand;
 
 /* The six symbols of a plug-in. open returns RTHS_OK or fills err (RTHS_EINPUT: the io section
- * is wrong; RTHS_EFAIL: the device cannot be opened). read returns 0, or nonzero when the
- * device could not be read (the controller then latches a fault and calls safe_state). read,
+ * is wrong; RTHS_EFAIL: the device cannot be opened). read returns 0; a positive rths_rig_fault
+ * code when the device's own limit is beyond (the sample is valid; the controller latches that
+ * fault and ramps the demand to zero); a negative number when the device could not be read (the
+ * sample becomes NaN, the controller latches the non-finite fault and calls safe_state). read,
  * write and safe_state run on the loop thread: they must not allocate, block or print. */
 typedef uint32_t (*rths_io_abi_version_fn)(void);
 typedef int (*rths_io_open_fn)(const rths_io_open_args *args, void **device,
@@ -110,7 +112,8 @@ int rths_io_open_table(const rths_io_plugin *table, const char *name, const rths
 void rths_io_destroy(rths_io *io);
 const rths_io_device_info *rths_io_info(const rths_io *io);
 
-/* Loop thread, once per sample. read's failure is returned (nonzero); the sample is then NaN. */
+/* Loop thread, once per sample. read's result is the plug-in's (see above); after a failure
+ * (negative) the sample is NaN and safe_state has been called. */
 int rths_io_read(rths_io *io, rths_sensor_sample *out);
 void rths_io_write(rths_io *io, const rths_io_demand *demand);
 void rths_io_safe_state(rths_io *io);

@@ -88,8 +88,12 @@ void rths_sample_loop_destroy(rths_sample_loop *l) {
 }
 
 double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
-    /* a failed read leaves NaN in the sample: the step latches the non-finite fault */
-    rths_io_read(l->io, &l->sensors);
+    /* a failed read leaves NaN in the sample: the step latches the non-finite fault; a device's
+     * own limit (the actuator's stroke, velocity, force) latches like the controller's */
+    int device = rths_io_read(l->io, &l->sensors);
+    if (device > 0)
+        rths_controller_trip(l->ctl, device <= RTHS_RIG_FAULT_WATCHDOG ? (rths_rig_fault)device
+                                                                       : RTHS_RIG_FAULT_LINK);
     double demand = rths_controller_step(l->ctl, &l->sensors, out);
     l->demand.demand_v = demand;
     rths_controller_forcing(l->ctl, &l->demand.forcing_amplitude_n, &l->demand.forcing_theta_rad,

@@ -112,7 +112,7 @@ const rths_io_device_info *rths_io_info(const rths_io *io) {
 
 int rths_io_read(rths_io *io, rths_sensor_sample *out) {
     int rc = io->fn.read(io->device, out);
-    if (rc) {
+    if (rc < 0) {
         /* a reading that failed must not look like a reading: the step trips on the NaN */
         for (int i = 0; i < RTHS_MAX_SENSED_DOFS; i++)
             out->displacement_m[i] = NAN;

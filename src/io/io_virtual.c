@@ -66,8 +66,9 @@ static void virtual_close(void *device) {
 }
 
 static int virtual_read(void *device, rths_sensor_sample *out) {
-    rths_plant_read(((virtual_device *)device)->plant, out);
-    return 0;
+    rths_plant *p = ((virtual_device *)device)->plant;
+    rths_plant_read(p, out);
+    return (int)rths_plant_limit_fault(p); /* the actuator's limits with action fault */
 }
 
 static void virtual_write(void *device, const rths_io_demand *demand) {

@@ -158,7 +158,7 @@ int rths_io_plugin_read(void *device, rths_sensor_sample *out) {
     int bad = !isfinite(out->interface_acceleration_m_s2) || !isfinite(out->interface_force_n);
     for (int i = 0; i < d->n; i++)
         bad |= !isfinite(out->displacement_m[i]);
-    return bad;
+    return bad ? -1 : 0;
 }
 
 void rths_io_plugin_write(void *device, const rths_io_demand *demand) {
