@@ -722,6 +722,15 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
     remote_matches_in_process(sets, 1);
 }
 
+/* At 4096 Hz (a rate whose sample period is no whole number of microseconds): the controller
+ * process paces and reports the same steady state as the in-process rig at that rate. */
+static void test_remote_matches_in_process_at_4096_hz(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]",
+                          "controller.sample_rate_hz=4096"};
+    remote_matches_in_process(sets, 2);
+}
+
 /* Forcing on a physical storey (storey 2): the controller process's per-sample loop hands the
  * forcing's phase to the plant exactly as the in-process virtual rig does, so it accepts the
  * split and reaches the same steady state (the agreement asked, 1e-9 m on a 1e-4 m response, is
@@ -817,6 +826,7 @@ int main(void) {
         cmocka_unit_test(test_remote_rig_unreachable),
         cmocka_unit_test(test_limit_trip_and_restart_reconnect),
         cmocka_unit_test(test_remote_matches_in_process_virtual_rig),
+        cmocka_unit_test(test_remote_matches_in_process_at_4096_hz),
         cmocka_unit_test(test_remote_forcing_on_physical_storey),
         cmocka_unit_test(test_remote_continuation_matches_in_process),
     };
