@@ -49,7 +49,9 @@ struct rths_plant {
     double lag_rate;          /* 2 pi f_c, 0: no lag */
     double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
-    int forcing_index; /* internal physical forcing DoF, -1: none */
+    int forcing_index;     /* internal physical forcing DoF, -1: none */
+    double *forcing_shape; /* n: base excitation's -M 1 on the internal physical DoFs; NULL:
+                              the forcing acts on forcing_index alone */
     double forcing_amplitude, forcing_theta, forcing_omega, forcing_now;
     rths_rng rng;
 };
@@ -96,7 +98,7 @@ void rths_plant_destroy(rths_plant *p) {
     if (!p) return;
     free(p->minv), free(p->c), free(p->k), free(p->static_force);
     free(p->z), free(p->z_next), free(p->rk), free(p->delay_line);
-    free(p->act_a), free(p->act_bu), free(p->act_bv);
+    free(p->act_a), free(p->act_bu), free(p->act_bv), free(p->forcing_shape);
     for (int s = 0; s < 2; s++) {
         exact_side *e = &p->side[s];
         free(e->phi), free(e->g_target_start), free(e->g_target_slope), free(e->g_static);
@@ -201,6 +203,16 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
     return rc;
 }
 
+/* Row i of M^-1 f, f the forcing's distribution over the physical DoFs per unit amplitude. */
+static double forcing_input(const rths_plant *p, int i) {
+    int n = p->n;
+    if (!p->forcing_shape) return p->minv[i + p->forcing_index * n];
+    double s = 0;
+    for (int l = 0; l < n; l++)
+        s += p->minv[i + l * n] * p->forcing_shape[l];
+    return s;
+}
+
 /* Exact response to the forcing amplitude cos(theta + omega tau) on the forcing DoF: the
  * exponential of [[A h, b e1^T h], [0, W h]] with W the rotation generator of (cos, sin); redone
  * when omega changes (once per test frequency). */
@@ -212,7 +224,7 @@ static int build_forcing(rths_plant *p, int compressed, double omega) {
     if (!rc) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++)
-            aug[n + i + (size_t)nz * N] = p->minv[i + p->forcing_index * n];
+            aug[n + i + (size_t)nz * N] = forcing_input(p, i);
         aug[nz + (size_t)(nz + 1) * N] = -omega;
         aug[nz + 1 + (size_t)nz * N] = omega;
         for (size_t i = 0; i < (size_t)N * N; i++)
@@ -372,8 +384,18 @@ static int plant_leg_and_loads(rths_plant *p, const rths_setup *setup, const int
         if (to_phys[i] >= 0 && setup->static_force)
             p->static_force[to_phys[i]] = setup->static_force[i];
     p->forcing_index = -1;
-    for (int i = 0; i < s->n_phys; i++)
-        if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
+    if (setup->base_excitation && setup->forcing_shape) {
+        /* the interface's share acts through the numerical side (controller.h) */
+        p->forcing_shape = calloc((size_t)p->n, sizeof(double));
+        if (!p->forcing_shape) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        for (int i = 0; i < s->n_phys; i++) {
+            p->forcing_shape[i] = setup->forcing_shape[s->phys_dofs[i]];
+            if (p->forcing_shape[i] != 0) p->forcing_index = i; /* any: "the plant forces" */
+        }
+    } else {
+        for (int i = 0; i < s->n_phys; i++)
+            if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
+    }
     p->leg_upper = -1;
     if (!setup->has_bilinear) return RTHS_OK;
     p->leg_upper = to_phys[setup->leg.upper_dof];
@@ -478,7 +500,11 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
         f[i] = s;
     }
     f[n - 1] += fs;
-    if (p->forcing_index >= 0) f[p->forcing_index] += fe;
+    if (p->forcing_shape)
+        for (int i = 0; i < n; i++)
+            f[i] += fe * p->forcing_shape[i];
+    else if (p->forcing_index >= 0)
+        f[p->forcing_index] += fe;
     if (p->leg_upper >= 0) {
         double delta = leg_extension(p, q);
         if (side == 1 || (side < 0 && delta < 0)) {
@@ -507,7 +533,10 @@ static double interface_acceleration(const rths_plant *p) {
         for (int j = 0; j < n; j++)
             f -= p->c[i + j * n] * p->v[j] + p->k[i + j * n] * p->q[j];
         if (i == n - 1) f += p->fs;
-        if (i == p->forcing_index) f += p->forcing_now;
+        if (p->forcing_shape)
+            f += p->forcing_now * p->forcing_shape[i];
+        else if (i == p->forcing_index)
+            f += p->forcing_now;
         if (i == p->leg_upper) f -= extra;
         if (i == p->leg_lower) f += extra;
         acc += p->minv[(n - 1) + i * n] * f;
