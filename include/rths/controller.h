@@ -4,6 +4,8 @@
  * Every sample: the numerical substructure is advanced one step (chosen scheme) driven by
  *   F_num = F_comp - F_LC + F_ctrl  on the numerical interface DoF, plus the forcing
  *   Phi cos(theta) on its DoF when that DoF is numerical,
+ * (for base excitation, forcing.type base: the inertial load -M 1 a_g cos(theta) on every
+ * numerical DoF and the interface's whole share, the plant taking its internal DoFs'),
  * with inertial compensation F_comp = p m_int x''_measured (docs/method.md, "Errata of the seed
  * paper", erratum 2: the rig's interface storey carries its full mass) and grounding control F_ctrl
  * = kp^ (x - xi) + kd^ (x' - xi') (erratum 8); the actuator demand is the PD law U = kp (x* - x) +

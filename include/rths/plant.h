@@ -4,9 +4,12 @@
  * The physical substructure with the interface storey's FULL mass (the rig's storey; the mass
  * ratio is emulated by the controller's inertial compensation), optionally the bilinear leg with
  * its static preload; an electrodynamic shaker in current mode (force = gain x demand through a
- * pure transport delay and a first-order lag, armature mass moving with the interface storey);
- * a load cell between shaker and storey; lasers on every physical DoF and an accelerometer on
- * the interface, each with gain error, offset, white noise and quantisation from a seeded RNG.
+ * pure transport delay and a first-order lag, armature mass moving with the interface storey),
+ * or an actuator given as a transfer function with the specimen's velocity fed back (a
+ * servo-hydraulic actuator; rths_actuator_options), with force, stroke and velocity limits and a
+ * DAC; a load cell between actuator and storey; lasers on every physical DoF and an accelerometer
+ * on the interface, each with gain error, offset, white noise and quantisation from a seeded RNG,
+ * and optionally an ADC (resolution over a voltage range, noise in volts; rths_adc_spec).
  * The demand is held over a sample (linear reconstruction by default, or a DAC's step; see
  * linear_hold) and the plant is advanced by its exact discretisation (matrix exponential of the
  * held demand, static force and forcing, precomputed at create; a sample that crosses the
@@ -14,10 +17,11 @@
  * substeps_per_sample substeps remains as rig.plant_integrator: rk4 (tests/test_plant.c: the two
  * agree to 1.2e-13 of the response, 8e-11 through the kink). The preload is a static external force
  * on the interface storey that the load cell does not see (the seed's shaker offset). Forcing on an
- * internal physical DoF, when the setup has it there, is applied here (rths_plant_set_forcing).
+ * internal physical DoF, when the setup has it there, is applied here (rths_plant_set_forcing);
+ * so is base excitation's inertial load -M 1 a_g on the internal physical DoFs.
  *
- * A lab's DAQ backend replaces this module at the same seam: read the sensors, apply the
- * demand, once per sample. */
+ * The plant reaches the controller as the reference I/O plug-in (io.h); a lab's DAQ plug-in
+ * replaces it at the same seam: read the sensors, apply the demand, once per sample. */
 #ifndef RTHS_PLANT_H
 #define RTHS_PLANT_H
 
