@@ -374,12 +374,28 @@ static void test_actuator_config(void **state) {
     assert_int_equal(rths_plant_config_read(cfg, &po, &err), RTHS_EINPUT);
     assert_non_null(strstr(err.msg, "proper"));
     rths_config_free(cfg);
-    const char *output[] = {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1]",
-                            "rig.actuator.denominator=[1]", "rig.actuator.output=displacement"};
-    cfg = seed_config(output, 4);
+    const char *output[][5] = {
+        {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1]",
+         "rig.actuator.denominator=[1]", "rig.actuator.output=torque", "rig.actuator.output"},
+        {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1]",
+         "rig.actuator.denominator=[1]", "rig.actuator.output=displacement",
+         "rig.actuator.connection_stiffness_n_per_m"}};
+    for (int i = 0; i < 2; i++) {
+        cfg = seed_config(output[i], 4);
+        rths_plant_defaults(&po);
+        assert_int_equal(rths_plant_config_read(cfg, &po, &err), RTHS_EINPUT);
+        if (!strstr(err.msg, output[i][4])) fail_msg("%s", err.msg);
+        rths_config_free(cfg);
+    }
+    const char *displacement[] = {
+        "rig.actuator.model=transfer_function", "rig.actuator.numerator=[0.3]",
+        "rig.actuator.denominator=[1, 300]", "rig.actuator.output=displacement",
+        "rig.actuator.connection_stiffness_n_per_m=2e6"};
+    cfg = seed_config(displacement, 5);
     rths_plant_defaults(&po);
-    assert_int_equal(rths_plant_config_read(cfg, &po, &err), RTHS_EINPUT);
-    assert_non_null(strstr(err.msg, "rig.actuator.output"));
+    if (rths_plant_config_read(cfg, &po, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(po.actuator.displacement_output, 1);
+    assert_close(po.actuator.connection_stiffness_n_per_m, 2e6, 0);
     rths_config_free(cfg);
 }
 

@@ -67,8 +67,12 @@ typedef struct rths_actuator_options {
     double numerator[RTHS_ACTUATOR_MAX_ORDER + 1];   /* N/V, descending powers of s */
     double denominator[RTHS_ACTUATOR_MAX_ORDER + 1]; /* descending powers of s */
     double velocity_feedback; /* N/(m/s) times the unit of D(s): N/m for a first-order D */
-    double force_limit_n;     /* |actuator force| beyond: fault, or clip of the force command */
-    double stroke_limit_m;    /* |interface displacement| beyond: fault, or flagged */
+    int displacement_output;  /* 0: N(s)/D(s) gives the force (N/V); 1: the piston's
+                                 displacement y (m/V), which pushes the interface storey through
+                                 the connection spring: F = k_c (y - x_interface) */
+    double connection_stiffness_n_per_m; /* k_c (displacement output): rod, load cell, clevis */
+    double force_limit_n;  /* |actuator force| beyond: fault, or clip of the force command */
+    double stroke_limit_m; /* |interface displacement| beyond: fault, or flagged */
     double velocity_limit_m_per_s; /* |interface velocity| beyond: fault, or flagged */
     int force_clip;     /* 1: the force command (static gain x demand) saturates at the limit, the
                            samples are counted; 0: the output force beyond the limit trips */

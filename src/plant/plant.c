@@ -39,8 +39,10 @@ struct rths_plant {
                           function (observer canonical form, after q and v in z) */
     int tf;            /* transfer-function actuator: the input is the demand itself */
     double *act_a, *act_bu, *act_bv; /* na x na (column-major), na, na */
-    double act_d;                    /* feedthrough of the demand to the force, N/V */
-    double command_limit;            /* force clip: |input| at most this (0: no clip) */
+    double act_d;                    /* feedthrough of the demand to the output */
+    double act_out;       /* force per unit output: 1 (force output) or the connection stiffness */
+    double act_spring;    /* displacement output: the connection's stiffness k_c, N/m; 0: force */
+    double command_limit; /* force clip: |input| at most this (0: no clip) */
     rths_actuator_status status;
     exact_side side[2]; /* 0: extension (or no leg), 1: compression */
     double time_s;
@@ -137,9 +139,13 @@ static void side_state_matrix(const rths_plant *p, int compressed, double *kk, d
             a[n + i + (size_t)(n + j) * ld] = -mc;
         }
         if (p->lag_rate > 0) a[n + i + (size_t)(2 * n) * ld] = p->minv[i + (n - 1) * n];
-        /* the transfer function's force is its last observer state (plus the feedthrough) */
+        /* the transfer function's output is its last observer state (plus the feedthrough):
+         * the force, or the piston's displacement pushing the storey through the connection
+         * spring, F = k_c (y - x_interface) */
         if (p->tf && p->na > 0)
-            a[n + i + (size_t)(2 * n + p->na - 1) * ld] = p->minv[i + (n - 1) * n];
+            a[n + i + (size_t)(2 * n + p->na - 1) * ld] = p->minv[i + (n - 1) * n] * p->act_out;
+        if (p->tf && p->act_spring > 0)
+            a[n + i + (size_t)(n - 1) * ld] -= p->minv[i + (n - 1) * n] * p->act_spring;
     }
     if (p->lag_rate > 0) a[2 * n + (size_t)(2 * n) * ld] = -p->lag_rate;
     for (int i = 0; p->tf && i < p->na; i++) {
@@ -171,7 +177,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++) {
             double target_col = p->lag_rate > 0 ? 0.0 : p->minv[i + (n - 1) * n];
-            if (p->tf) target_col = p->minv[i + (n - 1) * n] * p->act_d;
+            if (p->tf) target_col = p->minv[i + (n - 1) * n] * p->act_out * p->act_d;
             double static_col = 0;
             for (int l = 0; l < n; l++)
                 static_col += p->minv[i + l * n] * p->static_force[l];
@@ -271,6 +277,16 @@ static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_
     p->tf = 1;
     p->na = order;
     p->lag_rate = 0;
+    p->act_spring = a->displacement_output ? a->connection_stiffness_n_per_m : 0.0;
+    p->act_out = a->displacement_output ? a->connection_stiffness_n_per_m : 1.0;
+    if (a->displacement_output && !(a->connection_stiffness_n_per_m > 0))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator with displacement output: the "
+                              "connection stiffness must be > 0");
+    if (a->displacement_output && a->force_clip)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "a force clip needs a force-output actuator (a displacement-output "
+                              "one can trip on its force: force_action fault)");
     double lead = a->denominator[0], dk[RTHS_ACTUATOR_MAX_ORDER + 1],
            nk[RTHS_ACTUATOR_MAX_ORDER + 1] = {0};
     for (int k = 0; k <= order; k++)
@@ -742,7 +758,9 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
         } else {
             memcpy(p->z, p->z_next, sizeof(double) * (size_t)p->nz);
             if (p->tf)
-                p->fs = (p->na > 0 ? p->z[2 * p->n + p->na - 1] : 0.0) + p->act_d * target_end;
+                p->fs = p->act_out * ((p->na > 0 ? p->z[2 * p->n + p->na - 1] : 0.0) +
+                                      p->act_d * target_end) -
+                        p->act_spring * p->q[p->n - 1];
             else
                 p->fs = p->lag_rate > 0 ? p->z[2 * p->n] : target_end;
         }
@@ -830,7 +848,7 @@ static int actuator_limits_read(rths_config *cfg, rths_actuator_options *a, rths
 /* rig.actuator: the model and, for transfer_function, its coefficients, delay and hold. */
 static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err) {
     static const char *const models[] = {"shaker", "transfer_function", NULL};
-    static const char *const outputs[] = {"force", NULL};
+    static const char *const outputs[] = {"force", "displacement", NULL};
     static const char *const holds[] = {"linear", "step", NULL};
     rths_actuator_options *a = &opt->actuator;
     int model = (int)a->model, output = 0, rc;
@@ -839,9 +857,10 @@ static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_
         return rc;
     a->model = (rths_actuator_model)model;
     int tf = a->model == RTHS_ACTUATOR_TRANSFER_FUNCTION;
-    static const char *const tf_keys[] = {"numerator", "denominator", "velocity_feedback",
-                                          "output",    "delay_s",     "hold"};
-    for (int i = 0; !tf && i < 6; i++) {
+    static const char *const tf_keys[] = {
+        "numerator", "denominator", "velocity_feedback",           "output",
+        "delay_s",   "hold",        "connection_stiffness_n_per_m"};
+    for (int i = 0; !tf && i < 7; i++) {
         char key[64];
         snprintf(key, sizeof key, "rig.actuator.%s", tf_keys[i]);
         if (rths_config_has(cfg, key))
@@ -865,6 +884,20 @@ static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_
         (rc = rths_config_get_choice(cfg, "rig.actuator.hold", 0, hold, holds, &hold, err)))
         return rc;
     opt->linear_hold = hold == 0;
+    a->displacement_output = output == 1;
+    if (a->displacement_output &&
+        (rc = rths_config_get_double_ex(cfg, "rig.actuator.connection_stiffness_n_per_m", 1, 0, 0,
+                                        1e12, RTHS_CONFIG_LO_OPEN, &a->connection_stiffness_n_per_m,
+                                        err)))
+        return rc;
+    if (!a->displacement_output &&
+        rths_config_has(cfg, "rig.actuator.connection_stiffness_n_per_m"))
+        return rths_config_error_at(cfg, "rig.actuator.connection_stiffness_n_per_m", err,
+                                    "applies to rig.actuator.output: displacement only");
+    if (a->displacement_output && a->force_clip)
+        return rths_config_error_at(cfg, "rig.actuator.limits.force_action", err,
+                                    "clip needs rig.actuator.output: force (a displacement-output "
+                                    "actuator can trip on its force: fault)");
     if (a->numerator_count > a->denominator_count)
         return rths_config_error_at(cfg, "rig.actuator.numerator", err,
                                     "degree %d above the denominator's %d: the actuator must be "
