@@ -1,6 +1,7 @@
 /* The controller process over loopback TCP: session rules, malformed input, safety (explicit arm,
  * watchdog, link loss, a second client, limit trip) and the remote rig (round trip against the
- * in-process virtual rig, reconnect after a controller restart).
+ * in-process virtual rig, reconnect after a controller restart). Every controller process runs
+ * the reference I/O plug-in loaded from its shared object (include/rths/io.h).
  *
  * The server runs in this process on an ephemeral port with real-time features off. Nothing here
  * asserts a latency: every wait polls for a state with a generous timeout, because this machine is
@@ -68,7 +69,13 @@ static rths_server *start_server_with(int port, double watchdog_s, const char *c
     rths_server *s = NULL;
     rths_error err;
     rths_error_clear(&err);
-    rths_config *cfg = seed_config(sets, n_sets);
+    /* every controller process here drives the reference I/O plug-in through its shared object
+     * (build/rths_io_virtual.so, loaded with dlopen), the path a lab's plug-in takes */
+    const char *all[16] = {"io.plugin=" RTHS_IO_VIRTUAL_SO};
+    int n = 1;
+    for (int i = 0; i < n_sets && n < 16; i++)
+        all[n++] = sets[i];
+    rths_config *cfg = seed_config(all, n);
     int rc = rths_server_create(cfg, &opt, &s, &err);
     rths_config_free(cfg);
     if (rc) fprintf(stderr, "server: %s\n", err.msg);
@@ -715,6 +722,15 @@ static void test_remote_matches_in_process_virtual_rig(void **state) {
     remote_matches_in_process(sets, 1);
 }
 
+/* At 4096 Hz (a rate whose sample period is no whole number of microseconds): the controller
+ * process paces and reports the same steady state as the in-process rig at that rate. */
+static void test_remote_matches_in_process_at_4096_hz(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]",
+                          "controller.sample_rate_hz=4096"};
+    remote_matches_in_process(sets, 2);
+}
+
 /* Forcing on a physical storey (storey 2): the controller process's per-sample loop hands the
  * forcing's phase to the plant exactly as the in-process virtual rig does, so it accepts the
  * split and reaches the same steady state (the agreement asked, 1e-9 m on a 1e-4 m response, is
@@ -810,6 +826,7 @@ int main(void) {
         cmocka_unit_test(test_remote_rig_unreachable),
         cmocka_unit_test(test_limit_trip_and_restart_reconnect),
         cmocka_unit_test(test_remote_matches_in_process_virtual_rig),
+        cmocka_unit_test(test_remote_matches_in_process_at_4096_hz),
         cmocka_unit_test(test_remote_forcing_on_physical_storey),
         cmocka_unit_test(test_remote_continuation_matches_in_process),
     };

@@ -4,6 +4,8 @@
  * Every sample: the numerical substructure is advanced one step (chosen scheme) driven by
  *   F_num = F_comp - F_LC + F_ctrl  on the numerical interface DoF, plus the forcing
  *   Phi cos(theta) on its DoF when that DoF is numerical,
+ * (for base excitation, forcing.type base: the inertial load -M 1 a_g cos(theta) on every
+ * numerical DoF and the interface's whole share, the plant taking its internal DoFs'),
  * with inertial compensation F_comp = p m_int x''_measured (docs/method.md, "Errata of the seed
  * paper", erratum 2: the rig's interface storey carries its full mass) and grounding control F_ctrl
  * = kp^ (x - xi) + kd^ (x' - xi') (erratum 8); the actuator demand is the PD law U = kp (x* - x) +
@@ -20,6 +22,7 @@
 #define RTHS_CONTROLLER_H
 
 #include "rths/config.h"
+#include "rths/io.h"
 #include "rths/plant.h"
 #include "rths/setup.h"
 #include "rths/signals.h"
@@ -109,9 +112,10 @@ long rths_controller_dropped_periods(const rths_controller *c);
 
 /* The per-sample loop: the one place where the step and the rig's plant meet, shared by the
  * in-process virtual rig (rig_virtual.c) and the controller process (server_engine.c). Every
- * sample: read the sensors, step the controller, hand the forcing's phase to the plant (forcing
- * on an internal physical DoF is applied there, in continuous time), advance the plant one sample
- * with the demand held. A DAQ backend would replace the plant calls and nothing else.
+ * sample: read the device's sensors, step the controller, write the demand and the forcing's
+ * phase to the device (io.h). The device is an I/O plug-in: the reference one over the simulated
+ * plant (forcing on an internal physical DoF applied there, in continuous time; the plant advances
+ * one sample with the demand held), or a lab's, loaded from a shared object.
  *
  * Arming rules, the same for both users: the loop starts disarmed; a latched fault disarms it
  * (the step ramps the demand to zero); after rths_controller_reset_fault, excitation needs a new
@@ -126,12 +130,26 @@ int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt
 int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
                             const rths_plant_options *popt, rths_sample_loop **out,
                             rths_error *err);
+/* Over a device already opened (taken over: closed by rths_sample_loop_destroy, also on
+ * failure). The device's applies_internal_forcing decides whether a setup forcing an internal
+ * physical DoF is accepted. */
+int rths_sample_loop_create_io(const rths_setup *setup, const rths_controller_options *copt,
+                               rths_io *io, rths_sample_loop **out, rths_error *err);
+/* Over the device the configuration names: io.plugin, a shared object (io.h, loaded and checked
+ * before anything can be armed), or by default the reference plug-in over the simulated plant,
+ * opened through the same ABI from the configuration. */
+int rths_sample_loop_create_configured(rths_config *cfg, const rths_setup *setup,
+                                       const rths_controller_options *copt, rths_sample_loop **out,
+                                       rths_error *err);
+/* Safe state and close of the device, then the controller. */
 void rths_sample_loop_destroy(rths_sample_loop *loop);
 /* One sample; returns the demand (V). out may be NULL. Never allocates, blocks or prints. */
 double rths_sample_loop_run(rths_sample_loop *loop, rths_controller_output *out);
 /* Arms; RTHS_EFAIL (nothing changed) while a fault is latched. */
 int rths_sample_loop_arm(rths_sample_loop *loop);
 rths_controller *rths_sample_loop_controller(rths_sample_loop *loop);
+/* The simulated plant behind the reference plug-in in this process; NULL for any other device. */
 rths_plant *rths_sample_loop_plant(rths_sample_loop *loop);
+const rths_io_device_info *rths_sample_loop_device(const rths_sample_loop *loop);
 
 #endif

@@ -4,9 +4,12 @@
  * The physical substructure with the interface storey's FULL mass (the rig's storey; the mass
  * ratio is emulated by the controller's inertial compensation), optionally the bilinear leg with
  * its static preload; an electrodynamic shaker in current mode (force = gain x demand through a
- * pure transport delay and a first-order lag, armature mass moving with the interface storey);
- * a load cell between shaker and storey; lasers on every physical DoF and an accelerometer on
- * the interface, each with gain error, offset, white noise and quantisation from a seeded RNG.
+ * pure transport delay and a first-order lag, armature mass moving with the interface storey),
+ * or an actuator given as a transfer function with the specimen's velocity fed back (a
+ * servo-hydraulic actuator; rths_actuator_options), with force, stroke and velocity limits and a
+ * DAC; a load cell between actuator and storey; lasers on every physical DoF and an accelerometer
+ * on the interface, each with gain error, offset, white noise and quantisation from a seeded RNG,
+ * and optionally an ADC (resolution over a voltage range, noise in volts; rths_adc_spec).
  * The demand is held over a sample (linear reconstruction by default, or a DAC's step; see
  * linear_hold) and the plant is advanced by its exact discretisation (matrix exponential of the
  * held demand, static force and forcing, precomputed at create; a sample that crosses the
@@ -14,10 +17,11 @@
  * substeps_per_sample substeps remains as rig.plant_integrator: rk4 (tests/test_plant.c: the two
  * agree to 1.2e-13 of the response, 8e-11 through the kink). The preload is a static external force
  * on the interface storey that the load cell does not see (the seed's shaker offset). Forcing on an
- * internal physical DoF, when the setup has it there, is applied here (rths_plant_set_forcing).
+ * internal physical DoF, when the setup has it there, is applied here (rths_plant_set_forcing);
+ * so is base excitation's inertial load -M 1 a_g on the internal physical DoFs.
  *
- * A lab's DAQ backend replaces this module at the same seam: read the sensors, apply the
- * demand, once per sample. */
+ * The plant reaches the controller as the reference I/O plug-in (io.h); a lab's DAQ plug-in
+ * replaces it at the same seam: read the sensors, apply the demand, once per sample. */
 #ifndef RTHS_PLANT_H
 #define RTHS_PLANT_H
 
@@ -30,6 +34,64 @@ typedef struct rths_sensor_spec {
     double noise_std;  /* white noise standard deviation, sensor's unit */
     double quantum;    /* quantisation step (0: none) */
 } rths_sensor_spec;
+
+/* An analog-to-digital converter in front of a sensor: the reading in engineering units, divided
+ * by units_per_v, plus white noise of noise_v volts, clipped to +-range_v and rounded to the
+ * converter's step 2 range_v / 2^bits, times units_per_v again. bits 0: no converter (the reading
+ * is continuous); noise_v acts whenever rig.noise is on. */
+typedef struct rths_adc_spec {
+    int bits;           /* 0: none */
+    double range_v;     /* symmetric input range, +-V */
+    double units_per_v; /* sensor scaling: m, m/s^2 or N per volt */
+    double noise_v;     /* white noise at the converter input, V rms */
+} rths_adc_spec;
+
+typedef enum {
+    RTHS_ACTUATOR_SHAKER = 0,            /* electrodynamic shaker: gain, delay, lag, armature */
+    RTHS_ACTUATOR_TRANSFER_FUNCTION = 1, /* rational N(s)/D(s) from demand to force */
+} rths_actuator_model;
+
+#define RTHS_ACTUATOR_MAX_ORDER 8
+
+/* The actuator between the demand (V) and the interface storey. transfer_function: the force
+ * F(s) = (N(s) U(s) - velocity_feedback V(s)) / D(s), V the interface storey's velocity: with
+ * D(s) = s + a and velocity_feedback = 2 beta A^2 / V_oil this is the servo-hydraulic actuator
+ * whose oil column feeds the specimen's velocity back into its force (control-structure
+ * interaction; docs/config/rig.md). Coefficients in descending powers of s, deg N <= deg D <=
+ * RTHS_ACTUATOR_MAX_ORDER; realised in observer canonical form and discretised exactly with the
+ * structure (one matrix exponential of the coupled state, at create). Limits apply to both
+ * models; 0 means none. */
+typedef struct rths_actuator_options {
+    rths_actuator_model model;
+    int numerator_count, denominator_count;
+    double numerator[RTHS_ACTUATOR_MAX_ORDER + 1];   /* N/V, descending powers of s */
+    double denominator[RTHS_ACTUATOR_MAX_ORDER + 1]; /* descending powers of s */
+    double velocity_feedback; /* N/(m/s) times the unit of D(s): N/m for a first-order D */
+    int displacement_output;  /* 0: N(s)/D(s) gives the force (N/V); 1: the piston's
+                                 displacement y (m/V), which pushes the interface storey through
+                                 the connection spring: F = k_c (y - x_interface) */
+    double connection_stiffness_n_per_m; /* k_c (displacement output): rod, load cell, clevis */
+    double force_limit_n;  /* |actuator force| beyond: fault, or clip of the force command */
+    double stroke_limit_m; /* |interface displacement| beyond: fault, or flagged */
+    double velocity_limit_m_per_s; /* |interface velocity| beyond: fault, or flagged */
+    int force_clip;     /* 1: the force command (static gain x demand) saturates at the limit, the
+                           samples are counted; 0: the output force beyond the limit trips */
+    int stroke_flag;    /* 1: samples beyond are counted and reported; 0: trip */
+    int velocity_flag;  /* 1: samples beyond are counted and reported; 0: trip */
+    int dac_bits;       /* demand DAC: 0 none; else the demand is clipped to +-dac_range_v and */
+    double dac_range_v; /* rounded to 2 dac_range_v / 2^dac_bits before the actuator */
+} rths_actuator_options;
+
+/* What the actuator's limits saw (rths_plant_actuator_status). */
+typedef struct rths_actuator_status {
+    long force_clipped_samples, stroke_flagged_samples, velocity_flagged_samples;
+    rths_rig_fault beyond;        /* the limit the last sample was beyond with action fault */
+    double peak_force_n;          /* largest |actuator force| so far */
+    double peak_stroke_m;         /* largest |interface displacement| so far */
+    double peak_velocity_m_per_s; /* largest |interface velocity| so far */
+} rths_actuator_status;
+
+const char *rths_actuator_model_name(rths_actuator_model model);
 
 /* The longest shaker transport delay the plant holds, in samples (delay_s x sample rate, rounded;
  * the delay line of plant.c). */
@@ -46,13 +108,16 @@ typedef struct rths_plant_options {
     int linear_hold;         /* 1: the demand ramps linearly from the last sample's value over
                                 the sample (a reconstruction filter) instead of a DAC's step */
     rths_sensor_spec laser, accelerometer, load_cell;
+    rths_adc_spec laser_adc, accelerometer_adc, load_cell_adc;
+    rths_actuator_options actuator;
 } rths_plant_options;
 
 void rths_plant_defaults(rths_plant_options *opt);
 /* An ideal shaker and exact sensors: no delay, no lag, no armature mass, no noise, and a
  * continuous force (linear hold of the demand): the only discrete thing left is the controller. */
 void rths_plant_ideal(rths_plant_options *opt);
-/* Reads the `rig` section (rig.noise, rig.seed, rig.shaker.*, rig.sensors.*) over the defaults. */
+/* Reads the `rig` section (rig.noise, rig.seed, rig.shaker.*, rig.actuator.*, rig.sensors.*) over
+ * the defaults. */
 int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err);
 
 typedef struct rths_plant rths_plant;
@@ -68,6 +133,11 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out);
 void rths_plant_set_forcing(rths_plant *p, double amplitude_n, double theta, double omega_rad_s);
 /* Advances one sample with the demand held. */
 void rths_plant_advance(rths_plant *p, double demand_v);
+/* RTHS_RIG_OK, or the fault of a limit with action fault that the state is beyond now
+ * (stroke: RTHS_RIG_FAULT_DISPLACEMENT, velocity: RTHS_RIG_FAULT_DISPLACEMENT, force:
+ * RTHS_RIG_FAULT_FORCE). */
+rths_rig_fault rths_plant_limit_fault(const rths_plant *p);
+void rths_plant_actuator_status(const rths_plant *p, rths_actuator_status *out);
 double rths_plant_time_s(const rths_plant *p);
 /* True interface displacement (no sensor effects), m: for tests. */
 double rths_plant_interface_displacement_m(const rths_plant *p);

@@ -7,7 +7,9 @@
  *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
  *                the seed paper", erratum 1), physical / numerical (1-based lists; for a chain
  *                default: below / above; with matrices the absent one takes every other DoF)
- *   forcing:     dof (1-based), amplitude_n
+ *   forcing:     dof (1-based), amplitude_n; or type: base, amplitude_m_s2 (a harmonic ground
+ *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
+ *                displacements are relative to the ground)
  *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
  *
  * Other sections (rig, controller, iteration, continuation, stability, output) are read by their
@@ -22,10 +24,13 @@ typedef struct rths_setup {
     rths_assembly assembly;
     rths_dof_role *roles; /* per DoF */
     rths_split split;
-    int forcing_dof; /* 0-based */
-    double forcing_amplitude_n;
-    double *force; /* n: amplitude at forcing_dof, zero elsewhere, N */
-    int chain;     /* 1 when the structure was given as a storey chain */
+    int forcing_dof; /* 0-based; for base excitation the top DoF (n - 1), for reports only */
+    double forcing_amplitude_n; /* N; for base excitation the ground acceleration's, m/s^2 */
+    double *force;              /* n: forcing_amplitude_n x forcing_shape, N */
+    int base_excitation;        /* forcing.type: base */
+    double *forcing_shape;      /* n: force per unit forcing amplitude: 1 at forcing_dof (force), or
+                                   -M 1 (base: N per m/s^2 of ground acceleration) */
+    int chain;                  /* 1 when the structure was given as a storey chain */
     /* Bilinear leg below `leg.upper_dof` (physical side), extension stiffness from the chain. */
     int has_bilinear;
     rths_bilinear_leg leg;

@@ -14,19 +14,24 @@
 static void usage(FILE *to) {
     fprintf(
         to,
-        "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--set key=value]...\n"
-        "                       [--duration SECONDS] [--quiet]\n"
+        "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--io PLUGIN.so]\n"
+        "                       [--set key=value]... [--duration SECONDS] [--quiet]\n"
         "       rths controller CONFIG [options]\n\n"
         "Runs the real-time controller: the per-sample step of the hybrid test (numerical\n"
         "substructure, PD control of the physical interface, Fourier sums, safety limits) on\n"
-        "the plant behind the per-sample I/O seam (the simulated plant), paced by the wall\n"
-        "clock, and serves one host over TCP (docs/protocol.md). The host runs e.g.\n"
+        "a device behind the per-sample I/O seam (an I/O plug-in, docs/io-plugins.md; by\n"
+        "default the simulated plant), paced by the wall clock, and serves one host over\n"
+        "TCP (docs/protocol.md). The host runs e.g.\n"
         "  rths frf CONFIG --rig tcp://HOST:PORT\n\n"
         "Options:\n"
         "  --listen ADDR:PORT  address to listen on (default 127.0.0.1:7400, loopback only);\n"
         "                      port 0 picks a free port. [IPv6]:PORT accepted.\n"
         "  --config CONFIG     the test configuration (YAML); the server section sets the\n"
         "                      watchdog and real-time options (docs/config/server.md)\n"
+        "  --io PLUGIN.so      the I/O plug-in driving the lab's hardware (the same as\n"
+        "                      io.plugin in the configuration; its settings are the io\n"
+        "                      section). Refused before anything runs when its ABI version\n"
+        "                      differs or a symbol is missing.\n"
         "  --set key=value     override a configuration key (repeatable)\n"
         "  --duration SECONDS  stop after this long (default: until SIGINT/SIGTERM)\n"
         "  --quiet             no notices on stderr\n\n"
@@ -67,7 +72,7 @@ static int parse_listen(const char *arg, char *host, size_t cap, int *port) {
 }
 
 int rths_cmd_controller(int argc, char **argv) {
-    const char *config_path = NULL, *listen = NULL;
+    const char *config_path = NULL, *listen = NULL, *io_path = NULL;
     double duration = -1.0;
     int quiet = 0;
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
@@ -83,6 +88,8 @@ int rths_cmd_controller(int argc, char **argv) {
         int has_value = i + 1 < argc;
         if (!strcmp(a, "--listen") && has_value) {
             listen = argv[++i];
+        } else if (!strcmp(a, "--io") && has_value) {
+            io_path = argv[++i];
         } else if (!strcmp(a, "--config") && has_value) {
             config_path = argv[++i];
         } else if (!strcmp(a, "--set") && has_value) {
@@ -121,12 +128,28 @@ int rths_cmd_controller(int argc, char **argv) {
         free(sets);
         return RTHS_EINPUT;
     }
+    /* --io is the override io.plugin, single-quoted for YAML (a quote doubled) */
+    char *io_set = io_path ? malloc(2 * strlen(io_path) + 16) : NULL;
+    if (io_path) {
+        if (!io_set) {
+            free(sets);
+            return RTHS_EFAIL;
+        }
+        char *w = io_set + sprintf(io_set, "io.plugin='");
+        for (const char *r = io_path; *r; r++) {
+            if (*r == '\'') *w++ = '\'';
+            *w++ = *r;
+        }
+        strcpy(w, "'");
+        sets[n_sets++] = io_set;
+    }
     rths_error err;
     rths_error_clear(&err);
     rths_config *cfg = NULL;
     rths_server *srv = NULL;
     int rc = rths_config_load(config_path, sets, n_sets, &cfg, &err);
     free(sets);
+    free(io_set);
     if (!rc) rc = rths_server_config_read(cfg, &opt, &err);
     /* Everything a command run does not read (iteration, continuation, output...) is fine in a
      * test configuration shared with the host; only typos within read sections are refused. */

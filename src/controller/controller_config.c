@@ -40,6 +40,11 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
                                      3600, &opt->max_pending_s, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
+    /* the default cutoff (1 kHz, chosen at the seed's 10 kHz) is capped at a quarter of a lower
+     * rate, so every rate in range runs with the defaults; a cutoff the user sets is kept */
+    if (!rths_config_has(cfg, "controller.velocity_cutoff_hz") &&
+        opt->velocity_cutoff_hz > 0.25 * opt->sample_rate_hz)
+        opt->velocity_cutoff_hz = 0.25 * opt->sample_rate_hz;
     if (opt->velocity_cutoff_hz >= 0.5 * opt->sample_rate_hz)
         return rths_config_error_at(cfg, "controller.velocity_cutoff_hz", err,
                                     "must be below half the sample rate (%g Hz)",

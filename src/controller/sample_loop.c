@@ -1,5 +1,6 @@
-/* The per-sample loop (see controller.h): the controller step and the plant joined at the
- * per-sample I/O seam, once, for every user. */
+/* The per-sample loop (see controller.h): the controller step and a device (io.h: the reference
+ * plug-in over the simulated plant, or a lab's plug-in) joined at the per-sample I/O seam, once,
+ * for every user. */
 #include "rths/controller.h"
 
 #include <math.h>
@@ -7,8 +8,9 @@
 
 struct rths_sample_loop {
     rths_controller *ctl;
-    rths_plant *plant;
+    rths_io *io;
     rths_sensor_sample sensors; /* preallocated: read into every sample */
+    rths_io_demand demand;      /* preallocated: written every sample */
 };
 
 int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt,
@@ -26,17 +28,20 @@ int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt
     return RTHS_OK;
 }
 
-int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
-                            const rths_plant_options *popt, rths_sample_loop **out,
-                            rths_error *err) {
+int rths_sample_loop_create_io(const rths_setup *setup, const rths_controller_options *copt,
+                               rths_io *io, rths_sample_loop **out, rths_error *err) {
     *out = NULL;
     rths_sample_loop *l = calloc(1, sizeof *l);
-    if (!l) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    /* forcing on an internal physical DoF: the plant applies it, in continuous time */
+    if (!l) {
+        rths_io_destroy(io);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    l->io = io;
+    /* forcing on an internal physical DoF: the device applies it (the simulated plant does, in
+     * continuous time), or the setup is refused */
     rths_controller_options co = *copt;
-    co.plant_applies_forcing = 1;
+    co.plant_applies_forcing = rths_io_info(io)->applies_internal_forcing;
     int rc = rths_controller_create(setup, &co, &l->ctl, err);
-    if (!rc) rc = rths_plant_create(setup, popt, copt->sample_rate_hz, &l->plant, err);
     if (rc) {
         rths_sample_loop_destroy(l);
         return rc;
@@ -46,20 +51,54 @@ int rths_sample_loop_create(const rths_setup *setup, const rths_controller_optio
     return RTHS_OK;
 }
 
+int rths_sample_loop_create(const rths_setup *setup, const rths_controller_options *copt,
+                            const rths_plant_options *popt, rths_sample_loop **out,
+                            rths_error *err) {
+    *out = NULL;
+    rths_io *io = NULL;
+    int rc = rths_io_open_virtual(setup, popt, copt->sample_rate_hz, &io, err);
+    return rc ? rc : rths_sample_loop_create_io(setup, copt, io, out, err);
+}
+
+int rths_sample_loop_create_configured(rths_config *cfg, const rths_setup *setup,
+                                       const rths_controller_options *copt, rths_sample_loop **out,
+                                       rths_error *err) {
+    *out = NULL;
+    const char *path = NULL;
+    int rc = rths_config_get_string(cfg, "io.plugin", 0, NULL, &path, err);
+    if (rc) return rc;
+    rths_io_open_args args = {.abi_version = RTHS_IO_ABI_VERSION,
+                              .sample_rate_hz = copt->sample_rate_hz,
+                              .physical_dofs = setup->split.np,
+                              .config = cfg,
+                              .section = "io"};
+    rths_io *io = NULL;
+    if (path && path[0])
+        rc = rths_io_load(path, &args, &io, err);
+    else
+        rc = rths_io_open_table(&rths_io_virtual_plugin, "virtual plant", &args, &io, err);
+    return rc ? rc : rths_sample_loop_create_io(setup, copt, io, out, err);
+}
+
 void rths_sample_loop_destroy(rths_sample_loop *l) {
     if (!l) return;
-    rths_plant_destroy(l->plant);
+    rths_io_destroy(l->io); /* safe state, then close */
     rths_controller_destroy(l->ctl);
     free(l);
 }
 
 double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
-    rths_plant_read(l->plant, &l->sensors);
+    /* a failed read leaves NaN in the sample: the step latches the non-finite fault; a device's
+     * own limit (the actuator's stroke, velocity, force) latches like the controller's */
+    int device = rths_io_read(l->io, &l->sensors);
+    if (device > 0)
+        rths_controller_trip(l->ctl, device <= RTHS_RIG_FAULT_WATCHDOG ? (rths_rig_fault)device
+                                                                       : RTHS_RIG_FAULT_LINK);
     double demand = rths_controller_step(l->ctl, &l->sensors, out);
-    double amplitude_n, theta, omega_rad_s;
-    rths_controller_forcing(l->ctl, &amplitude_n, &theta, &omega_rad_s);
-    rths_plant_set_forcing(l->plant, amplitude_n, theta, omega_rad_s);
-    rths_plant_advance(l->plant, demand);
+    l->demand.demand_v = demand;
+    rths_controller_forcing(l->ctl, &l->demand.forcing_amplitude_n, &l->demand.forcing_theta_rad,
+                            &l->demand.forcing_omega_rad_s);
+    rths_io_write(l->io, &l->demand);
     /* A latched fault disarms: after the reset, excitation needs an explicit arm (the step alone
      * only ramps while the fault is latched and would resume on reset). */
     if (rths_controller_fault(l->ctl) != RTHS_RIG_OK && rths_controller_armed(l->ctl))
@@ -78,5 +117,9 @@ rths_controller *rths_sample_loop_controller(rths_sample_loop *l) {
 }
 
 rths_plant *rths_sample_loop_plant(rths_sample_loop *l) {
-    return l->plant;
+    return rths_io_virtual_plant(l->io);
+}
+
+const rths_io_device_info *rths_sample_loop_device(const rths_sample_loop *l) {
+    return rths_io_info(l->io);
 }

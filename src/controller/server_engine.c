@@ -1,6 +1,7 @@
 /* The controller process's engine: the per-sample loop (controller.h, rths_sample_loop: the
- * controller step on the virtual plant, the same loop the in-process virtual rig runs) adapted to
- * the protocol's types. */
+ * controller step on a device behind the I/O plug-in ABI, io.h: io.plugin's shared object, or the
+ * reference plug-in over the virtual plant, the same loop the in-process virtual rig runs) adapted
+ * to the protocol's types. */
 #include "controller/server_engine.h"
 
 #include "rths/controller.h"
@@ -36,8 +37,9 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
     if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
-    /* the loop starts disarmed: nothing is excited until the host arms it */
-    if (!rc) rc = rths_sample_loop_create(&e->setup, &copt, &popt, &e->loop, err);
+    /* the device is loaded, checked and opened here, before the server can arm anything; the
+     * loop starts disarmed: nothing is excited until the host arms it */
+    if (!rc) rc = rths_sample_loop_create_configured(cfg, &e->setup, &copt, &e->loop, err);
     if (rc) {
         rths_engine_destroy(e);
         return rc;
@@ -45,14 +47,15 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     e->ctl = rths_sample_loop_controller(e->loop);
     e->h = 1.0 / copt.sample_rate_hz;
     info->sample_period_s = e->h;
-    info->noise_level_m = rths_plant_noise_level_m(rths_sample_loop_plant(e->loop));
+    const rths_io_device_info *device = rths_sample_loop_device(e->loop);
+    info->noise_level_m = device->displacement_noise_m;
     info->max_harmonics = RTHS_MAX_HARMONICS;
     info->ramp_time_s = copt.ramp_time_s;
     info->min_frequency_hz = copt.min_frequency_hz;
     info->displacement_limit_m = copt.displacement_limit_m;
     snprintf(info->description, sizeof info->description,
-             "rths controller: virtual plant, %d DoF assembly, %.0f Hz, sensor noise %s",
-             e->setup.assembly.n, copt.sample_rate_hz, popt.noise ? "on" : "off");
+             "rths controller: %d DoF assembly, %.0f Hz; %s", e->setup.assembly.n,
+             copt.sample_rate_hz, device->description);
     *out = e;
     return RTHS_OK;
 }

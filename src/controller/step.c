@@ -96,7 +96,14 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                               s->np > RTHS_MAX_SENSED_DOFS ? "physical" : "numerical",
                               s->np > RTHS_MAX_SENSED_DOFS ? s->np : s->nn, RTHS_MAX_SENSED_DOFS);
     int forcing_physical = 0;
-    if (setup->split.int_dofs[0] != setup->forcing_dof) {
+    /* base excitation: the numerical model takes -M 1 a_g on its DoFs and the interface's whole
+     * share (an interface force acts through the numerical side), the plant its internal DoFs' */
+    int base = setup->base_excitation && setup->forcing_shape;
+    if (base && s->n_phys > 0 && !opt->plant_applies_forcing)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "base excitation drives the physical storeys too, and this rig "
+                              "does not apply a forcing on the physical side");
+    if (!base && setup->split.int_dofs[0] != setup->forcing_dof) {
         int numerical = 0;
         for (int i = 0; i < s->n_num; i++)
             numerical |= s->num_dofs[i] == setup->forcing_dof;
@@ -124,7 +131,13 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
     input[0] = 1.0; /* column 0: interface force */
     /* column 1: external forcing on the model; none when the plant applies it */
-    if (!forcing_physical) input[s->nn + c->forcing_index] = 1.0;
+    if (base) {
+        input[s->nn] = setup->forcing_shape[s->int_dofs[0]];
+        for (int i = 0; i < s->n_num; i++)
+            input[s->nn + s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
+    } else if (!forcing_physical) {
+        input[s->nn + c->forcing_index] = 1.0;
+    }
     double *a = NULL, *b = NULL;
     rths_discrete d = {0};
     int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS, input,

@@ -248,10 +248,47 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+/* forcing.type: base. In coordinates relative to the ground, a ground acceleration a_g drives
+ * every DoF through its inertia: M x'' + C x' + K x = -M 1 a_g (the damping and stiffness act on
+ * relative motion), so the forcing is distributed as -M 1 per m/s^2. */
+static int read_base_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const force_keys[] = {"forcing.dof", "forcing.amplitude_n"};
+    for (int i = 0; i < 2; i++)
+        if (rths_config_has(cfg, force_keys[i]))
+            return rths_config_error_at(cfg, force_keys[i], err,
+                                        "applies to forcing.type: force only (base excitation "
+                                        "takes forcing.amplitude_m_s2)");
+    int n = s->assembly.n;
+    int rc = rths_config_get_double_ex(cfg, "forcing.amplitude_m_s2", 0, 1.0, 0, 1e6,
+                                       RTHS_CONFIG_LO_OPEN, &s->forcing_amplitude_n, err);
+    if (rc) return rc;
+    s->base_excitation = 1;
+    s->forcing_dof = n - 1;
+    s->force = calloc((size_t)n, sizeof *s->force);
+    s->forcing_shape = calloc((size_t)n, sizeof *s->forcing_shape);
+    if (!s->force || !s->forcing_shape) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < n; i++) {
+        double row = 0;
+        for (int j = 0; j < n; j++)
+            row += RTHS_AT(s->assembly.mass, n, i, j);
+        s->forcing_shape[i] = -row;
+        s->force[i] = s->forcing_amplitude_n * s->forcing_shape[i];
+    }
+    return RTHS_OK;
+}
+
 static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const types[] = {"force", "base", NULL};
+    int type = 0;
+    int rc = rths_config_get_choice(cfg, "forcing.type", 0, 0, types, &type, err);
+    if (rc) return rc;
+    if (type == 1) return read_base_forcing(cfg, s, err);
+    if (rths_config_has(cfg, "forcing.amplitude_m_s2"))
+        return rths_config_error_at(cfg, "forcing.amplitude_m_s2", err,
+                                    "applies to forcing.type: base only");
     long dof = 0;
     int n = s->assembly.n;
-    int rc = rths_config_get_int(cfg, "forcing.dof", 1, 0, 1, n, &dof, err);
+    rc = rths_config_get_int(cfg, "forcing.dof", 1, 0, 1, n, &dof, err);
     if (!rc)
         rc = rths_config_get_double(cfg, "forcing.amplitude_n", 0, 1.0, 0, 1e9,
                                     &s->forcing_amplitude_n, err);
@@ -261,8 +298,10 @@ static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
     if (rc) return rc;
     s->forcing_dof = (int)dof - 1;
     s->force = calloc((size_t)n, sizeof *s->force);
-    if (!s->force) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    s->forcing_shape = calloc((size_t)n, sizeof *s->forcing_shape);
+    if (!s->force || !s->forcing_shape) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     s->force[s->forcing_dof] = s->forcing_amplitude_n;
+    s->forcing_shape[s->forcing_dof] = 1.0;
     return RTHS_OK;
 }
 
@@ -385,6 +424,7 @@ void rths_setup_free(rths_setup *s) {
     rths_split_free(&s->split);
     free(s->roles);
     free(s->force);
+    free(s->forcing_shape);
     free(s->static_force);
     memset(s, 0, sizeof *s);
 }

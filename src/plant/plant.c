@@ -30,11 +30,20 @@ struct rths_plant {
     int leg_lower, leg_upper; /* physical indices (-1: ground), leg_upper < 0: no bilinear leg */
     double leg_extra_k;       /* (ratio - 1) k added in compression */
     double leg_k, leg_ratio;
-    double *z;          /* state: q (n), v (n), then the shaker force when it lags */
-    double *q, *v, fs;  /* q = z, v = z + n; shaker force */
-    double *z_next;     /* nz */
-    double *rk;         /* scratch: Runge-Kutta stages 10 n, forces n */
-    int nz;             /* 2n, + 1 with the lag */
+    double *z;         /* state: q (n), v (n), then the shaker force when it lags */
+    double *q, *v, fs; /* q = z, v = z + n; shaker force */
+    double *z_next;    /* nz */
+    double *rk;        /* scratch: Runge-Kutta stages 10 n, forces n */
+    int nz;            /* 2n + na */
+    int na;            /* actuator states: 1 for the shaker's lag, the order of a transfer
+                          function (observer canonical form, after q and v in z) */
+    int tf;            /* transfer-function actuator: the input is the demand itself */
+    double *act_a, *act_bu, *act_bv; /* na x na (column-major), na, na */
+    double act_d;                    /* feedthrough of the demand to the output */
+    double act_out;       /* force per unit output: 1 (force output) or the connection stiffness */
+    double act_spring;    /* displacement output: the connection's stiffness k_c, N/m; 0: force */
+    double command_limit; /* force clip: |input| at most this (0: no clip) */
+    rths_actuator_status status;
     exact_side side[2]; /* 0: extension (or no leg), 1: compression */
     double time_s;
     double *delay_line;
@@ -42,7 +51,9 @@ struct rths_plant {
     double lag_rate;          /* 2 pi f_c, 0: no lag */
     double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
-    int forcing_index; /* internal physical forcing DoF, -1: none */
+    int forcing_index;     /* internal physical forcing DoF, -1: none */
+    double *forcing_shape; /* n: base excitation's -M 1 on the internal physical DoFs; NULL:
+                              the forcing acts on forcing_index alone */
     double forcing_amplitude, forcing_theta, forcing_omega, forcing_now;
     rths_rng rng;
 };
@@ -67,6 +78,14 @@ void rths_plant_defaults(rths_plant_options *opt) {
     opt->laser = (rths_sensor_spec){0, 0, 1e-7, 1e-8};
     opt->accelerometer = (rths_sensor_spec){0, 0, 1e-2, 1e-4};
     opt->load_cell = (rths_sensor_spec){0, 0, 1e-2, 1e-4};
+    rths_adc_spec no_adc = {.bits = 0, .range_v = 10.0, .units_per_v = 1.0, .noise_v = 0};
+    opt->laser_adc = opt->accelerometer_adc = opt->load_cell_adc = no_adc;
+    opt->actuator.model = RTHS_ACTUATOR_SHAKER;
+    opt->actuator.dac_range_v = 10.0;
+}
+
+const char *rths_actuator_model_name(rths_actuator_model model) {
+    return model == RTHS_ACTUATOR_TRANSFER_FUNCTION ? "transfer_function" : "shaker";
 }
 
 void rths_plant_ideal(rths_plant_options *opt) {
@@ -81,6 +100,7 @@ void rths_plant_destroy(rths_plant *p) {
     if (!p) return;
     free(p->minv), free(p->c), free(p->k), free(p->static_force);
     free(p->z), free(p->z_next), free(p->rk), free(p->delay_line);
+    free(p->act_a), free(p->act_bu), free(p->act_bv), free(p->forcing_shape);
     for (int s = 0; s < 2; s++) {
         exact_side *e = &p->side[s];
         free(e->phi), free(e->g_target_start), free(e->g_target_slope), free(e->g_static);
@@ -119,8 +139,20 @@ static void side_state_matrix(const rths_plant *p, int compressed, double *kk, d
             a[n + i + (size_t)(n + j) * ld] = -mc;
         }
         if (p->lag_rate > 0) a[n + i + (size_t)(2 * n) * ld] = p->minv[i + (n - 1) * n];
+        /* the transfer function's output is its last observer state (plus the feedthrough):
+         * the force, or the piston's displacement pushing the storey through the connection
+         * spring, F = k_c (y - x_interface) */
+        if (p->tf && p->na > 0)
+            a[n + i + (size_t)(2 * n + p->na - 1) * ld] = p->minv[i + (n - 1) * n] * p->act_out;
+        if (p->tf && p->act_spring > 0)
+            a[n + i + (size_t)(n - 1) * ld] -= p->minv[i + (n - 1) * n] * p->act_spring;
     }
     if (p->lag_rate > 0) a[2 * n + (size_t)(2 * n) * ld] = -p->lag_rate;
+    for (int i = 0; p->tf && i < p->na; i++) {
+        for (int j = 0; j < p->na; j++)
+            a[2 * n + i + (size_t)(2 * n + j) * ld] = p->act_a[i + j * p->na];
+        a[2 * n + i + (size_t)(2 * n - 1) * ld] = p->act_bv[i]; /* interface velocity */
+    }
 }
 
 /* Exact response of one side over a sample to the held target and the static force: the
@@ -145,6 +177,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++) {
             double target_col = p->lag_rate > 0 ? 0.0 : p->minv[i + (n - 1) * n];
+            if (p->tf) target_col = p->minv[i + (n - 1) * n] * p->act_out * p->act_d;
             double static_col = 0;
             for (int l = 0; l < n; l++)
                 static_col += p->minv[i + l * n] * p->static_force[l];
@@ -152,6 +185,8 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
             aug[n + i + (size_t)(nz + 1) * N] = static_col;
         }
         if (p->lag_rate > 0) aug[2 * n + (size_t)nz * N] = p->lag_rate;
+        for (int i = 0; p->tf && i < p->na; i++)
+            aug[2 * n + i + (size_t)nz * N] = p->act_bu[i];
         aug[nz + (size_t)(nz + 2) * N] = 1.0;
         aug[nz + 1 + (size_t)(nz + 3) * N] = 1.0;
         for (size_t i = 0; i < (size_t)N * N; i++)
@@ -174,6 +209,16 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
     return rc;
 }
 
+/* Row i of M^-1 f, f the forcing's distribution over the physical DoFs per unit amplitude. */
+static double forcing_input(const rths_plant *p, int i) {
+    int n = p->n;
+    if (!p->forcing_shape) return p->minv[i + p->forcing_index * n];
+    double s = 0;
+    for (int l = 0; l < n; l++)
+        s += p->minv[i + l * n] * p->forcing_shape[l];
+    return s;
+}
+
 /* Exact response to the forcing amplitude cos(theta + omega tau) on the forcing DoF: the
  * exponential of [[A h, b e1^T h], [0, W h]] with W the rotation generator of (cos, sin); redone
  * when omega changes (once per test frequency). */
@@ -185,7 +230,7 @@ static int build_forcing(rths_plant *p, int compressed, double omega) {
     if (!rc) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++)
-            aug[n + i + (size_t)nz * N] = p->minv[i + p->forcing_index * n];
+            aug[n + i + (size_t)nz * N] = forcing_input(p, i);
         aug[nz + (size_t)(nz + 1) * N] = -omega;
         aug[nz + 1 + (size_t)nz * N] = omega;
         for (size_t i = 0; i < (size_t)N * N; i++)
@@ -203,9 +248,79 @@ static int build_forcing(rths_plant *p, int compressed, double omega) {
     return rc;
 }
 
+/* The actuator's states. The shaker: its lag's force (or none). A transfer function
+ * F = (N U - k_v V) / D: observer canonical form with D made monic, x' = A x + b_u u + b_v v,
+ * F = x[na - 1] + d u (A: ones below the diagonal, -D's coefficients in the last column). */
+static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_error *err) {
+    if (a->model != RTHS_ACTUATOR_TRANSFER_FUNCTION) {
+        p->na = p->lag_rate > 0 ? 1 : 0;
+        p->command_limit = a->force_clip ? a->force_limit_n : 0;
+        return RTHS_OK;
+    }
+    int nd = a->denominator_count, nn = a->numerator_count, order = nd - 1;
+    int finite = isfinite(a->velocity_feedback);
+    for (int i = 0; i < nd && i <= RTHS_ACTUATOR_MAX_ORDER; i++)
+        finite &= isfinite(a->denominator[i]);
+    for (int i = 0; i < nn && i <= RTHS_ACTUATOR_MAX_ORDER; i++)
+        finite &= isfinite(a->numerator[i]);
+    if (nd < 1 || nd > RTHS_ACTUATOR_MAX_ORDER + 1 || nn < 1 || nn > nd || !finite ||
+        a->denominator[0] == 0)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator: %d numerator and %d denominator "
+                              "coefficients; needs 1 <= numerator <= denominator <= %d, finite, "
+                              "a nonzero leading denominator coefficient",
+                              nn, nd, RTHS_ACTUATOR_MAX_ORDER + 1);
+    if (order == 0 && a->velocity_feedback != 0)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator: velocity feedback needs a denominator "
+                              "of order 1 or more");
+    p->tf = 1;
+    p->na = order;
+    p->lag_rate = 0;
+    p->act_spring = a->displacement_output ? a->connection_stiffness_n_per_m : 0.0;
+    p->act_out = a->displacement_output ? a->connection_stiffness_n_per_m : 1.0;
+    if (a->displacement_output && !(a->connection_stiffness_n_per_m > 0))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator with displacement output: the "
+                              "connection stiffness must be > 0");
+    if (a->displacement_output && a->force_clip)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "a force clip needs a force-output actuator (a displacement-output "
+                              "one can trip on its force: force_action fault)");
+    double lead = a->denominator[0], dk[RTHS_ACTUATOR_MAX_ORDER + 1],
+           nk[RTHS_ACTUATOR_MAX_ORDER + 1] = {0};
+    for (int k = 0; k <= order; k++)
+        dk[k] = a->denominator[order - k] / lead; /* ascending powers, monic */
+    for (int k = 0; k < nn; k++)
+        nk[k] = a->numerator[nn - 1 - k] / lead;
+    p->act_d = nk[order];
+    size_t na = (size_t)(order > 0 ? order : 1);
+    p->act_a = calloc(na * na, sizeof(double));
+    p->act_bu = calloc(na, sizeof(double));
+    p->act_bv = calloc(na, sizeof(double));
+    if (!p->act_a || !p->act_bu || !p->act_bv)
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < order; i++) {
+        if (i > 0) p->act_a[i + (i - 1) * order] = 1.0;
+        p->act_a[i + (order - 1) * order] = -dk[i];
+        p->act_bu[i] = nk[i] - dk[i] * p->act_d;
+    }
+    p->act_bv[0] = order > 0 ? -a->velocity_feedback / lead : 0.0;
+    if (a->force_clip) {
+        /* the force command is the static gain N(0) / D(0) times the demand */
+        double g0 = dk[0] != 0 ? nk[0] / dk[0] : INFINITY;
+        if (!(isfinite(g0) && g0 != 0))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "transfer_function actuator: a force clip needs a finite, "
+                                  "nonzero static gain N(0)/D(0)");
+        p->command_limit = a->force_limit_n / fabs(g0);
+    }
+    return RTHS_OK;
+}
+
 static int plant_alloc(rths_plant *p, int n, int delay) {
     size_t nn = (size_t)n * (size_t)n;
-    p->nz = 2 * n + (p->lag_rate > 0 ? 1 : 0);
+    p->nz = 2 * n + p->na;
     p->minv = calloc(nn, sizeof(double));
     p->c = calloc(nn, sizeof(double));
     p->k = calloc(nn, sizeof(double));
@@ -285,8 +400,18 @@ static int plant_leg_and_loads(rths_plant *p, const rths_setup *setup, const int
         if (to_phys[i] >= 0 && setup->static_force)
             p->static_force[to_phys[i]] = setup->static_force[i];
     p->forcing_index = -1;
-    for (int i = 0; i < s->n_phys; i++)
-        if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
+    if (setup->base_excitation && setup->forcing_shape) {
+        /* the interface's share acts through the numerical side (controller.h) */
+        p->forcing_shape = calloc((size_t)p->n, sizeof(double));
+        if (!p->forcing_shape) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        for (int i = 0; i < s->n_phys; i++) {
+            p->forcing_shape[i] = setup->forcing_shape[s->phys_dofs[i]];
+            if (p->forcing_shape[i] != 0) p->forcing_index = i; /* any: "the plant forces" */
+        }
+    } else {
+        for (int i = 0; i < s->n_phys; i++)
+            if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
+    }
     p->leg_upper = -1;
     if (!setup->has_bilinear) return RTHS_OK;
     p->leg_upper = to_phys[setup->leg.upper_dof];
@@ -316,6 +441,12 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
         !(opt->delay_s >= 0 && opt->delay_s * sample_rate_hz < 1e7) || opt->lag_cutoff_hz < 0 ||
         opt->armature_mass_kg < 0 || opt->substeps_per_sample < 0)
         return rths_error_set(err, RTHS_EINPUT, "invalid shaker options");
+    int tf = opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION;
+    if (tf && (opt->substeps_per_sample > 0 || setup->has_bilinear))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the transfer_function actuator runs on the exact plant integrator "
+                              "of a linear structure (rig.plant_integrator: rk4 and the bilinear "
+                              "leg's kink crossings model the shaker only)");
     int delay = (int)lround(opt->delay_s * sample_rate_hz);
     rths_plant *p = calloc(1, sizeof *p);
     if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -324,11 +455,13 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
     p->h = 1.0 / sample_rate_hz;
     p->delay_samples = delay;
     p->lag_rate = opt->lag_cutoff_hz > 0 ? 2 * M_PI * opt->lag_cutoff_hz : 0;
-    p->armature_kg = opt->armature_mass_kg;
+    /* the armature is the shaker's; a transfer function's moving mass belongs to the structure */
+    p->armature_kg = tf ? 0.0 : opt->armature_mass_kg;
+    p->opt.armature_mass_kg = p->armature_kg;
     int *to_phys = NULL;
-    int rc = plant_alloc(p, n, delay) || !(to_phys = physical_index(setup))
-                 ? rths_error_set(err, RTHS_EFAIL, "out of memory")
-                 : RTHS_OK;
+    int rc = actuator_realise(p, &opt->actuator, err);
+    if (!rc && (plant_alloc(p, n, delay) || !(to_phys = physical_index(setup))))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc && plant_matrices(p, setup))
         rc = rths_error_set(err, RTHS_EFAIL, "singular physical mass matrix");
     if (!rc) rc = plant_leg_and_loads(p, setup, to_phys, err);
@@ -383,7 +516,11 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
         f[i] = s;
     }
     f[n - 1] += fs;
-    if (p->forcing_index >= 0) f[p->forcing_index] += fe;
+    if (p->forcing_shape)
+        for (int i = 0; i < n; i++)
+            f[i] += fe * p->forcing_shape[i];
+    else if (p->forcing_index >= 0)
+        f[p->forcing_index] += fe;
     if (p->leg_upper >= 0) {
         double delta = leg_extension(p, q);
         if (side == 1 || (side < 0 && delta < 0)) {
@@ -412,7 +549,10 @@ static double interface_acceleration(const rths_plant *p) {
         for (int j = 0; j < n; j++)
             f -= p->c[i + j * n] * p->v[j] + p->k[i + j * n] * p->q[j];
         if (i == n - 1) f += p->fs;
-        if (i == p->forcing_index) f += p->forcing_now;
+        if (p->forcing_shape)
+            f += p->forcing_now * p->forcing_shape[i];
+        else if (i == p->forcing_index)
+            f += p->forcing_now;
         if (i == p->leg_upper) f -= extra;
         if (i == p->leg_lower) f += extra;
         acc += p->minv[(n - 1) + i * n] * f;
@@ -420,22 +560,39 @@ static double interface_acceleration(const rths_plant *p) {
     return acc;
 }
 
-static double measure(rths_plant *p, const rths_sensor_spec *spec, double value) {
-    if (!p->opt.noise) return value;
-    double r =
-        (1 + spec->gain_error) * value + spec->offset + spec->noise_std * rths_rng_normal(&p->rng);
-    if (spec->quantum > 0) r = spec->quantum * nearbyint(r / spec->quantum);
-    return r;
+/* value clipped to +-range and rounded to the step 2 range / 2^bits (bits 0: unchanged) */
+static double convert(int bits, double range, double value) {
+    if (bits <= 0) return value;
+    double q = 2 * range / ldexp(1.0, bits);
+    return q * nearbyint(fmin(fmax(value, -range), range) / q);
+}
+
+static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_adc_spec *adc,
+                      double value) {
+    double r = value;
+    if (p->opt.noise) {
+        r = (1 + spec->gain_error) * value + spec->offset +
+            spec->noise_std * rths_rng_normal(&p->rng);
+        if (spec->quantum > 0) r = spec->quantum * nearbyint(r / spec->quantum);
+    }
+    int volts_noise = p->opt.noise && adc->noise_v > 0;
+    if (adc->bits <= 0 && !volts_noise) return r;
+    /* through the converter, in volts */
+    double v = r / adc->units_per_v;
+    if (volts_noise) v += adc->noise_v * rths_rng_normal(&p->rng);
+    return convert(adc->bits, adc->range_v, v) * adc->units_per_v;
 }
 
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     double acc = interface_acceleration(p);
     out->n = p->n;
     for (int i = 0; i < p->n; i++)
-        out->displacement_m[i] = measure(p, &p->opt.laser, p->q[i]);
-    out->interface_acceleration_m_s2 = measure(p, &p->opt.accelerometer, acc);
+        out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
+    out->interface_acceleration_m_s2 =
+        measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc);
     /* the load cell sits between the armature and the storey */
-    out->interface_force_n = measure(p, &p->opt.load_cell, p->fs - p->armature_kg * acc);
+    out->interface_force_n =
+        measure(p, &p->opt.load_cell, &p->opt.load_cell_adc, p->fs - p->armature_kg * acc);
 }
 
 /* Classical RK4 on (q, v, fs) from tau0 to tau1 inside the sample in m substeps, the force
@@ -540,16 +697,54 @@ static void crossing_step(rths_plant *p, int side, double target_start, double t
     if (tau < p->h) rk4_span(p, tau, p->h, CROSSING_SUBSTEPS, target_start, target_end, !side);
 }
 
+/* After each sample: peaks, flagged samples, and the limit (action fault) the state is beyond. */
+static void limits_update(rths_plant *p) {
+    const rths_actuator_options *a = &p->opt.actuator;
+    rths_actuator_status *st = &p->status;
+    double x = fabs(p->q[p->n - 1]), v = fabs(p->v[p->n - 1]), f = fabs(p->fs);
+    st->peak_stroke_m = fmax(st->peak_stroke_m, x);
+    st->peak_velocity_m_per_s = fmax(st->peak_velocity_m_per_s, v);
+    st->peak_force_n = fmax(st->peak_force_n, f);
+    st->beyond = RTHS_RIG_OK;
+    if (a->stroke_limit_m > 0 && x > a->stroke_limit_m) {
+        if (a->stroke_flag)
+            st->stroke_flagged_samples++;
+        else
+            st->beyond = RTHS_RIG_FAULT_DISPLACEMENT;
+    }
+    if (a->velocity_limit_m_per_s > 0 && v > a->velocity_limit_m_per_s) {
+        if (a->velocity_flag)
+            st->velocity_flagged_samples++;
+        else
+            st->beyond = RTHS_RIG_FAULT_DISPLACEMENT;
+    }
+    if (a->force_limit_n > 0 && !a->force_clip && f > a->force_limit_n)
+        st->beyond = RTHS_RIG_FAULT_FORCE;
+}
+
+rths_rig_fault rths_plant_limit_fault(const rths_plant *p) {
+    return p->status.beyond;
+}
+
+void rths_plant_actuator_status(const rths_plant *p, rths_actuator_status *out) {
+    *out = p->status;
+}
+
 void rths_plant_advance(rths_plant *p, double demand_v) {
-    /* transport delay in whole samples, then the amplifier-shaker lag */
-    double u = demand_v;
+    /* the DAC, the transport delay in whole samples, then the actuator */
+    double u = convert(p->opt.actuator.dac_bits, p->opt.actuator.dac_range_v, demand_v);
     if (p->delay_samples > 0) {
         int len = p->delay_samples;
         u = p->delay_line[p->delay_pos];
         p->delay_line[p->delay_pos] = demand_v;
         p->delay_pos = (p->delay_pos + 1) % len;
     }
-    double target_end = p->opt.gain_n_per_v * u;
+    /* the actuator's input: the force command (shaker) or the demand (transfer function) */
+    double target_end = p->tf ? u : p->opt.gain_n_per_v * u;
+    if (p->command_limit > 0 && fabs(target_end) > p->command_limit) {
+        target_end = copysign(p->command_limit, target_end);
+        p->status.force_clipped_samples++;
+    }
     double target_start = p->opt.linear_hold ? p->last_force_target : target_end;
     p->last_force_target = target_end;
     if (p->opt.substeps_per_sample > 0) {
@@ -562,11 +757,17 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
             crossing_step(p, side, target_start, target_end);
         } else {
             memcpy(p->z, p->z_next, sizeof(double) * (size_t)p->nz);
-            p->fs = p->lag_rate > 0 ? p->z[2 * p->n] : target_end;
+            if (p->tf)
+                p->fs = p->act_out * ((p->na > 0 ? p->z[2 * p->n + p->na - 1] : 0.0) +
+                                      p->act_d * target_end) -
+                        p->act_spring * p->q[p->n - 1];
+            else
+                p->fs = p->lag_rate > 0 ? p->z[2 * p->n] : target_end;
         }
     }
     p->forcing_now = forcing_at(p, p->h);
     p->time_s += p->h;
+    limits_update(p);
 }
 
 double rths_plant_time_s(const rths_plant *p) {
@@ -577,6 +778,135 @@ double rths_plant_interface_displacement_m(const rths_plant *p) {
 }
 double rths_plant_noise_level_m(const rths_plant *p) {
     return p->opt.noise ? p->opt.laser.noise_std : 0.0;
+}
+
+/* A list of at most RTHS_ACTUATOR_MAX_ORDER + 1 coefficients into a fixed array. */
+static int coefficients_read(rths_config *cfg, const char *key, int required, double *out,
+                             int *count, rths_error *err) {
+    double *v = NULL;
+    int n = 0, rc = rths_config_get_double_list(cfg, key, required, &v, &n, err);
+    if (!rc && n > RTHS_ACTUATOR_MAX_ORDER + 1)
+        rc = rths_config_error_at(cfg, key, err, "%d coefficients; at most %d (order %d)", n,
+                                  RTHS_ACTUATOR_MAX_ORDER + 1, RTHS_ACTUATOR_MAX_ORDER);
+    if (!rc && rths_config_has(cfg, key) && n == 0)
+        rc = rths_config_error_at(cfg, key, err, "needs at least one coefficient");
+    for (int i = 0; !rc && i < n; i++)
+        out[i] = v[i];
+    if (!rc && n > 0) *count = n;
+    free(v);
+    return rc;
+}
+
+/* rig.sensors.NAME.adc_bits, adc_range_v, units_per_v, noise_v */
+static int adc_config_read(rths_config *cfg, const char *name, rths_adc_spec *adc,
+                           rths_error *err) {
+    char k_bits[96], k_range[96], k_units[96], k_noise[96];
+    snprintf(k_bits, sizeof k_bits, "rig.sensors.%s.adc_bits", name);
+    snprintf(k_range, sizeof k_range, "rig.sensors.%s.adc_range_v", name);
+    snprintf(k_units, sizeof k_units, "rig.sensors.%s.units_per_v", name);
+    snprintf(k_noise, sizeof k_noise, "rig.sensors.%s.noise_v", name);
+    long bits = adc->bits;
+    int rc;
+    if ((rc = rths_config_get_int(cfg, k_bits, 0, bits, 0, 32, &bits, err)) ||
+        (rc = rths_config_get_double_ex(cfg, k_range, 0, adc->range_v, 0, 1e4, RTHS_CONFIG_LO_OPEN,
+                                        &adc->range_v, err)) ||
+        (rc = rths_config_get_double_ex(cfg, k_units, 0, adc->units_per_v, 0, 1e9,
+                                        RTHS_CONFIG_LO_OPEN, &adc->units_per_v, err)) ||
+        (rc = rths_config_get_double(cfg, k_noise, 0, adc->noise_v, 0, 1e3, &adc->noise_v, err)))
+        return rc;
+    adc->bits = (int)bits;
+    return RTHS_OK;
+}
+
+/* rig.actuator.limits and rig.actuator.dac: for either model. */
+static int actuator_limits_read(rths_config *cfg, rths_actuator_options *a, rths_error *err) {
+    static const char *const clip[] = {"fault", "clip", NULL}, *const flag[] = {"fault", "flag",
+                                                                                NULL};
+    long bits = a->dac_bits;
+    int rc;
+    if ((rc = rths_config_get_double(cfg, "rig.actuator.limits.force_n", 0, a->force_limit_n, 0,
+                                     1e9, &a->force_limit_n, err)) ||
+        (rc = rths_config_get_choice(cfg, "rig.actuator.limits.force_action", 0, a->force_clip,
+                                     clip, &a->force_clip, err)) ||
+        (rc = rths_config_get_double(cfg, "rig.actuator.limits.stroke_m", 0, a->stroke_limit_m, 0,
+                                     100, &a->stroke_limit_m, err)) ||
+        (rc = rths_config_get_choice(cfg, "rig.actuator.limits.stroke_action", 0, a->stroke_flag,
+                                     flag, &a->stroke_flag, err)) ||
+        (rc = rths_config_get_double(cfg, "rig.actuator.limits.velocity_m_per_s", 0,
+                                     a->velocity_limit_m_per_s, 0, 1e3, &a->velocity_limit_m_per_s,
+                                     err)) ||
+        (rc = rths_config_get_choice(cfg, "rig.actuator.limits.velocity_action", 0,
+                                     a->velocity_flag, flag, &a->velocity_flag, err)) ||
+        (rc = rths_config_get_int(cfg, "rig.actuator.dac.bits", 0, bits, 0, 32, &bits, err)) ||
+        (rc = rths_config_get_double_ex(cfg, "rig.actuator.dac.range_v", 0, a->dac_range_v, 0, 1e4,
+                                        RTHS_CONFIG_LO_OPEN, &a->dac_range_v, err)))
+        return rc;
+    a->dac_bits = (int)bits;
+    return RTHS_OK;
+}
+
+/* rig.actuator: the model and, for transfer_function, its coefficients, delay and hold. */
+static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err) {
+    static const char *const models[] = {"shaker", "transfer_function", NULL};
+    static const char *const outputs[] = {"force", "displacement", NULL};
+    static const char *const holds[] = {"linear", "step", NULL};
+    rths_actuator_options *a = &opt->actuator;
+    int model = (int)a->model, output = 0, rc;
+    if ((rc = rths_config_get_choice(cfg, "rig.actuator.model", 0, model, models, &model, err)) ||
+        (rc = actuator_limits_read(cfg, a, err)))
+        return rc;
+    a->model = (rths_actuator_model)model;
+    int tf = a->model == RTHS_ACTUATOR_TRANSFER_FUNCTION;
+    static const char *const tf_keys[] = {
+        "numerator", "denominator", "velocity_feedback",           "output",
+        "delay_s",   "hold",        "connection_stiffness_n_per_m"};
+    for (int i = 0; !tf && i < 7; i++) {
+        char key[64];
+        snprintf(key, sizeof key, "rig.actuator.%s", tf_keys[i]);
+        if (rths_config_has(cfg, key))
+            return rths_config_error_at(cfg, key, err,
+                                        "applies to rig.actuator.model: transfer_function only");
+    }
+    if (!tf) return RTHS_OK;
+    /* a transfer function's demand goes through a DAC (held as a step) with no delay unless
+     * told: the shaker's defaults do not carry over */
+    int hold = 1;
+    opt->delay_s = 0;
+    if ((rc = coefficients_read(cfg, "rig.actuator.numerator", 1, a->numerator, &a->numerator_count,
+                                err)) ||
+        (rc = coefficients_read(cfg, "rig.actuator.denominator", 1, a->denominator,
+                                &a->denominator_count, err)) ||
+        (rc = rths_config_get_double(cfg, "rig.actuator.velocity_feedback", 0, 0, -1e15, 1e15,
+                                     &a->velocity_feedback, err)) ||
+        (rc = rths_config_get_choice(cfg, "rig.actuator.output", 0, 0, outputs, &output, err)) ||
+        (rc = rths_config_get_double(cfg, "rig.actuator.delay_s", 0, 0, 0, 0.1, &opt->delay_s,
+                                     err)) ||
+        (rc = rths_config_get_choice(cfg, "rig.actuator.hold", 0, hold, holds, &hold, err)))
+        return rc;
+    opt->linear_hold = hold == 0;
+    a->displacement_output = output == 1;
+    if (a->displacement_output &&
+        (rc = rths_config_get_double_ex(cfg, "rig.actuator.connection_stiffness_n_per_m", 1, 0, 0,
+                                        1e12, RTHS_CONFIG_LO_OPEN, &a->connection_stiffness_n_per_m,
+                                        err)))
+        return rc;
+    if (!a->displacement_output &&
+        rths_config_has(cfg, "rig.actuator.connection_stiffness_n_per_m"))
+        return rths_config_error_at(cfg, "rig.actuator.connection_stiffness_n_per_m", err,
+                                    "applies to rig.actuator.output: displacement only");
+    if (a->displacement_output && a->force_clip)
+        return rths_config_error_at(cfg, "rig.actuator.limits.force_action", err,
+                                    "clip needs rig.actuator.output: force (a displacement-output "
+                                    "actuator can trip on its force: fault)");
+    if (a->numerator_count > a->denominator_count)
+        return rths_config_error_at(cfg, "rig.actuator.numerator", err,
+                                    "degree %d above the denominator's %d: the actuator must be "
+                                    "proper",
+                                    a->numerator_count - 1, a->denominator_count - 1);
+    if (a->denominator[0] == 0)
+        return rths_config_error_at(cfg, "rig.actuator.denominator", err,
+                                    "the leading coefficient must be nonzero");
+    return RTHS_OK;
 }
 
 int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err) {
@@ -619,7 +949,9 @@ int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error
                     {"accelerometer", &opt->accelerometer},
                     {"load_cell", &opt->load_cell}};
     static const char *const fields[4] = {"gain_error", "offset", "noise_std", "quantum"};
+    rths_adc_spec *adcs[3] = {&opt->laser_adc, &opt->accelerometer_adc, &opt->load_cell_adc};
     for (int s = 0; s < 3; s++) {
+        if ((rc = adc_config_read(cfg, sensors[s].name, adcs[s], err))) return rc;
         double *values[4] = {&sensors[s].spec->gain_error, &sensors[s].spec->offset,
                              &sensors[s].spec->noise_std, &sensors[s].spec->quantum};
         for (int f = 0; f < 4; f++) {
@@ -630,5 +962,5 @@ int rths_plant_config_read(rths_config *cfg, rths_plant_options *opt, rths_error
                 return rc;
         }
     }
-    return RTHS_OK;
+    return actuator_config_read(cfg, opt, err);
 }

@@ -40,6 +40,20 @@ expect_exit 2 "unknown server key" "$RTHS" controller --config "$CFG" --listen 1
     --set server.watchdgo_s=1
 expect_exit 2 "missing config file" "$RTHS" controller --config "$tmp/nope.yaml"
 expect_exit 2 "unknown option" "$RTHS" controller --config "$CFG" --frobnicate
+# I/O plug-ins (docs/io-plugins.md): a wrong ABI version or a missing symbol is refused before
+# anything listens or runs (the deliberately broken plug-ins of tests/data/io, built beside rths)
+BUILD=$(dirname "$RTHS")
+"$RTHS" controller --help | grep -q -- "--io PLUGIN.so" || fail "--help does not document --io"
+expect_exit 2 "wrong ABI plug-in" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
+    --io "$BUILD/tests/io/wrong_abi.so"
+grep -q "wrong_abi.so: ABI version 42, this controller speaks version 1" "$tmp/x.err" ||
+    fail "wrong ABI message"
+[ -s "$tmp/x.out" ] && fail "a refused plug-in still printed on stdout"
+expect_exit 2 "plug-in missing a symbol" "$RTHS" controller --config "$CFG" \
+    --listen 127.0.0.1:0 --io "$BUILD/tests/io/missing_symbol.so"
+grep -q "symbol 'rths_io_plugin_safe_state' is missing" "$tmp/x.err" || fail "missing-symbol message"
+expect_exit 2 "no such plug-in" "$RTHS" controller --config "$CFG" --io "$tmp/none.so"
+grep -q "none.so" "$tmp/x.err" || fail "missing plug-in message does not name the file"
 
 # The seed with heavier damping (the transient dies out in seconds of wall-clock time), noise
 # off, and a two-point natural continuation: shared by the controller and both host runs.
@@ -49,8 +63,9 @@ HOST=(--set continuation.method=natural --set continuation.start_hz=16
     --set continuation.max_step_hz=0.1 --set continuation.max_points=2
     --set iteration.rel_tolerance=1e-6)
 
-# Start on an ephemeral port.
+# Start on an ephemeral port, on the reference I/O plug-in loaded from its shared object.
 "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false "${PHYS[@]}" \
+    --io "$BUILD/rths_io_virtual.so" \
     >"$tmp/ctl.out" 2>"$tmp/ctl.err" &
 pid=$!
 port=
