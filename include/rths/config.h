@@ -72,7 +72,7 @@ int rths_config_check_unknown(const rths_config *cfg, rths_error *err);
 
 /* The check every command and API entry runs after its readers: rths_config_check_unknown, with
  * each of the project's optional sections (rig, controller, iteration, continuation, stability,
- * fidelity, output, server) accepted whole only when no reader in this program asked for any of
+ * fidelity, output, server, io) accepted whole only when no reader in this program asked for any of
  * its keys and it is not listed in own (NULL-terminated, may be NULL). Once a reader asked for
  * one of a section's keys, a key it did not ask for is a typo that would otherwise change
  * nothing, silently. */

@@ -18,6 +18,7 @@
 #define RTHS_SETUP_H
 
 #include "rths/config.h"
+#include <stddef.h>
 #include "rths/model.h"
 
 typedef struct rths_setup {
@@ -50,6 +51,9 @@ void rths_setup_free(rths_setup *s);
 /* Models up to this many DoFs report every DoF; larger ones only what the test sees (physical
  * substructure, interface, forcing), so modes.csv and true_frf.csv stay small at any n. */
 #define RTHS_SETUP_ALL_DOFS_UP_TO 64
+/* The forcing in words for titles and logs: "1 N on DoF 4" or "ground acceleration 1 m/s^2". */
+void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size);
+
 /* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
 int *rths_setup_output_dofs(const rths_setup *s, int *count);
 

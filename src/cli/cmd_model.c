@@ -134,17 +134,18 @@ static int plot_frf(rths_report *rep, const rths_setup *s, const rths_modes *m, 
     size_t cap = 4096 + (size_t)(n_out + MODES_SHOWN) * 256;
     char *body = malloc(cap);
     if (!body) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    size_t len =
-        (size_t)snprintf(body, cap,
-                         "set datafile separator ','\n"
-                         "set title 'True assembly: response to %g N on DoF %d (analytic)'\n"
-                         "set xlabel 'Forcing frequency (Hz)'\n"
-                         "set ylabel 'Displacement amplitude (m)'\n"
-                         "set logscale y\n"
-                         "set format y '10^{%%L}'\n"
-                         "set grid\n"
-                         "set key top right\n",
-                         s->forcing_amplitude_n, s->forcing_dof + 1);
+    char forcing[96];
+    rths_setup_forcing_text(s, forcing, sizeof forcing);
+    size_t len = (size_t)snprintf(body, cap,
+                                  "set datafile separator ','\n"
+                                  "set title 'True assembly: response to %s (analytic)'\n"
+                                  "set xlabel 'Forcing frequency (Hz)'\n"
+                                  "set ylabel 'Displacement amplitude (m)'\n"
+                                  "set logscale y\n"
+                                  "set format y '10^{%%L}'\n"
+                                  "set grid\n"
+                                  "set key top right\n",
+                                  forcing);
     for (int r = 0, shown = 0; r < m->n && shown < MODES_SHOWN && len < cap; r++) {
         if (m->frequency_hz[r] < f_lo || m->frequency_hz[r] > f_hi) continue;
         shown++;
@@ -201,9 +202,10 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const rths_setup
 }
 
 static void print_modes(const rths_cli *cli, const rths_setup *setup, const rths_modes *modes) {
-    rths_cli_print(cli, "True assembly: %d DoFs, interface DoF %d, p = %g, %g N on DoF %d\n",
-                   setup->assembly.n, setup->split.int_dofs[0] + 1, setup->split.mass_ratio,
-                   setup->forcing_amplitude_n, setup->forcing_dof + 1);
+    char forcing[96];
+    rths_setup_forcing_text(setup, forcing, sizeof forcing);
+    rths_cli_print(cli, "True assembly: %d DoFs, interface DoF %d, p = %g, %s\n", setup->assembly.n,
+                   setup->split.int_dofs[0] + 1, setup->split.mass_ratio, forcing);
     rths_cli_print(cli, "%6s %14s %14s %14s\n", "mode", "frequency_hz", "omega_rad_s", "damping_%");
     for (int r = 0; r < modes->n && r < MODES_SHOWN; r++)
         rths_cli_print(cli, "%6d %14.4f %14.3f %14.4f\n", r + 1, modes->frequency_hz[r],

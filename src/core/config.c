@@ -1277,8 +1277,10 @@ int rths_config_write(const rths_config *cfg, const char *path, rths_error *err)
 }
 
 int rths_config_check_sections(rths_config *cfg, const char *const *own, rths_error *err) {
-    static const char *const sections[] = {"rig",       "controller", "iteration", "continuation",
-                                           "stability", "fidelity",   "output",    "server"};
+    /* io: a plug-in's own keys, read by the controller process that loads it */
+    static const char *const sections[] = {"rig",          "controller", "iteration",
+                                           "continuation", "stability",  "fidelity",
+                                           "output",       "server",     "io"};
     enum { N_SECTIONS = sizeof sections / sizeof sections[0] };
     int read[N_SECTIONS];
     for (int k = 0; k < N_SECTIONS; k++) /* before any marking: marks count as reads */

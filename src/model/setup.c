@@ -7,6 +7,7 @@
 #include "rths/mtx.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -439,4 +440,11 @@ int *rths_setup_output_dofs(const rths_setup *s, int *count) {
             dofs[m++] = i;
     *count = m;
     return dofs;
+}
+
+void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size) {
+    if (s->base_excitation)
+        snprintf(buf, size, "ground acceleration %g m/s^2", s->forcing_amplitude_n);
+    else
+        snprintf(buf, size, "%g N on DoF %d", s->forcing_amplitude_n, s->forcing_dof + 1);
 }
