@@ -151,6 +151,10 @@ typedef struct rths_solution {
     /* What a report shows: matched_* when the options ask for it and it exists, else the
      * measurement (frequency, fundamental amplitude and its averaging standard error). */
     double frequency_hz, amplitude_m, amplitude_se_m;
+    /* 1: amplitude_se_m includes every known source (noise, the remaining mismatch times the
+     * response's sensitivity to it, the uncertainty of that sensitivity); 0: no trusted Jacobian
+     * gave the sensitivity, and amplitude_se_m covers the noise alone (a lower bound) */
+    int amplitude_se_honest;
 } rths_solution;
 
 /* ---- the corrector: Newton-Broyden with line search, an opaque object ----

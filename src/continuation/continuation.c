@@ -27,6 +27,10 @@ void rths_continuation_defaults(rths_continuation_options *opt) {
     opt->monotonic = 0;
 }
 
+int rths_point_stable(const rths_point *pt) {
+    return pt->segment % 2 == 0;
+}
+
 double rths_point_amplitude_m(const rths_point *pt) {
     return hypot(pt->sol.eval.phys.a[1], pt->sol.eval.phys.b[1]);
 }

@@ -83,14 +83,27 @@ static double matched_variance(int n, int N, const double *xm, double am, const 
     return var;
 }
 
-/* Fills the matched estimate when it is trustworthy; returns 1 if it did. */
-static int matched_estimate(rths_corrector *c, const double *sp, const double *sn) {
+/* Relative uncertainty of the step to zero mismatch when no fitted model gives one: a nonlinear
+ * rig's Jacobian is known only to order one between updates (the secant updates see one direction
+ * at a time, a carried one lags the branch), so the whole step counts as its own uncertainty. The
+ * matched estimate is then never worse than the measurement it corrects without its standard
+ * error saying so. */
+enum { MATCHED_MAX_STEP_RATIO = 50 };
+static const double UNFITTED_STEP_UNCERTAINTY = 1.0;
+
+/* Fills the matched estimate when a Jacobian allows it; returns 1 if it did. *move_m receives the
+ * step's change of the fundamental amplitude (the mismatch times the response's sensitivity to
+ * it), *unfitted 1 when no fitted LTI model stands behind the step. */
+static int matched_estimate(rths_corrector *c, const double *sp, const double *sn, double *move_m,
+                            int *unfitted) {
     int n = c->n, N = c->harmonics;
     rths_solution *sol = &c->cur.sol;
     const double *phi = c->cur.rec.phi, *x = c->cur.rec.response;
     double model_var = 0;
     int fitted = refit_lti(c, &model_var);
     double K[LD * LD], kw[LD] = {0};
+    *move_m = NAN;
+    *unfitted = !fitted;
     if (N == 0 || matched_gain(c, K, kw) != 0) return 0;
     double xm[LD], wm = sol->omega_rad_s, step = 0, phi_norm = 0;
     for (int i = 0; i < n; i++) {
@@ -101,40 +114,57 @@ static int matched_estimate(rths_corrector *c, const double *sp, const double *s
         step += (xm[i] - x[i]) * (xm[i] - x[i]);
         phi_norm += phi[i] * phi[i];
     }
-    /* Without a fitted model (a nonlinear rig, secant-updated Jacobians) the step's size is the
-     * only check: more than 50 times the mismatch (a resonance amplifies by up to ~40) says the
-     * Jacobians are not known well enough to extrapolate; near a fold a stale one moved the
-     * estimate by 18 % where the measurement was 0.8 % off. Keep the measurement then. A fitted
-     * LTI model carries its own uncertainty in model_var. Jacobians carried from earlier points,
-     * unchecked here, are no basis either. */
-    if (!fitted && (step > 50.0 * 50.0 * phi_norm || !c->jacobian_here)) return 0;
+    double am = hypot(xm[0], xm[N]);
+    *move_m = am - hypot(x[0], x[N]);
+    /* Without a fitted model (a nonlinear rig, secant-updated Jacobians) a step of more than 50
+     * times the mismatch (a resonance amplifies by up to ~40) says the Jacobians are not known
+     * well enough to extrapolate: near a fold a stale one moved the estimate by 18 % where the
+     * measurement was 0.8 % off. Keep the measurement then (its error is not known: the caller
+     * flags the standard error). */
+    if (!fitted && step > (double)MATCHED_MAX_STEP_RATIO * MATCHED_MAX_STEP_RATIO * phi_norm)
+        return 0;
     sol->matched_omega_rad_s = wm;
     for (int k = 0; k < N; k++) {
         sol->matched_a[k] = xm[k];
         sol->matched_b[k] = xm[N + k];
     }
-    double am = hypot(xm[0], xm[N]);
     sol->matched_amplitude_m = am;
-    sol->matched_amplitude_se_m = sqrt(matched_variance(n, N, xm, am, K, sp, sn) + model_var);
+    double jac_var =
+        fitted ? model_var
+               : UNFITTED_STEP_UNCERTAINTY * UNFITTED_STEP_UNCERTAINTY * (*move_m) * (*move_m);
+    sol->matched_amplitude_se_m = sqrt(matched_variance(n, N, xm, am, K, sp, sn) + jac_var);
     return 1;
 }
 
+/* The reported amplitude and its standard error, with every known source: the noise, the
+ * remaining mismatch times the response's sensitivity to it (the step to zero mismatch), and the
+ * uncertainty of that sensitivity (a fitted model's scatter, else the whole step). When no
+ * Jacobian gives the sensitivity, or the step was not trusted, the standard error covers the
+ * noise alone and amplitude_se_honest says so. */
 void corrector_finish(rths_corrector *c) {
     int N = c->harmonics;
     rths_solution *sol = &c->cur.sol;
     const double *x = c->cur.rec.response;
-    double sp[LD], sn[LD];
+    double sp[LD], sn[LD], move = NAN;
+    int unfitted = 1;
     entry_noise(c, sp, sn);
-    sol->have_matched = matched_estimate(c, sp, sn);
+    sol->have_matched = matched_estimate(c, sp, sn, &move, &unfitted);
+    sol->amplitude_se_honest = 0;
     if (c->opt.report_matched && sol->have_matched) {
         sol->frequency_hz = sol->matched_omega_rad_s / (2 * M_PI);
         sol->amplitude_m = sol->matched_amplitude_m;
         sol->amplitude_se_m = sol->matched_amplitude_se_m;
+        sol->amplitude_se_honest = 1;
     } else if (N > 0) {
         double amp = hypot(x[0], x[N]);
+        double noise_se = hypot(x[0] * sp[0], x[N] * sp[N]) / fmax(amp, 1e-300);
         sol->frequency_hz = sol->omega_rad_s / (2 * M_PI);
         sol->amplitude_m = amp;
-        sol->amplitude_se_m = hypot(x[0] * sp[0], x[N] * sp[N]) / fmax(amp, 1e-300);
+        /* the measurement still carries the mismatch's effect, estimated by the step (a trusted
+         * one: the matched estimate exists but is not reported, as with --strategy paper) */
+        sol->amplitude_se_honest = sol->have_matched;
+        sol->amplitude_se_m =
+            sol->have_matched ? sqrt(noise_se * noise_se + move * move) : noise_se;
     } else {
         sol->frequency_hz = sol->omega_rad_s / (2 * M_PI);
     }
