@@ -125,7 +125,7 @@ void corrector_secant_update(rths_corrector *c, const corrector_point *trial) {
         y[i] = trial->phi[i] - cur->phi[i];
     int lti = c->mem.lti && c->m == n && N > 0;
     double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-    if (lti && lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL) == 0) {
+    if (lti && lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL, NULL) == 0) {
         for (int k = 0; k < N; k++) {
             lti_block(c->mem.jacobian, N, k, g[k]);
             lti_block(c->mem.response_jacobian, N, k, r[k]);
