@@ -65,6 +65,11 @@ typedef struct rths_newton_options {
     /* rig safety: a step never exceeds step_limit times the larger of the current unknowns and
      * the reference (the numerical response) in scaled units; 0: no limit */
     double step_limit;
+    /* 1: the caller knows the rig to be linear time-invariant (a linear structure on the virtual
+     * rig), so the LTI form and its fitted model (see the corrector) also serve pseudo-arclength
+     * runs, whose frequency unknown otherwise keeps the corrector from looking for it; 0: only
+     * natural sweeps test for it */
+    int rig_lti;
 } rths_newton_options;
 
 /* ---- the zero problem: Phi(u; omega) = 0 ----
