@@ -48,10 +48,12 @@ static int refit_lti(rths_corrector *c, double *model_var, double *scatter_var) 
  * folds, where the target block of J alone is singular. Columns 0..n-1 of A^-1, mapped
  * by R, give K (x* = x - K Phi) and the frequency's share kw (w* = w - kw . Phi). Returns 0, or
  * -1 without a (usable) Jacobian. */
-static int matched_gain(const rths_corrector *c, int m, double *K, double *kw) {
+static int matched_gain(const rths_corrector *c, int m, int fitted, double *K, double *kw) {
     int n = c->n;
     const corrector_memory *mem = &c->mem;
-    if (!mem->have_jacobian) return -1;
+    /* a fitted LTI model sets the target blocks from the history even when the carried
+     * Jacobians were dropped (after a failed correction) */
+    if (!mem->have_jacobian && !(fitted && m == n)) return -1;
     for (int i = 0; i < n; i++) {
         double a[LD * LD], z[LD] = {0};
         for (int q = 0; q < m; q++) {
@@ -115,10 +117,10 @@ static double move_size(const rths_corrector *c, const double *K) {
  * step brought the share within one standard error from 0.80 to 0.50). */
 static int choose_step(const rths_corrector *c, int fitted, double *K, double *kw) {
     int n = c->n;
-    if (c->m == n) return matched_gain(c, n, K, kw);
+    if (c->m == n) return matched_gain(c, n, fitted, K, kw);
+    int fixed_ok = matched_gain(c, n, fitted, K, kw) == 0;
     double Ka[LD * LD], kwa[LD] = {0};
-    if (matched_gain(c, c->m, Ka, kwa) != 0) return -1;
-    int fixed_ok = matched_gain(c, n, K, kw) == 0;
+    if (matched_gain(c, c->m, fitted, Ka, kwa) != 0) return fitted && fixed_ok ? 0 : -1;
     for (int i = 0; i < n; i++)
         kw[i] = 0;
     if (fitted && fixed_ok && move_size(c, K) <= 3.0 * move_size(c, Ka)) return 0;

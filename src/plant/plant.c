@@ -594,8 +594,14 @@ double rths_plant_noise_level_m(const rths_plant *p) {
 static int read_noise(rths_config *cfg, rths_plant_options *opt, rths_error *err) {
     const char *text = NULL;
     int rc = rths_config_get_string(cfg, "rig.noise", 0, NULL, &text, err);
-    if (rc || !text || strcmp(text, "lab"))
-        return rc ? rc : rths_config_get_bool(cfg, "rig.noise", 0, opt->noise, &opt->noise, err);
+    if (rc || !text) return rc;
+    if (strcmp(text, "lab")) {
+        rths_error bool_err;
+        if (rths_config_get_bool(cfg, "rig.noise", 0, opt->noise, &opt->noise, &bool_err))
+            return rths_config_error_at(cfg, "rig.noise", err,
+                                        "expected true, false or lab, got '%s'", text);
+        return RTHS_OK;
+    }
     opt->noise = PLANT_NOISE_LAB;
     opt->laser.noise_std = 1e-6;
     opt->accelerometer.noise_std = 0.1;

@@ -252,6 +252,8 @@ typedef struct {
     int far, far_within_3se;
     /* points farther than STABLE_FOLD_HZ from a fold: labelled, and agreeing with the truth */
     int stable_compared, stable_agree;
+    double
+        max_z_honest; /* largest |A - truth| / SE of a point whose SE is honest, far from folds */
     double rig_time, max_h[4], median;
 } point_stats;
 
@@ -276,6 +278,7 @@ static void compare_with_truth(const frf_state *run, const rths_point *pt, point
     if (fold_hz > FAR_FROM_FOLD_HZ) {
         ps->far++;
         ps->far_within_3se += z <= 3;
+        if (pt->sol.amplitude_se_honest) ps->max_z_honest = fmax(ps->max_z_honest, z);
     }
     if (fold_hz > STABLE_FOLD_HZ) {
         ps->stable_compared++;
@@ -356,6 +359,8 @@ static void add_truth_comparison(json_object *root, const point_stats *ps) {
     json_object_object_add(root, "points_far_from_folds", json_object_new_int(ps->far));
     json_object_object_add(root, "points_far_from_folds_within_3_standard_errors",
                            json_object_new_int(ps->far_within_3se));
+    json_object_object_add(root, "max_deviation_in_standard_errors",
+                           json_object_new_double(ps->max_z_honest));
     json_object_object_add(root, "stability_points_compared",
                            json_object_new_int(ps->stable_compared));
     json_object_object_add(root, "stability_points_agreeing",
