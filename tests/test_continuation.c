@@ -597,8 +597,7 @@ static void test_matched_estimate(void **state) {
     for (int i = 0; i < col.n; i++) {
         const rths_solution *s = &col.sol[i];
         double truth = cabs(lin_solution_phys(1, s->omega_rad_s));
-        /* before the model has enough evaluations, a point accepted at once on carried
-         * Jacobians reports its measurement */
+        /* a point without a Jacobian reports its measurement */
         if (!s->have_matched) continue;
         matched++;
         assert_true(s->amplitude_se_m > 0);
@@ -608,6 +607,9 @@ static void test_matched_estimate(void **state) {
                     s->omega_rad_s / (2 * M_PI), z, (s->amplitude_m - truth) / truth,
                     s->amplitude_se_m / truth, s->eval.average_periods);
         assert_true(fabs(z) < 3.0);
+        /* never further from the measurement than three of its standard errors */
+        assert_true(fabs(s->amplitude_m - hypot(s->eval.phys.a[1], s->eval.phys.b[1])) <=
+                    3 * s->amplitude_se_m * (1 + 1e-12));
         z2 += z * z;
         worst_measured =
             fmax(worst_measured,
@@ -946,6 +948,9 @@ static void test_standard_error_coverage_duffing(void **state) {
         double z = fabs(s->amplitude_m - truth) / s->amplitude_se_m;
         compared++;
         honest += s->amplitude_se_honest;
+        /* the estimate never strays from the measurement it corrects without its SE saying so */
+        double measured = hypot(s->eval.phys.a[1], s->eval.phys.b[1]);
+        assert_true(fabs(s->amplitude_m - measured) <= 3 * s->amplitude_se_m * (1 + 1e-12));
         for (int k = 1; k <= 3; k++)
             within[k] += z <= k;
         if (getenv("RTHS_TEST_VERBOSE"))
