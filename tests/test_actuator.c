@@ -290,17 +290,18 @@ static void test_adc_noise_floor_follows_resolution(void **state) {
 }
 
 /* DAC: a 3 V, 13 Hz demand through a 12-bit +-10 V DAC into the ideal shaker without lag (step
- * hold, noise off): the load cell reads gain x the converted demand, so its error against gain x
- * demand has variance gain^2 q^2 / 12 (about 5 steps per sample: the error is uniform and white;
- * 100000 samples, standard error 0.5 %, tolerance 3 %), and is never beyond half a step. */
-static void test_dac_quantisation(void **state) {
-    (void)state;
+ * hold, noise off), after a transport delay of delay_samples whole samples: the load cell reads
+ * gain x the converted, delayed demand, so its error against gain x the delayed demand has variance
+ * gain^2 q^2 / 12 (about 5 steps per sample: the error is uniform and white; 100000 samples,
+ * standard error 0.5 %, tolerance 3 %), and is never beyond half a step. */
+static void dac_case(int delay_samples) {
     rths_setup s;
     seed_setup(&s);
     rths_plant_options po;
     rths_plant_defaults(&po);
     rths_plant_ideal(&po);
     po.linear_hold = 0;
+    po.delay_s = delay_samples * 1e-4;
     po.actuator.dac_bits = 12;
     po.actuator.dac_range_v = 10.0;
     const double q = 20.0 / 4096;
@@ -315,16 +316,30 @@ static void test_dac_quantisation(void **state) {
         rths_plant_advance(p, u);
         rths_sensor_sample in;
         rths_plant_read(p, &in);
-        e[k] = in.interface_force_n - po.gain_n_per_v * u;
+        int j = k - delay_samples; /* the demand the actuator sees now */
+        double u_then = j >= 0 ? 3.0 * sin(2 * M_PI * 13.0 * j * 1e-4 + 0.3) : 0.0;
+        e[k] = in.interface_force_n - po.gain_n_per_v * u_then;
         worst = fmax(worst, fabs(e[k]));
     }
     double expect = po.gain_n_per_v * po.gain_n_per_v * q * q / 12, got = variance(e, N);
-    print_message("DAC 12 bits: force error variance %.4e N^2, gain^2 q^2/12 = %.4e N^2\n", got,
-                  expect);
+    print_message("DAC 12 bits, delay %d samples: force error variance %.4e N^2, gain^2 q^2/12 = "
+                  "%.4e N^2\n",
+                  delay_samples, got, expect);
     assert_close(got / expect, 1.0, 0.03);
     assert_true(worst <= 0.5 * q * po.gain_n_per_v * (1 + 1e-9));
     rths_plant_destroy(p);
     rths_setup_free(&s);
+}
+
+static void test_dac_quantisation(void **state) {
+    (void)state;
+    dac_case(0);
+}
+
+/* the converted demand, not the raw one, travels down the transport delay */
+static void test_dac_quantisation_through_delay(void **state) {
+    (void)state;
+    dac_case(3);
 }
 
 static void expect_config_error(const char *set, const char *key) {
@@ -454,6 +469,7 @@ int main(void) {
         cmocka_unit_test(test_stroke_fault_latches_in_the_loop),
         cmocka_unit_test(test_adc_noise_floor_follows_resolution),
         cmocka_unit_test(test_dac_quantisation),
+        cmocka_unit_test(test_dac_quantisation_through_delay),
         cmocka_unit_test(test_actuator_config),
         cmocka_unit_test(test_servo_hydraulic_example_matches_truth),
     };

@@ -68,6 +68,10 @@ s="$out/bilinear/summary.json"
 printf '   %s points, %s converged, %s evaluations; max deviation from the shooting solution %.3f %%\n' \
     "$(json "$s" points)" "$(json "$s" converged_points)" "$(json "$s" evaluations_total)" \
     "$(awk -v e="$(json "$s" max_relative_error_vs_truth)" 'BEGIN { print 100 * e }')"
+printf '   %s of %s points farther than 5 mHz from a fold within 3 standard errors of the truth on their branch;\n' \
+    "$(json "$s" points_far_from_folds_within_3_standard_errors)" "$(json "$s" points_far_from_folds)"
+printf '   stable label (fold-based) agrees with the shooting solution'"'"'s Floquet stability for %s of %s points\n' \
+    "$(json "$s" stability_points_agreeing)" "$(json "$s" stability_points_compared)"
 # the hybrid test's located folds, and the shooting solution's (where its stability flips)
 printf '   folds (Hz): hybrid %s; shooting %s\n' \
     "$(sed -n 's/.*"frequency_hz": *\([0-9.]*\).*/\1/p' "$s" | awk '{ printf "%s%.4f", (NR > 1 ? ", " : ""), $1 }')" \

@@ -94,6 +94,13 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                           rths_point_fn on_point, rths_progress_fn on_progress, void *user,
                           rths_continuation_result *result, rths_error *err);
 
+/* The fold-based stability label of a point: 1 stable, 0 unstable. A saddle-node fold of the
+ * periodic response is where the determinant of the target block of the Jacobian changes sign
+ * along the branch (the arclength-augmented one does not), and stability changes there; the label
+ * is anchored at the first point, taken as stable (a sweep starting away from resonance), and
+ * flips at every located fold, i.e. it is the parity of the branch segment. */
+int rths_point_stable(const rths_point *pt);
+
 /* Physical interface fundamental amplitude of a point, m. */
 double rths_point_amplitude_m(const rths_point *pt);
 

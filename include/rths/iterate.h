@@ -65,6 +65,11 @@ typedef struct rths_newton_options {
     /* rig safety: a step never exceeds step_limit times the larger of the current unknowns and
      * the reference (the numerical response) in scaled units; 0: no limit */
     double step_limit;
+    /* 1: the caller knows the rig to be linear time-invariant (a linear structure on the virtual
+     * rig), so the LTI form and its fitted model (see the corrector) also serve pseudo-arclength
+     * runs, whose frequency unknown otherwise keeps the corrector from looking for it; 0: only
+     * natural sweeps test for it */
+    int rig_lti;
 } rths_newton_options;
 
 /* ---- the zero problem: Phi(u; omega) = 0 ----
@@ -139,11 +144,13 @@ typedef struct rths_solution {
      * from the accepted measurement: x* = x - R J^-1 Phi, with J = dPhi/d(target) and
      * R = d(physical coefficients)/d(target) from the corrector (on an arclength run the step
      * includes the frequency and the arclength row, so it runs normal to the branch and is well
-     * posed at folds). The step is within tolerance, so its linearisation error is second order;
-     * what remains is the measurement noise of x and Phi, propagated into
-     * matched_amplitude_se_m. have_matched = 0 when no Jacobian exists, when without a fitted
-     * LTI model the Jacobians were only carried from earlier points (not measured or updated at
-     * this one), or when the step would exceed 50 times the mismatch. */
+     * posed at folds; with a fitted LTI model it stays at the measured frequency unless that step
+     * is three times longer). matched_amplitude_se_m holds every known source: the noise (the
+     * periods' scatter, or the evaluations' scatter about a fitted LTI model if larger), the
+     * uncertainty of the sensitivity times the mismatch (a fitted model's scatter, else the whole
+     * step), and a frequency move's effect at the point's frequency (branch slope times the
+     * move). have_matched = 0 when no Jacobian exists, or without a fitted LTI model when the
+     * step would exceed 50 times the mismatch. */
     int have_matched;
     double matched_a[RTHS_MAX_HARMONICS], matched_b[RTHS_MAX_HARMONICS]; /* m, harmonics 1..N */
     double matched_omega_rad_s;
@@ -151,6 +158,10 @@ typedef struct rths_solution {
     /* What a report shows: matched_* when the options ask for it and it exists, else the
      * measurement (frequency, fundamental amplitude and its averaging standard error). */
     double frequency_hz, amplitude_m, amplitude_se_m;
+    /* 1: amplitude_se_m includes every known source (noise, the remaining mismatch times the
+     * response's sensitivity to it, the uncertainty of that sensitivity); 0: no trusted Jacobian
+     * gave the sensitivity, and amplitude_se_m covers the noise alone (a lower bound) */
+    int amplitude_se_honest;
 } rths_solution;
 
 /* ---- the corrector: Newton-Broyden with line search, an opaque object ----

@@ -71,7 +71,7 @@ typedef struct rths_run_frf_result {
 
 /* frf.csv's columns, and an accepted point's row as frf.csv has it (what a point callback of the
  * C API receives). */
-enum { RTHS_RUN_FRF_COLUMNS = 22 };
+enum { RTHS_RUN_FRF_COLUMNS = 24 };
 extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
 void rths_run_frf_row(const rths_point *pt, double *row);
 

@@ -34,4 +34,15 @@ double rths_truth_curve_distance(const rths_truth_curve *t, double f_hz, double 
 double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t, double f_hz,
                                  double amp_m);
 
+/* The true amplitude at f_hz on the branch of a measured point (amp_m, m): linear, the analytic
+ * FRF; bilinear, of the curve's pieces spanning f_hz the one nearest amp_m (linear
+ * interpolation), with its Floquet stability in *stable (may be NULL). NAN when no piece spans
+ * f_hz. */
+double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
+                                     double amp_m, int *stable);
+
+/* Distance in frequency from f_hz to the nearest change of the curve's stability (a fold of the
+ * true assembly), Hz; INFINITY when the curve has none. */
+double rths_truth_fold_distance_hz(const rths_truth_curve *t, double f_hz);
+
 #endif

@@ -141,6 +141,7 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "reported_frequency_hz", json_object_new_double(s->frequency_hz));
     json_object_object_add(o, "amplitude_m", json_object_new_double(s->amplitude_m));
     json_object_object_add(o, "amplitude_se_m", json_object_new_double(s->amplitude_se_m));
+    json_object_object_add(o, "amplitude_se_honest", json_object_new_int(s->amplitude_se_honest));
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -300,6 +301,11 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
         get_dbl(o, "amplitude_m", &s->amplitude_m) ||
         get_dbl(o, "amplitude_se_m", &s->amplitude_se_m))
         return -1;
+    /* added within format 3: a journal without it makes no claim for its standard errors */
+    json_object *honest = NULL;
+    s->amplitude_se_honest = json_object_object_get_ex(o, "amplitude_se_honest", &honest)
+                                 ? json_object_get_int(honest)
+                                 : 0;
     rths_residual_from_evaluation(e, &pt->residual);
     return 0;
 }

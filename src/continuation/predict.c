@@ -191,5 +191,18 @@ void cont_predict(cont_run *run, cont_prediction *pr) {
         pr->natural_fallback = run->n >= 2 && run->opt->method == RTHS_CONT_ARCLENGTH;
     } else {
         predict_arclength(run, pr);
+        /* a branch without folds ends exactly at end_hz: a step that would cross it becomes a
+         * natural step onto it (the arclength step cannot aim at a frequency) */
+        const rths_continuation_options *opt = run->opt;
+        if (opt->monotonic && run->dir * (pr->omega_rad_s / (2 * M_PI) - opt->end_hz) > 0) {
+            double last_hz = run->pts[run->n - 1].sol.omega_rad_s / (2 * M_PI);
+            memset(pr, 0, sizeof *pr);
+            pr->arc.amplitude_scale_m = run->sc.amp_scale;
+            pr->arc.omega_scale_rad_s = run->sc.omega_scale;
+            /* after a failed attempt the step shrunk (step_shrink): keep it */
+            if (run->consecutive == 0) run->step_hz = fabs(opt->end_hz - last_hz);
+            predict_natural(run, pr);
+            pr->natural_fallback = 1;
+        }
     }
 }

@@ -286,7 +286,8 @@ void rths_corrector_forget_jacobian(rths_corrector *c) {
 int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u) {
     int N = c->harmonics;
     double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-    if (!c->mem.lti || N == 0 || lti_fit(&c->mem, N, omega_rad_s, g, r, z, NULL) != 0) return -1;
+    if (!c->mem.lti || N == 0 || lti_fit(&c->mem, N, omega_rad_s, g, r, z, NULL, NULL) != 0)
+        return -1;
     for (int k = 0; k < N; k++) {
         u[k] = creal(z[k]);
         u[N + k] = cimag(z[k]);

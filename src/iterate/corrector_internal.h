@@ -74,7 +74,7 @@ void lti_block(double *J, int N, int k, double complex g);
 int lti_like(const double *J, int N, double noise_entry);
 void lti_project(double *J, int N);
 int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g, double complex *r,
-            double complex *z_pred, double *var_ratio);
+            double complex *z_pred, double *var_ratio, double *var_matched);
 void lti_update(double *J, int N, const double *s, const double *y, const double *noise);
 void lti_secant_noise(const rths_residual *r0, const rths_residual *r1, int N, double scale,
                       double *noise_phi, double *noise_resp);

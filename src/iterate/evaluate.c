@@ -64,7 +64,7 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmon
             if (change == 0.0) {
                 remaining = 0.0; /* bit-identical periods: nothing left to settle */
             } else if (change_prev > 0) {
-                double r = fmin(change / change_prev, 0.98);
+                double r = fmin(change / change_prev, 0.995);
                 remaining = change * (1.0 + r / (1.0 - r));
             } else {
                 remaining = INFINITY;
@@ -284,7 +284,7 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
     }
     if (rc) return rc;
     pool_noise(&c->mem, &p->rec, n);
-    if (c->m == n && c->harmonics > 0)
+    if ((c->m == n || c->opt.rig_lti) && c->harmonics > 0)
         remember_evaluation(&c->mem, target, p->sol.omega_rad_s, &p->rec, n);
     double ext = describe(c, target, p) / (c->scale[0] * c->scale[0]);
     for (int i = 0; i < n; i++) {

@@ -54,7 +54,7 @@ int corrector_fd_jacobian(rths_corrector *c, rths_error *err) {
     c->jacobian_here = 1;
     c->fresh = 1;
     int N = c->harmonics;
-    c->mem.lti = c->m == n && N > 0 && lti_like(c->mem.jacobian, N, noise_j) &&
+    c->mem.lti = (c->m == n || c->opt.rig_lti) && N > 0 && lti_like(c->mem.jacobian, N, noise_j) &&
                  lti_like(c->mem.response_jacobian, N, noise_r);
     if (c->mem.lti) {
         lti_project(c->mem.jacobian, N);
@@ -125,7 +125,21 @@ void corrector_secant_update(rths_corrector *c, const corrector_point *trial) {
         y[i] = trial->phi[i] - cur->phi[i];
     int lti = c->mem.lti && c->m == n && N > 0;
     double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-    if (lti && lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL) == 0) {
+    if (c->mem.lti && c->m > n && N > 0) {
+        /* pseudo-arclength on a rig known to be LTI: Broyden keeps the frequency column, the
+         * target block keeps the LTI form, refitted to the history when it can be */
+        broyden_update(c->mem.jacobian, n, c->m, s, y, ss);
+        for (int i = 0; i < n; i++)
+            y[i] = trial->resp[i] - cur->resp[i];
+        broyden_update(c->mem.response_jacobian, n, c->m, s, y, ss);
+        lti_project(c->mem.jacobian, N);
+        lti_project(c->mem.response_jacobian, N);
+        if (lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL, NULL) == 0)
+            for (int k = 0; k < N; k++) {
+                lti_block(c->mem.jacobian, N, k, g[k]);
+                lti_block(c->mem.response_jacobian, N, k, r[k]);
+            }
+    } else if (lti && lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL, NULL) == 0) {
         for (int k = 0; k < N; k++) {
             lti_block(c->mem.jacobian, N, k, g[k]);
             lti_block(c->mem.response_jacobian, N, k, r[k]);

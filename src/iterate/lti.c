@@ -116,12 +116,17 @@ static void lti_normal_equations(const corrector_memory *mem, int N, int k, doub
     }
 }
 
-/* E|d(r/g)|^2 of harmonic k from the scatter of the solved fit about the history. */
+/* E|d(r/g)|^2 of harmonic k from the scatter of the solved fit about the history; *var_matched
+ * (if given): the scatter of the combination x - (r/g) Phi the matched estimate forms, per
+ * evaluation (m^2, complex): the noise as it shows between evaluations, which also holds what the
+ * periods of one evaluation cannot show (noise correlated from period to period, as the
+ * numerical side's resonant response to sensor noise is). */
 static double lti_ratio_variance(const corrector_memory *mem, int N, int k, const lti_normal *ne,
-                                 double zs, double complex g0, double complex r0) {
+                                 double zs, double complex g0, double complex r0,
+                                 double *var_matched) {
     enum { U = LTI_UNKNOWNS };
     int count = mem->history_count;
-    double ss_phi = 0, ss_x = 0;
+    double ss_phi = 0, ss_x = 0, ss_m = 0;
     for (int e = 0; e < count; e++) {
         double complex fit_phi = 0, fit_x = 0;
         for (int p = 0; p < U; p++) {
@@ -132,7 +137,10 @@ static double lti_ratio_variance(const corrector_memory *mem, int N, int k, cons
         double complex x = mem->history[e].response[k] + I * mem->history[e].response[N + k];
         ss_phi += creal(conj(phi - fit_phi) * (phi - fit_phi));
         ss_x += creal(conj(x - fit_x) * (x - fit_x));
+        double complex dm = (x - fit_x) - r0 / g0 * (phi - fit_phi);
+        ss_m += creal(conj(dm) * dm);
     }
+    if (var_matched) *var_matched = ss_m / (count - U);
     double factor = fabs(creal(ne->atb[2 * U])) / (zs * zs) / (count - U);
     double var_g = ss_phi * factor, var_r = ss_x * factor, ag = cabs(g0);
     return var_r / (ag * ag) + cabs(r0) * cabs(r0) * var_g / (ag * ag * ag * ag);
@@ -143,7 +151,7 @@ static int finite_complex(double complex z) {
 }
 
 int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g, double complex *r,
-            double complex *z_pred, double *var_ratio) {
+            double complex *z_pred, double *var_ratio, double *var_matched) {
     enum { U = LTI_UNKNOWNS };
     double spread;
     if (!history_usable(mem, omega, &spread)) return -1;
@@ -165,7 +173,9 @@ int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g,
         g[k] = g0;
         r[k] = r0;
         z_pred[k] = f0 / g0;
-        if (var_ratio) var_ratio[k] = lti_ratio_variance(mem, N, k, &ne, zs, g0, r0);
+        if (var_ratio)
+            var_ratio[k] = lti_ratio_variance(mem, N, k, &ne, zs, g0, r0,
+                                              var_matched ? &var_matched[k] : NULL);
     }
     return 0;
 }

@@ -122,3 +122,33 @@ double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t,
     double truth = rths_truth_linear_amplitude_m(s, f_hz);
     return fabs(amp_m - truth) / truth;
 }
+
+double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
+                                     double amp_m, int *stable) {
+    if (stable) *stable = 1;
+    if (!s->has_bilinear) return rths_truth_linear_amplitude_m(s, f_hz);
+    /* every piece of the curve that spans f_hz is a branch there; the point's is the nearest in
+     * log amplitude (the branches of a folded response differ by far more than any error) */
+    double best = NAN, best_gap = INFINITY;
+    for (int j = 0; j + 1 < t->n; j++) {
+        double f0 = t->freq_hz[j], f1 = t->freq_hz[j + 1];
+        if (!((f0 - f_hz) * (f1 - f_hz) <= 0) || f0 == f1) continue;
+        double x = (f_hz - f0) / (f1 - f0);
+        double a = t->amp_m[j] + x * (t->amp_m[j + 1] - t->amp_m[j]);
+        double gap = fabs(log(a / amp_m));
+        if (a > 0 && gap < best_gap) {
+            best_gap = gap;
+            best = a;
+            if (stable) *stable = x < 0.5 ? t->stable[j] : t->stable[j + 1];
+        }
+    }
+    return best;
+}
+
+double rths_truth_fold_distance_hz(const rths_truth_curve *t, double f_hz) {
+    double best = INFINITY;
+    for (int j = 0; j + 1 < t->n; j++)
+        if (t->stable[j] != t->stable[j + 1])
+            best = fmin(best, fabs(0.5 * (t->freq_hz[j] + t->freq_hz[j + 1]) - f_hz));
+    return best;
+}

@@ -48,6 +48,7 @@ static int read_options(frf_state *st, rths_error *err) {
     /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
      * part may be nonlinear whatever the model says) */
     st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
+    st->newton.rig_lti = st->cont.monotonic;
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
