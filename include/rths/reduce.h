@@ -20,6 +20,7 @@
 
 #include "rths/config.h"
 #include "rths/core.h"
+#include "rths/model.h"
 
 #include <complex.h>
 
@@ -80,5 +81,21 @@ double rths_reduced_stiffness_error_bound(const rths_reduced *r, double omega_ra
 int rths_interface_dynamic_stiffness(int n, int n_boundary, const double *mass,
                                      const double *damping, const double *stiffness,
                                      double omega_rad_s, double complex *s_out, rths_error *err);
+
+/* ---- the numerical substructure solved on the host (split.numerical_solver: frequency) ----
+ *
+ * The steady state of the numerical substructure M q'' + C q' + K q = e_int F + f Phi at one
+ * frequency, from its dynamic stiffness by the FRF sweep's exact solves (banded at any size):
+ * its interface receptance H(w) (m/N) and its interface displacement per newton of forcing
+ * amplitude when forcing_dof is an interface or numerical DoF (else 0). One interface DoF. */
+typedef struct rths_numerical_receptance rths_numerical_receptance;
+
+int rths_numerical_receptance_create(const rths_split *s, int forcing_dof,
+                                     rths_numerical_receptance **out, rths_error *err);
+/* An rths_receptance_fn (iterate.h) with ctx the object. */
+int rths_numerical_receptance_eval(void *ctx, double omega_rad_s,
+                                   double complex *receptance_m_per_n,
+                                   double complex *forced_m_per_n, rths_error *err);
+void rths_numerical_receptance_destroy(rths_numerical_receptance *r);
 
 #endif
