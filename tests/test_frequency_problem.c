@@ -156,8 +156,28 @@ static void test_conversion_closed_form(void **state) {
     rths_config_free(cfg);
 }
 
+/* split.numerical_solver: realtime by default; an unknown value is refused naming the key. */
+static void test_config_key(void **state) {
+    (void)state;
+    const char *bad[] = {"split.numerical_solver=modal"};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    load("examples/four_storey_linear.yaml", NULL, 0, &cfg, &s);
+    assert_int_equal(s.numerical_solver, RTHS_NUMERICAL_REALTIME);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), bad, 1, &cfg,
+                         &err))
+        fail_msg("%s", err.msg);
+    assert_int_equal(rths_setup_read(cfg, &s, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "split.numerical_solver"));
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_config_key),
         cmocka_unit_test(test_conversion_closed_form),
         cmocka_unit_test(test_seed_forms_agree),
         cmocka_unit_test(test_rod_chain_both_forms),
