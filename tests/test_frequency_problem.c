@@ -54,8 +54,9 @@ static double matched_amplitude(const rths_setup *s, double f_hz) {
     if (s->numerical_solver == RTHS_NUMERICAL_FREQUENCY) {
         if (rths_numerical_receptance_create(&s->split, s->forcing_dof, &rec, &err))
             fail_msg("%s", err.msg);
-        rths_frequency_problem_init(&problem, &freq_ctx, rig, &so, 1, s->forcing_amplitude_n,
-                                    rths_numerical_receptance_eval, rec);
+        if (rths_frequency_problem_init(&problem, &freq_ctx, rig, &so, 1, s->forcing_amplitude_n,
+                                        rths_numerical_receptance_eval, rec, &err))
+            fail_msg("%s", err.msg);
     } else {
         rths_rig_problem_init(&problem, &rig_ctx, rig, &so, 1, s->forcing_amplitude_n);
     }
@@ -67,6 +68,7 @@ static double matched_amplitude(const rths_setup *s, double f_hz) {
     double a = hypot(sol->eval.phys.a[1], sol->eval.phys.b[1]);
     assert_close(hypot(sol->eval.num.a[1], sol->eval.num.b[1]), a, 1e-5 * a);
     rths_corrector_destroy(c);
+    if (rec) rths_frequency_problem_release(&freq_ctx);
     rths_numerical_receptance_destroy(rec);
     rths_rig_destroy(rig);
     return a;

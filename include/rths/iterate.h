@@ -129,23 +129,32 @@ typedef int (*rths_receptance_fn)(void *ctx, double omega_rad_s, double complex 
                                   double complex *forced_m_per_n, rths_error *err);
 
 typedef struct rths_frequency_problem {
-    rths_rig *rig;
-    const rths_settle_options *settle;
-    int harmonics;
+    rths_rig *rig;          /* the hybrid rig: its `num` channel carries the interface force, N */
+    rths_rig *view;         /* the same rig with every period's `num` turned into displacement, m */
+    rths_rig_problem inner; /* the rig-backed problem on the view: settling, averaging and
+                               standard errors all in metres, as on the real-time form */
     double amplitude_n;
     rths_receptance_fn receptance;
     void *receptance_ctx;
 } rths_frequency_problem;
 
-void rths_frequency_problem_init(rths_zero_problem *problem, rths_frequency_problem *ctx,
-                                 rths_rig *rig, const rths_settle_options *settle, int harmonics,
-                                 double amplitude_n, rths_receptance_fn receptance,
-                                 void *receptance_ctx);
-/* The measured evaluation's force channel turned into the numerical interface displacement (the
- * conversion above, standard errors propagated; the static term follows the physical side). */
+/* Fills *problem to evaluate through *ctx (which must outlive it); release with
+ * rths_frequency_problem_release. RTHS_EFAIL when out of memory. */
+int rths_frequency_problem_init(rths_zero_problem *problem, rths_frequency_problem *ctx,
+                                rths_rig *rig, const rths_settle_options *settle, int harmonics,
+                                double amplitude_n, rths_receptance_fn receptance,
+                                void *receptance_ctx, rths_error *err);
+void rths_frequency_problem_release(rths_frequency_problem *ctx);
+/* The conversion above on an averaged evaluation: `num` (force coefficients, N, and their
+ * standard errors) becomes the numerical interface displacement, m; the static term follows the
+ * physical side's. */
 int rths_frequency_evaluation_convert(rths_evaluation *ev, double amplitude_n,
                                       rths_receptance_fn receptance, void *receptance_ctx,
                                       rths_error *err);
+/* The same on one record's coefficients at frequency_hz (num_se and phys_se may be NULL). */
+int rths_frequency_convert(rths_fourier *num, rths_fourier *num_se, const rths_fourier *phys,
+                           const rths_fourier *phys_se, double frequency_hz, double amplitude_n,
+                           rths_receptance_fn receptance, void *receptance_ctx, rths_error *err);
 
 /* The residual record of a measurement (Phi, response and reference in the corrector's order). */
 void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out);
