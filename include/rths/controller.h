@@ -24,6 +24,7 @@
 #include "rths/config.h"
 #include "rths/io.h"
 #include "rths/plant.h"
+#include "rths/reduce.h"
 #include "rths/setup.h"
 #include "rths/signals.h"
 
@@ -59,6 +60,9 @@ typedef struct rths_controller_options {
     int plant_applies_forcing;     /* 1: forcing on an internal physical DoF is accepted and left
                                       to the plant (rths_controller_forcing gives its phase);
                                       0 (default): such a forcing DoF is refused at create */
+    /* controller.reduction: a numerical substructure larger than RTHS_REDUCE_FULL_UP_TO DoFs is
+       integrated as its Craig-Bampton reduction (reduce.h), at most RTHS_REALTIME_MAX_DOFS */
+    rths_reduction_options reduction;
 } rths_controller_options;
 
 void rths_controller_defaults(rths_controller_options *opt);
@@ -70,6 +74,11 @@ typedef struct rths_controller rths_controller;
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
                            rths_controller **out, rths_error *err);
 void rths_controller_destroy(rths_controller *c);
+/* DoFs of the numerical model the step integrates: the split's numerical substructure, its
+ * reduction, or 0 when the host solves it (split.numerical_solver: frequency). In that mode the
+ * step drives the physical interface to the target and its published `num` channel carries the
+ * force on the numerical substructure's interface, F = p m_int x''_measured - F_LC, N. */
+int rths_controller_numerical_dofs(const rths_controller *c);
 
 /* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
  * period boundary, so every published period has one forcing; the phase theta is continuous

@@ -25,11 +25,15 @@
 
 #include "rths/config.h"
 #include "rths/model.h"
+#include "rths/reduce.h"
 
 #include <complex.h>
 
 /* Curve index for the true assembly's analytic FRF (the schemes are 0..RTHS_SCHEME_COUNT-1). */
 #define RTHS_FIDELITY_TRUE (-1)
+/* Curve index for the hybrid test with the numerical substructure reduced (reduce.h) but not
+ * discretised: the reduction's error alone (equal to the true curve without a reduction). */
+#define RTHS_FIDELITY_REDUCED (-2)
 
 typedef struct rths_fidelity rths_fidelity;
 
@@ -37,6 +41,12 @@ typedef struct rths_fidelity rths_fidelity;
  * substructure discretised at step h_s by every scheme. Copies what it needs from s and force. */
 int rths_fidelity_create(const rths_split *s, const double *force, double h_s, rths_fidelity **out,
                          rths_error *err);
+/* The same with the numerical substructure replaced by its reduction red (n = split's nn,
+ * interface first; NULL: none), as the real-time controller integrates it: every scheme's curve
+ * then carries the reduction's error and the scheme's. The true assembly's FRF takes banded
+ * solves when the assembly is banded, so a 1000-DoF model costs O(n) per frequency. */
+int rths_fidelity_create_reduced(const rths_split *s, const double *force, double h_s,
+                                 const rths_reduced *red, rths_fidelity **out, rths_error *err);
 void rths_fidelity_free(rths_fidelity *f);
 int rths_fidelity_dofs(const rths_fidelity *f); /* n, the assembly's DoF count */
 

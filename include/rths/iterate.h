@@ -14,6 +14,8 @@
 #include "rths/config.h"
 #include "rths/rig.h"
 
+#include <complex.h>
+
 #define RTHS_MAX_UNKNOWNS (2 * RTHS_MAX_HARMONICS + 1)
 #define RTHS_LTI_HISTORY 12
 
@@ -118,6 +120,46 @@ typedef struct rths_rig_problem {
 /* Fills *problem to evaluate through *ctx (which must outlive it). */
 void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
                            const rths_settle_options *settle, int harmonics, double amplitude_n);
+
+/* The host-side numerical substructure (split.numerical_solver: frequency; docs/method.md,
+ * "Numerical substructure integration"): the controller drives the physical interface to the
+ * target and its `num` channel carries the force F on the numerical substructure's interface
+ * (N); the host turns that force's harmonics into the numerical interface displacement through
+ * the linear substructure's dynamic stiffness, exactly, at any size:
+ *     alpha_k - i beta_k = H(k w) (Fa_k - i Fb_k) + [k = 1] X_forced(w) amplitude,
+ * with H the interface receptance (m/N) and X_forced the interface displacement under the forcing
+ * on the numerical side per newton of forcing amplitude (0 when the forcing is physical). The
+ * residual is the interface mismatch as on the real-time form. */
+typedef int (*rths_receptance_fn)(void *ctx, double omega_rad_s, double complex *receptance_m_per_n,
+                                  double complex *forced_m_per_n, rths_error *err);
+
+typedef struct rths_frequency_problem {
+    rths_rig *rig;          /* the hybrid rig: its `num` channel carries the interface force, N */
+    rths_rig *view;         /* the same rig with every period's `num` turned into displacement, m */
+    rths_rig_problem inner; /* the rig-backed problem on the view: settling, averaging and
+                               standard errors all in metres, as on the real-time form */
+    double amplitude_n;
+    rths_receptance_fn receptance;
+    void *receptance_ctx;
+} rths_frequency_problem;
+
+/* Fills *problem to evaluate through *ctx (which must outlive it); release with
+ * rths_frequency_problem_release. RTHS_EFAIL when out of memory. */
+int rths_frequency_problem_init(rths_zero_problem *problem, rths_frequency_problem *ctx,
+                                rths_rig *rig, const rths_settle_options *settle, int harmonics,
+                                double amplitude_n, rths_receptance_fn receptance,
+                                void *receptance_ctx, rths_error *err);
+void rths_frequency_problem_release(rths_frequency_problem *ctx);
+/* The conversion above on an averaged evaluation: `num` (force coefficients, N, and their
+ * standard errors) becomes the numerical interface displacement, m; the static term follows the
+ * physical side's. */
+int rths_frequency_evaluation_convert(rths_evaluation *ev, double amplitude_n,
+                                      rths_receptance_fn receptance, void *receptance_ctx,
+                                      rths_error *err);
+/* The same on one record's coefficients at frequency_hz (num_se and phys_se may be NULL). */
+int rths_frequency_convert(rths_fourier *num, rths_fourier *num_se, const rths_fourier *phys,
+                           const rths_fourier *phys_se, double frequency_hz, double amplitude_n,
+                           rths_receptance_fn receptance, void *receptance_ctx, rths_error *err);
 
 /* The residual record of a measurement (Phi, response and reference in the corrector's order). */
 void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out);

@@ -6,7 +6,10 @@
  *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
  *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
  *                the seed paper", erratum 1), physical / numerical (1-based lists; for a chain
- *                default: below / above; with matrices the absent one takes every other DoF)
+ *                default: below / above; with matrices the absent one takes every other DoF),
+ *                numerical_solver: realtime (default: the controller integrates the numerical
+ *                substructure every sample) | frequency (the host solves it per harmonic from its
+ *                dynamic stiffness; docs/method.md, "Numerical substructure integration")
  *   forcing:     dof (1-based), amplitude_n; or type: base, amplitude_m_s2 (a harmonic ground
  *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
  *                displacements are relative to the ground)
@@ -20,6 +23,12 @@
 #include "rths/config.h"
 #include <stddef.h>
 #include "rths/model.h"
+
+/* Where the numerical substructure is solved (split.numerical_solver). */
+typedef enum {
+    RTHS_NUMERICAL_REALTIME = 0, /* integrated by the controller, sample by sample */
+    RTHS_NUMERICAL_FREQUENCY = 1 /* on the host, per harmonic (periodic tests, linear model) */
+} rths_numerical_solver;
 
 typedef struct rths_setup {
     rths_assembly assembly;
@@ -39,6 +48,7 @@ typedef struct rths_setup {
     double *static_force; /* n: preload_n at the (first) interface DoF, N */
     double frf_start_hz, frf_end_hz;
     int frf_points;
+    rths_numerical_solver numerical_solver;
 } rths_setup;
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's

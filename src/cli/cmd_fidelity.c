@@ -17,7 +17,8 @@ static const char usage[] =
     "\n"
     "What the numerical substructure's integration scheme does to the result "
     "of a hybrid test\n"
-    "(docs/method.md). For each scheme (implicit_euler, trapezoidal, exact_zoh, "
+    "(docs/method.md, \"Numerical substructure integration\"). For each scheme (implicit_euler, "
+    "trapezoidal, exact_zoh, "
     "exact_foh) the converged\n"
     "hybrid test is computed in the frequency domain: the physical "
     "substructure in continuous "
@@ -56,6 +57,7 @@ typedef struct {
     double start_hz, end_hz, sample_rate_hz; /* the sweep's range, for the plot */
     int points;
     int dof; /* 0-based: the (first) interface DoF */
+    rths_reduction_options reduction;
 } fidelity_options;
 
 static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_options *o,
@@ -70,7 +72,8 @@ static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_opti
     if ((rc = rths_controller_config_read(cfg, &copt, err))) return rc;
     o->sample_rate_hz = copt.sample_rate_hz;
     o->dof = setup->split.int_dofs[0];
-    return RTHS_OK;
+    o->reduction = copt.reduction;
+    return rths_reduction_config_read(cfg, &o->reduction, err);
 }
 
 static const char *curve_name(int c) {
@@ -161,6 +164,61 @@ static int plot(rths_report *rep, const fidelity_options *o, double mass_ratio, 
     return rths_plot(rep, rths_report_dir(rep), "fidelity", 1400, 600, body, err);
 }
 
+/* The numerical substructure as the controller integrates it: reduced (Craig-Bampton, the same
+ * cutoff rule as the controller's build) when the reduction applies, else NULL. */
+static int build_reduction(const rths_setup *setup, const fidelity_options *o, rths_reduced *red,
+                           int *applies, rths_error *err) {
+    const rths_split *s = &setup->split;
+    *applies = rths_reduction_applies(&o->reduction, s->nn);
+    if (!*applies) return RTHS_OK;
+    return rths_reduce_craig_bampton(s->nn, s->n_int, s->mass_num, s->damping_num, s->stiffness_num,
+                                     rths_reduction_cutoff_hz(&o->reduction, o->sample_rate_hz),
+                                     RTHS_REALTIME_MAX_DOFS - s->n_int, o->reduction.cutoff_hz <= 0,
+                                     red, err);
+}
+
+/* The reduction's own error (continuous time, no scheme): its peak against the true one and the
+ * largest relative interface FRF error over the grid; printed and added to the summary. */
+static int report_reduction(const rths_cli *cli, rths_report *rep, const rths_fidelity *f,
+                            const rths_reduced *red, const fidelity_options *o, const double *freqs,
+                            int count, const double *true_peak, json_object *summary,
+                            rths_error *err) {
+    double peak_hz, peak_m, worst = 0, worst_hz = 0;
+    int rc = rths_fidelity_peak(f, RTHS_FIDELITY_REDUCED, o->dof, o->start_hz, o->end_hz, o->points,
+                                &peak_hz, &peak_m, err);
+    double complex *x = malloc(sizeof *x * (size_t)rths_fidelity_dofs(f));
+    double complex *t = malloc(sizeof *t * (size_t)rths_fidelity_dofs(f));
+    if (!rc && (!x || !t)) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < count && !rc; i++) {
+        rc = rths_fidelity_response(f, RTHS_FIDELITY_REDUCED, 2 * M_PI * freqs[i], x, err);
+        if (!rc) rc = rths_fidelity_response(f, RTHS_FIDELITY_TRUE, 2 * M_PI * freqs[i], t, err);
+        double e = rc ? 0 : cabs(x[o->dof] - t[o->dof]) / cabs(t[o->dof]);
+        if (e > worst) worst = e, worst_hz = freqs[i];
+    }
+    free(x), free(t);
+    if (rc) return rc;
+    double peak_error = 100.0 * (peak_m - true_peak[0]) / true_peak[0];
+    json_object *r = json_object_new_object();
+    json_object_object_add(r, "method", json_object_new_string("craig_bampton"));
+    json_object_object_add(r, "dofs", json_object_new_int(red->nr));
+    json_object_object_add(r, "modes", json_object_new_int(red->n_modes));
+    json_object_object_add(r, "cutoff_hz", json_object_new_double(red->cutoff_hz));
+    json_object_object_add(r, "peak_hz", json_object_new_double(peak_hz));
+    json_object_object_add(r, "peak_error_percent", json_object_new_double(peak_error));
+    json_object_object_add(r, "max_interface_frf_error_relative", json_object_new_double(worst));
+    json_object_object_add(summary, "reduction", r);
+    rths_cli_print(cli,
+                   "%-16s %14.6f %18.6e %+16.3f   (Craig-Bampton, %d DoFs, modes <= %g Hz; "
+                   "interface FRF error <= %.2e, at %g Hz)\n",
+                   "reduction", peak_hz, peak_m, peak_error, red->nr, red->cutoff_hz, worst,
+                   worst_hz);
+    rths_report_log(rep,
+                    "reduction: %d DoFs (%d modes up to %g Hz), peak %+.4f %%, interface FRF "
+                    "error up to %.3e at %g Hz",
+                    red->nr, red->n_modes, red->cutoff_hz, peak_error, worst, worst_hz);
+    return RTHS_OK;
+}
+
 int rths_cmd_fidelity(int argc, char **argv) {
     static const char *const own_sections[] = {"fidelity", "controller", NULL};
     rths_cli cli;
@@ -172,6 +230,8 @@ int rths_cmd_fidelity(int argc, char **argv) {
     rths_setup setup;
     rths_report *rep = NULL;
     rths_fidelity *f = NULL;
+    rths_reduced red = {0};
+    int reduced = 0;
     double *freqs = NULL;
     json_object *summary = NULL;
     fidelity_options o;
@@ -180,7 +240,10 @@ int rths_cmd_fidelity(int argc, char **argv) {
         (rc = rths_cli_check_config_own(cfg, own_sections, &err)))
         goto done;
     double h = 1.0 / o.sample_rate_hz;
-    if ((rc = rths_fidelity_create(&setup.split, setup.force, h, &f, &err))) goto done;
+    if ((rc = build_reduction(&setup, &o, &red, &reduced, &err)) ||
+        (rc = rths_fidelity_create_reduced(&setup.split, setup.force, h, reduced ? &red : NULL, &f,
+                                           &err)))
+        goto done;
 
     /* every curve's peak, refined beyond the grid, so the reported errors are the model's and the
      * CSV contains each exact peak */
@@ -230,6 +293,9 @@ int rths_cmd_fidelity(int argc, char **argv) {
                         peak_hz[c + 1], e);
     }
     json_object_object_add(summary, "curves", curves);
+    if (reduced &&
+        (rc = report_reduction(&cli, rep, f, &red, &o, freqs, unique, peak_m, summary, &err)))
+        goto done;
     if (setup.has_bilinear) {
         /* the frequency-domain model is linear: the leg's extension stiffness is what it sees */
         static const char note[] = "the bilinear leg is not modelled: the structure is taken as "
@@ -250,6 +316,7 @@ done:
     if (summary) json_object_put(summary);
     free(freqs);
     rths_fidelity_free(f);
+    rths_reduced_free(&red);
     if (rep) rths_report_close(rep);
     rths_cli_unload(cfg, &setup);
     if (rc) return rths_cli_fail(&cli, rc, &err);

@@ -10,7 +10,7 @@
 #include <string.h>
 
 #define RING_CAPACITY 256
-#define MAX_STATE (2 * RTHS_MAX_SENSED_DOFS)
+#define MAX_STATE (2 * RTHS_REALTIME_MAX_DOFS)
 #define N_INPUTS 2 /* numerical interface force, external forcing */
 
 typedef struct {
@@ -20,9 +20,10 @@ typedef struct {
 struct rths_controller {
     rths_controller_options opt;
     double h;
-    int nn, nx, np;    /* numerical DoFs, its state size, physical DoFs (sensors) */
-    int forcing_index; /* forcing DoF in the numerical substructure's order */
-    double m_comp;     /* inertial compensation mass p m_int, kg */
+    int nn, nx, np;     /* numerical DoFs, its state size, physical DoFs (sensors) */
+    int forcing_index;  /* forcing DoF in the numerical substructure's order */
+    int host_numerical; /* split.numerical_solver: frequency: no numerical model here */
+    double m_comp;      /* inertial compensation mass p m_int, kg */
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * N_INPUTS], b_curr[MAX_STATE * N_INPUTS];
     double z[MAX_STATE], z_next[MAX_STATE], u_prev[N_INPUTS];
     /* commands */
@@ -71,6 +72,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->min_frequency_hz = 0.1;
     opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
+    rths_reduction_defaults(&opt->reduction);
 }
 
 double rths_target_peak_bound_m(int harmonics, const double *a, const double *b) {
@@ -78,6 +80,71 @@ double rths_target_peak_bound_m(int harmonics, const double *a, const double *b)
     for (int k = 0; k < harmonics; k++)
         bound += hypot(a[k], b[k]);
     return bound;
+}
+
+/* The numerical model the step integrates, x_{k+1} = ad x_k + b_prev u_k + b_curr u_{k+1} with
+ * inputs (interface force, forcing): the split's numerical substructure as it is, or, when the
+ * reduction applies, its Craig-Bampton reduction (reduce.h; the interface stays coordinate 0, the
+ * inputs are projected by T^T). An auto cutoff is lowered to fit RTHS_REALTIME_MAX_DOFS. */
+static int build_numerical(rths_controller *c, const rths_setup *setup, int forcing_physical,
+                           int base, rths_error *err) {
+    const rths_split *s = &setup->split;
+    const rths_reduction_options *ro = &c->opt.reduction;
+    rths_reduced red = {0};
+    int rc = RTHS_OK, reduce = rths_reduction_applies(ro, s->nn);
+    if (reduce)
+        rc = rths_reduce_craig_bampton(
+            s->nn, s->n_int, s->mass_num, s->damping_num, s->stiffness_num,
+            rths_reduction_cutoff_hz(ro, c->opt.sample_rate_hz), RTHS_REALTIME_MAX_DOFS - s->n_int,
+            ro->cutoff_hz <= 0, &red, err);
+    int n = reduce ? red.nr : s->nn;
+    if (!rc && n > RTHS_REALTIME_MAX_DOFS)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "the numerical substructure has %d DoFs; the real-time step integrates "
+                            "at most %d (RTHS_REALTIME_MAX_DOFS): set controller.reduction.method "
+                            "to craig_bampton (or auto), or split.numerical_solver to frequency",
+                            n, RTHS_REALTIME_MAX_DOFS);
+    double *input = rc ? NULL : rths_mat_new(s->nn, N_INPUTS), *a = NULL, *b = NULL;
+    if (!rc && !input) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        input[0] = 1.0; /* column 0: interface force */
+        /* column 1: external forcing on the model; none when the plant applies it; a base
+         * excitation's -M 1 per m/s^2 on the interface and the numerical DoFs */
+        if (base) {
+            input[s->nn] = setup->forcing_shape[s->int_dofs[0]];
+            for (int i = 0; i < s->n_num; i++)
+                input[s->nn + s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
+        } else if (!forcing_physical) {
+            input[s->nn + c->forcing_index] = 1.0;
+        }
+    }
+    double *reduced_input = !rc && reduce ? rths_mat_new(n, N_INPUTS) : NULL;
+    if (reduced_input)
+        rths_mat_mul(n, N_INPUTS, s->nn, 1.0, red.transform, 1, input, 0, 0.0, reduced_input);
+    else if (!rc && reduce)
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rths_discrete d = {0};
+    if (!rc)
+        rc = rths_state_space(n, reduce ? red.mass : s->mass_num,
+                              reduce ? red.damping : s->damping_num,
+                              reduce ? red.stiffness : s->stiffness_num, N_INPUTS,
+                              reduce ? reduced_input : input, &a, &b, err);
+    c->nn = n;
+    c->nx = 2 * n;
+    if (!rc) rc = rths_discretise(c->nx, N_INPUTS, a, b, c->h, c->opt.scheme, &d, err);
+    if (!rc) {
+        memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
+        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * N_INPUTS));
+        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * N_INPUTS));
+    }
+    free(a), free(b), free(input), free(reduced_input);
+    rths_discrete_free(&d);
+    rths_reduced_free(&red);
+    return rc;
+}
+
+int rths_controller_numerical_dofs(const rths_controller *c) {
+    return c->host_numerical ? 0 : c->nn;
 }
 
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
@@ -88,13 +155,12 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         return rths_error_set(err, RTHS_EINPUT,
                               "the controller drives one interface DoF; this split has %d",
                               s->n_int);
-    if (s->np > RTHS_MAX_SENSED_DOFS || s->nn > RTHS_MAX_SENSED_DOFS)
+    if (s->np > RTHS_MAX_SENSED_DOFS)
         return rths_error_set(err, RTHS_EINPUT,
-                              "the %s substructure has %d DoFs; the real-time controller (fixed "
-                              "per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) takes at "
-                              "most %d per substructure (rths model has no limit)",
-                              s->np > RTHS_MAX_SENSED_DOFS ? "physical" : "numerical",
-                              s->np > RTHS_MAX_SENSED_DOFS ? s->np : s->nn, RTHS_MAX_SENSED_DOFS);
+                              "the physical substructure has %d DoFs; the real-time controller "
+                              "(fixed per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) "
+                              "senses at most %d",
+                              s->np, RTHS_MAX_SENSED_DOFS);
     int forcing_physical = 0;
     /* base excitation: the numerical model takes -M 1 a_g on its DoFs and the interface's whole
      * share (an interface force acts through the numerical side), the plant its internal DoFs' */
@@ -128,29 +194,13 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->forcing_index = 0;
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
-    double input[RTHS_MAX_SENSED_DOFS * N_INPUTS] = {0};
-    input[0] = 1.0; /* column 0: interface force */
-    /* column 1: external forcing on the model; none when the plant applies it */
-    if (base) {
-        input[s->nn] = setup->forcing_shape[s->int_dofs[0]];
-        for (int i = 0; i < s->n_num; i++)
-            input[s->nn + s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
-    } else if (!forcing_physical) {
-        input[s->nn + c->forcing_index] = 1.0;
-    }
-    double *a = NULL, *b = NULL;
-    rths_discrete d = {0};
-    int rc = rths_state_space(s->nn, s->mass_num, s->damping_num, s->stiffness_num, N_INPUTS, input,
-                              &a, &b, err);
-    if (!rc) rc = rths_discretise(c->nx, N_INPUTS, a, b, c->h, opt->scheme, &d, err);
-    if (!rc) {
-        memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
-        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * N_INPUTS));
-        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * N_INPUTS));
-    }
-    free(a);
-    free(b);
-    rths_discrete_free(&d);
+    c->host_numerical = setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY;
+    int rc = RTHS_OK;
+    if (c->host_numerical && base)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "forcing.type: base with split.numerical_solver: frequency is not "
+                            "supported (the host's receptance takes a force on one DoF)");
+    if (!rc && !c->host_numerical) rc = build_numerical(c, setup, forcing_physical, base, err);
     if (rc) {
         free(c);
         return rc;
@@ -366,14 +416,17 @@ static double grounding_force(rths_controller *c, double x) {
  * and velocity after the step. */
 static void advance_numerical(rths_controller *c, const double *u, double *xi, double *xi_dot) {
     const int nx = c->nx;
-    for (int i = 0; i < nx; i++) {
-        double v = 0;
-        for (int j = 0; j < nx; j++)
-            v += c->ad[i + j * nx] * c->z[j];
-        for (int j = 0; j < N_INPUTS; j++)
-            v += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
-        c->z_next[i] = v;
+    /* column by column (contiguous, vectorised); each entry sums in the same order as a row
+     * by row product, so results are bitwise those of the plain loop */
+    memset(c->z_next, 0, sizeof(double) * (size_t)nx);
+    for (int j = 0; j < nx; j++) {
+        const double zj = c->z[j], *col = c->ad + (size_t)j * (size_t)nx;
+        for (int i = 0; i < nx; i++)
+            c->z_next[i] += col[i] * zj;
     }
+    for (int j = 0; j < N_INPUTS; j++)
+        for (int i = 0; i < nx; i++)
+            c->z_next[i] += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
     memcpy(c->z, c->z_next, sizeof(double) * (size_t)nx);
     memcpy(c->u_prev, u, sizeof(double) * N_INPUTS);
     *xi = c->z[0];
@@ -483,12 +536,14 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         c->amplitude_n = c->pending_amplitude;
     c->forcing_now = c->ramp * c->amplitude_n;
     const double u[N_INPUTS] = {c->m_comp * m.acc - m.f_lc + f_ctrl, c->forcing_now * cos1};
-    double xi, xi_dot, target, target_dot;
-    advance_numerical(c, u, &xi, &xi_dot);
+    double xi = 0, xi_dot = 0, target, target_dot;
+    if (!c->host_numerical) advance_numerical(c, u, &xi, &xi_dot);
     control_target(c, cos1, sin1, xi, xi_dot, &target, &target_dot);
     const double demand = pd_demand(c, target, target_dot, m.x);
 
-    const double y[3] = {m.x, xi, m.f_lc};
+    /* numerical substructure on the host: its interface force goes where xi would */
+    const double num_channel = c->host_numerical ? c->m_comp * m.acc - m.f_lc : xi;
+    const double y[3] = {m.x, num_channel, m.f_lc};
     c->at_boundary = 0;
     c->time_s += c->h;
     update_fourier(c, theta0, theta1, cos0, sin0, cos1, sin1, y);

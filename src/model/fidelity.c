@@ -8,6 +8,12 @@
 
 struct rths_fidelity {
     int n, np, nn, n_int, n_phys, nu;
+    int nr;            /* size of the numerical model integrated: nn, or the reduction's */
+    double *transform; /* nn x nr: q_num = T r (NULL: no reduction, T = I) */
+    double *mass_r, *damping_r, *stiffness_r; /* nr x nr: the numerical model (continuous) */
+    double *input_r;                          /* nr x nu: its inputs */
+    rths_frf_sweep *truth;                    /* banded FRF of the assembly (NULL: dense) */
+    rths_assembly truth_model;                /* views of mass, damping, stiffness for it */
     int *phys_map; /* np: assembly index of physical-side row (phys..., int...) */
     int *num_map;  /* nn: assembly index of numerical-side row (int..., num...) */
     double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
@@ -30,6 +36,12 @@ void rths_fidelity_free(rths_fidelity *f) {
     free(f->stiffness);
     free(f->force);
     free(f->force_phys);
+    free(f->transform);
+    free(f->mass_r);
+    free(f->damping_r);
+    free(f->stiffness_r);
+    free(f->input_r);
+    rths_frf_sweep_destroy(f->truth);
     for (int s = 0; s < RTHS_SCHEME_COUNT; s++)
         rths_discrete_free(&f->disc[s]);
     free(f);
@@ -39,8 +51,59 @@ int rths_fidelity_dofs(const rths_fidelity *f) {
     return f->n;
 }
 
+/* The numerical model the schemes discretise: the split's, or its reduction; inputs are the
+ * interface forces and the forcing (projected by T^T when reduced). */
+static int numerical_model(rths_fidelity *f, const rths_split *s, const double *force,
+                           const rths_reduced *red) {
+    int nn = f->nn, nr = f->nr, nu = f->nu, n_int = f->n_int;
+    double *input = rths_mat_new(nn, nu);
+    if (!input) return -1;
+    for (int j = 0; j < n_int; j++)
+        RTHS_AT(input, nn, j, j) = 1.0;
+    for (int i = 0; i < nn; i++)
+        RTHS_AT(input, nn, i, n_int) = force[f->num_map[i]];
+    if (!red) {
+        f->input_r = input;
+        f->mass_r = rths_mat_dup(s->mass_num, nn, nn);
+        f->damping_r = rths_mat_dup(s->damping_num, nn, nn);
+        f->stiffness_r = rths_mat_dup(s->stiffness_num, nn, nn);
+    } else {
+        f->input_r = rths_mat_new(nr, nu);
+        if (f->input_r) rths_mat_mul(nr, nu, nn, 1.0, red->transform, 1, input, 0, 0.0, f->input_r);
+        free(input);
+        f->transform = rths_mat_dup(red->transform, nn, nr);
+        f->mass_r = rths_mat_dup(red->mass, nr, nr);
+        f->damping_r = rths_mat_dup(red->damping, nr, nr);
+        f->stiffness_r = rths_mat_dup(red->stiffness, nr, nr);
+    }
+    return f->input_r && f->mass_r && f->damping_r && f->stiffness_r && (!red || f->transform) ? 0
+                                                                                               : -1;
+}
+
+/* The true assembly's FRF by banded solves when it is banded (rths_frf_sweep needs no modes on
+ * that path); NULL otherwise: dense solves, as cheap for the seed's few DoFs. */
+static int truth_sweep(rths_fidelity *f, rths_error *err) {
+    rths_assembly a = {
+        .n = f->n, .mass = f->mass, .damping = f->damping, .stiffness = f->stiffness};
+    if (!(f->n > 8 && rths_assembly_half_bandwidth(&a) <= f->n / 8)) return RTHS_OK;
+    int *all = malloc(sizeof(int) * (size_t)f->n);
+    if (!all) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < f->n; i++)
+        all[i] = i;
+    f->truth_model = a;
+    rths_modes none = {0};
+    int rc = rths_frf_sweep_create(&f->truth_model, &none, f->force, f->n, all, &f->truth, err);
+    free(all);
+    return rc;
+}
+
 int rths_fidelity_create(const rths_split *s, const double *force, double h_s, rths_fidelity **out,
                          rths_error *err) {
+    return rths_fidelity_create_reduced(s, force, h_s, NULL, out, err);
+}
+
+int rths_fidelity_create_reduced(const rths_split *s, const double *force, double h_s,
+                                 const rths_reduced *red, rths_fidelity **out, rths_error *err) {
     *out = NULL;
     if (!(isfinite(h_s) && h_s > 0))
         return rths_error_set(err, RTHS_EINPUT, "sample step must be positive, got %g s", h_s);
@@ -48,10 +111,16 @@ int rths_fidelity_create(const rths_split *s, const double *force, double h_s, r
         if (!isfinite(force[i]))
             return rths_error_set(err, RTHS_EINPUT, "forcing amplitude on DoF %d is not finite",
                                   i + 1);
+    if (red && (red->n != s->nn || red->n_boundary != s->n_int))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the reduction is of a %d-DoF model with %d interface DoFs; the "
+                              "numerical substructure has %d and %d",
+                              red->n, red->n_boundary, s->nn, s->n_int);
     rths_fidelity *f = calloc(1, sizeof *f);
     if (!f) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     int n = s->n, np = s->np, nn = s->nn, n_int = s->n_int;
     f->n = n, f->np = np, f->nn = nn, f->n_int = n_int, f->n_phys = s->n_phys;
+    f->nr = red ? red->nr : nn;
     f->nu = n_int + 1; /* the interface forces, then the (sampled) forcing */
     f->h = h_s;
     f->phys_map = malloc((size_t)np * sizeof *f->phys_map);
@@ -64,10 +133,10 @@ int rths_fidelity_create(const rths_split *s, const double *force, double h_s, r
     f->stiffness = rths_mat_new(n, n);
     f->force = rths_mat_dup(force, n, 1);
     f->force_phys = rths_mat_new(np, 1);
-    double *input = rths_mat_new(nn, f->nu), *a = NULL, *b = NULL;
+    double *a = NULL, *b = NULL;
     int rc = RTHS_OK;
     if (!f->phys_map || !f->num_map || !f->mass_phys || !f->damping_phys || !f->stiffness_phys ||
-        !f->mass || !f->damping || !f->stiffness || !f->force || !f->force_phys || !input) {
+        !f->mass || !f->damping || !f->stiffness || !f->force || !f->force_phys) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
     }
@@ -84,16 +153,17 @@ int rths_fidelity_create(const rths_split *s, const double *force, double h_s, r
      * the interface and numerical DoFs to the numerical model, at the samples. */
     for (int i = 0; i < s->n_phys; i++)
         f->force_phys[i] = force[s->phys_dofs[i]];
-    for (int j = 0; j < n_int; j++)
-        RTHS_AT(input, nn, j, j) = 1.0;
-    for (int i = 0; i < nn; i++)
-        RTHS_AT(input, nn, i, n_int) = force[f->num_map[i]];
-    rc = rths_state_space(nn, s->mass_num, s->damping_num, s->stiffness_num, f->nu, input, &a, &b,
-                          err);
+    if (numerical_model(f, s, force, red)) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    rc = truth_sweep(f, err);
+    if (!rc)
+        rc = rths_state_space(f->nr, f->mass_r, f->damping_r, f->stiffness_r, f->nu, f->input_r, &a,
+                              &b, err);
     for (int sc = 0; sc < RTHS_SCHEME_COUNT && !rc; sc++)
-        rc = rths_discretise(2 * nn, f->nu, a, b, h_s, (rths_scheme)sc, &f->disc[sc], err);
+        rc = rths_discretise(2 * f->nr, f->nu, a, b, h_s, (rths_scheme)sc, &f->disc[sc], err);
 done:
-    free(input);
     free(a);
     free(b);
     if (rc) {
@@ -104,8 +174,8 @@ done:
     return RTHS_OK;
 }
 
-/* G = C (zI - Ad)^{-1} (b_prev + z b_curr): nn x nu displacement response of the discretised
- * numerical substructure to sampled harmonic inputs. */
+/* G = C (zI - Ad)^{-1} (b_prev + z b_curr): nr x nu displacement response of the discretised
+ * numerical model to sampled harmonic inputs. */
 static int numerical_transfer(const rths_fidelity *f, const rths_discrete *d, double omega,
                               double complex *g) {
     int nx = d->nx, nu = d->nu;
@@ -125,30 +195,57 @@ static int numerical_transfer(const rths_fidelity *f, const rths_discrete *d, do
     int info = rths_cmat_solve(nx, nu, m, y);
     if (!info)
         for (int j = 0; j < nu; j++)
-            for (int i = 0; i < f->nn; i++)
-                RTHS_AT(g, f->nn, i, j) = RTHS_AT(y, nx, i, j);
+            for (int i = 0; i < f->nr; i++)
+                RTHS_AT(g, f->nr, i, j) = RTHS_AT(y, nx, i, j);
     free(m), free(y);
     return info;
 }
 
+/* G = (K_r - w^2 M_r + i w C_r)^{-1} inputs: the numerical model in continuous time. */
+static int continuous_transfer(const rths_fidelity *f, double omega, double complex *g) {
+    int nr = f->nr, nu = f->nu;
+    double complex *m = malloc((size_t)nr * (size_t)nr * sizeof *m);
+    if (!m) return -1;
+    for (int k = 0; k < nr * nr; k++)
+        m[k] = f->stiffness_r[k] - omega * omega * f->mass_r[k] + I * omega * f->damping_r[k];
+    for (int k = 0; k < nr * nu; k++)
+        g[k] = f->input_r[k];
+    int info = rths_cmat_solve(nr, nu, m, g);
+    free(m);
+    return info;
+}
+
+/* Internal numerical DoFs from the model's coordinates r (nr): q = T r, or r itself. */
+static void numerical_dofs(const rths_fidelity *f, const double complex *r, double complex *x_out) {
+    for (int i = f->n_int; i < f->nn; i++) {
+        double complex q = f->transform ? 0 : r[i];
+        for (int c = 0; f->transform && c < f->nr; c++)
+            q += RTHS_AT(f->transform, f->nn, i, c) * r[c];
+        x_out[f->num_map[i]] = q;
+    }
+}
+
+/* d == NULL: the numerical model in continuous time (RTHS_FIDELITY_REDUCED). */
 static int hybrid_response(const rths_fidelity *f, const rths_discrete *d, double omega,
                            double complex *x_out, rths_error *err) {
-    int np = f->np, nn = f->nn, n_int = f->n_int, n_phys = f->n_phys, nu = f->nu;
+    int np = f->np, nn = f->nr, n_int = f->n_int, n_phys = f->n_phys, nu = f->nu;
     int ms = np + n_int;
+    const char *name = d ? rths_scheme_name(d->scheme) : "reduced, continuous";
     double complex *g = malloc((size_t)nn * (size_t)nu * sizeof *g);
     double complex *sys = calloc((size_t)ms * (size_t)ms, sizeof *sys);
     double complex *v = calloc((size_t)ms, sizeof *v);
+    double complex *r = malloc((size_t)nn * sizeof *r);
     int rc = RTHS_OK;
-    if (!g || !sys || !v) {
+    if (!g || !sys || !v || !r) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
     }
-    int info = numerical_transfer(f, d, omega, g);
+    int info = d ? numerical_transfer(f, d, omega, g) : continuous_transfer(f, omega, g);
     if (info) {
         rc = rths_error_set(err, RTHS_EFAIL,
                             "numerical substructure (%s) has a pole on the unit circle at "
                             "%g rad/s (info %d)",
-                            rths_scheme_name(d->scheme), omega, info);
+                            name, omega, info);
         goto done;
     }
     /* unknowns v = (Q_p, lambda); rows: physical equations of motion, interface compatibility */
@@ -169,20 +266,20 @@ static int hybrid_response(const rths_fidelity *f, const rths_discrete *d, doubl
     info = rths_cmat_solve(ms, 1, sys, v);
     if (info) {
         rc = rths_error_set(err, RTHS_EFAIL,
-                            "hybrid system (%s) is singular at %g rad/s (zgesv info %d)",
-                            rths_scheme_name(d->scheme), omega, info);
+                            "hybrid system (%s) is singular at %g rad/s (zgesv info %d)", name,
+                            omega, info);
         goto done;
     }
     for (int i = 0; i < np; i++)
         x_out[f->phys_map[i]] = v[i];
-    for (int i = n_int; i < nn; i++) {
-        double complex q = RTHS_AT(g, nn, i, n_int);
+    for (int i = 0; i < nn; i++) {
+        r[i] = RTHS_AT(g, nn, i, n_int);
         for (int l = 0; l < n_int; l++)
-            q -= RTHS_AT(g, nn, i, l) * v[np + l];
-        x_out[f->num_map[i]] = q;
+            r[i] -= RTHS_AT(g, nn, i, l) * v[np + l];
     }
+    numerical_dofs(f, r, x_out);
 done:
-    free(g), free(sys), free(v);
+    free(g), free(sys), free(v), free(r);
     return rc;
 }
 
@@ -191,8 +288,11 @@ int rths_fidelity_response(const rths_fidelity *f, int curve, double omega_rad_s
     if (!(isfinite(omega_rad_s) && omega_rad_s > 0))
         return rths_error_set(err, RTHS_EINPUT, "frequency must be positive, got %g rad/s",
                               omega_rad_s);
+    if (curve == RTHS_FIDELITY_TRUE && f->truth)
+        return rths_frf_sweep_eval(f->truth, omega_rad_s, x_out, err);
     if (curve == RTHS_FIDELITY_TRUE)
         return rths_frf(f->n, f->mass, f->damping, f->stiffness, f->force, omega_rad_s, x_out, err);
+    if (curve == RTHS_FIDELITY_REDUCED) return hybrid_response(f, NULL, omega_rad_s, x_out, err);
     if (curve < 0 || curve >= RTHS_SCHEME_COUNT)
         return rths_error_set(err, RTHS_EINPUT, "unknown fidelity curve %d", curve);
     return hybrid_response(f, &f->disc[curve], omega_rad_s, x_out, err);

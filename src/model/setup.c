@@ -408,6 +408,15 @@ static int read_structure(rths_config *cfg, rths_setup *s, rths_error *err) {
                         : read_beam(cfg, s, err);
 }
 
+static int read_numerical_solver(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const solvers[] = {"realtime", "frequency", NULL};
+    int solver = RTHS_NUMERICAL_REALTIME;
+    int rc =
+        rths_config_get_choice(cfg, "split.numerical_solver", 0, solver, solvers, &solver, err);
+    s->numerical_solver = (rths_numerical_solver)solver;
+    return rc;
+}
+
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
@@ -415,6 +424,7 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     if (!rc) rc = read_forcing(cfg, out, err);
     if (!rc) rc = read_bilinear(cfg, out, err);
     if (!rc) rc = read_frf_range(cfg, out, err);
+    if (!rc) rc = read_numerical_solver(cfg, out, err);
     if (rc) rths_setup_free(out);
     return rc;
 }
