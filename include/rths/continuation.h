@@ -94,6 +94,15 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                           rths_point_fn on_point, rths_progress_fn on_progress, void *user,
                           rths_continuation_result *result, rths_error *err);
 
+/* The same on a zero problem built by the caller (e.g. rths_frequency_problem: the numerical
+ * substructure solved on the host) that evaluates on rig. */
+int rths_continuation_run_problem(const rths_zero_problem *problem, rths_rig *rig,
+                                  const rths_continuation_options *opt,
+                                  const rths_newton_options *newton, int harmonics,
+                                  const rths_point *resume, int n_resume, rths_point_fn on_point,
+                                  rths_progress_fn on_progress, void *user,
+                                  rths_continuation_result *result, rths_error *err);
+
 /* The fold-based stability label of a point: 1 stable, 0 unstable. A saddle-node fold of the
  * periodic response is where the determinant of the target block of the Jacobian changes sign
  * along the branch (the arclength-augmented one does not), and stability changes there; the label

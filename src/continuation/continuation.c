@@ -310,12 +310,22 @@ int rths_continuation_run(rths_rig *rig, const rths_continuation_options *opt,
                           int harmonics, double amplitude_n, const rths_point *resume, int n_resume,
                           rths_point_fn on_point, rths_progress_fn on_progress, void *user,
                           rths_continuation_result *res, rths_error *err) {
-    cont_run run = {.rig = rig, .on_point = on_point, .user = user};
     rths_zero_problem problem;
     rths_rig_problem ctx;
     rths_rig_problem_init(&problem, &ctx, rig, settle, harmonics, amplitude_n);
+    return rths_continuation_run_problem(&problem, rig, opt, newton, harmonics, resume, n_resume,
+                                         on_point, on_progress, user, res, err);
+}
+
+int rths_continuation_run_problem(const rths_zero_problem *problem, rths_rig *rig,
+                                  const rths_continuation_options *opt,
+                                  const rths_newton_options *newton, int harmonics,
+                                  const rths_point *resume, int n_resume, rths_point_fn on_point,
+                                  rths_progress_fn on_progress, void *user,
+                                  rths_continuation_result *res, rths_error *err) {
+    cont_run run = {.rig = rig, .on_point = on_point, .user = user};
     int rc = run_init(&run, opt, harmonics, res, err);
-    if (!rc) rc = rths_corrector_create(&problem, newton, &run.corr, err);
+    if (!rc) rc = rths_corrector_create(problem, newton, &run.corr, err);
     if (!rc) rc = run_resume(&run, resume, n_resume, err);
     int stop = 0;
     while (!rc && !stop && !res->reached_end && run.n < opt->max_points)

@@ -37,7 +37,8 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = rths_config_get_double(cfg, "controller.min_frequency_hz", 0, opt->min_frequency_hz,
                                      1e-3, 1e3, &opt->min_frequency_hz, err)) ||
         (rc = rths_config_get_double(cfg, "controller.max_pending_s", 0, opt->max_pending_s, 0,
-                                     3600, &opt->max_pending_s, err)))
+                                     3600, &opt->max_pending_s, err)) ||
+        (rc = rths_reduction_config_read(cfg, &opt->reduction, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
     /* the default cutoff (1 kHz, chosen at the seed's 10 kHz) is capped at a quarter of a lower

@@ -4,6 +4,7 @@
  * ended, so nothing accepted is ever lost. */
 #include "run/frf_internal.h"
 
+#include "rths/reduce.h"
 #include "rths/rig_remote.h"
 #include "rths/rig_virtual.h"
 
@@ -244,6 +245,26 @@ static void on_progress(void *user, int points, double frequency_hz, double resi
         cb->on_progress(cb->user, points, frequency_hz, residual_m, evaluations, accepted);
 }
 
+/* split.numerical_solver: frequency: the same continuation on the zero problem whose numerical
+ * side the host solves per harmonic (docs/method.md, "Numerical substructure integration"). */
+static int run_frequency_form(frf_state *st, rths_error *err) {
+    rths_numerical_receptance *rec;
+    int rc = rths_numerical_receptance_create(&st->setup->split, st->setup->forcing_dof, &rec, err);
+    if (rc) return rc;
+    rths_zero_problem problem;
+    rths_frequency_problem ctx;
+    rc = rths_frequency_problem_init(&problem, &ctx, st->rig, &st->settle, st->harmonics,
+                                     st->setup->forcing_amplitude_n, rths_numerical_receptance_eval,
+                                     rec, err);
+    if (!rc)
+        rc = rths_continuation_run_problem(&problem, st->rig, &st->cont, &st->newton, st->harmonics,
+                                           st->resume_pts, st->n_resume, on_point, on_progress, st,
+                                           &st->result, err);
+    rths_frequency_problem_release(&ctx);
+    rths_numerical_receptance_destroy(rec);
+    return rc;
+}
+
 /* The continuation itself; returns its status (RTHS_OK also when cancelled). */
 static int run_continuation(frf_state *st, rths_error *run_err) {
     rths_report_log(st->rep, "start: strategy %s, %d harmonic(s), %s continuation %g -> %g Hz%s",
@@ -252,7 +273,9 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
                     st->cont.start_hz, st->cont.end_hz, st->opt->resume ? ", resumed" : "");
     if (st->cb && st->cb->should_cancel && st->cb->should_cancel(st->cb->user)) st->cancelled = 1;
     int run_rc = RTHS_OK;
-    if (!st->cancelled)
+    if (!st->cancelled && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
+        run_rc = run_frequency_form(st, run_err);
+    else if (!st->cancelled)
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
                                        on_point, on_progress, st, &st->result, run_err);
