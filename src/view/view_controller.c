@@ -189,12 +189,14 @@ char *rths_server_view_process_json(rths_server_view *sv) {
     text t = {0};
     rths_server_watch w;
     rths_server_get_watch(sv->server, &w);
-    put(&t, "{\"state\": {");
+    /* the histogram before the state: its counts never exceed the state's samples (+1, the
+     * wake-up being binned) */
+    put(&t, "{");
+    put_lateness(&t, sv);
+    put(&t, ", \"state\": {");
     put_state(&t, sv);
     put(&t, "}, ");
     put_scope(&t, sv, w.sample_period_s);
-    put(&t, ", ");
-    put_lateness(&t, sv);
     put(&t, "}");
     if (t.failed) {
         free(t.s);
