@@ -400,56 +400,25 @@ function render() {
 
 // ---------- data ----------
 
-let pending = Promise.resolve();
-
 // Fetches what changed (only files the folder holds, so a finished run asks for no live.json
-// and the browser logs no 404), then redraws.
-function refresh(changed) {
-  pending = pending.then(async () => {
-    try {
-      state.status = await getJSON("/api/status");
-      const files = state.status.files || {};
-      const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
-      if (want("points")) state.points = (await getJSON("/api/points")).points;
-      if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
-      if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;
-      if (want("summary")) state.summary = files["summary.json"] ? await getJSON("/api/summary") : null;
-      state.error = state.status.state === "gone" ? `The run folder ${state.status.run_dir} is gone.` : null;
-    } catch (e) {
-      state.error = `${e.message}`;
-    }
-    render();
-  });
-  return pending;
+// and the browser logs no 404).
+async function load(changed) {
+  state.status = await getJSON("/api/status");
+  const files = state.status.files || {};
+  const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
+  if (want("points")) state.points = (await getJSON("/api/points")).points;
+  if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
+  if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;
+  if (want("summary")) state.summary = files["summary.json"] ? await getJSON("/api/summary") : null;
+  state.error = state.status.state === "gone" ? `The run folder ${state.status.run_dir} is gone.` : null;
 }
 
-function listen() {
-  const es = new EventSource("/api/events");
-  es.addEventListener("change", (ev) => refresh(JSON.parse(ev.data).changed));
-  es.onerror = () => {
-    state.error = "Lost the connection to rths view; retrying.";
-    renderHeader();
-  };
-  es.onopen = () => {
-    if (state.error && state.error.startsWith("Lost")) state.error = null;
-    renderHeader();
-  };
-}
-
-function start() {
-  if (window.rthsMissing) {
-    state.error = window.rthsMissing;
-    renderHeader();
-    return;
-  }
-  makePlots();
-  refresh(null).then(listen);
-  let width = window.innerWidth;
-  window.addEventListener("resize", () => {
-    if (window.innerWidth === width) return;
-    width = window.innerWidth;
-    for (const [id, u] of Object.entries(plots)) u.setSize(plotSize($(id), u.height));
-  });
-}
-
-start();
+startPage({
+  state,
+  plots,
+  makePlots,
+  load,
+  render,
+  renderHeader,
+  lost: "Lost the connection to rths view; retrying.",
+});

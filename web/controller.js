@@ -121,53 +121,17 @@ function render() {
   window.rthsView.renders++;
 }
 
-let pending = Promise.resolve();
-let queued = false;
-
-// One fetch at a time; changes arriving meanwhile fold into one more.
-function refresh() {
-  if (queued) return pending;
-  queued = true;
-  pending = pending.then(async () => {
-    queued = false;
-    try {
-      state.process = await getJSON("/api/process");
-      state.error = null;
-    } catch (e) {
-      state.error = `${e.message}`;
-    }
-    render();
-  });
-  return pending;
+async function load() {
+  state.process = await getJSON("/api/process");
+  state.error = null;
 }
 
-function listen() {
-  const es = new EventSource("/api/events");
-  es.addEventListener("change", () => refresh());
-  es.onerror = () => {
-    state.error = "Lost the connection to the controller; retrying.";
-    renderHeader();
-  };
-  es.onopen = () => {
-    if (state.error && state.error.startsWith("Lost")) state.error = null;
-    renderHeader();
-  };
-}
-
-function start() {
-  if (window.rthsMissing) {
-    state.error = window.rthsMissing;
-    renderHeader();
-    return;
-  }
-  makePlots();
-  refresh().then(listen);
-  let width = window.innerWidth;
-  window.addEventListener("resize", () => {
-    if (window.innerWidth === width) return;
-    width = window.innerWidth;
-    for (const [id, u] of Object.entries(plots)) u.setSize(plotSize($(id), u.height));
-  });
-}
-
-start();
+startPage({
+  state,
+  plots,
+  makePlots,
+  load,
+  render,
+  renderHeader,
+  lost: "Lost the connection to the controller; retrying.",
+});

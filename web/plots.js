@@ -62,3 +62,54 @@ function duration(s) {
   return `${(s / 3600).toFixed(2)} h`;
 }
 
+
+// Starts a page: its plots, a first load, then server-sent "change" events and resizing.
+// page: {state, plots, makePlots, load, render, renderHeader, lost}: load(changed) fetches into
+// state what changed (null: everything) and throws on failure; lost is what to say while the
+// event stream is down. One load at a time; changes arriving meanwhile join the next one.
+function startPage(page) {
+  const { state } = page;
+  if (window.rthsMissing) {
+    state.error = window.rthsMissing;
+    page.renderHeader();
+    return;
+  }
+  let pending = Promise.resolve(), queued = null;
+  const refresh = (changed) => {
+    if (queued) {
+      queued.changed = queued.changed && changed ? [...new Set([...queued.changed, ...changed])] : null;
+      return pending;
+    }
+    const next = { changed };
+    queued = next;
+    pending = pending.then(async () => {
+      queued = null;
+      try {
+        await page.load(next.changed);
+      } catch (e) {
+        state.error = `${e.message}`;
+      }
+      page.render();
+    });
+    return pending;
+  };
+  page.makePlots();
+  refresh(null).then(() => {
+    const es = new EventSource("/api/events");
+    es.addEventListener("change", (ev) => refresh(JSON.parse(ev.data).changed));
+    es.onerror = () => {
+      state.error = page.lost;
+      page.renderHeader();
+    };
+    es.onopen = () => {
+      if (state.error === page.lost) state.error = null;
+      page.renderHeader();
+    };
+  });
+  let width = window.innerWidth;
+  window.addEventListener("resize", () => {
+    if (window.innerWidth === width) return;
+    width = window.innerWidth;
+    for (const [id, u] of Object.entries(page.plots)) u.setSize(plotSize($(id), u.height));
+  });
+}

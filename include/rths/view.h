@@ -82,8 +82,9 @@ void rths_view_stop(rths_view *v);      /* closes every connection; v may be NUL
 typedef struct rths_server_view rths_server_view;
 int rths_server_view_start(rths_server *server, const char *listen, rths_server_view **out,
                            rths_error *err);
-int rths_server_view_port(const rths_server_view *sv); /* the bound port (listen port 0) */
-void rths_server_view_stop(rths_server_view *sv);      /* sv may be NULL */
+int rths_server_view_port(const rths_server_view *sv);         /* the bound port (listen port 0) */
+const char *rths_server_view_host(const rths_server_view *sv); /* the address served on */
+void rths_server_view_stop(rths_server_view *sv);              /* sv may be NULL */
 /* The JSON of /api/process and of /api/status's "process" (tests, and a page elsewhere). */
 char *rths_server_view_process_json(rths_server_view *sv);
 

@@ -39,6 +39,7 @@ struct rths_server_view {
     rths_server_scope_sample window[SCOPE_WINDOW];
     int head, count; /* next slot to write; samples held */
     uint64_t collected;
+    char host[256]; /* the address served on */
 };
 
 static void *collect_main(void *arg) {
@@ -233,6 +234,7 @@ int rths_server_view_start(rths_server *server, const char *listen, rths_server_
     rths_server_view *sv = calloc(1, sizeof *sv);
     if (!sv) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     sv->server = server;
+    snprintf(sv->host, sizeof sv->host, "%s", opt.host);
     pthread_mutex_init(&sv->lock, NULL);
     double h = rths_server_sample_period_s(server);
     sv->decimation = (int)fmax(1.0, round(1.0 / (SCOPE_RATE_HZ * h)));
@@ -260,6 +262,10 @@ int rths_server_view_start(rths_server *server, const char *listen, rths_server_
 
 int rths_server_view_port(const rths_server_view *sv) {
     return rths_view_port(sv->view);
+}
+
+const char *rths_server_view_host(const rths_server_view *sv) {
+    return sv->host;
 }
 
 void rths_server_view_stop(rths_server_view *sv) {

@@ -18,7 +18,16 @@ export function launch(puppeteer, chromium) {
   });
 }
 
-export function watch(page, label, problems) {
+// A new page of width x height watched for problems (pushed to problems), loaded from url.
+export async function openPage(browser, url, label, problems, height = 1000) {
+  const page = await browser.newPage();
+  await page.setViewport({ width: 1400, height });
+  watch(page, label, problems);
+  await page.goto(url, { waitUntil: "load" });
+  return page;
+}
+
+function watch(page, label, problems) {
   page.on("console", (m) => {
     if (m.type() === "error" || m.type() === "warning") problems.push(`${label}: console ${m.type()}: ${m.text()}`);
   });
@@ -79,4 +88,27 @@ export async function drawsCsv(page, csvFile) {
   const inside = await page.evaluate(() => window.rthsView.drawn.frfInside);
   if (inside !== csv.length) fail(`${csv.length - inside} of ${csv.length} points drawn outside the plot`);
   else ok("every point lies inside the plot's axes");
+}
+
+// Runs the test functions (each (browser) => problems[]) in one headless Chromium, reports the
+// problems the pages had (or none, as label says), exits 1 on any failure.
+export async function runInBrowser(puppeteer, chromium, outDir, label, tests) {
+  fs.mkdirSync(outDir, { recursive: true });
+  const browser = await launch(puppeteer, chromium);
+  try {
+    const problems = [];
+    for (const t of tests) problems.push(...(await t(browser)));
+    if (problems.length) problems.forEach((p) => fail(p));
+    else ok(`${label}: no console error, page error or failed request`);
+  } catch (e) {
+    fail(`browser test: ${e.stack || e}`);
+  } finally {
+    await browser.close();
+  }
+  process.exit(failures() ? 1 : 0);
+}
+
+// Accepted points in a run folder's journal.jsonl now.
+export function journalPoints(dir) {
+  return fs.readFileSync(`${dir}/journal.jsonl`, "utf8").split("\n").filter((l) => l.includes('"point"')).length;
 }

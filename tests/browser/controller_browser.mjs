@@ -7,20 +7,16 @@
 //    it holds the loop's samples 1 ms apart (the page's data equals what the loop published);
 //  - the lateness histogram counts the loop's samples;
 //  - a screenshot (OUT_DIR/view_controller.png) is not blank: many distinct colours.
-import fs from "node:fs";
 import path from "node:path";
 import { createRequire } from "node:module";
-import { launch, screenshot, watch, ok, fail, failures } from "./browser_common.mjs";
+import { fail, ok, openPage, runInBrowser, screenshot } from "./browser_common.mjs";
 
 const [webDir, chromium, outDir, url] = process.argv.slice(2);
 const puppeteer = createRequire(path.resolve(webDir, "package.json"))("puppeteer-core");
 
 async function controllerPage(browser) {
   const problems = [];
-  const page = await browser.newPage();
-  await page.setViewport({ width: 1400, height: 950 });
-  watch(page, "controller page", problems);
-  await page.goto(url, { waitUntil: "load" });
+  const page = await openPage(browser, url, "controller page", problems, 950);
   await page.waitForFunction(() => window.rthsView && window.rthsView.drawn.scope > 50, { timeout: 20000 });
   const seen = [];
   for (let i = 0; i < 8; i++) {
@@ -55,15 +51,4 @@ async function controllerPage(browser) {
   return problems;
 }
 
-fs.mkdirSync(outDir, { recursive: true });
-const browser = await launch(puppeteer, chromium);
-try {
-  const problems = await controllerPage(browser);
-  if (problems.length) problems.forEach((p) => fail(p));
-  else ok("controller page: no console error, page error or failed request");
-} catch (e) {
-  fail(`browser test: ${e.stack || e}`);
-} finally {
-  await browser.close();
-}
-process.exit(failures() ? 1 : 0);
+await runInBrowser(puppeteer, chromium, outDir, "controller page", [controllerPage]);

@@ -12,7 +12,7 @@
 import fs from "node:fs";
 import path from "node:path";
 import { createRequire } from "node:module";
-import { drawsCsv, launch, screenshot, watch, ok, fail, failures } from "./browser_common.mjs";
+import { drawsCsv, fail, journalPoints, ok, openPage, runInBrowser, screenshot } from "./browser_common.mjs";
 
 const [webDir, chromium, outDir, url, runDir, runPidText] = process.argv.slice(2);
 const puppeteer = createRequire(path.resolve(webDir, "package.json"))("puppeteer-core");
@@ -28,16 +28,11 @@ const alive = () => {
   }
 };
 const ended = () => fs.existsSync(path.join(runDir, "summary.json")) || !alive();
-const journalPoints = () =>
-  fs.readFileSync(path.join(runDir, "journal.jsonl"), "utf8").split("\n").filter((l) => l.includes('"point"')).length;
 const sleep = (ms) => new Promise((r) => setTimeout(r, ms));
 
 async function watchRun(browser) {
   const problems = [];
-  const page = await browser.newPage();
-  await page.setViewport({ width: 1400, height: 1000 });
-  watch(page, "paced run", problems);
-  await page.goto(url, { waitUntil: "load" });
+  const page = await openPage(browser, url, "paced run", problems);
   await page.waitForFunction(() => window.rthsView && window.rthsView.renders > 0, { timeout: 15000 });
   const seen = [];
   let liveSeen = false, liveShown = false, shot = false;
@@ -60,8 +55,8 @@ async function watchRun(browser) {
   const monotone = seen.every((v, i) => i === 0 || v >= seen[i - 1]);
   if (monotone && distinct >= 3) ok(`drawn point count grew while the paced run went on (${distinct} counts): ${seen.join(" ")}`);
   else fail(`drawn point count during the paced run: ${seen.join(" ")}`);
-  if (seen.length && seen[seen.length - 1] <= journalPoints()) ok("the page never draws more than journal.jsonl holds");
-  else fail(`page drew ${seen[seen.length - 1]}, journal holds ${journalPoints()}`);
+  if (seen.length && seen[seen.length - 1] <= journalPoints(runDir)) ok("the page never draws more than journal.jsonl holds");
+  else fail(`page drew ${seen[seen.length - 1]}, journal holds ${journalPoints(runDir)}`);
   // the end: frf.csv and summary.json are written, the page follows within a poll and a fetch
   await page
     .waitForFunction(() => window.rthsView.state.summary && window.rthsView.state.status.state === "ended", { timeout: 30000 })
@@ -79,15 +74,4 @@ async function watchRun(browser) {
   return problems;
 }
 
-fs.mkdirSync(outDir, { recursive: true });
-const browser = await launch(puppeteer, chromium);
-try {
-  const problems = await watchRun(browser);
-  if (problems.length) problems.forEach((p) => fail(p));
-  else ok("paced run: no console error, page error or failed request");
-} catch (e) {
-  fail(`browser test: ${e.stack || e}`);
-} finally {
-  await browser.close();
-}
-process.exit(failures() ? 1 : 0);
+await runInBrowser(puppeteer, chromium, outDir, "paced run", [watchRun]);

@@ -8,20 +8,16 @@
 //  - on a run folder being appended to (LIVE_DIR, prepared by simulate_run.mjs with interval 0,
 //    continued from here), the number of drawn points grows without a reload and ends equal to
 //    journal.jsonl's; screenshot OUT_DIR/view_live.png.
-import fs from "node:fs";
 import path from "node:path";
 import { spawn } from "node:child_process";
 import { createRequire } from "node:module";
 import { fileURLToPath } from "node:url";
-import { drawsCsv, launch, screenshot, watch, ok, fail, failures } from "./browser_common.mjs";
+import { drawsCsv, fail, journalPoints, ok, openPage, runInBrowser, screenshot } from "./browser_common.mjs";
 
 const [webDir, chromium, outDir, finishedUrl, finishedDir, liveUrl, liveDir] = process.argv.slice(2);
 const here = path.dirname(fileURLToPath(import.meta.url));
 // puppeteer-core is web/'s devDependency (web/package-lock.json), installed by `make deps`
 const puppeteer = createRequire(path.resolve(webDir, "package.json"))("puppeteer-core");
-function journalPoints(dir) {
-  return fs.readFileSync(path.join(dir, "journal.jsonl"), "utf8").split("\n").filter((l) => l.includes('"point"')).length;
-}
 
 async function drawnCount(page) {
   return page.evaluate(() => window.rthsView.drawn.frf.length);
@@ -29,10 +25,7 @@ async function drawnCount(page) {
 
 async function finishedRun(browser) {
   const problems = [];
-  const page = await browser.newPage();
-  await page.setViewport({ width: 1400, height: 1000 });
-  watch(page, "finished run", problems);
-  await page.goto(finishedUrl, { waitUntil: "load" });
+  const page = await openPage(browser, finishedUrl, "finished run", problems);
   await page.waitForFunction(() => window.rthsView && window.rthsView.renders > 0 && window.rthsView.drawn.frf.length > 0, { timeout: 15000 });
   await new Promise((r) => setTimeout(r, 800)); // the event stream's first change, then idle
   await drawsCsv(page, path.join(finishedDir, "frf.csv"));
@@ -47,10 +40,7 @@ async function finishedRun(browser) {
 
 async function liveRun(browser) {
   const problems = [];
-  const page = await browser.newPage();
-  await page.setViewport({ width: 1400, height: 1000 });
-  watch(page, "run in progress", problems);
-  await page.goto(liveUrl, { waitUntil: "load" });
+  const page = await openPage(browser, liveUrl, "run in progress", problems);
   await page.waitForFunction(() => window.rthsView && window.rthsView.drawn.frf.length > 0, { timeout: 15000 });
   const first = await drawnCount(page);
   // the run goes on: a point and a new live.json every 400 ms (simulate_run.mjs)
@@ -80,15 +70,4 @@ async function liveRun(browser) {
   return problems;
 }
 
-fs.mkdirSync(outDir, { recursive: true });
-const browser = await launch(puppeteer, chromium);
-try {
-  const problems = [...(await finishedRun(browser)), ...(await liveRun(browser))];
-  if (problems.length) problems.forEach((p) => fail(p));
-  else ok("no console error, page error or failed request");
-} catch (e) {
-  fail(`browser test: ${e.stack || e}`);
-} finally {
-  await browser.close();
-}
-process.exit(failures() ? 1 : 0);
+await runInBrowser(puppeteer, chromium, outDir, "run pages", [finishedRun, liveRun]);
