@@ -348,6 +348,22 @@ static void controller_page(void **state) {
     rths_server_watch w;
     rths_server_get_watch(srv, &w);
     assert_int_equal(w.scope_decimation, 0); /* nobody watches: the loop publishes nothing */
+    /* a second page starts from the present: nothing the first one left in the ring */
+    sleep_poll_s(0.2);
+    rths_server_get_watch(srv, &w);
+    assert_int_equal(rths_server_view_start(srv, "127.0.0.1:0", &sv, &err), RTHS_OK);
+    double first = -1;
+    for (double waited = 0; first < 0 && waited < 20; waited += sleep_poll_s(0.05)) {
+        char *body = http_get(rths_server_view_port(sv), "/api/process");
+        root = body ? json_tokener_parse(body) : NULL;
+        free(body);
+        t = root ? member(member(root, "scope"), "time_s") : NULL;
+        if (t && json_object_array_length(t) > 0)
+            first = json_object_get_double(json_object_array_get_idx(t, 0));
+        json_object_put(root);
+    }
+    assert_true(first >= w.time_s);
+    rths_server_view_stop(sv);
     rths_server_destroy(srv);
 }
 

@@ -223,6 +223,13 @@ static int snapshot(void *user, char *buf, size_t cap) {
 
 /* ---- lifetime ---- */
 
+/* Empties the scope ring; only while no collector runs (the ring has one consumer). */
+static void drain(rths_server *server) {
+    rths_server_scope_sample stale[COLLECT_BATCH];
+    while (rths_server_scope_pop(server, stale, COLLECT_BATCH) > 0) {
+    }
+}
+
 int rths_server_view_start(rths_server *server, const char *listen, rths_server_view **out,
                            rths_error *err) {
     *out = NULL;
@@ -245,6 +252,7 @@ int rths_server_view_start(rths_server *server, const char *listen, rths_server_
     opt.page = "controller.html";
     int e;
     if ((rc = rths_view_start(&opt, &sv->view, err)) == RTHS_OK) {
+        drain(server); /* what a previous page may have left is old */
         rths_server_scope_enable(server, sv->decimation);
         if ((e = pthread_create(&sv->collector, NULL, collect_main, sv)) == 0)
             sv->collector_started = 1;
@@ -274,6 +282,7 @@ void rths_server_view_stop(rths_server_view *sv) {
     rths_server_scope_enable(sv->server, 0);
     atomic_store(&sv->stop, 1);
     if (sv->collector_started) pthread_join(sv->collector, NULL);
+    drain(sv->server); /* the next page starts from the present */
     pthread_mutex_destroy(&sv->lock);
     free(sv);
 }
