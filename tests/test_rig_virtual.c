@@ -11,6 +11,7 @@
 #include <complex.h>
 #include <math.h>
 #include <string.h>
+#include <time.h>
 
 static void load(const char *const *ov, int n, rths_config **cfg, rths_setup *s) {
     rths_error err;
@@ -255,6 +256,74 @@ static void test_refuses_out_of_range_commands(void **state) {
     rths_config_free(cfg);
 }
 
+/* One short session of the config's rig (5 periods at 13.2 Hz, then a 0.1 s trace): fills
+ * periods and trace, returns the rig time it ran (s) and, in wall_s, the wall time it took. */
+static double paced_session(rths_config *cfg, const rths_setup *s, rths_period *periods,
+                            rths_trace_sample *trace, int *n_trace, double *wall_s) {
+    rths_rig *rig;
+    rths_error err;
+    if (rths_virtual_rig_create(cfg, s, 0, 0, &rig, &err)) fail_msg("%s", err.msg);
+    double a[1] = {1e-5}, b[1] = {-2e-5};
+    assert_int_equal(rths_rig_set_forcing(rig, 13.2, 1.0, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target(rig, 1, a, b, &err), RTHS_OK);
+    struct timespec t0, t1;
+    double rig0 = rths_rig_time_s(rig);
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    assert_int_equal(rths_rig_run_periods(rig, 5, periods, &err), RTHS_OK);
+    assert_int_equal(rths_rig_record_trace(rig, 0.1, 50, trace, n_trace, &err), RTHS_OK);
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double rig_s = rths_rig_time_s(rig) - rig0;
+    *wall_s = (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
+    rths_rig_destroy(rig);
+    return rig_s;
+}
+
+/* rig.pace = 4: the session takes at least its rig time / 4 of wall time (a lower bound only:
+ * sleeping never makes a run faster, so this cannot flake on a loaded machine), and every period
+ * coefficient and trace sample is bit-identical to the unpaced run's (pacing only sleeps).
+ * Factors that are not a pace are refused, naming the key. */
+static void test_pace_sleeps_without_changing_results(void **state) {
+    (void)state;
+    const double pace = 4;
+    const char *paced_ov[] = {"rig.pace=4"};
+    rths_config *cfg_fast, *cfg_paced;
+    rths_setup s_fast, s_paced;
+    load(NULL, 0, &cfg_fast, &s_fast);
+    load(paced_ov, 1, &cfg_paced, &s_paced);
+    rths_period p_fast[5], p_paced[5];
+    rths_trace_sample t_fast[50], t_paced[50];
+    int n_fast = 0, n_paced = 0;
+    double wall_fast, wall_paced;
+    double rig_fast = paced_session(cfg_fast, &s_fast, p_fast, t_fast, &n_fast, &wall_fast);
+    double rig_paced = paced_session(cfg_paced, &s_paced, p_paced, t_paced, &n_paced, &wall_paced);
+    print_message("rig %.4f s: unpaced %.4f s wall, paced x%g %.4f s wall (bound %.4f s)\n",
+                  rig_paced, wall_fast, pace, wall_paced, rig_paced / pace);
+    assert_true(rig_paced > 0.45); /* 5 periods of 1/13.2 s and 0.1 s: a bound worth testing */
+    assert_true(wall_paced >= rig_paced / pace);
+    assert_memory_equal(&rig_fast, &rig_paced, sizeof rig_fast);
+    assert_memory_equal(p_fast, p_paced, sizeof p_fast);
+    assert_int_equal(n_fast, n_paced);
+    assert_memory_equal(t_fast, t_paced, sizeof t_fast[0] * (size_t)n_fast);
+    rths_rig *rig;
+    rths_error err;
+    if (rths_virtual_rig_create(cfg_fast, &s_fast, 0, 0, &rig, &err)) fail_msg("%s", err.msg);
+    const double bad[] = {-1, NAN, INFINITY, 2e6};
+    for (int i = 0; i < 4; i++)
+        assert_int_equal(rths_virtual_rig_set_pace(rig, bad[i], &err), RTHS_EINPUT);
+    assert_int_equal(rths_virtual_rig_set_pace(rig, 0.5, &err), RTHS_OK);
+    rths_rig_destroy(rig);
+    rths_setup_free(&s_fast);
+    rths_setup_free(&s_paced);
+    rths_config_free(cfg_fast);
+    rths_config_free(cfg_paced);
+    const char *neg[] = {"rig.pace=-1"};
+    load(neg, 1, &cfg_fast, &s_fast);
+    assert_int_equal(rths_virtual_rig_create(cfg_fast, &s_fast, 0, 0, &rig, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "rig.pace"));
+    rths_setup_free(&s_fast);
+    rths_config_free(cfg_fast);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_matched_equals_fidelity),
@@ -263,6 +332,7 @@ int main(void) {
         cmocka_unit_test(test_bilinear_static_slopes),
         cmocka_unit_test(test_forcing_on_physical_dof),
         cmocka_unit_test(test_refuses_out_of_range_commands),
+        cmocka_unit_test(test_pace_sleeps_without_changing_results),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

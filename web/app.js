@@ -2,7 +2,6 @@
 // Amplitudes are shown in micrometres, times in seconds or milliseconds as labelled.
 "use strict";
 
-const UM = 1e6; // m -> µm for display
 const COLORS = {
   truth: "#222222",
   point: "#1565c0",
@@ -18,29 +17,7 @@ const state = { status: null, points: [], truth: null, live: null, summary: null
 // What the page drew, for tests and the curious: window.rthsView.drawn.frf = [[f_hz, a_m], ...]
 window.rthsView = { state, drawn: { frf: [] }, renders: 0 };
 
-const $ = (id) => document.getElementById(id);
-
-async function getJSON(url) {
-  const r = await fetch(url, { cache: "no-store" });
-  const body = await r.json().catch(() => ({ error: `bad JSON from ${url}` }));
-  if (!r.ok) throw new Error(body.error || `${url}: HTTP ${r.status}`);
-  return body;
-}
-
 // ---------- plots ----------
-
-function plotSize(el, height) {
-  return { width: Math.max(260, el.clientWidth - 4), height };
-}
-
-// Tick labels: plain numbers, no exponent below 1e5 (µm and Hz here), at most `digits` digits.
-const fmtAxis = (digits) => (u, vals) =>
-  vals.map((v) => {
-    if (v == null) return "";
-    if (v === 0) return "0";
-    if (Math.abs(v) >= 1e5 || Math.abs(v) < 1e-3) return v.toExponential(1);
-    return String(+v.toPrecision(digits));
-  });
 
 // A plot whose content is drawn by hand on uPlot's canvas (unsorted x: folds, Lissajous);
 // uPlot gives axes, grid, legend and sizing. ranges() returns [[xmin, xmax], [ymin, ymax]].
@@ -73,21 +50,6 @@ function rescale(u) {
     u.setScale("x", { min: xr[0], max: xr[1] });
     u.setScale("y", { min: yr[0], max: yr[1] });
   });
-}
-
-function nativePlot(el, height, xLabel, yLabel, series, extra = {}) {
-  const opts = {
-    ...plotSize(el, height),
-    scales: { x: { time: false }, ...(extra.scales || {}) },
-    axes: [
-      { label: xLabel, values: extra.xValues || fmtAxis(6) },
-      { label: yLabel, values: extra.yValues || fmtAxis(3), size: 64 },
-    ],
-    legend: { live: false },
-    cursor: { show: false },
-    series: [{}].concat(series),
-  };
-  return new uPlot(opts, [[]].concat(series.map(() => [])), el);
 }
 
 function padded(lo, hi, frac) {
@@ -365,27 +327,6 @@ function renderPlots() {
 
 // ---------- facts ----------
 
-function facts(el, rows) {
-  el.innerHTML = "";
-  for (const [k, v, cls] of rows) {
-    const dt = document.createElement("dt");
-    const dd = document.createElement("dd");
-    dt.textContent = k;
-    dd.textContent = v;
-    if (cls) dd.className = cls;
-    el.append(dt, dd);
-  }
-}
-
-const sig = (x, d = 4) => (x == null || !isFinite(x) ? "–" : (+x).toPrecision(d));
-
-function duration(s) {
-  if (s == null || !isFinite(s)) return "–";
-  if (s < 120) return `${s.toFixed(1)} s`;
-  if (s < 7200) return `${(s / 60).toFixed(1)} min`;
-  return `${(s / 3600).toFixed(2)} h`;
-}
-
 function renderFacts() {
   const pts = state.points, plan = state.status && state.status.plan, l = state.live;
   const fs = pts.map((p) => p.frequency_hz).filter((f) => f != null);
@@ -459,56 +400,25 @@ function render() {
 
 // ---------- data ----------
 
-let pending = Promise.resolve();
-
 // Fetches what changed (only files the folder holds, so a finished run asks for no live.json
-// and the browser logs no 404), then redraws.
-function refresh(changed) {
-  pending = pending.then(async () => {
-    try {
-      state.status = await getJSON("/api/status");
-      const files = state.status.files || {};
-      const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
-      if (want("points")) state.points = (await getJSON("/api/points")).points;
-      if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
-      if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;
-      if (want("summary")) state.summary = files["summary.json"] ? await getJSON("/api/summary") : null;
-      state.error = state.status.state === "gone" ? `The run folder ${state.status.run_dir} is gone.` : null;
-    } catch (e) {
-      state.error = `${e.message}`;
-    }
-    render();
-  });
-  return pending;
+// and the browser logs no 404).
+async function load(changed) {
+  state.status = await getJSON("/api/status");
+  const files = state.status.files || {};
+  const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
+  if (want("points")) state.points = (await getJSON("/api/points")).points;
+  if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
+  if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;
+  if (want("summary")) state.summary = files["summary.json"] ? await getJSON("/api/summary") : null;
+  state.error = state.status.state === "gone" ? `The run folder ${state.status.run_dir} is gone.` : null;
 }
 
-function listen() {
-  const es = new EventSource("/api/events");
-  es.addEventListener("change", (ev) => refresh(JSON.parse(ev.data).changed));
-  es.onerror = () => {
-    state.error = "Lost the connection to rths view; retrying.";
-    renderHeader();
-  };
-  es.onopen = () => {
-    if (state.error && state.error.startsWith("Lost")) state.error = null;
-    renderHeader();
-  };
-}
-
-function start() {
-  if (window.rthsMissing) {
-    state.error = window.rthsMissing;
-    renderHeader();
-    return;
-  }
-  makePlots();
-  refresh(null).then(listen);
-  let width = window.innerWidth;
-  window.addEventListener("resize", () => {
-    if (window.innerWidth === width) return;
-    width = window.innerWidth;
-    for (const [id, u] of Object.entries(plots)) u.setSize(plotSize($(id), u.height));
-  });
-}
-
-start();
+startPage({
+  state,
+  plots,
+  makePlots,
+  load,
+  render,
+  renderHeader,
+  lost: "Lost the connection to rths view; retrying.",
+});

@@ -1,5 +1,6 @@
 /* rths virtual rig: the in-process rig backend, the controller step driving the virtual plant
- * on a simulated clock as fast as the CPU allows. Implements rig.h. */
+ * on a simulated clock, as fast as the CPU allows or paced at a factor of real time (rig.pace).
+ * Implements rig.h. */
 #ifndef RTHS_RIG_VIRTUAL_H
 #define RTHS_RIG_VIRTUAL_H
 
@@ -14,6 +15,12 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
 /* From parsed options (tests, benches). The rig starts armed, at rest, without forcing. */
 int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,
                                  const rths_plant_options *popt, rths_rig **out, rths_error *err);
+/* Paces the rig at factor x real time (1: a rig second takes a wall second; 20: a twentieth),
+ * so a demo looks like a lab run and a live view can be seen moving; 0: unpaced (the default).
+ * Pacing only sleeps, per delivered period, to an absolute monotonic deadline: results are
+ * bit-identical to an unpaced run. Also from the configuration as rig.pace. RTHS_EINPUT for a
+ * negative or non-finite factor or a rig that is not virtual. */
+int rths_virtual_rig_set_pace(rths_rig *rig, double factor, rths_error *err);
 /* The controller inside a virtual rig (feedback mode, direct inspection); NULL for other rigs. */
 rths_controller *rths_virtual_rig_controller(rths_rig *rig);
 rths_plant *rths_virtual_rig_plant(rths_rig *rig);

@@ -63,4 +63,50 @@ typedef struct rths_server_stats {
 
 void rths_server_get_stats(rths_server *s, rths_server_stats *out);
 
+/* ---- watching the process without disturbing the loop (a web page: rths_server_view_start in
+ * view.h). The loop publishes every decimation-th sample into a preallocated single-producer
+ * single-consumer ring (never waited for: a full ring drops the sample, counted) and its lateness
+ * into histogram bins, all lock-free; the functions below read them from another thread. ---- */
+
+/* One decimated loop sample. */
+typedef struct rths_server_scope_sample {
+    double time_s;   /* controller (rig) time, s */
+    double x_phys_m; /* physical interface displacement (measured) */
+    double x_num_m;  /* numerical interface displacement */
+    double target_m; /* the host's target for the interface */
+    double force_n;  /* interface force (load cell) */
+    double demand_v; /* actuator demand */
+} rths_server_scope_sample;
+
+/* Publishes every decimation-th sample from now on (0: none, the default). Any thread. */
+void rths_server_scope_enable(rths_server *s, int decimation);
+/* Pops up to max published samples, oldest first; returns how many. Exactly one thread may call
+ * it (the ring's single consumer); the ring holds 8192 samples. */
+int rths_server_scope_pop(rths_server *s, rths_server_scope_sample *out, int max);
+
+typedef struct rths_server_watch {
+    double time_s;       /* controller time, s */
+    double frequency_hz; /* forcing in effect */
+    double amplitude_n;
+    double sample_period_s;
+    double watchdog_s;           /* server.watchdog_s */
+    double host_silence_s;       /* since the host's last frame (the watchdog's clock) */
+    double ramp_time_s;          /* ramp to zero after a disarm or fault */
+    double displacement_limit_m; /* controller.limits.displacement_m */
+    int host_connected;          /* a host holds the connection */
+    int scope_decimation;        /* as enabled, 0: off */
+    uint64_t scope_dropped;      /* scope samples lost to a full ring */
+    uint64_t periods_dropped;    /* whole periods the host did not get */
+} rths_server_watch;
+
+void rths_server_get_watch(rths_server *s, rths_server_watch *out);
+/* The loop's wake-up lateness so far: counts[i] = samples late by edges_s[i] <= lateness <
+ * edges_s[i + 1] (the last: and beyond). edges_s ascending from 0, resolved to whole
+ * microseconds (the loop's bins). Any thread. */
+void rths_server_lateness_histogram(rths_server *s, const double *edges_s, int n_edges,
+                                    uint64_t *counts);
+/* Names of the rths_rig_fault numbering and of rths_disarm_reason (protocol.h). */
+const char *rths_server_fault_name(int fault);
+const char *rths_server_disarm_reason_name(int reason);
+
 #endif

@@ -13,12 +13,15 @@
  *   /api/status        what the folder holds now, and the process snapshot when one is served
  *   /api/events        server-sent events: "change" whenever a file of the run changes
  *   /run/NAME          a file directly inside the run folder (figures, CSV); nothing else
+ *   /api/process       a live process's own data (the controller's scope and lateness), when
+ *                      one is served
  * Requests naming anything outside the run folder (.., encoded or not, slashes, symlinks that
  * leave it) are refused with 403; unknown paths get 404; all errors are short JSON or text. */
 #ifndef RTHS_VIEW_H
 #define RTHS_VIEW_H
 
 #include "rths/core.h"
+#include "rths/server.h"
 
 #include <stddef.h>
 
@@ -28,6 +31,10 @@ typedef struct rths_view rths_view;
  * lateness): fills buf with one JSON object (NUL-terminated) and returns its length, or -1.
  * Called from the server's threads: it must only read state the process publishes for it. */
 typedef int (*rths_view_snapshot_fn)(void *user, char *buf, size_t cap);
+/* A live process's own data for its page (e.g. the controller's oscilloscope samples and
+ * lateness histogram): malloc'ed JSON text, served at /api/process; NULL gives a 500 error.
+ * Called from the server's threads, possibly several at once. */
+typedef char *(*rths_view_process_fn)(void *user);
 
 typedef struct rths_view_options {
     const char *run_dir; /* the run folder served; NULL: only the snapshot (controller page) */
@@ -36,6 +43,10 @@ typedef struct rths_view_options {
     double poll_s;       /* how often the folder is checked for changes, default 0.25 s */
     rths_view_snapshot_fn snapshot; /* optional, served at /api/status as "process" */
     void *snapshot_user;
+    rths_view_process_fn process; /* optional, served at /api/process */
+    void *process_user;
+    const char *page; /* the page served at /: "index.html" (NULL, the run's page) or
+                         "controller.html" (the controller process's page) */
 } rths_view_options;
 
 void rths_view_options_defaults(rths_view_options *opt);
@@ -58,5 +69,23 @@ int rths_view_points_json(const char *dir, char **json, rths_error *err);
 int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *err);
 int rths_view_port(const rths_view *v); /* the bound port */
 void rths_view_stop(rths_view *v);      /* closes every connection; v may be NULL */
+
+/* The controller process's page (`rths controller --view ADDR:PORT`): the interface signals as
+ * an oscilloscope (physical and numerical interface displacement, target, force; the loop's
+ * samples decimated to about 1 kHz), the limit state, the watchdog, the loop's lateness histogram
+ * and overruns. It reads only what the loop publishes lock-free (server.h: the scope ring, the
+ * histogram bins, atomics); a collector thread of its own is the scope ring's one consumer, so
+ * the paced loop never waits for a browser. listen: "HOST:PORT" as for --listen (loopback by
+ * default; the caller warns about any other address, rths_view_host_is_loopback). May start
+ * before or after rths_server_start; stop it before rths_server_destroy. RTHS_EINPUT for a bad
+ * listen text (naming --view), RTHS_EFAIL when it cannot listen. */
+typedef struct rths_server_view rths_server_view;
+int rths_server_view_start(rths_server *server, const char *listen, rths_server_view **out,
+                           rths_error *err);
+int rths_server_view_port(const rths_server_view *sv);         /* the bound port (listen port 0) */
+const char *rths_server_view_host(const rths_server_view *sv); /* the address served on */
+void rths_server_view_stop(rths_server_view *sv);              /* sv may be NULL */
+/* The JSON of /api/process and of /api/status's "process" (tests, and a page elsewhere). */
+char *rths_server_view_process_json(rths_server_view *sv);
 
 #endif

@@ -41,6 +41,7 @@
 #define CMD_RING 64           /* commands in flight; the network waits for each, so few */
 #define MAX_CMDS_PER_SAMPLE 4 /* commands the loop applies per sample, at most */
 #define TRACE_RING 16384      /* trace samples between network-thread wake-ups */
+#define SCOPE_RING 8192       /* decimated samples for a viewer (rths_server_scope_pop) */
 #define LAT_BINS 50000        /* lateness histogram: 1 us bins up to 50 ms, then overflow */
 #define STEP_BINS 10000       /* step cost histogram: 0.1 us bins up to 1 ms, then overflow */
 #define RX_CAP 8192
@@ -88,8 +89,8 @@ struct rths_server {
     atomic_int stop;
     atomic_int loop_ready;
 
-    rths_spsc cmds, traces;
-    void *cmd_storage, *trace_storage;
+    rths_spsc cmds, traces, scope;
+    void *cmd_storage, *trace_storage, *scope_storage;
     uint32_t next_cmd_id; /* network thread */
     _Atomic uint32_t applied_id;
     atomic_int applied_result;
@@ -103,6 +104,11 @@ struct rths_server {
     _Atomic uint64_t engine_dropped; /* periods the step's ring dropped */
     _Atomic uint32_t *lat_hist;      /* LAT_BINS + 1 */
     _Atomic uint32_t *step_hist;     /* STEP_BINS + 1 */
+
+    /* the viewer's scope: decimation set by the viewer (0: off), the ring filled by the loop */
+    _Atomic uint32_t scope_decimation;
+    _Atomic uint64_t scope_dropped;
+    atomic_int client_connected; /* written by the network thread, read by a viewer */
 
     /* written by the network thread, read by the loop */
     _Atomic int64_t last_rx_ns;
@@ -299,6 +305,19 @@ static void timed_step(rths_server *s, rths_proto_trace_sample *sig) {
     max64(&s->worst_step_ns, c);
 }
 
+/* Every scope_decimation-th sample into the viewer's ring; a full ring drops the sample (counted),
+ * never waits. One relaxed load per sample when nobody watches. */
+static void publish_scope(rths_server *s, const rths_proto_trace_sample *sig, uint32_t *count) {
+    uint32_t d = atomic_load_explicit(&s->scope_decimation, memory_order_acquire);
+    if (!d) {
+        *count = 0;
+        return;
+    }
+    if (++*count < d) return;
+    *count = 0;
+    if (!rths_spsc_push(&s->scope, sig)) add64(&s->scope_dropped, 1);
+}
+
 /* The state other threads read, after every sample. */
 static void publish_state(rths_server *s, int *prev_armed) {
     int armed = rths_engine_armed(s->engine);
@@ -323,7 +342,7 @@ static void *loop_main(void *arg) {
     /* After a stop request the loop keeps stepping, disarmed, long enough for the step's ramp to
      * bring the demand to zero: a real rig must not be left with a held demand. */
     int64_t shutdown_left = -1;
-    uint32_t decim_count = 0;
+    uint32_t decim_count = 0, scope_count = 0;
     int prev_armed = 0;
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
@@ -350,6 +369,7 @@ static void *loop_main(void *arg) {
         } else {
             decim_count = 0;
         }
+        publish_scope(s, &sig, &scope_count);
         publish_state(s, &prev_armed);
     }
     atomic_store(&s->armed, 0);
@@ -388,6 +408,7 @@ static void drop_client(rths_server *s, const char *why) {
     (void)flush_tx(s); /* best effort: a final ERROR frame may still get out */
     close(c->fd);
     c->fd = -1;
+    atomic_store(&s->client_connected, 0);
     atomic_store(&s->trace_on, 0);
     notice(s, "client %s disconnected (%s)", c->peer, why);
     if (atomic_load(&s->armed)) {
@@ -716,6 +737,7 @@ static void accept_client(rths_server *s) {
     c->last_armed = atomic_load(&s->armed);
     c->last_fault = atomic_load(&s->fault);
     snprintf(c->peer, sizeof c->peer, "%s:%s", host, serv);
+    atomic_store(&s->client_connected, 1);
     int one = 1;
     setsockopt(fd, IPPROTO_TCP, TCP_NODELAY, &one, sizeof one);
     atomic_store(&s->last_rx_ns, mono_ns());
@@ -884,12 +906,14 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
     s->step_hist = calloc(STEP_BINS + 1, sizeof *s->step_hist);
     if (!s->c.tx || !s->lat_hist || !s->step_hist ||
         !(s->cmd_storage = calloc(CMD_RING, sizeof(loop_cmd))) ||
-        !(s->trace_storage = calloc(TRACE_RING, sizeof(rths_proto_trace_sample)))) {
+        !(s->trace_storage = calloc(TRACE_RING, sizeof(rths_proto_trace_sample))) ||
+        !(s->scope_storage = calloc(SCOPE_RING, sizeof(rths_proto_trace_sample)))) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     rths_spsc_init(&s->cmds, s->cmd_storage, CMD_RING, sizeof(loop_cmd));
     rths_spsc_init(&s->traces, s->trace_storage, TRACE_RING, sizeof(rths_proto_trace_sample));
+    rths_spsc_init(&s->scope, s->scope_storage, SCOPE_RING, sizeof(rths_proto_trace_sample));
     if (s->period_ns < 1000) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EINPUT, "sample period %g s is below 1 us",
@@ -989,6 +1013,7 @@ void rths_server_destroy(rths_server *s) {
     free(s->step_hist);
     free(s->cmd_storage);
     free(s->trace_storage);
+    free(s->scope_storage);
     free(s);
 }
 
@@ -1027,4 +1052,58 @@ void rths_server_get_stats(rths_server *s, rths_server_stats *o) {
     o->armed = atomic_load(&s->armed);
     o->fault = atomic_load(&s->fault);
     o->last_disarm = atomic_load(&s->last_disarm);
+}
+
+/* ---- watching the process (the viewer's side; see server.h) ---- */
+
+void rths_server_scope_enable(rths_server *s, int decimation) {
+    atomic_store_explicit(&s->scope_decimation, (uint32_t)(decimation > 0 ? decimation : 0),
+                          memory_order_release);
+}
+
+int rths_server_scope_pop(rths_server *s, rths_server_scope_sample *out, int max) {
+    int n = 0;
+    rths_proto_trace_sample t;
+    while (n < max && rths_spsc_pop(&s->scope, &t))
+        out[n++] = (rths_server_scope_sample){t.time_s,   t.x_phys_m, t.x_num_m,
+                                              t.target_m, t.force_n,  t.demand};
+    return n;
+}
+
+void rths_server_get_watch(rths_server *s, rths_server_watch *o) {
+    memset(o, 0, sizeof *o);
+    o->time_s = ctl_time(s);
+    o->frequency_hz = bitsd(atomic_load(&s->freq_bits));
+    o->amplitude_n = bitsd(atomic_load(&s->amp_bits));
+    o->sample_period_s = s->info.sample_period_s;
+    o->watchdog_s = s->opt.watchdog_s;
+    o->ramp_time_s = s->info.ramp_time_s;
+    o->displacement_limit_m = s->info.displacement_limit_m;
+    o->host_connected = atomic_load(&s->client_connected);
+    int64_t silent = mono_ns() - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed);
+    o->host_silence_s = silent > 0 ? (double)silent * 1e-9 : 0.0;
+    o->scope_decimation = (int)atomic_load(&s->scope_decimation);
+    o->scope_dropped = atomic_load(&s->scope_dropped);
+    o->periods_dropped = atomic_load(&s->periods_dropped) + atomic_load(&s->engine_dropped);
+}
+
+void rths_server_lateness_histogram(rths_server *s, const double *edges_s, int n_edges,
+                                    uint64_t *counts) {
+    memset(counts, 0, sizeof *counts * (size_t)n_edges);
+    int bin = -1;
+    for (int i = 0; i <= LAT_BINS; i++) {
+        /* fine bin i holds [i, i + 1) us (the last: everything beyond); it goes to the coarse bin
+         * whose lower edge it has reached */
+        while (bin + 1 < n_edges && (double)i * 1e-6 >= edges_s[bin + 1] - 1e-12)
+            bin++;
+        if (bin >= 0) counts[bin] += atomic_load_explicit(&s->lat_hist[i], memory_order_relaxed);
+    }
+}
+
+const char *rths_server_fault_name(int fault) {
+    return fault_name(fault);
+}
+
+const char *rths_server_disarm_reason_name(int reason) {
+    return disarm_reason_name(reason);
 }

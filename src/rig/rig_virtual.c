@@ -1,19 +1,52 @@
 /* The virtual rig: controller step + virtual plant on a simulated clock (see rig_virtual.h). */
 #include "rths/rig_virtual.h"
 
+#include <errno.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <time.h>
 
 typedef struct {
     rths_sample_loop *loop; /* the per-sample loop, shared with the controller process */
     rths_controller *ctrl;  /* the loop's */
     double sample_rate_hz;
     double min_frequency_hz, displacement_limit_m; /* the controller's options */
+    double pace;                 /* rig seconds per wall second; 0: as fast as the CPU allows */
+    int64_t pace_anchor_wall_ns; /* monotonic clock when the current rig command began */
+    double pace_anchor_rig_s;    /* rig time then */
 } virtual_rig;
 
 static void sample(virtual_rig *v, rths_controller_output *out) {
     rths_sample_loop_run(v->loop, out);
+}
+
+static int64_t monotonic_ns(void) {
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+/* Pacing (rig.pace): every command that runs the rig (run_periods, record_trace) starts a new
+ * anchor, so the host's own computing between commands is never "caught up" by running faster
+ * than the pace afterwards, as a lab rig would not either. */
+static void pace_begin(virtual_rig *v) {
+    if (!(v->pace > 0)) return;
+    v->pace_anchor_wall_ns = monotonic_ns();
+    v->pace_anchor_rig_s = rths_controller_time_s(v->ctrl);
+}
+
+/* Sleeps until the wall clock reaches the rig time run since pace_begin, divided by the pace:
+ * an absolute deadline from the anchor, so sleeping's own overshoot never accumulates (no
+ * drift), and the wall time of a command is never below its rig time / pace. */
+static void pace_wait(virtual_rig *v) {
+    if (!(v->pace > 0)) return;
+    double ahead_s = (rths_controller_time_s(v->ctrl) - v->pace_anchor_rig_s) / v->pace;
+    int64_t deadline = v->pace_anchor_wall_ns + (int64_t)ceil(ahead_s * 1e9);
+    struct timespec ts = {(time_t)(deadline / 1000000000), (long)(deadline % 1000000000)};
+    while (clock_nanosleep(CLOCK_MONOTONIC, TIMER_ABSTIME, &ts, NULL) == EINTR) {
+    }
 }
 
 static int fault_error(virtual_rig *v, rths_error *err) {
@@ -67,12 +100,15 @@ static int v_run_periods(void *self, int count, rths_period *out, rths_error *er
     /* bound: twice the samples of the slowest plausible periods, plus slack */
     long limit = (long)(count + 2) * (long)(2 * v->sample_rate_hz / f) + 100000;
     int got = 0;
+    pace_begin(v);
     for (long i = 0; got < count; i++) {
         if (i > limit) return rths_error_set(err, RTHS_EFAIL, "virtual rig: no period completed");
         sample(v, NULL);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
+        int before = got;
         while (got < count && rths_controller_pop_period(v->ctrl, &out[got]))
             got++;
+        if (got > before) pace_wait(v); /* a period is delivered when its time has passed */
     }
     return RTHS_OK;
 }
@@ -88,12 +124,16 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
     long every = (total + max_samples - 1) / max_samples;
     if (every < 1) every = 1;
     rths_controller_output o;
+    /* paced in slices of 10 ms rig time: a trace has no periods to wait at */
+    long slice = (long)ceil(0.01 * v->sample_rate_hz);
+    pace_begin(v);
     for (long i = 0; i < total; i++) {
         sample(v, &o);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
         if (i % every == 0 && *n_out < max_samples)
             out[(*n_out)++] = (rths_trace_sample){o.time_s,   o.x_phys_m, o.x_num_m,
                                                   o.target_m, o.force_n,  o.demand_v};
+        if ((i + 1) % slice == 0 || i + 1 == total) pace_wait(v);
     }
     rths_period discard;
     while (rths_controller_pop_period(v->ctrl, &discard)) {
@@ -165,10 +205,26 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
     rths_plant_options popt;
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
+    double pace = 0;
     int rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
+    if (!rc) rc = rths_config_get_double(cfg, "rig.pace", 0, 0.0, 0.0, 1e6, &pace, err);
     if (rc) return rc;
     if (has_seed) popt.seed = seed_override;
-    return rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
+    rc = rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
+    if (!rc && pace > 0) rc = rths_virtual_rig_set_pace(*out, pace, err);
+    return rc;
+}
+
+int rths_virtual_rig_set_pace(rths_rig *rig, double factor, rths_error *err) {
+    virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
+    if (!v) return rths_error_set(err, RTHS_EINPUT, "pacing applies to the virtual rig only");
+    if (!(factor >= 0 && factor <= 1e6))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "pace %g: expected a factor of real time in (0, 1e6] (1: real "
+                              "time), or 0 for unpaced",
+                              factor);
+    v->pace = factor;
+    return RTHS_OK;
 }
 
 rths_controller *rths_virtual_rig_controller(rths_rig *rig) {

@@ -22,6 +22,9 @@ struct rths_view {
     double poll_s;
     rths_view_snapshot_fn snapshot;
     void *snapshot_user;
+    rths_view_process_fn process;
+    void *process_user;
+    const char *page; /* the asset served at / */
     atomic_int stopping;
 };
 
@@ -48,8 +51,8 @@ int rths_view_host_is_loopback(const char *host) {
     return 0;
 }
 
-int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *port,
-                           rths_error *err) {
+int view_parse_listen_as(const char *option, const char *text, char *host, size_t host_cap,
+                         int *port, rths_error *err) {
     const char *colon = strrchr(text, ':');
     const char *port_text = colon ? colon + 1 : text;
     size_t hlen = colon ? (size_t)(colon - text) : 0;
@@ -60,12 +63,12 @@ int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *p
     long p = strtol(port_text, &end, 10);
     if (!*port_text || *end || errno || p < 0 || p > 65535)
         return rths_error_set(err, RTHS_EINPUT,
-                              "--listen '%s': expected HOST:PORT with a port 0..65535 (0: a free "
+                              "%s '%s': expected HOST:PORT with a port 0..65535 (0: a free "
                               "one), e.g. 127.0.0.1:8080",
-                              text);
+                              option, text);
     if (colon && hlen == 0)
-        return rths_error_set(err, RTHS_EINPUT, "--listen '%s': empty host", text);
-    if (hlen >= host_cap) return rths_error_set(err, RTHS_EINPUT, "--listen: host too long");
+        return rths_error_set(err, RTHS_EINPUT, "%s '%s': empty host", option, text);
+    if (hlen >= host_cap) return rths_error_set(err, RTHS_EINPUT, "%s: host too long", option);
     if (colon) {
         memcpy(host, h, hlen);
         host[hlen] = 0;
@@ -77,11 +80,16 @@ int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *p
     if (strcmp(host, "localhost") && inet_pton(AF_INET, host, &a4) != 1 &&
         inet_pton(AF_INET6, host, &a6) != 1)
         return rths_error_set(err, RTHS_EINPUT,
-                              "--listen '%s': '%s' is not a numeric IPv4/IPv6 address or "
+                              "%s '%s': '%s' is not a numeric IPv4/IPv6 address or "
                               "localhost",
-                              text, host);
+                              option, text, host);
     *port = (int)p;
     return RTHS_OK;
+}
+
+int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *port,
+                           rths_error *err) {
+    return view_parse_listen_as("--listen", text, host, host_cap, port, err);
 }
 
 /* ---- responses ---- */
@@ -126,7 +134,8 @@ static int send_html_error(struct mg_connection *c, int status, const char *msg)
                      "%d</title></head><body style=\"font-family:sans-serif\"><h1>%d</h1>"
                      "<p>%s</p><p>The view serves <a href=\"/\">the page</a>, /api/points, "
                      "/api/truth, /api/live, /api/summary, /api/status, /api/events and the run "
-                     "folder's own files as /run/NAME.</p></body></html>",
+                     "folder's own files as /run/NAME (a live process: /api/process)."
+                     "</p></body></html>",
                      status, status, msg);
     return send_body(c, status, "text/html; charset=utf-8", page, (size_t)n);
 }
@@ -292,6 +301,9 @@ static int serve_events(rths_view *v, struct mg_connection *c) {
         if (list[0] || v->snapshot)
             snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"status\"",
                      list[0] ? ", " : "");
+        if (v->process)
+            snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"process\"",
+                     list[0] ? ", " : "");
         char msg[512];
         if (list[0]) {
             int n = snprintf(msg, sizeof msg, "event: change\ndata: {\"changed\": [%s]}\n\n", list);
@@ -313,6 +325,12 @@ static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
     char *text = NULL;
     if (!strcmp(what, "status")) return serve_status(v, c);
     if (!strcmp(what, "events")) return serve_events(v, c);
+    if (!strcmp(what, "process")) {
+        if (!v->process) return send_json_error(c, 404, "this view serves no live process");
+        err.code = RTHS_EFAIL;
+        snprintf(err.msg, sizeof err.msg, "the process gave no data");
+        return send_owned_json(c, v->process(v->process_user), &err);
+    }
     if (!v->run_dir) return send_json_error(c, 404, "this view serves no run folder");
     struct stat st;
     if (stat(v->run_dir, &st) != 0) {
@@ -336,7 +354,8 @@ static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
                                "it after every evaluation when they are watched");
     if (!strcmp(what, "summary"))
         return serve_file_json(v, c, "summary.json", "the run has not ended: no summary.json yet");
-    return send_json_error(c, 404, "unknown API: use points, truth, live, summary, status, events");
+    return send_json_error(
+        c, 404, "unknown API: use points, truth, live, summary, status, events, process");
 }
 
 static int handle_request(rths_view *v, struct mg_connection *c) {
@@ -346,7 +365,7 @@ static int handle_request(rths_view *v, struct mg_connection *c) {
         return send_html_error(c, 405, "Only GET and HEAD.");
     if (is_traversal(ri->request_uri ? ri->request_uri : "") || is_traversal(uri))
         return send_html_error(c, 403, "Refused: the path leaves the run folder.");
-    if (!strcmp(uri, "/") || !strcmp(uri, "/index.html")) return serve_asset(c, "index.html");
+    if (!strcmp(uri, "/") || !strcmp(uri, "/index.html")) return serve_asset(c, v->page);
     if (!strncmp(uri, "/assets/", 8)) return serve_asset(c, uri + 8);
     if (!strncmp(uri, "/api/", 5)) return route_api(v, c, uri + 5);
     if (!strncmp(uri, "/run/", 5)) {
@@ -400,6 +419,9 @@ int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *e
     v->poll_s = opt->poll_s > 0 ? opt->poll_s : 0.25;
     v->snapshot = opt->snapshot;
     v->snapshot_user = opt->snapshot_user;
+    v->process = opt->process;
+    v->process_user = opt->process_user;
+    v->page = opt->page && opt->page[0] ? opt->page : "index.html";
     if (opt->run_dir) {
         int rc = rths_view_check_run_dir(opt->run_dir, err);
         if (!rc && !(v->run_dir = realpath(opt->run_dir, NULL)))

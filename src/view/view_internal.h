@@ -21,6 +21,10 @@ typedef struct view_csv {
 int view_csv_read(const char *path, view_csv *out, rths_error *err);
 void view_csv_free(view_csv *csv);
 
+/* rths_view_parse_listen with the option's name in its messages (--listen, --view). */
+int view_parse_listen_as(const char *option, const char *text, char *host, size_t host_cap,
+                         int *port, rths_error *err);
+
 char *view_join(const char *dir, const char *name);                    /* dir/name, malloc'ed */
 int view_file_exists(const char *dir, const char *name);               /* a regular file */
 char *view_read_file(const char *path, size_t max_bytes, size_t *len); /* NUL-terminated */

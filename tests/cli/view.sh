@@ -3,7 +3,9 @@
 # is in progress), refusals (bad command lines, missing/non-run folders, path traversal, a port in
 # use), a free port picked, loopback by default, a vanished folder survived; then the page in
 # headless Chromium (tests/browser/view_browser.mjs: no console error, drawn points = frf.csv, a
-# screenshot that is not blank, a growing run followed). Screenshots stay in view-test-output/.
+# screenshot that is not blank, a growing run followed), a real run paced by rig.pace watched from
+# start to end (paced_browser.mjs), and the controller process's page on a driven controller
+# (controller_browser.mjs). Screenshots stay in view-test-output/.
 set -u
 bin=$1
 src=$2
@@ -110,6 +112,59 @@ else
     start_view finished_view "$work/run" --listen 127.0.0.1:0 && finished=$base
     timeout 300 node "$src/tests/browser/view_browser.mjs" "$src/web" "$chromium" "$out" \
         "$finished" "$work/run" "$growing" "$work/growing" || fail "browser test"
+
+    # 7. a real paced run: rths frf at 4 x real time (59 s of rig time: about 15 s of wall time),
+    # watched from its first points to its end
+    paced=(frf "$src/examples/four_storey_linear.yaml" --quiet)
+    t0=$(date +%s.%N)
+    "$bin" "${paced[@]}" --out "$work/paced" --set rig.pace=4 >"$work/paced.out" 2>"$work/paced.err" &
+    paced_pid=$!
+    pids+=($paced_pid)
+    for _ in $(seq 200); do [ -s "$work/paced/journal.jsonl" ] && break; sleep 0.05; done
+    if start_view paced_view "$work/paced" --listen 127.0.0.1:0; then
+        timeout 300 node "$src/tests/browser/paced_browser.mjs" "$src/web" "$chromium" "$out" \
+            "$base" "$work/paced" "$paced_pid" || fail "paced run in the browser"
+    fi
+    wait "$paced_pid" || fail "paced frf run: $(cat "$work/paced.err")"
+    wall=$(echo "$(date +%s.%N) - $t0" | bc)
+    # pacing only sleeps: the same numbers as unpaced, and never faster than rig time / 4 (a lower
+    # bound: sleeping cannot make a run faster, so this cannot flake on a loaded machine)
+    "$bin" "${paced[@]}" --out "$work/unpaced" || fail "unpaced frf run"
+    cmp -s "$work/paced/frf.csv" "$work/unpaced/frf.csv" &&
+        echo "ok   paced run's frf.csv identical to the unpaced run's" || fail "pacing changed frf.csv"
+    rig=$(awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) if ($i == "rig_time_s") c = i; next }
+        { s += $c } END { print s }' "$work/paced/frf.csv")
+    if [ "$(echo "$wall >= $rig / 4" | bc)" = 1 ]; then echo "ok   paced x4: $rig s of rig time took $wall s (>= $rig / 4)"
+    else fail "paced x4: $rig s of rig time in $wall s"; fi
+
+    # 8. the controller process's page: `rths controller --view`, or before the command has the
+    # option the same server and page from test_view --serve-controller; a host (rths simulate
+    # over TCP) drives it while the browser watches
+    ctl_cfg="$src/examples/four_storey.yaml"
+    if "$bin" controller --help | grep -q -- "--view"; then
+        "$bin" controller --config "$ctl_cfg" --listen 127.0.0.1:0 --view 127.0.0.1:0 \
+            --set server.realtime=false >"$work/ctl.out" 2>"$work/ctl.err" &
+    else
+        "$PWD/test_view" --serve-controller "$ctl_cfg" >"$work/ctl.out" 2>"$work/ctl.err" &
+    fi
+    pids+=($!)
+    cport= vport=
+    for _ in $(seq 200); do
+        cport=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/ctl.out")
+        vport=$(sed -n 's|^view at http://127\.0\.0\.1:\([0-9][0-9]*\)/$|\1|p' "$work/ctl.out")
+        [ -n "$cport" ] && [ -n "$vport" ] && break
+        sleep 0.05
+    done
+    if [ -z "$vport" ]; then fail "controller page: no address printed: $(cat "$work/ctl.err")"
+    else
+        "$bin" simulate "$ctl_cfg" --out "$work/drive" --rig "tcp://127.0.0.1:$cport" --frequency 13 \
+            --target 2e-5,-1e-5 --periods 400 --quiet >"$work/drive.out" 2>"$work/drive.err" &
+        drive_pid=$!
+        pids+=($drive_pid)
+        timeout 120 node "$src/tests/browser/controller_browser.mjs" "$src/web" "$chromium" "$out" \
+            "http://127.0.0.1:$vport/" || fail "controller page in the browser"
+        kill "$drive_pid" 2>/dev/null
+    fi
 fi
 
 [ "$failures" -eq 0 ] || { echo "$failures failure(s)"; exit 1; }
