@@ -17,6 +17,9 @@
 #include <complex.h>
 
 #define RTHS_MAX_UNKNOWNS (2 * RTHS_MAX_HARMONICS + 1)
+/* Harmonics a test matches at the interface (iteration.harmonics, --harmonics): 1..3, the ones
+ * frf.csv reports (interface_error_h2_m, _h3_m, amplitude_h2_m, _h3_m). */
+#define RTHS_MAX_MATCHED_HARMONICS 3
 #define RTHS_LTI_HISTORY 12
 
 /* How one evaluation waits for steady state and averages (docs/method.md, "Iteration and

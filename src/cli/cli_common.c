@@ -304,3 +304,18 @@ int rths_cli_write_summary(rths_report *rep, const char *name, struct json_objec
     free(path);
     return rc;
 }
+
+int rths_cli_add_pace(rths_cli *cli, const char *value, int remote_rig, rths_error *err) {
+    double pace;
+    int rc = rths_cli_double("--pace", value, 1e-6, 1e6, &pace, err);
+    if (rc) return rc;
+    if (remote_rig)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --pace paces the in-process virtual rig; a controller "
+                              "process (--rig) runs at real time");
+    if (cli->n_sets >= RTHS_CLI_MAX_SETS)
+        return rths_error_set(err, RTHS_EINPUT, "too many --set (at most %d)", RTHS_CLI_MAX_SETS);
+    snprintf(cli->pace_set, sizeof cli->pace_set, "rig.pace=%.17g", pace);
+    cli->sets[cli->n_sets++] = cli->pace_set;
+    return RTHS_OK;
+}

@@ -57,13 +57,19 @@ typedef struct rths_cli {
     int quiet;    /* --quiet: nothing on stdout except errors (stderr) */
     int has_seed; /* --seed given */
     uint64_t seed;
-    int help; /* --help was given and the usage printed: return 0 */
+    int help;          /* --help was given and the usage printed: return 0 */
+    char pace_set[48]; /* "rig.pace=F" when --pace F was given (one of sets) */
 } rths_cli;
 
 /* Parses argv (argv[0] = command name). usage is printed for --help (stdout, then cli->help = 1
  * and RTHS_OK). Any problem: "rths <cmd>: <message>" on stderr and RTHS_EINPUT. */
 int rths_cli_parse(rths_cli *cli, int argc, char **argv, int flags, const char *usage,
                    rths_cli_opt *opts, int n_opts);
+
+/* --pace F (F x real time): appends rig.pace = F (docs/config/rig.md) to the overrides, named
+ * as the option when bad; refused with a controller process (remote_rig), which runs at real
+ * time. Returns RTHS_OK or RTHS_EINPUT with err filled. */
+int rths_cli_add_pace(rths_cli *cli, const char *value, int remote_rig, rths_error *err);
 
 /* Prints "rths <cmd>: <err->msg>" on stderr and returns rc (the exit status). */
 int rths_cli_fail(const rths_cli *cli, int rc, const rths_error *err);

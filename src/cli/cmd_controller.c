@@ -2,6 +2,7 @@
 #include "cli/commands.h"
 #include "rths/config.h"
 #include "rths/server.h"
+#include "rths/view.h"
 
 #include <errno.h>
 #include <pthread.h>
@@ -15,7 +16,8 @@ static void usage(FILE *to) {
     fprintf(
         to,
         "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--io PLUGIN.so]\n"
-        "                       [--set key=value]... [--duration SECONDS] [--quiet]\n"
+        "                       [--set key=value]... [--view ADDR:PORT] [--duration SECONDS]\n"
+        "                       [--quiet]\n"
         "       rths controller CONFIG [options]\n\n"
         "Runs the real-time controller: the per-sample step of the hybrid test (numerical\n"
         "substructure, PD control of the physical interface, Fourier sums, safety limits) on\n"
@@ -33,6 +35,11 @@ static void usage(FILE *to) {
         "                      section). Refused before anything runs when its ABI version\n"
         "                      differs or a symbol is missing.\n"
         "  --set key=value     override a configuration key (repeatable)\n"
+        "  --view ADDR:PORT    serve a web page of the process (docs/view.md): the interface\n"
+        "                      signals as an oscilloscope, limit state, watchdog, the loop's\n"
+        "                      lateness histogram and overruns, read without disturbing the\n"
+        "                      loop. Loopback unless asked (another address: a warning); port\n"
+        "                      0 picks a free one. Prints 'view at http://ADDR:PORT/'.\n"
         "  --duration SECONDS  stop after this long (default: until SIGINT/SIGTERM)\n"
         "  --quiet             no notices on stderr\n\n"
         "On start it prints 'listening on ADDR:PORT' on stdout. The controller starts\n"
@@ -72,7 +79,7 @@ static int parse_listen(const char *arg, char *host, size_t cap, int *port) {
 }
 
 int rths_cmd_controller(int argc, char **argv) {
-    const char *config_path = NULL, *listen = NULL, *io_path = NULL;
+    const char *config_path = NULL, *listen = NULL, *io_path = NULL, *view_listen = NULL;
     double duration = -1.0;
     int quiet = 0;
     const char **sets = calloc((size_t)argc + 1, sizeof *sets);
@@ -88,6 +95,8 @@ int rths_cmd_controller(int argc, char **argv) {
         int has_value = i + 1 < argc;
         if (!strcmp(a, "--listen") && has_value) {
             listen = argv[++i];
+        } else if (!strcmp(a, "--view") && has_value) {
+            view_listen = argv[++i];
         } else if (!strcmp(a, "--io") && has_value) {
             io_path = argv[++i];
         } else if (!strcmp(a, "--config") && has_value) {
@@ -159,6 +168,7 @@ int rths_cmd_controller(int argc, char **argv) {
                                                     "model",     "report",       NULL};
         for (int i = 0; host_sections[i]; i++)
             rths_config_mark_known(cfg, host_sections[i]);
+        rths_config_mark_known(cfg, "rig.pace"); /* paces the host's in-process rig only */
         rc = rths_server_create(cfg, &opt, &srv, &err);
     }
     if (!rc) rc = rths_config_check_unknown(cfg, &err);
@@ -175,14 +185,34 @@ int rths_cmd_controller(int argc, char **argv) {
     sigaddset(&sigs, SIGINT);
     sigaddset(&sigs, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
+    /* the page's threads inherit the blocked signals; a bad --view stops before the loop runs */
+    rths_server_view *view = NULL;
+    if (view_listen && (rc = rths_server_view_start(srv, view_listen, &view, &err))) {
+        fprintf(stderr, "rths controller: %s\n", err.msg);
+        rths_server_destroy(srv);
+        rths_config_free(cfg);
+        return rc;
+    }
+    if (view && !quiet && !rths_view_host_is_loopback(rths_server_view_host(view)))
+        fprintf(stderr,
+                "rths controller: warning: the page on %s is reachable from other machines; it "
+                "has no authentication\n",
+                rths_server_view_host(view));
     if ((rc = rths_server_start(srv, &err))) {
         fprintf(stderr, "rths controller: %s\n", err.msg);
+        rths_server_view_stop(view);
         rths_server_destroy(srv);
         rths_config_free(cfg);
         return rc;
     }
     printf("listening on %s%s%s:%d\n", strchr(opt.host, ':') ? "[" : "", opt.host,
            strchr(opt.host, ':') ? "]" : "", rths_server_port(srv));
+    if (view) {
+        const char *vh = rths_server_view_host(view);
+        int v6 = strchr(vh, ':') != NULL;
+        printf("view at http://%s%s%s:%d/\n", v6 ? "[" : "", vh, v6 ? "]" : "",
+               rths_server_view_port(view));
+    }
     fflush(stdout);
     if (duration > 0) {
         struct timespec ts = {(time_t)duration,
@@ -195,6 +225,7 @@ int rths_cmd_controller(int argc, char **argv) {
         int sig;
         sigwait(&sigs, &sig);
     }
+    rths_server_view_stop(view);
     rths_server_stop(srv);
     rths_server_stats st;
     rths_server_get_stats(srv, &st);

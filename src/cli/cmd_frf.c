@@ -10,7 +10,8 @@
 
 static const char usage[] =
     "Usage: rths frf CONFIG --out DIR [--strategy paper|default] [--harmonics N] [--seed S]\n"
-    "                [--resume] [--rig tcp://HOST:PORT] [--set key=value]... [--quiet]\n"
+    "                [--resume] [--rig tcp://HOST:PORT] [--pace F] [--set key=value]...\n"
+    "                [--quiet]\n"
     "\n"
     "Iterative hybrid test with continuation: solves for the control target's Fourier\n"
     "coefficients at which the physical and numerical interface displacements agree, and\n"
@@ -33,6 +34,8 @@ static const char usage[] =
     "  --seed S             noise seed of the virtual rig (default: rig.seed)\n"
     "  --resume             continue the interrupted run in DIR from its journal's last point\n"
     "  --rig URI            tcp://HOST:PORT: a controller process instead of the virtual rig\n"
+    "  --pace F             run the virtual rig at F x real time (1: real time), e.g. to watch\n"
+    "                       it with rths view; results are the same (rig.pace; default unpaced)\n"
     "  --set key=value      override a configuration key (repeatable)\n"
     "  --quiet              no progress line, no summary\n"
     "  --help               this text\n"
@@ -66,12 +69,13 @@ typedef struct {
 } frf_args;
 
 static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
-    enum { OPT_STRATEGY, OPT_HARMONICS, OPT_RESUME, OPT_RIG, N_OPTS };
+    enum { OPT_STRATEGY, OPT_HARMONICS, OPT_RESUME, OPT_RIG, OPT_PACE, N_OPTS };
     rths_cli_opt opts[N_OPTS] = {
         [OPT_STRATEGY] = {"--strategy", "NAME", NULL},
         [OPT_HARMONICS] = {"--harmonics", "N", NULL},
         [OPT_RESUME] = {"--resume", NULL, NULL},
         [OPT_RIG] = {"--rig", "URI", NULL},
+        [OPT_PACE] = {"--pace", "F", NULL},
     };
     int rc = rths_cli_parse(cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
                             opts, N_OPTS);
@@ -86,7 +90,8 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
                                             a->strategy),
                              &err);
     if (opts[OPT_HARMONICS].value &&
-        (rc = rths_cli_int("--harmonics", opts[OPT_HARMONICS].value, 1, 3, &a->harmonics, &err)))
+        (rc = rths_cli_int("--harmonics", opts[OPT_HARMONICS].value, 1, RTHS_MAX_MATCHED_HARMONICS,
+                           &a->harmonics, &err)))
         return rths_cli_fail(cli, rc, &err);
     a->resume = opts[OPT_RESUME].value != NULL;
     a->rig_uri = opts[OPT_RIG].value;
@@ -96,6 +101,9 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
                                             "option --rig: '%s' is not tcp://HOST:PORT",
                                             a->rig_uri),
                              &err);
+    if (opts[OPT_PACE].value &&
+        (rc = rths_cli_add_pace(cli, opts[OPT_PACE].value, a->rig_uri != NULL, &err)))
+        return rths_cli_fail(cli, rc, &err);
     /* The paper strategy integrates the numerical substructure as the seed did; an explicit
      * --set controller.scheme=... still wins, because overrides apply in order. */
     if (!strcmp(a->strategy, "paper")) {

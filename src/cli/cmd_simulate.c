@@ -17,7 +17,7 @@
 static const char usage[] =
     "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...] "
     "--periods N --out DIR\n"
-    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] "
+    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] [--pace F] "
     "[--set KEY=VALUE]... "
     "[--quiet]\n"
     "       rths simulate CONFIG --mode feedback [--delay TAU] --frequency F "
@@ -63,6 +63,8 @@ static const char usage[] =
     "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
     "controller)\n"
     "                       instead of the in-process virtual rig (iterative mode)\n"
+    "  --pace F             run the virtual rig at F x real time (1: real time); results are\n"
+    "                       the same (rig.pace; default unpaced)\n"
     "  --trace-periods K    periods in the recorded trace (iterative mode; "
     "default min(N, 5))\n"
     "  --mode MODE          iterative (default) or feedback\n"
@@ -78,7 +80,17 @@ static const char usage[] =
     "result), 1 failure,\n"
     "2 bad usage or input (nothing written).\n";
 
-enum { OPT_FREQ, OPT_TARGET, OPT_PERIODS, OPT_TRACE, OPT_MODE, OPT_DELAY, OPT_RIG, OPT_COUNT };
+enum {
+    OPT_FREQ,
+    OPT_TARGET,
+    OPT_PERIODS,
+    OPT_TRACE,
+    OPT_MODE,
+    OPT_DELAY,
+    OPT_RIG,
+    OPT_PACE,
+    OPT_COUNT
+};
 
 typedef struct {
     int feedback;
@@ -556,7 +568,7 @@ int rths_cmd_simulate(int argc, char **argv) {
         [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
         [OPT_PERIODS] = {"--periods", "N", NULL}, [OPT_TRACE] = {"--trace-periods", "K", NULL},
         [OPT_MODE] = {"--mode", "MODE", NULL},    [OPT_DELAY] = {"--delay", "TAU", NULL},
-        [OPT_RIG] = {"--rig", "URI", NULL},
+        [OPT_RIG] = {"--rig", "URI", NULL},       [OPT_PACE] = {"--pace", "F", NULL},
     };
     rths_cli cli;
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
@@ -566,6 +578,9 @@ int rths_cmd_simulate(int argc, char **argv) {
     rths_error_clear(&err);
     sim_args a;
     if ((rc = parse_args(opts, &a, &err))) return rths_cli_fail(&cli, rc, &err);
+    if (opts[OPT_PACE].value &&
+        (rc = rths_cli_add_pace(&cli, opts[OPT_PACE].value, opts[OPT_RIG].value != NULL, &err)))
+        return rths_cli_fail(&cli, rc, &err);
 
     rths_config *cfg = NULL;
     rths_setup setup;

@@ -22,10 +22,11 @@ static void print_usage(FILE *to, const command_entry *cmds, int n) {
             "Commands:\n");
     for (int i = 0; i < n; i++)
         if (cmds[i].fn) fprintf(to, "  %-11s %s\n", cmds[i].name, cmds[i].summary);
-    fprintf(to, "\nEvery command that takes CONFIG accepts --set dotted.key=value (repeatable) to\n"
-                "override any configuration key, e.g. --set split.mass_ratio=0.33.\n\n"
-                "Exit status: 0 success; 1 failure (numerics, I/O, rig fault); 2 bad usage or input\n"
-                "(configuration, command line, values out of range). Nothing is written on exit 2.\n");
+    fprintf(to,
+            "\nEvery command that takes CONFIG accepts --set dotted.key=value (repeatable) to\n"
+            "override any configuration key, e.g. --set split.mass_ratio=0.33.\n\n"
+            "Exit status: 0 success; 1 failure (numerics, I/O, rig fault); 2 bad usage or input\n"
+            "(configuration, command line, values out of range). Nothing is written on exit 2.\n");
 }
 
 int main(int argc, char **argv) {

@@ -7,8 +7,8 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                              rths_newton_options *newton, int *harmonics, rths_error *err) {
     long v;
     int rc;
-    if ((rc = rths_config_get_int(cfg, "iteration.harmonics", 0, *harmonics, 1, RTHS_MAX_HARMONICS,
-                                  &v, err)))
+    if ((rc = rths_config_get_int(cfg, "iteration.harmonics", 0, *harmonics, 1,
+                                  RTHS_MAX_MATCHED_HARMONICS, &v, err)))
         return rc;
     *harmonics = (int)v;
     if ((rc = rths_config_get_int(cfg, "iteration.max_iterations", 0, newton->max_iterations, 1,

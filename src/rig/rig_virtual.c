@@ -52,8 +52,8 @@ static void pace_wait(virtual_rig *v) {
 static int fault_error(virtual_rig *v, rths_error *err) {
     rths_rig_fault f = rths_controller_fault(v->ctrl);
     return rths_error_set(err, RTHS_EFAIL,
-                          "virtual rig fault at t = %.4f s: %s (limits in the controller "
-                          "section); the demand was ramped to zero",
+                          "virtual rig fault at t = %.4f s: %s (limits in controller.limits "
+                          "and rig.actuator.limits); the demand was ramped to zero",
                           rths_controller_time_s(v->ctrl), rths_rig_fault_name(f));
 }
 
@@ -186,9 +186,12 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     if (!rc) v->ctrl = rths_sample_loop_controller(v->loop);
     char description[200];
     snprintf(description, sizeof description,
-             "virtual rig: %s integrator, %g Hz, shaker delay %g s, lag %g Hz, noise %s",
-             rths_scheme_name(copt->scheme), copt->sample_rate_hz, popt->delay_s,
-             popt->lag_cutoff_hz, popt->noise ? "on" : "off");
+             "virtual rig: %s integrator, %g Hz, %s actuator, delay %g s, noise %s",
+             rths_scheme_name(copt->scheme), copt->sample_rate_hz,
+             rths_actuator_model_name(popt->actuator.model), popt->delay_s,
+             popt->noise == 2 ? "lab"
+             : popt->noise    ? "on"
+                              : "off");
     if (!rc && !(*out = rths_rig_create(&virtual_ops, v, description)))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (rc) {

@@ -2,13 +2,14 @@
 #ifndef RTHS_VIEW_INTERNAL_H
 #define RTHS_VIEW_INTERNAL_H
 
+#include "rths/run.h"
 #include "rths/view.h"
 
 #include <stddef.h>
 
 struct json_object;
 
-enum { VIEW_FRF_COLUMNS = 22, VIEW_CSV_MAX_COLUMNS = 64 };
+enum { VIEW_FRF_COLUMNS = RTHS_RUN_FRF_COLUMNS, VIEW_CSV_MAX_COLUMNS = 64 };
 
 /* A numeric CSV with a header line (the run's files: C locale, "nan" for NaN). */
 typedef struct view_csv {

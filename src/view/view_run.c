@@ -3,6 +3,7 @@
 #include "view/view_internal.h"
 
 #include "rths/continuation.h"
+#include "rths/run.h"
 
 #include <errno.h>
 #include <json-c/json.h>
@@ -12,29 +13,9 @@
 #include <string.h>
 #include <sys/stat.h>
 
-/* The columns of frf.csv, in its order (the run's writer is in src/cli/cmd_frf.c). */
-static const char *const frf_columns[VIEW_FRF_COLUMNS] = {"point",
-                                                          "frequency_hz",
-                                                          "amplitude_m",
-                                                          "numerical_amplitude_m",
-                                                          "phase_rad",
-                                                          "interface_error_m",
-                                                          "interface_error_h2_m",
-                                                          "interface_error_h3_m",
-                                                          "amplitude_h2_m",
-                                                          "amplitude_h3_m",
-                                                          "target_a1_m",
-                                                          "target_b1_m",
-                                                          "residual_norm_m",
-                                                          "tolerance_m",
-                                                          "evaluations",
-                                                          "iterations",
-                                                          "rig_time_s",
-                                                          "converged",
-                                                          "fold",
-                                                          "segment",
-                                                          "amplitude_se_m",
-                                                          "measured_amplitude_m"};
+/* frf.csv's columns and a journal point's row are the run's own (run.h), so the API and the
+ * file never drift apart. */
+#define frf_columns rths_run_frf_columns
 
 char *view_join(const char *dir, const char *name) {
     size_t len = strlen(dir) + strlen(name) + 2;
@@ -103,26 +84,6 @@ static json_object *number(double x) {
     return isfinite(x) ? json_object_new_double(x) : NULL;
 }
 
-/* Interface mismatch of harmonic k (m), as frf.csv's interface_error columns. */
-static double harmonic_error(const rths_point *pt, int k) {
-    return hypot(pt->sol.eval.phys.a[k] - pt->sol.eval.num.a[k],
-                 pt->sol.eval.phys.b[k] - pt->sol.eval.num.b[k]);
-}
-
-/* One frf.csv row of a journal point: the same quantities the run writes at its end. */
-static void point_row(const rths_point *pt, double *row) {
-    const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
-    double r[VIEW_FRF_COLUMNS] = {
-        pt->index, pt->sol.frequency_hz, pt->sol.amplitude_m, hypot(nu->a[1], nu->b[1]),
-        /* x = A cos + B sin = R cos(wt + phi) with phi = atan2(-B, A) */
-        atan2(-ph->b[1], ph->a[1]), harmonic_error(pt, 1), harmonic_error(pt, 2),
-        harmonic_error(pt, 3), hypot(ph->a[2], ph->b[2]), hypot(ph->a[3], ph->b[3]),
-        pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
-        pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold, pt->segment,
-        pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1])};
-    memcpy(row, r, sizeof r);
-}
-
 static json_object *row_object(const char *const *columns, int n, const double *row) {
     json_object *o = json_object_new_object();
     for (int c = 0; c < n; c++)
@@ -149,7 +110,7 @@ static int points_from_journal(const char *dir, json_object *root, rths_error *e
     json_object *arr = json_object_new_array();
     for (int i = 0; i < n; i++) {
         double row[VIEW_FRF_COLUMNS];
-        point_row(&pts[i], row);
+        rths_run_frf_row(&pts[i], row);
         json_object_array_add(arr, row_object(frf_columns, VIEW_FRF_COLUMNS, row));
     }
     json_object_object_add(root, "source", json_object_new_string("journal.jsonl"));

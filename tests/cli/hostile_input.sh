@@ -75,5 +75,12 @@ refused fidelity "fidelity: misspelt controller key" "unknown key 'controller.sa
 # a command without a rig still accepts those sections whole (one file serves every command)
 "$bin" model "$cfg" --set rig.anything=1 --out "$work/model_ok" --quiet || fail "model refused a rig key it does not read"
 
+# one range of matched harmonics everywhere (config and option), every one of them in frf.csv
+refused frf "iteration.harmonics 4" "key 'iteration.harmonics': must be in \[1, 3\] \(got 4\)" "$cfg" --set iteration.harmonics=4
+refused frf "--harmonics 4" "option --harmonics: must be in \[1, 3\]" "$cfg" --harmonics 4
+# --pace: a positive factor, the in-process rig only
+refused frf "--pace 0" "option --pace" "$cfg" --pace 0
+refused frf "--pace with --rig" "option --pace paces the in-process virtual rig" "$cfg" --pace 2 --rig tcp://127.0.0.1:9
+
 echo "$failures failures"
 [ "$failures" -eq 0 ]
