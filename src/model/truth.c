@@ -62,17 +62,26 @@ static int analytic_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_
     int rc = rths_modal_analysis(&s->assembly, &modes, err);
     if (rc) return rc;
     rc = rths_frf_grid(&modes, lo_hz, hi_hz, 0, &f, &count, err);
+    /* a banded assembly (a meshed rod or beam) by banded LU, O(n b^2) per frequency instead of a
+     * dense n^3 solve (1000 DoFs: 45 s -> well under a second); small ones as before */
+    rths_frf_sweep *sweep = NULL;
+    if (!rc && n > 8 && rths_assembly_half_bandwidth(&s->assembly) <= n / 8)
+        rc = rths_frf_sweep_create(&s->assembly, &modes, s->force, 1, &iface, &sweep, err);
     rths_modes_free(&modes);
     double complex *x = calloc((size_t)n, sizeof *x);
     if (!rc && !x) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) rc = truth_alloc(t, count, err);
     for (int j = 0; j < count && !rc; j++) {
-        rc = rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
-                      2 * M_PI * f[j], x, err);
+        if (sweep)
+            rc = rths_frf_sweep_eval(sweep, 2 * M_PI * f[j], &x[iface], err);
+        else
+            rc = rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
+                          2 * M_PI * f[j], x, err);
         t->freq_hz[j] = f[j];
         t->amp_m[j] = cabs(x[iface]);
         t->stable[j] = 1;
     }
+    rths_frf_sweep_destroy(sweep);
     free(x);
     free(f);
     return rc;
