@@ -64,6 +64,7 @@ static int create_rig(frf_state *st, rths_error *err) {
     int rc = RTHS_OK;
     if (!opt->rig_uri)
         rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
+    if (!rc && !opt->rig_uri) st->virtual_rig = st->rig;
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
     return rc;

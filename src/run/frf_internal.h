@@ -19,6 +19,8 @@ typedef struct frf_state {
     int harmonics;
     double trace_hz; /* output.trace_frequency_hz: the point of the Lissajous figure (0: peak) */
     rths_rig *rig;
+    rths_rig
+        *virtual_rig; /* the in-process rig behind the observing one (NULL: remote), owned by rig */
     rths_report *rep;
     rths_journal *journal;
     rths_live *live; /* live.json for `rths view`, closed when the continuation ends */

@@ -2,6 +2,8 @@
  * trace.csv) and summary.json. */
 #include "run/frf_internal.h"
 
+#include "rths/rig_virtual.h"
+
 #include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
@@ -367,6 +369,25 @@ static void add_truth_comparison(json_object *root, const point_stats *ps) {
                            json_object_new_int(ps->stable_agree));
 }
 
+/* What the virtual rig's actuator limits saw over the run (rig.actuator.limits): samples clipped
+ * or flagged, and the peaks, so a test that ran near its limits says so. */
+static json_object *actuator_summary(const rths_plant *plant) {
+    rths_actuator_status st;
+    rths_plant_actuator_status(plant, &st);
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "force_clipped_samples",
+                           json_object_new_int64(st.force_clipped_samples));
+    json_object_object_add(o, "stroke_flagged_samples",
+                           json_object_new_int64(st.stroke_flagged_samples));
+    json_object_object_add(o, "velocity_flagged_samples",
+                           json_object_new_int64(st.velocity_flagged_samples));
+    json_object_object_add(o, "peak_force_n", json_object_new_double(st.peak_force_n));
+    json_object_object_add(o, "peak_stroke_m", json_object_new_double(st.peak_stroke_m));
+    json_object_object_add(o, "peak_velocity_m_per_s",
+                           json_object_new_double(st.peak_velocity_m_per_s));
+    return o;
+}
+
 int frf_write_summary(frf_state *run, rths_error *err) {
     const frf_state *facts = run;
     const rths_continuation_result *res = &run->result;
@@ -398,6 +419,8 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "trace_rig_time_s",
                            json_object_new_double(facts->trace_rig_time_s));
     json_object_object_add(root, "wall_time_s", json_object_new_double(facts->wall_time_s));
+    rths_plant *plant = run->virtual_rig ? rths_virtual_rig_plant(run->virtual_rig) : NULL;
+    if (plant) json_object_object_add(root, "actuator", actuator_summary(plant));
     json_object_object_add(root, "failed_corrections", json_object_new_int(res->failures));
     json_object_object_add(root, "reached_end", json_object_new_boolean(res->reached_end));
     json_object_object_add(root, "stop_reason", json_object_new_string(res->stop_reason));
