@@ -129,6 +129,14 @@ int rths_journal_open_seeded(const char *path, const char *strategy, const char 
 /* The seed the header recorded: *known 0 for a journal that records none (format 2); else
  * *seed is its text (caller frees) or NULL. */
 int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err);
+/* The same, the header also recording the rig the run measured on ("virtual" or the controller
+ * process's tcp://HOST:PORT; NULL: not recorded). */
+int rths_journal_open_run(const char *path, const char *strategy, const char *seed, const char *rig,
+                          rths_journal **out, rths_error *err);
+/* A text field of the header (e.g. "seed", "rig"): *known 0 when the header has none; else
+ * *value is its text (caller frees) or NULL for a JSON null. */
+int rths_journal_read_header_text(const char *path, const char *key, int *known, char **value,
+                                  rths_error *err);
 /* Appends a point (is_update: a later line for the same index replaces the earlier one). */
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err);
 /* Records a resume after n_points points, with the configuration changes it was allowed

@@ -122,7 +122,9 @@ static int run_resume(cont_run *run, const rths_point *resume, int n_resume, rth
     for (int i = 0; i < n_resume && i < run->cap; i++) {
         int n = run->n;
         run->pts[n] = resume[i];
-        if (run->sc.amp_scale <= 0) run->sc.amp_scale = first_amplitude_scale(&run->pts[0].sol);
+        /* the scale point n's correction used (follow_amplitude_scale), so the fold tracker
+         * measures the same arclength as the uninterrupted run did */
+        if (n >= 1 || run->sc.amp_scale <= 0) run->sc.amp_scale = running_scale(run, n);
         cont_fold_track(run, n, 0);
         res->evaluations += run->pts[n].evaluations;
         res->rig_time_s += run->pts[n].rig_time_s;
@@ -135,9 +137,12 @@ static int run_resume(cont_run *run, const rths_point *resume, int n_resume, rth
     if (rc) return rc;
     /* the state saved with point n - 1 is in the scale its correction used */
     run->sc.amp_scale = running_scale(run, n - 1);
+    /* the step that reached point n - 1, grown after that success as step_grow did */
     if (n >= 2 && run->opt->method == RTHS_CONT_NATURAL)
         run->step_hz =
-            fabs(run->pts[n - 1].sol.omega_rad_s - run->pts[n - 2].sol.omega_rad_s) / (2 * M_PI);
+            fmin(fabs(run->pts[n - 1].sol.omega_rad_s - run->pts[n - 2].sol.omega_rad_s) /
+                     (2 * M_PI) * run->opt->grow,
+                 run->opt->max_step_hz);
     if (run->dir * (run->pts[n - 1].sol.omega_rad_s / (2 * M_PI) - run->opt->end_hz) >= 0) {
         res->reached_end = 1;
         snprintf(res->stop_reason, sizeof res->stop_reason, "end frequency %.6g Hz already reached",

@@ -46,6 +46,11 @@ int rths_journal_open(const char *path, const char *strategy, rths_journal **out
 
 int rths_journal_open_seeded(const char *path, const char *strategy, const char *seed,
                              rths_journal **out, rths_error *err) {
+    return rths_journal_open_run(path, strategy, seed, NULL, out, err);
+}
+
+int rths_journal_open_run(const char *path, const char *strategy, const char *seed, const char *rig,
+                          rths_journal **out, rths_error *err) {
     set_exact_doubles();
     rths_journal *j = calloc(1, sizeof *j);
     if (!j) return rths_error_set(err, RTHS_EFAIL, "out of memory opening the journal");
@@ -64,6 +69,7 @@ int rths_journal_open_seeded(const char *path, const char *strategy, const char 
         json_object_object_add(h, "strategy", json_object_new_string(strategy));
         json_object_object_add(h, "version", json_object_new_string(RTHS_VERSION));
         json_object_object_add(h, "seed", seed ? json_object_new_string(seed) : NULL);
+        if (rig) json_object_object_add(h, "rig", json_object_new_string(rig));
         int rc = write_line(j, h, err);
         json_object_put(h);
         if (rc) {
@@ -163,6 +169,11 @@ int rths_journal_append_resume(rths_journal *j, int n_points, const char *const 
 /* ---- reading ---- */
 
 int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err) {
+    return rths_journal_read_header_text(path, "seed", known, seed, err);
+}
+
+int rths_journal_read_header_text(const char *path, const char *key, int *known, char **seed,
+                                  rths_error *err) {
     *known = 0;
     *seed = NULL;
     FILE *f = fopen(path, "r");
@@ -174,7 +185,7 @@ int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error
     json_object *h = getline(&line, &cap, f) > 0 ? json_tokener_parse(line) : NULL, *v;
     free(line);
     fclose(f);
-    if (h && json_object_object_get_ex(h, "seed", &v)) {
+    if (h && json_object_object_get_ex(h, key, &v)) {
         *known = 1;
         if (v) *seed = strdup(json_object_get_string(v));
     }

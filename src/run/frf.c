@@ -94,7 +94,12 @@ static int load_resume(frf_state *st, rths_error *err) {
     int rc = rths_journal_read(st->journal_path, &st->resume_pts, &st->n_resume, &jstrategy, err);
     if (rc) return rc;
     const rths_point *pts = st->resume_pts;
-    if (strcmp(jstrategy, st->strategy))
+    if (!jstrategy)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s has no header record (the run was killed before it started): "
+                            "start a new run in another folder",
+                            st->journal_path);
+    else if (strcmp(jstrategy, st->strategy))
         rc = rths_error_set(err, RTHS_EINPUT,
                             "%s was written by a '%s' run; resume it with --strategy %s",
                             st->journal_path, jstrategy, jstrategy);
@@ -110,7 +115,7 @@ static int load_resume(frf_state *st, rths_error *err) {
     snprintf(tmp, len, "%s.rewrite", st->journal_path);
     remove(tmp);
     rths_journal *j = NULL;
-    rc = rths_journal_open_seeded(tmp, st->strategy, st->seed_text, &j, err);
+    rc = rths_journal_open_run(tmp, st->strategy, st->seed_text, frf_rig_text(st), &j, err);
     for (int i = 0; i < st->n_resume && !rc; i++)
         rc = rths_journal_append(j, &pts[i], 0, err);
     if (j) rths_journal_close(j);
@@ -202,8 +207,8 @@ static int open_outputs(frf_state *st, rths_error *err) {
     if (!rc) rc = rths_truth_compute(st->setup, lo, hi, &st->truth, err);
     if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
     if (!rc)
-        rc = rths_journal_open_seeded(st->journal_path, st->strategy, st->seed_text, &st->journal,
-                                      err);
+        rc = rths_journal_open_run(st->journal_path, st->strategy, st->seed_text, frf_rig_text(st),
+                                   &st->journal, err);
     /* the observing rig reports every evaluation to live.json; it forwards every call unchanged
      * (tests/test_live.c: a watched run equals an unwatched one bit for bit) */
     if (!rc) rc = rths_live_open(opt->out_dir, &st->live, err);
@@ -230,7 +235,8 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
     if (remember(st, pt)) return RTHS_EFAIL;
     const rths_run_callbacks *cb = st->cb;
     int rc = cb && cb->on_point ? cb->on_point(cb->user, pt, is_update) : RTHS_OK;
-    if (!rc && cb && cb->should_cancel && cb->should_cancel(cb->user)) {
+    /* only after a new point: a fold's re-reported points come before the point that found it */
+    if (!rc && !is_update && cb && cb->should_cancel && cb->should_cancel(cb->user)) {
         st->cancelled = 1;
         return FRF_CANCELLED;
     }

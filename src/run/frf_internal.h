@@ -43,6 +43,11 @@ typedef struct frf_state {
 
 enum { FRF_MAX_CHANGES = 8 };
 
+/* The rig a run measures on, as its journal records it: "virtual" or the tcp:// URI. */
+static inline const char *frf_rig_text(const frf_state *st) {
+    return st->opt->rig_uri ? st->opt->rig_uri : "virtual";
+}
+
 /* resume_check.c: refuses a resumed configuration that changes more than end_hz, max_points or
  * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */
 int frf_check_resume_config(frf_state *st, rths_error *err);

@@ -139,8 +139,24 @@ static int check_seed(const frf_state *st, rths_error *err) {
     return rc;
 }
 
+/* And so is the rig: a virtual-rig branch does not continue on a controller process. */
+static int check_rig(const frf_state *st, rths_error *err) {
+    int known = 0;
+    char *was = NULL;
+    int rc = rths_journal_read_header_text(st->journal_path, "rig", &known, &was, err);
+    const char *now = frf_rig_text(st);
+    if (!rc && known && was && strcmp(was, now))
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "--resume: the run measured on the %s rig and is resumed on %s: a "
+                            "resumed run keeps its rig; start a new run in another folder",
+                            was, now);
+    free(was);
+    return rc;
+}
+
 int frf_check_resume_config(frf_state *st, rths_error *err) {
     int seed_rc = check_seed(st, err);
+    if (!seed_rc) seed_rc = check_rig(st, err);
     if (seed_rc) return seed_rc;
     size_t len = strlen(st->opt->out_dir) + 16;
     char *old_path = malloc(len), tmp[] = "/tmp/rths_resume_XXXXXX";

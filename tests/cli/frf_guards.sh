@@ -76,5 +76,50 @@ kill "$holder" 2>/dev/null
 wait "$holder" 2>/dev/null
 [ "$failures" -eq 0 ] && echo "ok   busy folder -> exit 2 naming pid $holder"
 
+# 4. a journal without its header (killed between creating the file and writing the header):
+# --resume refuses it by name, exit 2 (it crashed on a NULL strategy)
+mkdir -p "$work/empty"
+cp "$work/short/config.yaml" "$work/empty/config.yaml"
+: >"$work/empty/journal.jsonl"
+"$bin" frf "$lin" --out "$work/empty" --quiet --resume "${quiet[@]}" 2>"$work/empty.err"
+rc=$?
+[ "$rc" -eq 2 ] && grep -q "no header record" "$work/empty.err" ||
+    fail "header-less journal: exit $rc, $(cat "$work/empty.err")"
+[ "$failures" -eq 0 ] && echo "ok   header-less journal -> exit 2"
+
+# 5. the journal records the rig the run measured on
+grep -q '"rig":"virtual"' "$work/short/journal.jsonl" || fail "the journal's header names no rig"
+
+# 6. a resume continues as the uninterrupted run would: a natural sweep keeps its grown step
+# (12 points at once == 6 points + --resume to 12, frequencies to 1e-12), and replaying a
+# journal finds the same folds (a finished bilinear run resumed: folds unchanged)
+nat=(--set rig.noise=false --set continuation.method=natural --set continuation.start_hz=12.5
+    --set continuation.initial_step_hz=0.02 --set continuation.max_step_hz=0.1)
+"$bin" frf "$lin" --out "$work/nat12" --quiet "${nat[@]}" --set continuation.max_points=12 ||
+    fail "natural 12-point run"
+"$bin" frf "$lin" --out "$work/nat6" --quiet "${nat[@]}" --set continuation.max_points=6 ||
+    fail "natural 6-point run"
+"$bin" frf "$lin" --out "$work/nat6" --quiet --resume "${nat[@]}" \
+    --set continuation.max_points=12 || fail "natural resume to 12"
+/usr/bin/python3 - "$work/nat12/frf.csv" "$work/nat6/frf.csv" <<'PY' || fail "resumed grid differs"
+import csv, sys
+a, b = ([float(r["frequency_hz"]) for r in csv.DictReader(open(p))] for p in sys.argv[1:])
+worst = max(abs(x - y) / x for x, y in zip(a, b)) if len(a) == len(b) else float("inf")
+print(f"natural sweep, resumed vs uninterrupted: {len(b)} vs {len(a)} points, worst {worst:.1e}")
+sys.exit(0 if len(a) == len(b) == 12 and worst < 1e-12 else 1)
+PY
+bil="$src/examples/four_storey_bilinear.yaml"
+"$bin" frf "$bil" --out "$work/bil" --quiet --set rig.noise=false || fail "bilinear run"
+mkdir -p "$work/bil2"
+cp "$work/bil/config.yaml" "$work/bil/journal.jsonl" "$work/bil2/"
+"$bin" frf "$bil" --out "$work/bil2" --quiet --resume --set rig.noise=false || fail "bilinear resume"
+/usr/bin/python3 - "$work/bil/summary.json" "$work/bil2/summary.json" <<'PY' || fail "replayed folds differ"
+import json, sys
+a, b = (json.load(open(p))["folds"] for p in sys.argv[1:])
+print(f"folds: run {[(f['frequency_hz']) for f in a]}, replayed {[(f['frequency_hz']) for f in b]}")
+sys.exit(0 if a == b and len(a) == 2 else 1)
+PY
+[ "$failures" -eq 0 ] && echo "ok   resume continues as the uninterrupted run"
+
 [ "$failures" -eq 0 ] && echo ok
 exit "$failures"
