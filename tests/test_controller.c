@@ -93,6 +93,48 @@ static void test_step_allocates_nothing(void **state) {
 #endif
 }
 
+/* The whole per-sample loop (device read, step, plant advance) allocates nothing either, also
+ * when the plant applies a forcing (base excitation drives the physical storeys) and its
+ * frequency changes: the plant's response to the forcing is precomputed for every frequency (it
+ * rebuilt a matrix exponential per frequency change inside the loop, 5 allocations and LAPACK). */
+static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
+    (void)state;
+#ifdef __SANITIZE_ADDRESS__
+    skip();
+#else
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    if (rths_config_load(rths_test_source_path("examples/four_storey_base_excited.yaml"), NULL, 0,
+                         &cfg, &err) ||
+        rths_setup_read(cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    rths_sample_loop *loop;
+    if (rths_sample_loop_create(&s, &co, &po, &loop, &err)) fail_msg("%s", err.msg);
+    rths_controller *c = rths_sample_loop_controller(loop);
+    assert_int_equal(rths_sample_loop_arm(loop), RTHS_OK);
+    const double a[1] = {1e-5}, b[1] = {0};
+    rths_controller_set_target(c, 1, a, b);
+    const double freqs_hz[3] = {12.0, 12.5, 13.0};
+    long before = allocations;
+    for (int f = 0; f < 3; f++) {
+        rths_controller_set_forcing(c, freqs_hz[f], s.forcing_amplitude_n);
+        for (int k = 0; k < 5000; k++)
+            rths_sample_loop_run(loop, NULL);
+    }
+    long during = allocations - before;
+    assert_int_equal(during, 0);
+    assert_int_equal(rths_controller_fault(c), RTHS_RIG_OK);
+    rths_sample_loop_destroy(loop);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+#endif
+}
+
 /* By construction: the step's source calls no allocator, lock, printing or LAPACK. */
 static void test_step_source_is_clean(void **state) {
     (void)state;
@@ -589,6 +631,7 @@ static void test_base_excited_seed_matches_truth(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_step_allocates_nothing),
+        cmocka_unit_test(test_loop_allocates_nothing_across_frequency_changes),
         cmocka_unit_test(test_step_source_is_clean),
         cmocka_unit_test(test_fourier_sums_exact),
         cmocka_unit_test(test_forcing_changes_at_boundary),
