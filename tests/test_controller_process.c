@@ -58,14 +58,19 @@ static rths_config *seed_config(const char *const *sets, int n_sets) {
     return cfg;
 }
 
-static rths_server *start_server_with(int port, double watchdog_s, const char *const *sets,
-                                      int n_sets) {
+/* The test servers' options: an ephemeral loopback port, no real-time scheduling, quiet. */
+static rths_server_options test_server_options(int port, double watchdog_s) {
     rths_server_options opt;
     rths_server_options_defaults(&opt);
     opt.port = port;
     opt.realtime = 0;
     opt.quiet = 1;
     opt.watchdog_s = watchdog_s;
+    return opt;
+}
+
+static rths_server *start_server_opts(rths_server_options opt, const char *const *sets,
+                                      int n_sets) {
     rths_server *s = NULL;
     rths_error err;
     rths_error_clear(&err);
@@ -82,6 +87,11 @@ static rths_server *start_server_with(int port, double watchdog_s, const char *c
     assert_int_equal(rc, RTHS_OK);
     assert_int_equal(rths_server_start(s, &err), RTHS_OK);
     return s;
+}
+
+static rths_server *start_server_with(int port, double watchdog_s, const char *const *sets,
+                                      int n_sets) {
+    return start_server_opts(test_server_options(port, watchdog_s), sets, n_sets);
 }
 
 static rths_server *start_server(int port, double watchdog_s) {
@@ -366,6 +376,38 @@ static double arm(raw *r) {
     raw_request(r, RTHS_MSG_ARM, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ACK);
     return reply.u.ack.time_s;
+}
+
+/* A forcing of a quarter of the sample rate or more is refused whatever server.max_frequency_hz
+ * says (at 1 kHz and 5000 Hz the phase and Fourier sums ran away: one period per sample, a0 of
+ * 37 m for a plant moving 1e-7 m); just below it is accepted. */
+static void test_forcing_below_a_quarter_of_the_rate(void **state) {
+    (void)state;
+    const char *sets[] = {"controller.sample_rate_hz=1000"};
+    rths_server_options opt = test_server_options(0, 30.0);
+    opt.max_frequency_hz = 5000;
+    rths_server *s = start_server_opts(opt, sets, 1);
+    raw r;
+    rths_msg m, reply;
+    raw_connect(&r, rths_server_port(s));
+    raw_hello(&r);
+    const double freqs_hz[2] = {250.0, 5000.0};
+    for (int k = 0; k < 2; k++) {
+        rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
+        m.u.forcing.frequency_hz = freqs_hz[k];
+        m.u.forcing.amplitude_n = 1.0;
+        raw_reply(&r, raw_send(&r, &m), &reply);
+        assert_int_equal(reply.type, RTHS_MSG_ERROR);
+        assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
+        assert_non_null(strstr(reply.u.error.message, "rate/4"));
+    }
+    rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
+    m.u.forcing.frequency_hz = 249.0;
+    m.u.forcing.amplitude_n = 1.0;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    if (reply.type != RTHS_MSG_ACK) fail_msg("249 Hz refused: %s", reply.u.error.message);
+    close(r.fd);
+    rths_server_destroy(s);
 }
 
 /* Issue 18: SET_FORCING 0.001 Hz (accepted then) and 13 Hz wedged the controller: the change
@@ -821,6 +863,7 @@ int main(void) {
         cmocka_unit_test(test_session_rules_and_hello),
         cmocka_unit_test(test_malformed_frames_keep_controller_safe),
         cmocka_unit_test(test_forcing_and_target_limits),
+        cmocka_unit_test(test_forcing_below_a_quarter_of_the_rate),
         cmocka_unit_test(test_watchdog_ramps_to_zero),
         cmocka_unit_test(test_link_loss_and_second_client),
         cmocka_unit_test(test_remote_rig_unreachable),

@@ -64,6 +64,13 @@ int rths_sample_loop_create_configured(rths_config *cfg, const rths_setup *setup
                                        const rths_controller_options *copt, rths_sample_loop **out,
                                        rths_error *err) {
     *out = NULL;
+    /* before any device opens: a sensor sample carries at most RTHS_MAX_SENSED_DOFS */
+    if (setup->split.np > RTHS_MAX_SENSED_DOFS)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the physical substructure has %d DoFs; the real-time controller "
+                              "(fixed per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) "
+                              "senses at most %d",
+                              setup->split.np, RTHS_MAX_SENSED_DOFS);
     const char *path = NULL;
     int rc = rths_config_get_string(cfg, "io.plugin", 0, NULL, &path, err);
     if (rc) return rc;

@@ -351,7 +351,8 @@ static void *loop_main(void *arg) {
         if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
             if (rths_engine_armed(s->engine)) atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
             rths_engine_disarm(s->engine);
-            shutdown_left = (int64_t)(0.5e9 / (double)s->period_ns) + 1;
+            /* the whole ramp to zero (controller.ramp_time_s, up to 60 s) and half a second */
+            shutdown_left = (int64_t)((s->info.ramp_time_s + 0.5) * 1e9 / (double)s->period_ns) + 1;
         }
         if (shutdown_left < 0)
             serve_host(s, now, watchdog_ns);
@@ -532,13 +533,17 @@ static void handle_hello(rths_server *s, const rths_msg *m) {
  * accepted one becomes the loop command cmd. Returns 0 when accepted. */
 static int check_forcing(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
     const double f = m->u.forcing.frequency_hz, amp = m->u.forcing.amplitude_n;
+    /* at least 4 samples per period, as the in-process rig requires: the step's phase and
+     * Fourier sums assume omega h < pi / 2 */
+    const double f_max = fmin(s->opt.max_frequency_hz, 0.25 / s->info.sample_period_s);
     if (!(f >= s->info.min_frequency_hz) || f > s->opt.max_frequency_hz ||
-        fabs(amp) > s->opt.max_amplitude_n) {
+        !(f < 0.25 / s->info.sample_period_s) || fabs(amp) > s->opt.max_amplitude_n) {
         char msg[RTHS_PROTO_MAX_TEXT + 1];
         snprintf(msg, sizeof msg,
                  "forcing %g Hz, %g N outside [%g, %g] Hz, |amplitude| <= %g N "
-                 "(controller.min_frequency_hz, server.max_frequency_hz, server.max_amplitude_n)",
-                 f, amp, s->info.min_frequency_hz, s->opt.max_frequency_hz, s->opt.max_amplitude_n);
+                 "(controller.min_frequency_hz, server.max_frequency_hz < rate/4, "
+                 "server.max_amplitude_n)",
+                 f, amp, s->info.min_frequency_hz, f_max, s->opt.max_amplitude_n);
         send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
         return -1;
     }

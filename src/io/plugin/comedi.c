@@ -107,6 +107,10 @@ int rths_io_plugin_open(const rths_io_open_args *args, void **device, rths_io_de
         rc = rths_config_get_double(args->config, "io.displacement_noise_m", 0, 0, 0, 1, &noise,
                                     err);
     if (rc) return rc;
+    if (args->physical_dofs < 1 || args->physical_dofs > RTHS_MAX_SENSED_DOFS)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "comedi: %d physical DoFs; a sensor sample carries 1 to %d",
+                              args->physical_dofs, RTHS_MAX_SENSED_DOFS);
     comedi_device *d = calloc(1, sizeof *d);
     if (!d) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     d->n = args->physical_dofs;
