@@ -5,6 +5,7 @@
 #include "cli/commands.h"
 #include "rths/run.h"
 
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -47,10 +48,28 @@ static const char usage[] =
     "point), trace.csv + lissajous.png (time and phase plot at one point), summary.json,\n"
     "config.yaml, run.log.\n"
     "\n"
+    "Ctrl-C (SIGINT) or SIGTERM stops after the point in progress and writes everything\n"
+    "accepted (exit 130); a second Ctrl-C kills at once (the journal still resumes).\n"
+    "\n"
     "Exit status: 0 the run ended normally (also when it stopped early after\n"
     "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault,\n"
     "I/O failure, or no point accepted at all (everything accepted so far is saved); 2 bad\n"
     "usage or configuration, a journal of another configuration, or DIR in use by another run.\n";
+
+/* Ctrl-C (or SIGTERM) ends the run cleanly after the point in progress: everything accepted is
+ * written out (frf.csv, summary.json, figures) and --resume continues it. A second signal kills at
+ * once (the default action is restored by the first). */
+static volatile sig_atomic_t interrupted;
+
+static void on_interrupt(int sig) {
+    interrupted = sig;
+    signal(sig, SIG_DFL);
+}
+
+static int should_cancel(void *user) {
+    (void)user;
+    return interrupted != 0;
+}
 
 static void print_progress(void *user, int points, double frequency_hz, double residual_m,
                            int evaluations, int accepted) {
@@ -142,7 +161,10 @@ int rths_cmd_frf(int argc, char **argv) {
                                 .argc = argc,
                                 .argv = argv};
     int progress = rths_progress_enabled(cli.quiet);
-    rths_run_callbacks cb = {.on_progress = progress ? print_progress : NULL};
+    rths_run_callbacks cb = {.on_progress = progress ? print_progress : NULL,
+                             .should_cancel = should_cancel};
+    signal(SIGINT, on_interrupt);
+    signal(SIGTERM, on_interrupt);
     rths_run_frf_result r;
     rc = rths_run_frf(&opt, &cb, &r, &err);
     if (progress && r.outputs_written) fprintf(stderr, "\n");
@@ -154,7 +176,12 @@ int rths_cmd_frf(int argc, char **argv) {
                        r.points, r.converged_points, r.resumed_points, r.evaluations, r.rig_time_s,
                        r.wall_time_s, r.folds, 100 * r.max_relative_error_vs_truth, r.stop_reason,
                        cli.out_dir);
+    if (!rc && r.status == RTHS_RUN_CANCELLED)
+        fprintf(stderr,
+                "rths frf: interrupted; everything accepted is in %s (--resume continues)\n",
+                cli.out_dir);
     if (rc) rths_cli_fail(&cli, rc, &err);
     rths_cli_unload(cfg, &setup);
+    if (!rc && r.status == RTHS_RUN_CANCELLED) rc = 130; /* as the shell reports an interrupt */
     return rc;
 }

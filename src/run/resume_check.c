@@ -91,8 +91,9 @@ static int same_value(const char *a, const char *b) {
 }
 
 static int may_change(const char *key) {
+    /* rig.pace only sleeps: the virtual rig's results are the same at any pace */
     return !strcmp(key, "continuation.end_hz") || !strcmp(key, "continuation.max_points") ||
-           !strncmp(key, "output.", 7);
+           !strcmp(key, "rig.pace") || !strncmp(key, "output.", 7);
 }
 
 /* The first key of a that b lacks or holds otherwise; allowed ones are noted in *changes. */
@@ -117,7 +118,7 @@ static int refuse(const char *key, const flat_config *old, const flat_config *no
     return rths_error_set(err, RTHS_EINPUT,
                           "--resume: key '%s' was %s when the run started and is %s now: a "
                           "resumed run keeps the physics and the measurement (only "
-                          "continuation.end_hz, continuation.max_points and output.* may "
+                          "continuation.end_hz, continuation.max_points, rig.pace and output.* may "
                           "change); start a new run in another folder",
                           key, was ? was : "unset", is ? is : "unset");
 }
