@@ -34,9 +34,14 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
     line[len] = '\n';
     ssize_t w = write(j->fd, line, len + 1);
     free(line);
-    if (w != (ssize_t)(len + 1) || fsync(j->fd) != 0)
+    if (w < 0 || fsync(j->fd) != 0)
         return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path,
                               strerror(errno));
+    if (w != (ssize_t)(len + 1)) /* no errno for a short write */
+        return rths_error_set(err, RTHS_EFAIL,
+                              "cannot write journal %s: short write (%zd of %zu bytes: disk full "
+                              "or file size limit?)",
+                              j->path, w, len + 1);
     return RTHS_OK;
 }
 

@@ -332,14 +332,22 @@ int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
         rc = write_var(mat, table_var(&extra[i]), extra[i].name, err);
     if (!rc) rc = write_journal_harmonics(mat, dir, extra, n_extra, err);
     if (!rc) rc = write_texts(mat, dir, err);
-    Mat_Close(mat);
+    /* HDF5 reports a failed write (disk full, file size limit) only when the file closes */
+    if (Mat_Close(mat) && !rc)
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: closing it failed (disk full?)",
+                            path);
     if (!rc) {
-        /* the data must be on disk before the name points at them */
+        /* the data must be on disk, and readable, before the name points at them */
         int fd = open(tmp, O_RDONLY | O_CLOEXEC);
-        if (fd >= 0) {
-            (void)fsync(fd);
-            close(fd);
-        }
+        if (fd < 0 || fsync(fd))
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+        if (fd >= 0) close(fd);
+        mat_t *check = rc ? NULL : Mat_Open(tmp, MAT_ACC_RDONLY);
+        if (!rc && !check)
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: it does not read back", path);
+        if (check) Mat_Close(check);
+    }
+    if (!rc) {
         if (rename(tmp, path))
             rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
     }

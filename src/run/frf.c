@@ -229,12 +229,15 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
     rths_error err;
     if (rths_journal_append(st->journal, pt, is_update, &err)) {
         rths_report_log(st->rep, "%s", err.msg);
-        fprintf(stderr, "rths frf: %s\n", err.msg);
+        st->point_err = err;
         return RTHS_EFAIL;
     }
-    if (remember(st, pt)) return RTHS_EFAIL;
+    if (remember(st, pt))
+        return rths_error_set(&st->point_err, RTHS_EFAIL, "out of memory keeping the points");
     const rths_run_callbacks *cb = st->cb;
     int rc = cb && cb->on_point ? cb->on_point(cb->user, pt, is_update) : RTHS_OK;
+    if (rc)
+        rths_error_set(&st->point_err, rc, "the point callback stopped the run (status %d)", rc);
     /* only after a new point: a fold's re-reported points come before the point that found it */
     if (!rc && !is_update && cb && cb->should_cancel && cb->should_cancel(cb->user)) {
         st->cancelled = 1;
@@ -286,6 +289,7 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
                                        on_point, on_progress, st, &st->result, run_err);
+    if (run_rc && !run_err->msg[0] && st->point_err.msg[0]) *run_err = st->point_err;
     rths_live_close(st->live); /* "state": "ended"; the rig now only forwards */
     st->live = NULL;
     if (st->cancelled) {

@@ -23,7 +23,8 @@ typedef struct frf_state {
         *virtual_rig; /* the in-process rig behind the observing one (NULL: remote), owned by rig */
     rths_report *rep;
     rths_journal *journal;
-    rths_live *live; /* live.json for `rths view`, closed when the continuation ends */
+    rths_error point_err; /* why the point handler stopped the run (journal, callback) */
+    rths_live *live;      /* live.json for `rths view`, closed when the continuation ends */
     char *journal_path;
     rths_point *resume_pts;
     int n_resume;
