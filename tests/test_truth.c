@@ -126,11 +126,47 @@ static void test_bilinear_truth_folds(void **state) {
     rths_config_free(cfg);
 }
 
+/* A branch's amplitude between the curve's points follows the cubic through the four nearest on
+ * the same monotone piece: on a resonance peak A(f) = 1 / sqrt((f0^2 - f^2)^2 + (2 zeta f0 f)^2)
+ * (zeta = 1 %, a half-power band of 0.28 Hz) sampled every 0.02 Hz (the shooting truth's spacing),
+ * the cubic is within 2e-4 of the exact value and ten times closer than the straight line
+ * (measured: cubic 7.9e-5, line 2.5e-3). */
+static void test_branch_interpolation(void **state) {
+    (void)state;
+    enum { N = 61 };
+    double freq[N], amp[N];
+    int stable[N];
+    const double f0 = 14.0, zeta = 0.01;
+    for (int i = 0; i < N; i++) {
+        freq[i] = 13.4 + 0.02 * i;
+        double f = freq[i];
+        amp[i] = 1.0 / sqrt(pow(f0 * f0 - f * f, 2) + pow(2 * zeta * f0 * f, 2));
+        stable[i] = 1;
+    }
+    rths_truth_curve t = {.n = N, .freq_hz = freq, .amp_m = amp, .stable = stable};
+    rths_setup s = {.has_bilinear = 1}; /* a curve, not the analytic FRF */
+    double worst_cubic = 0, worst_line = 0;
+    for (int k = 0; k < 200; k++) {
+        double f = 13.45 + 0.005 * k + 0.0013;
+        double exact = 1.0 / sqrt(pow(f0 * f0 - f * f, 2) + pow(2 * zeta * f0 * f, 2));
+        double got = rths_truth_branch_amplitude_m(&s, &t, f, exact, NULL);
+        worst_cubic = fmax(worst_cubic, fabs(got / exact - 1));
+        int j = (int)((f - 13.4) / 0.02);
+        double line = amp[j] + (f - freq[j]) / 0.02 * (amp[j + 1] - amp[j]);
+        worst_line = fmax(worst_line, fabs(line / exact - 1));
+    }
+    print_message("branch interpolation: cubic %.2e, straight line %.2e relative\n", worst_cubic,
+                  worst_line);
+    assert_true(worst_cubic < 2e-4);
+    assert_true(worst_cubic < 0.1 * worst_line);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_linear_truth),
         cmocka_unit_test(test_curve_distance),
         cmocka_unit_test(test_bilinear_truth_folds),
+        cmocka_unit_test(test_branch_interpolation),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -132,6 +132,31 @@ double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t,
     return fabs(amp_m - truth) / truth;
 }
 
+/* Whether the curve's frequencies run strictly one way over points j..k (one monotone piece). */
+static int monotone(const rths_truth_curve *t, int j, int k) {
+    double dir = t->freq_hz[j + 1] - t->freq_hz[j];
+    for (int i = j; i < k; i++)
+        if (!((t->freq_hz[i + 1] - t->freq_hz[i]) * dir > 0)) return 0;
+    return 1;
+}
+
+/* The amplitude at f_hz between points j and j + 1: the cubic through j - 1 .. j + 2 when those
+ * lie on one monotone piece (the shooting points are up to 0.02 Hz apart, where a straight line
+ * is off by several standard errors of a hybrid point near the peak), else the straight line. */
+static double interpolate(const rths_truth_curve *t, int j, double f_hz) {
+    double f0 = t->freq_hz[j], f1 = t->freq_hz[j + 1];
+    double a = t->amp_m[j] + (f_hz - f0) / (f1 - f0) * (t->amp_m[j + 1] - t->amp_m[j]);
+    if (j < 1 || j + 2 >= t->n || !monotone(t, j - 1, j + 2)) return a;
+    double cubic = 0;
+    for (int k = j - 1; k <= j + 2; k++) { /* Lagrange form */
+        double w = t->amp_m[k];
+        for (int l = j - 1; l <= j + 2; l++)
+            if (l != k) w *= (f_hz - t->freq_hz[l]) / (t->freq_hz[k] - t->freq_hz[l]);
+        cubic += w;
+    }
+    return cubic > 0 ? cubic : a;
+}
+
 double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
                                      double amp_m, int *stable) {
     if (stable) *stable = 1;
@@ -143,7 +168,7 @@ double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve
         double f0 = t->freq_hz[j], f1 = t->freq_hz[j + 1];
         if (!((f0 - f_hz) * (f1 - f_hz) <= 0) || f0 == f1) continue;
         double x = (f_hz - f0) / (f1 - f0);
-        double a = t->amp_m[j] + x * (t->amp_m[j + 1] - t->amp_m[j]);
+        double a = interpolate(t, j, f_hz);
         double gap = fabs(log(a / amp_m));
         if (a > 0 && gap < best_gap) {
             best_gap = gap;
