@@ -124,4 +124,11 @@ int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
 /* True when stderr is a terminal and quiet is 0: the caller may print \r progress lines. */
 int rths_progress_enabled(int quiet);
 
+/* The results of `rths model` (modes, interface peak, the setup's facts) added to a summary. */
+struct rths_setup;
+struct rths_modes;
+void rths_model_summary_add(struct json_object *root, const struct rths_setup *s,
+                            const struct rths_modes *m, int points, double peak_amp_m,
+                            double peak_hz);
+
 #endif

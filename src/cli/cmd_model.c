@@ -176,26 +176,7 @@ static int write_summary(const rths_cli *cli, rths_report *rep, const rths_setup
                          const rths_modes *m, double peak_amp, double peak_hz, int points,
                          rths_error *err) {
     json_object *root = rths_cli_summary_new(cli);
-    json_object *modes = json_object_new_array();
-    for (int r = 0; r < m->n; r++) {
-        json_object *mode = json_object_new_object();
-        json_object_object_add(mode, "mode", json_object_new_int(r + 1));
-        json_object_object_add(mode, "frequency_hz", json_object_new_double(m->frequency_hz[r]));
-        json_object_object_add(mode, "damping_ratio", json_object_new_double(m->damping_ratio[r]));
-        json_object_array_add(modes, mode);
-    }
-    json_object_object_add(root, "config",
-                           json_object_new_string(s->chain ? "storey chain" : "matrices"));
-    json_object_object_add(root, "dofs", json_object_new_int(s->assembly.n));
-    json_object_object_add(root, "mass_ratio", json_object_new_double(s->split.mass_ratio));
-    json_object_object_add(root, "interface_dof", json_object_new_int(s->split.int_dofs[0] + 1));
-    json_object_object_add(root, "forcing_dof", json_object_new_int(s->forcing_dof + 1));
-    json_object_object_add(root, "forcing_amplitude_n",
-                           json_object_new_double(s->forcing_amplitude_n));
-    json_object_object_add(root, "modes", modes);
-    json_object_object_add(root, "frf_points", json_object_new_int(points));
-    json_object_object_add(root, "interface_peak_amplitude_m", json_object_new_double(peak_amp));
-    json_object_object_add(root, "interface_peak_frequency_hz", json_object_new_double(peak_hz));
+    rths_model_summary_add(root, s, m, points, peak_amp, peak_hz);
     int rc = rths_cli_write_summary(rep, "summary.json", root, err);
     json_object_put(root);
     return rc;
