@@ -32,7 +32,8 @@ typedef struct rths_run_frf_options {
     int harmonics;           /* 1..3; 0: iteration.harmonics */
     int resume;              /* continue the run in out_dir from its journal */
     const char *rig_uri;     /* tcp://HOST:PORT: a controller process; NULL: the virtual rig */
-    int has_seed;            /* noise seed of the virtual rig (else rig.seed) */
+    int force;    /* run even when the true response exceeds controller.limits.displacement_m */
+    int has_seed; /* noise seed of the virtual rig (else rig.seed) */
     uint64_t seed;
     /* recorded in run.log and summary.json */
     const char *config_path;

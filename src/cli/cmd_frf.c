@@ -12,7 +12,7 @@
 static const char usage[] =
     "Usage: rths frf CONFIG --out DIR [--strategy paper|default] [--harmonics N] [--seed S]\n"
     "                [--resume] [--rig tcp://HOST:PORT] [--pace F] [--set key=value]...\n"
-    "                [--quiet]\n"
+    "                [--force] [--quiet]\n"
     "\n"
     "Iterative hybrid test with continuation: solves for the control target's Fourier\n"
     "coefficients at which the physical and numerical interface displacements agree, and\n"
@@ -37,6 +37,9 @@ static const char usage[] =
     "  --rig URI            tcp://HOST:PORT: a controller process instead of the virtual rig\n"
     "  --pace F             run the virtual rig at F x real time (1: real time), e.g. to watch\n"
     "                       it with rths view; results are the same (rig.pace; default unpaced)\n"
+    "  --force              run even when the true assembly's interface response over the\n"
+    "                       range exceeds controller.limits.displacement_m (refused otherwise,\n"
+    "                       before anything is written)\n"
     "  --set key=value      override a configuration key (repeatable)\n"
     "  --quiet              no progress line, no summary\n"
     "  --help               this text\n"
@@ -84,17 +87,19 @@ typedef struct {
     const char *strategy;
     long harmonics;
     int resume;
+    int force;
     const char *rig_uri;
 } frf_args;
 
 static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
-    enum { OPT_STRATEGY, OPT_HARMONICS, OPT_RESUME, OPT_RIG, OPT_PACE, N_OPTS };
+    enum { OPT_STRATEGY, OPT_HARMONICS, OPT_RESUME, OPT_RIG, OPT_PACE, OPT_FORCE, N_OPTS };
     rths_cli_opt opts[N_OPTS] = {
         [OPT_STRATEGY] = {"--strategy", "NAME", NULL},
         [OPT_HARMONICS] = {"--harmonics", "N", NULL},
         [OPT_RESUME] = {"--resume", NULL, NULL},
         [OPT_RIG] = {"--rig", "URI", NULL},
         [OPT_PACE] = {"--pace", "F", NULL},
+        [OPT_FORCE] = {"--force", NULL, NULL},
     };
     int rc = rths_cli_parse(cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
                             opts, N_OPTS);
@@ -113,6 +118,7 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
                            &a->harmonics, &err)))
         return rths_cli_fail(cli, rc, &err);
     a->resume = opts[OPT_RESUME].value != NULL;
+    a->force = opts[OPT_FORCE].value != NULL;
     a->rig_uri = opts[OPT_RIG].value;
     if (a->rig_uri && strncmp(a->rig_uri, "tcp://", 6))
         return rths_cli_fail(cli,
@@ -152,6 +158,7 @@ int rths_cmd_frf(int argc, char **argv) {
                                 .strategy = a.strategy,
                                 .harmonics = (int)a.harmonics,
                                 .resume = a.resume,
+                                .force = a.force,
                                 .rig_uri = a.rig_uri,
                                 .has_seed = cli.has_seed,
                                 .seed = cli.seed,

@@ -197,14 +197,6 @@ static int open_outputs(frf_state *st, rths_error *err) {
     rc = path ? rths_config_write(opt->cfg, path, err)
               : rths_error_set(err, RTHS_EFAIL, "out of memory");
     free(path);
-    /* the last step may pass end_hz (and the first correction move below start_hz): a margin
-     * keeps every accepted point inside the truth curve it is judged against */
-    double lo = fmin(st->cont.start_hz, st->cont.end_hz),
-           hi = fmax(st->cont.start_hz, st->cont.end_hz);
-    double margin = 0.1 * (hi - lo);
-    lo = fmax(lo - margin, 0.5 * lo);
-    hi += margin;
-    if (!rc) rc = rths_truth_compute(st->setup, lo, hi, &st->truth, err);
     if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
     if (!rc)
         rc = rths_journal_open_run(st->journal_path, st->strategy, st->seed_text, frf_rig_text(st),
@@ -277,6 +269,7 @@ static int run_frequency_form(frf_state *st, rths_error *err) {
 
 /* The continuation itself; returns its status (RTHS_OK also when cancelled). */
 static int run_continuation(frf_state *st, rths_error *run_err) {
+    if (st->limit_warning[0]) rths_report_log(st->rep, "warning: %s", st->limit_warning);
     rths_report_log(st->rep, "start: strategy %s, %d harmonic(s), %s continuation %g -> %g Hz%s",
                     st->strategy, st->harmonics,
                     st->cont.method == RTHS_CONT_ARCLENGTH ? "pseudo-arclength" : "natural",
@@ -366,6 +359,7 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     result->status = RTHS_RUN_FAILED;
     int rc = read_options(&st, err);
     if (!rc) rc = create_rig(&st, err);
+    if (!rc) rc = frf_plan_within_limits(&st, err);
     if (!rc) rc = lock_folder(&st, 0, err);
     if (!rc) rc = check_journal(&st, err);
     if (!rc) rc = lock_folder(&st, 1, err);

@@ -23,8 +23,9 @@ typedef struct frf_state {
         *virtual_rig; /* the in-process rig behind the observing one (NULL: remote), owned by rig */
     rths_report *rep;
     rths_journal *journal;
-    rths_error point_err; /* why the point handler stopped the run (journal, callback) */
-    rths_live *live;      /* live.json for `rths view`, closed when the continuation ends */
+    rths_error point_err;    /* why the point handler stopped the run (journal, callback) */
+    char limit_warning[600]; /* --force over a predicted limit: logged once the log exists */
+    rths_live *live;         /* live.json for `rths view`, closed when the continuation ends */
     char *journal_path;
     rths_point *resume_pts;
     int n_resume;
@@ -48,6 +49,12 @@ enum { FRF_MAX_CHANGES = 8 };
 static inline const char *frf_rig_text(const frf_state *st) {
     return st->opt->rig_uri ? st->opt->rig_uri : "virtual";
 }
+
+/* limits_check.c: computes the truth curve over the run's range (with a margin) and refuses,
+ * before anything is written, a test whose true interface response would exceed the rig's
+ * displacement limit (RTHS_EINPUT naming the peak and the key), unless opt->force, when it only
+ * warns (stderr and run.log). */
+int frf_plan_within_limits(frf_state *st, rths_error *err);
 
 /* resume_check.c: refuses a resumed configuration that changes more than end_hz, max_points or
  * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */

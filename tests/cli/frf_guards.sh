@@ -148,5 +148,16 @@ PY
 "$bin" frf "$lin" --out "$work/int" --quiet --resume "${quiet[@]}" || fail "resume after Ctrl-C"
 [ "$failures" -eq 0 ] && echo "ok   Ctrl-C saves everything accepted, exit 130, resumable"
 
+# 8. a test the model knows will exceed the rig's displacement limit (the seed's first mode at 1 N:
+# 29.5 mm against 10 mm) is refused before anything is written; --force runs it, with a warning
+refused frf "beyond the displacement limit" \
+    "reaches 0.0295 m at 4.339 Hz.*controller.limits.displacement_m = 0.01 m.*--force" "$lin" \
+    --set continuation.start_hz=3 --set continuation.end_hz=6
+"$bin" frf "$lin" --out "$work/forced" --quiet --force --set continuation.start_hz=3 \
+    --set continuation.end_hz=6 --set continuation.max_points=2 --set rig.noise=false \
+    2>"$work/forced.err" || fail "--force: exit $?"
+grep -q "warning: the true assembly's interface response reaches" "$work/forced/run.log" ||
+    fail "--force: no warning in run.log"
+
 [ "$failures" -eq 0 ] && echo ok
 exit "$failures"
