@@ -109,6 +109,7 @@ typedef struct rths_api_frf_options {
     rths_api_point_fn on_point;       /* may be NULL */
     rths_api_cancel_fn should_cancel; /* may be NULL */
     void *user;                       /* passed to both */
+    int force; /* run even when the true response exceeds controller.limits.displacement_m */
 } rths_api_frf_options;
 
 void rths_api_frf_options_default(rths_api_frf_options *o);

@@ -266,13 +266,14 @@ class _Callbacks:
 
 
 def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=None,
-        on_point=None):
+        on_point=None, force=False):
     """The iterative hybrid test with continuation (rths frf) into the run folder out.
 
     Returns a Result whose table frf holds frf.csv's columns. on_point(row) is called with each
     accepted point's frf.csv row as a dict; if it raises, the run stops cleanly (everything
     accepted saved) and the exception is raised again. Ctrl-C stops the run the same way and
-    raises rths.Cancelled carrying the saved result."""
+    raises rths.Cancelled carrying the saved result. A test whose true response exceeds the
+    rig's displacement limit raises InputError unless force=True."""
     cfg = _config(cfg)
     c = _c()
     o = _lib.FrfOptions()
@@ -285,6 +286,7 @@ def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=No
     if seed is not None:
         o.has_seed, o.seed = 1, int(seed)
     o.resume = 1 if resume else 0
+    o.force = 1 if force else 0
     if rig is not None:
         o.rig_uri = rig.encode()
     cb = _Callbacks(on_point)

@@ -25,7 +25,8 @@ class FrfOptions(ctypes.Structure):
                 ("harmonics", ctypes.c_int), ("has_seed", ctypes.c_int),
                 ("seed", ctypes.c_uint64), ("resume", ctypes.c_int),
                 ("rig_uri", ctypes.c_char_p), ("on_point", POINT_FN),
-                ("should_cancel", CANCEL_FN), ("user", ctypes.c_void_p)]
+                ("should_cancel", CANCEL_FN), ("user", ctypes.c_void_p),
+                ("force", ctypes.c_int)]
 
 
 def _candidates():

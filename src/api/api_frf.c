@@ -105,6 +105,7 @@ static char **command_line(const rths_api_config *cfg, const rths_api_frf_option
         argv[n++] = seed_text;
     }
     if (o->resume) argv[n++] = "--resume";
+    if (o->force) argv[n++] = "--force";
     argv[n++] = "(C API)";
     *argc = n;
     return argv;
@@ -130,6 +131,7 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
                                .strategy = strategy,
                                .harmonics = o->harmonics,
                                .resume = o->resume,
+                               .force = o->force,
                                .rig_uri = o->rig_uri,
                                .has_seed = o->has_seed,
                                .seed = o->seed,
