@@ -26,7 +26,12 @@ struct rths_view {
     void *process_user;
     const char *page; /* the asset served at / */
     atomic_int stopping;
+    atomic_int event_streams; /* open /api/events streams, each holding a server thread */
 };
+
+/* Each live page holds one of the server's 16 threads for as long as it is open: beyond this
+ * many, a new stream is refused so the page's own requests are always served. */
+enum { VIEW_MAX_EVENT_STREAMS = 8 };
 
 /* The files of a run whose changes the page hears about, and the API each one feeds. */
 static const char *const watched[][2] = {
@@ -282,7 +287,23 @@ static void sleep_s(double s) {
 
 /* Server-sent events: "change" with the APIs to fetch again, a comment as keep-alive. Ends when
  * the browser goes (a write fails) or the view stops. */
+static int serve_event_stream(rths_view *v, struct mg_connection *c);
+
 static int serve_events(rths_view *v, struct mg_connection *c) {
+    if (atomic_fetch_add(&v->event_streams, 1) >= VIEW_MAX_EVENT_STREAMS) {
+        atomic_fetch_sub(&v->event_streams, 1);
+        return send_json_error(c, 503,
+                               "too many live pages are open on this view (8): close one and "
+                               "reload");
+    }
+    int status = serve_event_stream(v, c);
+    atomic_fetch_sub(&v->event_streams, 1);
+    return status;
+}
+
+/* Polls the run folder and pushes a change event; a keep-alive every second otherwise, so a
+ * page that went away frees its thread within a second. */
+static int serve_event_stream(rths_view *v, struct mg_connection *c) {
     mg_printf(c, "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
                  "Connection: close\r\n\r\nretry: 1000\n\n");
     long long last[N_WATCHED][3], now[N_WATCHED][3];
@@ -309,7 +330,7 @@ static int serve_events(rths_view *v, struct mg_connection *c) {
             int n = snprintf(msg, sizeof msg, "event: change\ndata: {\"changed\": [%s]}\n\n", list);
             if (mg_write(c, msg, (size_t)n) <= 0) break;
             idle = 0;
-        } else if ((idle += v->poll_s) >= 10) {
+        } else if ((idle += v->poll_s) >= 1) {
             if (mg_write(c, ": keep-alive\n\n", 14) <= 0) break;
             idle = 0;
         }

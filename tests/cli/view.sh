@@ -64,6 +64,22 @@ if start_view finished "$work/run" --listen 127.0.0.1:0; then
     rc=$?
     [ $rc -eq 1 ] && grep -q "cannot listen" "$work/err" && echo "ok   port in use: $(cat "$work/err")" ||
         fail "port in use: exit $rc $(cat "$work/err")"
+    # live pages hold a server thread each: the 9th event stream is refused (503) and the API
+    # still answers (16 streams used to take every thread)
+    pids=()
+    for i in 1 2 3 4 5 6 7 8; do
+        curl -s -N --max-time 20 "${base}api/events" >/dev/null &
+        pids+=($!)
+    done
+    sleep 1
+    code=$(curl -s -o "$work/ev9" -w '%{http_code}' --max-time 5 "${base}api/events")
+    [ "$code" = 503 ] && grep -q "too many live pages" "$work/ev9" &&
+        echo "ok   9th event stream: 503, $(cat "$work/ev9")" || fail "9th event stream: HTTP $code"
+    code=$(curl -s -o /dev/null -w '%{http_code}' --max-time 5 "${base}api/status")
+    [ "$code" = 200 ] && echo "ok   the API answers with 8 streams open" ||
+        fail "API with 8 streams open: HTTP $code"
+    kill "${pids[@]}" 2>/dev/null
+    wait "${pids[@]}" 2>/dev/null
 fi
 
 # 3. in progress: no frf.csv or summary.json yet, the points come from the journal and must
