@@ -66,6 +66,12 @@ static int create_rig(frf_state *st, rths_error *err) {
         rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
+    if (!rc && st->setup->split.n_int != 1)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "the iteration matches one interface DoF; this split has %d (the "
+                            "virtual rig's real-time side drives several, the zero problem over "
+                            "every interface DoF is not built yet)",
+                            st->setup->split.n_int);
     return rc;
 }
 
