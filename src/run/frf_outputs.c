@@ -79,14 +79,57 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
     memcpy(row, values, sizeof values);
 }
 
+static const char *const dof_column_names[RTHS_MAX_INTERFACE_DOFS][RTHS_RUN_FRF_DOF_COLUMNS] = {
+    {"dof1_amplitude_m", "dof1_numerical_amplitude_m", "dof1_phase_rad", "dof1_interface_error_m"},
+    {"dof2_amplitude_m", "dof2_numerical_amplitude_m", "dof2_phase_rad", "dof2_interface_error_m"},
+    {"dof3_amplitude_m", "dof3_numerical_amplitude_m", "dof3_phase_rad", "dof3_interface_error_m"},
+    {"dof4_amplitude_m", "dof4_numerical_amplitude_m", "dof4_phase_rad", "dof4_interface_error_m"}};
+
+static int dof_columns(int interface_dofs) {
+    return interface_dofs > 1 && interface_dofs <= RTHS_MAX_INTERFACE_DOFS ? interface_dofs : 0;
+}
+
+int rths_run_frf_column_count(int interface_dofs) {
+    return RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dof_columns(interface_dofs);
+}
+
+const char *rths_run_frf_column_name(int interface_dofs, int i) {
+    if (i < 0 || i >= rths_run_frf_column_count(interface_dofs)) return NULL;
+    if (i < RTHS_RUN_FRF_COLUMNS) return rths_run_frf_columns[i];
+    i -= RTHS_RUN_FRF_COLUMNS;
+    return dof_column_names[i / RTHS_RUN_FRF_DOF_COLUMNS][i % RTHS_RUN_FRF_DOF_COLUMNS];
+}
+
+void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row) {
+    rths_run_frf_row(pt, row);
+    const rths_solution *s = &pt->sol;
+    const rths_evaluation *ev = &s->eval;
+    int dofs = dof_columns(interface_dofs), M = s->harmonics, N = dofs ? M / dofs : 0;
+    /* the matched estimate stands for the reported amplitude when the strategy reports it */
+    int matched = s->have_matched && s->amplitude_m == s->matched_amplitude_m;
+    for (int d = 0; d < dofs && ev->interface_dofs == dofs; d++) {
+        const rths_fourier *ph = &ev->phys_dof[d], *nu = &ev->num_dof[d];
+        double *r = row + RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
+        int j = d * N; /* DoF d's fundamental among the solution's pairs (iterate.h) */
+        r[0] = matched ? hypot(s->matched_a[j], s->matched_b[j]) : hypot(ph->a[1], ph->b[1]);
+        r[1] = hypot(nu->a[1], nu->b[1]);
+        r[2] = atan2(-ph->b[1], ph->a[1]);
+        r[3] = hypot(ph->a[1] - nu->a[1], ph->b[1] - nu->b[1]);
+    }
+}
+
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, RTHS_RUN_FRF_COLUMNS, rths_run_frf_columns, &csv, err)
+    int dofs = run->setup->split.n_int, columns = rths_run_frf_column_count(dofs);
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS];
+    for (int i = 0; i < columns; i++)
+        names[i] = rths_run_frf_column_name(dofs, i);
+    int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_COLUMNS];
-        rths_run_frf_row(&run->pts[i], row);
+        double row[RTHS_RUN_FRF_MAX_COLUMNS];
+        rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -190,8 +233,9 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_settle_options *
     double t0 = rths_rig_time_s(rig);
     rths_evaluation ev;
     double f_hz = pt->sol.omega_rad_s / (2 * M_PI);
-    int rc = rths_evaluate(rig, settle, harmonics, f_hz, amplitude_n, pt->sol.target_a,
-                           pt->sol.target_b, &ev, err);
+    /* every interface DoF's targets (target_a[d N + k - 1]; one DoF: the usual layout) */
+    int rc = rths_evaluate_dofs(rig, settle, harmonics, rths_rig_interface_dofs(rig), f_hz,
+                                amplitude_n, pt->sol.target_a, pt->sol.target_b, &ev, err);
     enum { MAX_SAMPLES = 4000 };
     rths_trace_sample *tr = calloc(MAX_SAMPLES, sizeof *tr);
     int n = 0;
