@@ -65,8 +65,12 @@ static void closed_form(const rths_setup *st, const rths_controller_options *o, 
                         double complex *xi) {
     const rths_split *s = &st->split;
     int np = s->np, nn = s->nn, ni = s->n_int;
-    double complex a[NMAX * NMAX], z = gain * (o->kp_v_per_m + I * w * o->kd_v_s_per_m),
-                                   g = o->grounding_kp_n_per_m + I * w * o->grounding_kd_n_s_per_m;
+    /* per interface DoF: the PD's Z and the grounding's g (the options' per-DoF gains) */
+    double complex a[NMAX * NMAX], z[NMAX], g[NMAX];
+    for (int d = 0; d < ni; d++) {
+        z[d] = gain * (o->kp_dof_v_per_m[d] + I * w * o->kd_dof_v_s_per_m[d]);
+        g[d] = o->grounding_kp_dof[d] + I * w * o->grounding_kd_dof[d];
+    }
     for (int j = 0; j < np; j++)
         for (int i = 0; i < np; i++) {
             int ii = i - (np - ni), jj = j - (np - ni);
@@ -75,27 +79,27 @@ static void closed_form(const rths_setup *st, const rths_controller_options *o, 
                                           : RTHS_AT(s->mass_phys, np, i, j);
             a[i + j * np] = RTHS_AT(s->stiffness_phys, np, i, j) - w * w * m +
                             I * w * RTHS_AT(s->damping_phys, np, i, j) +
-                            (i == j && ii >= 0 ? z : 0);
+                            (i == j && ii >= 0 ? z[ii] : 0);
         }
     double complex rhs[NMAX] = {0};
     for (int d = 0; d < ni; d++)
-        rhs[np - ni + d] = z * target[d];
+        rhs[np - ni + d] = z[d] * target[d];
     complex_solve(np, a, rhs);
     for (int d = 0; d < ni; d++)
         x[d] = rhs[np - ni + d];
     double complex f[NMAX] = {0};
     for (int i = 0; i < nn; i++) {
         for (int j = 0; j < nn; j++)
-            a[i + j * nn] = RTHS_AT(s->stiffness_num, nn, i, j) -
-                            w * w * RTHS_AT(s->mass_num, nn, i, j) +
-                            I * w * RTHS_AT(s->damping_num, nn, i, j) + (i == j && i < ni ? g : 0);
+            a[i + j * nn] =
+                RTHS_AT(s->stiffness_num, nn, i, j) - w * w * RTHS_AT(s->mass_num, nn, i, j) +
+                I * w * RTHS_AT(s->damping_num, nn, i, j) + (i == j && i < ni ? g[i] : 0);
         if (i >= ni && s->num_dofs[i - ni] == st->forcing_dof) f[i] = st->forcing_amplitude_n;
     }
     for (int d = 0; d < ni; d++) {
         double complex comp = 0;
         for (int e = 0; e < ni; e++)
             comp += RTHS_AT(s->mass_num, nn, d, e) * (-w * w) * x[e];
-        f[d] = comp - z * (target[d] - x[d]) + g * x[d];
+        f[d] = comp - z[d] * (target[d] - x[d]) + g[d] * x[d];
     }
     complex_solve(nn, a, f);
     for (int d = 0; d < ni; d++)
@@ -116,6 +120,12 @@ static void test_two_interface_dofs_match_closed_form(void **state) {
     rths_plant_options po;
     rths_controller_defaults(&o);
     o.sample_rate_hz = 40000; /* see the tolerance below */
+    /* distinct gains per DoF, so that a DoF given another's gains shows */
+    const double kp[2] = {100, 60}, kd[2] = {10, 4}, gkp[2] = {50000, 30000}, gkd[2] = {1000, 500};
+    for (int d = 0; d < 2; d++) {
+        o.kp_dof_v_per_m[d] = kp[d], o.kd_dof_v_s_per_m[d] = kd[d];
+        o.grounding_kp_dof[d] = gkp[d], o.grounding_kd_dof[d] = gkd[d];
+    }
     o.velocity_cutoff_hz = 0; /* the raw backward difference: no filter phase in the closed form */
     rths_plant_defaults(&po);
     rths_plant_ideal(&po);
@@ -271,12 +281,39 @@ static void test_too_many_interface_dofs_refused(void **state) {
     rths_config_free(cfg);
 }
 
+/* Gains per interface DoF: read per DoF; five entries are refused at the key. */
+static void test_gains_per_dof_config(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_error err;
+    const char *ok[] = {"controller.kp_per_dof=[100, 2]", "controller.grounding_kd_per_dof=[0, 7]"};
+    if (rths_config_load(rths_test_source_path("examples/two_interface_storeys.yaml"), ok, 2, &cfg,
+                         &err))
+        fail_msg("%s", err.msg);
+    rths_controller_options o;
+    rths_controller_defaults(&o);
+    assert_int_equal(rths_controller_config_read(cfg, &o, &err), RTHS_OK);
+    assert_true(o.kp_dof_v_per_m[0] == 100 && o.kp_dof_v_per_m[1] == 2);
+    assert_true(o.grounding_kd_dof[0] == 0 && o.grounding_kd_dof[1] == 7);
+    rths_config_free(cfg);
+    const char *bad[] = {"controller.kd_per_dof=[1, 2, 3, 4, 5]"};
+    if (rths_config_load(rths_test_source_path("examples/two_interface_storeys.yaml"), bad, 1, &cfg,
+                         &err))
+        fail_msg("%s", err.msg);
+    rths_controller_defaults(&o);
+    assert_int_equal(rths_controller_config_read(cfg, &o, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "key 'controller.kd_per_dof'"));
+    assert_non_null(strstr(err.msg, "5 gains; at most 4"));
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_two_interface_dofs_match_closed_form),
         cmocka_unit_test(test_two_interface_dofs_converge_to_truth),
         cmocka_unit_test(test_one_interface_dof_record),
         cmocka_unit_test(test_too_many_interface_dofs_refused),
+        cmocka_unit_test(test_gains_per_dof_config),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -48,6 +48,9 @@ typedef struct rths_controller_options {
     /* per interface DoF (the split's interface order); 0 (default): kp_v_per_m, kd_v_s_per_m */
     double kp_dof_v_per_m[RTHS_MAX_INTERFACE_DOFS];
     double kd_dof_v_s_per_m[RTHS_MAX_INTERFACE_DOFS];
+    /* grounding gains per interface DoF (N/m or N m/rad; N s/m or N m s/rad); 0: the scalars */
+    double grounding_kp_dof[RTHS_MAX_INTERFACE_DOFS];
+    double grounding_kd_dof[RTHS_MAX_INTERFACE_DOFS];
     double grounding_kp_n_per_m;   /* numerical grounding PD, 50000 N/m (seed) */
     double grounding_kd_n_s_per_m; /* 200 N s/m (seed) */
     double velocity_cutoff_hz;     /* filtered differentiator of the laser signal */

@@ -28,7 +28,8 @@ struct rths_controller {
     int host_numerical; /* split.numerical_solver: frequency: no numerical model here */
     /* inertial compensation mass p M_int: the numerical interface block, ni x ni, kg */
     double m_comp[MAX_IFACE * MAX_IFACE];
-    double kp[MAX_IFACE], kd[MAX_IFACE]; /* PD gains per interface DoF */
+    double kp[MAX_IFACE], kd[MAX_IFACE];   /* PD gains per interface DoF */
+    double gkp[MAX_IFACE], gkd[MAX_IFACE]; /* grounding gains per interface DoF */
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * MAX_INPUTS],
         b_curr[MAX_STATE * MAX_INPUTS];
     double z[MAX_STATE], z_next[MAX_STATE], u_prev[MAX_INPUTS];
@@ -68,7 +69,8 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->kp_v_per_m = 100.0;
     opt->kd_v_s_per_m = 10.0;
     for (int d = 0; d < RTHS_MAX_INTERFACE_DOFS; d++)
-        opt->kp_dof_v_per_m[d] = opt->kd_dof_v_s_per_m[d] = 0.0;
+        opt->kp_dof_v_per_m[d] = opt->kd_dof_v_s_per_m[d] = opt->grounding_kp_dof[d] =
+            opt->grounding_kd_dof[d] = 0.0;
     opt->grounding_kp_n_per_m = 50000.0;
     /* 5x the seed's 200 N s/m: the grounding force vanishes at a match, so it cannot change a
      * converged result, but it damps the numerical side's transients after every new target,
@@ -216,6 +218,10 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
             c->m_comp[d + e * MAX_IFACE] = RTHS_AT(s->mass_num, s->nn, d, e);
         c->kp[d] = opt->kp_dof_v_per_m[d] > 0 ? opt->kp_dof_v_per_m[d] : opt->kp_v_per_m;
         c->kd[d] = opt->kd_dof_v_s_per_m[d] > 0 ? opt->kd_dof_v_s_per_m[d] : opt->kd_v_s_per_m;
+        c->gkp[d] =
+            opt->grounding_kp_dof[d] > 0 ? opt->grounding_kp_dof[d] : opt->grounding_kp_n_per_m;
+        c->gkd[d] =
+            opt->grounding_kd_dof[d] > 0 ? opt->grounding_kd_dof[d] : opt->grounding_kd_n_s_per_m;
     }
     c->forcing_index = forcing_interface > 0 ? forcing_interface : 0;
     for (int i = 0; i < s->n_num; i++)
@@ -461,9 +467,8 @@ static double grounding_force(rths_controller *c, int d, double x) {
     double x_last = c->grounding_have ? c->x_last[d] : x;
     double xi_last_prev = c->grounding_have ? c->xi_last_prev[d] : xi;
     double x_last_prev = c->grounding_have ? c->x_last_prev[d] : x_last;
-    double f_ctrl =
-        c->opt.grounding_kp_n_per_m * (x_last - xi) +
-        c->opt.grounding_kd_n_s_per_m * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
+    double f_ctrl = c->gkp[d] * (x_last - xi) +
+                    c->gkd[d] * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
     c->x_last_prev[d] = x_last;
     c->x_last[d] = x;
     c->xi_last_prev[d] = xi;
