@@ -137,20 +137,48 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     return rc;
 }
 
+/* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
+ * also dof<d>_amplitude_m of each (frf.csv's names). */
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err) {
-    static const char *const header[5] = {"frequency_hz", "amplitude_m", "amplitude_h2_m",
-                                          "amplitude_h3_m", "stable"};
+    const char *header[5 + RTHS_MAX_INTERFACE_DOFS] = {
+        "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
+    int dofs = t->dofs > 1 && t->dofs <= RTHS_MAX_INTERFACE_DOFS ? t->dofs : 0;
+    for (int d = 0; d < dofs; d++)
+        header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + 4 * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, 5, header, &csv, err)
+    int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
+        double row[5 + RTHS_MAX_INTERFACE_DOFS] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j],
+                                                   t->amp_h3_m[j], t->stable[j]};
+        for (int d = 0; d < dofs; d++)
+            row[5 + d] = t->amp_dof_m[d * t->n + j];
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
+}
+
+/* Several interface DoFs: the other DoFs' truth (truth.csv) and hybrid points (frf.csv's
+ * dof<d>_amplitude_m), one colour each, appended to the plot command. */
+static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t, char *out,
+                                 size_t size) {
+    static const char *const colour[RTHS_MAX_INTERFACE_DOFS] = {"#1f77b4", "#2ca02c", "#ff7f0e",
+                                                                "#9467bd"};
+    int dofs = t->dofs, used = 0;
+    for (int d = 1; d < dofs && d < RTHS_MAX_INTERFACE_DOFS && used < (int)size; d++) {
+        int dof = run->setup->split.int_dofs[d] + 1;
+        used += snprintf(out + used, size - (size_t)used,
+                         ", \\\n     'truth.csv' using 1:%d skip 1 with lines lw 2 lc rgb '%s' "
+                         "title 'true assembly, interface DoF %d (DoF %d)', \\\n"
+                         "     'frf.csv' using 2:%d skip 1 with points pt 7 ps 0.8 lc rgb '%s' "
+                         "title 'hybrid test, interface DoF %d (DoF %d)'",
+                         6 + d, colour[d], d + 1, dof,
+                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, colour[d], d + 1,
+                         dof);
+    }
 }
 
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
@@ -175,7 +203,8 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
         any_fold |= run->pts[i].fold;
         any_unstable_pt |= !rths_point_stable(&run->pts[i]);
     }
-    char body[4096];
+    char body[8192], more[2048] = "";
+    interface_dof_curves(run, t, more, sizeof more);
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
              "set title \"%s\" noenhanced\n"
@@ -188,7 +217,7 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
              "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
              "'black' title 'true assembly%s'%s, \\\n"
              "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
-             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s (bars: interface error x %g)'%s%s\n",
+             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s (bars: interface error x %g)'%s%s%s\n",
              title, any_unstable ? ", stable" : "",
              any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
                             "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
@@ -200,7 +229,8 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
                              : "",
              any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
                         "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
-                      : "");
+                      : "",
+             more);
     int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
     if (rc) return rc;
     int max_iterations = 0;
