@@ -49,4 +49,24 @@ check "$work/off" noise_off || fail "noise off: accuracy"
 "$bin" frf "$cfg" --out "$work/on" --quiet || fail "default noise: rths frf exited $?"
 check "$work/on" noise_on || fail "default noise: standard errors"
 
+# The follow-up's cantilever cut at 0.17 m (w, theta) with a coarse 7-element physical tip: the
+# split's interface block by the spring-chain coupling rule leaves the numerical stiffness
+# indefinite (its integration diverged within 20 samples): refused by name, nothing written.
+cat > "$work/beam.yaml" <<'YAML'
+structure:
+  beam:
+    segments: {length_m: [0.17, 0.36], elements: [17, 7], EI_n_m2: [0.459317, 0.459317],
+               mass_per_length_kg_per_m: [0.19939, 0.19939]}
+    clamped_m: [0]
+    damping: {model: rayleigh, frequencies_hz: [3.0236, 18.9485], ratios: [0.011, 0.011]}
+split:
+  interface: [33, 34]
+  mass_ratio: 0.5
+  physical: [35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48]
+forcing: {dof: 47, amplitude_n: 0.01}
+continuation: {start_hz: 2.5, end_hz: 3.5, method: natural}
+YAML
+refused frf "beam split with an indefinite numerical stiffness" \
+    "numerical substructure's stiffness is indefinite" "$work/beam.yaml"
+
 [ "$failures" -eq 0 ] && echo "frf_two_interface: all checks passed" || { echo "frf_two_interface: $failures failure(s)"; exit 1; }
