@@ -64,7 +64,10 @@ static void test_reference_plugin_equals_plant(void **state) {
         worst = fmax(worst, fabs(a.interface_acceleration_m_s2 - b.interface_acceleration_m_s2));
         peak = fmax(peak, fabs(b.displacement_m[b.n - 1]));
         double t = k * 1e-4, w = 2 * M_PI * 13.0;
-        rths_io_demand d = {0.02 * sin(w * t), 1.0, w * t, w};
+        rths_io_demand d = {.demand_v = 0.02 * sin(w * t),
+                            .forcing_amplitude_n = 1.0,
+                            .forcing_theta_rad = w * t,
+                            .forcing_omega_rad_s = w};
         rths_io_write(io, &d);
         rths_plant_set_forcing(p, d.forcing_amplitude_n, d.forcing_theta_rad,
                                d.forcing_omega_rad_s);

@@ -17,7 +17,9 @@
  * rths_controller_step never allocates, locks, prints or calls LAPACK: everything is built by
  * rths_controller_create. The command functions (set_forcing, set_target, arm, ...) must be
  * called from the thread that runs the step; only rths_controller_pop_period may run on another
- * thread. One interface DoF is supported (the seed's); several are refused at create. */
+ * thread. Several interface DoFs (1 to RTHS_MAX_INTERFACE_DOFS) are driven by one actuator each:
+ * PD control, grounding control, inertial compensation (the numerical interface mass block
+ * times the measured accelerations) and Fourier sums per DoF. */
 #ifndef RTHS_CONTROLLER_H
 #define RTHS_CONTROLLER_H
 
@@ -39,10 +41,16 @@ typedef struct rths_controller_output {
 } rths_controller_output;
 
 typedef struct rths_controller_options {
-    double sample_rate_hz;         /* 10000 (seed) */
-    rths_scheme scheme;            /* numerical substructure integrator; default exact_foh */
-    double kp_v_per_m;             /* physical PD, 100 V/m (seed) */
-    double kd_v_s_per_m;           /* 10 V s/m (seed) */
+    double sample_rate_hz; /* 10000 (seed) */
+    rths_scheme scheme;    /* numerical substructure integrator; default exact_foh */
+    double kp_v_per_m;     /* physical PD, 100 V/m (seed) */
+    double kd_v_s_per_m;   /* 10 V s/m (seed) */
+    /* per interface DoF (the split's interface order); 0 (default): kp_v_per_m, kd_v_s_per_m */
+    double kp_dof_v_per_m[RTHS_MAX_INTERFACE_DOFS];
+    double kd_dof_v_s_per_m[RTHS_MAX_INTERFACE_DOFS];
+    /* grounding gains per interface DoF (N/m or N m/rad; N s/m or N m s/rad); 0: the scalars */
+    double grounding_kp_dof[RTHS_MAX_INTERFACE_DOFS];
+    double grounding_kd_dof[RTHS_MAX_INTERFACE_DOFS];
     double grounding_kp_n_per_m;   /* numerical grounding PD, 50000 N/m (seed) */
     double grounding_kd_n_s_per_m; /* 200 N s/m (seed) */
     double velocity_cutoff_hz;     /* filtered differentiator of the laser signal */
@@ -87,6 +95,14 @@ int rths_controller_numerical_dofs(const rths_controller *c);
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);
+/* Targets of `dofs` interface DoFs: DoF d's coefficients a[d * harmonics + k - 1], b[...] of
+ * cos / sin(k w t); DoFs from `dofs` on get none. rths_controller_set_target is its dofs = 1 case.
+ */
+void rths_controller_set_target_dofs(rths_controller *c, int dofs, int harmonics, const double *a,
+                                     const double *b);
+int rths_controller_interface_dofs(const rths_controller *c);
+/* The last step's demand of every actuator (rths_controller_interface_dofs of them), V. */
+void rths_controller_demands(const rths_controller *c, double *demand_v);
 void rths_controller_set_feedback(rths_controller *c, int on);
 /* Armed: demand and forcing act. Disarming (or a fault) ramps them to zero over ramp_time_s. */
 void rths_controller_arm(rths_controller *c, int armed);

@@ -52,8 +52,10 @@ typedef struct rths_io_device_info {
  * forcing on an internal physical DoF: amplitude_n cos(theta + omega tau), 0 <= tau <= h; a
  * device without such an exciter ignores it; the controller refuses that setup otherwise). */
 typedef struct rths_io_demand {
-    double demand_v;
+    double demand_v; /* the first actuator's (demand_dof_v[0]) */
     double forcing_amplitude_n, forcing_theta_rad, forcing_omega_rad_s;
+    int n_demands; /* actuators: one per interface DoF (a one-actuator device reads demand_v) */
+    double demand_dof_v[RTHS_MAX_INTERFACE_DOFS];
 } rths_io_demand;
 
 /* The six symbols of a plug-in. open returns RTHS_OK or fills err (RTHS_EINPUT: the io section

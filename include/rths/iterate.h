@@ -44,6 +44,11 @@ typedef struct rths_evaluation {
     double rig_time_s;            /* rig time this evaluation used (wait + average) */
     int wait_periods, average_periods;
     int steady; /* 1 when the steady-state test passed (or the fixed wait elapsed) */
+    /* every interface DoF of a rig that drives several (interface_dofs > 1; d = 0 repeats phys,
+       num and their standard errors); 0 or 1: phys and num alone */
+    int interface_dofs;
+    rths_fourier phys_dof[RTHS_MAX_INTERFACE_DOFS], num_dof[RTHS_MAX_INTERFACE_DOFS];
+    rths_fourier phys_dof_se[RTHS_MAX_INTERFACE_DOFS], num_dof_se[RTHS_MAX_INTERFACE_DOFS];
 } rths_evaluation;
 
 /* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */
@@ -51,7 +56,14 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, 
                   double amplitude_n, const double *target_a, const double *target_b,
                   rths_evaluation *out, rths_error *err);
 
-/* Residual Phi (length 2N: cos terms then sin terms) and its standard error per entry. */
+/* The same for `dofs` interface DoFs (the rig's rths_rig_interface_dofs), DoF d's target at
+ * target_a[d * harmonics + k - 1], target_b[...]; dofs 1 is rths_evaluate. */
+int rths_evaluate_dofs(rths_rig *rig, const rths_settle_options *opt, int harmonics, int dofs,
+                       double frequency_hz, double amplitude_n, const double *target_a,
+                       const double *target_b, rths_evaluation *out, rths_error *err);
+
+/* Residual Phi (length 2N: cos terms then sin terms) and its standard error per entry. With
+ * several interface DoFs, one such block of 2N per DoF in the interface order. */
 void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se);
 
 typedef struct rths_newton_options {
@@ -109,6 +121,10 @@ typedef struct rths_zero_problem {
     int harmonics;
     rths_zero_eval_fn eval;
     void *ctx;
+    /* 1: the Fourier pairs are coupled (several interface DoFs: "harmonics" counts DoF x
+       harmonic pairs), so the LTI form, one complex gain per pair, never applies: the corrector
+       keeps finite-difference and Broyden Jacobians */
+    int coupled;
 } rths_zero_problem;
 
 /* The rig-backed zero problem of a hybrid test: set the forcing and the target, wait for steady
@@ -118,11 +134,22 @@ typedef struct rths_rig_problem {
     const rths_settle_options *settle;
     int harmonics;
     double amplitude_n;
+    int interface_dofs; /* 1, or several: 2 N unknowns per DoF, DoF by DoF */
 } rths_rig_problem;
 
 /* Fills *problem to evaluate through *ctx (which must outlive it). */
 void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
                            const rths_settle_options *settle, int harmonics, double amplitude_n);
+/* The same over every interface DoF of the rig (rths_rig_interface_dofs = n): 2 N n unknowns,
+ * the cos terms of every (DoF d, harmonic k) pair at j = d N + k - 1, then the sin terms at
+ * N n + j, and the residual, response and reference likewise; the problem's harmonics is N n
+ * (so a solution's target_a[j], matched_a[j] carry every DoF, its amplitude the first DoF's
+ * fundamental) and coupled is 1: finite-difference and Broyden Jacobians, no LTI model (the DoFs
+ * couple); the matched estimate uses those Jacobians. RTHS_EINPUT when 2 N n exceeds
+ * 2 RTHS_MAX_HARMONICS. */
+int rths_rig_problem_init_dofs(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
+                               const rths_settle_options *settle, int harmonics, double amplitude_n,
+                               rths_error *err);
 
 /* The host-side numerical substructure (split.numerical_solver: frequency; docs/method.md,
  * "Numerical substructure integration"): the controller drives the physical interface to the

@@ -134,13 +134,16 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out);
 void rths_plant_set_forcing(rths_plant *p, double amplitude_n, double theta, double omega_rad_s);
 /* Advances one sample with the demand held. */
 void rths_plant_advance(rths_plant *p, double demand_v);
+/* The same with one demand per actuator (one per interface DoF, the split's interface order);
+ * rths_plant_advance is its one-actuator case. */
+void rths_plant_advance_dofs(rths_plant *p, const double *demand_v);
 /* RTHS_RIG_OK, or the fault of a limit with action fault that the state is beyond now
  * (stroke: RTHS_RIG_FAULT_DISPLACEMENT, velocity: RTHS_RIG_FAULT_DISPLACEMENT, force:
  * RTHS_RIG_FAULT_FORCE). */
 rths_rig_fault rths_plant_limit_fault(const rths_plant *p);
 void rths_plant_actuator_status(const rths_plant *p, rths_actuator_status *out);
 double rths_plant_time_s(const rths_plant *p);
-/* True interface displacement (no sensor effects), m: for tests. */
+/* True interface displacement (no sensor effects) of the first interface DoF, m: for tests. */
 double rths_plant_interface_displacement_m(const rths_plant *p);
 /* Displacement noise standard deviation of the lasers, m (0 with noise off). */
 double rths_plant_noise_level_m(const rths_plant *p);

@@ -36,6 +36,11 @@ typedef struct rths_rig_ops {
     int (*reset_fault)(void *self, rths_error *err);
     double (*noise_level_m)(void *self); /* displacement noise standard deviation, m (0: none) */
     void (*destroy)(void *self);
+    /* Several interface DoFs (NULL: a one-DoF backend, set_target alone): targets of `dofs`
+     * interface DoFs, DoF d's coefficients at a[d * harmonics + k - 1], b[...]. */
+    int (*set_target_dofs)(void *self, int dofs, int harmonics, const double *a, const double *b,
+                           rths_error *err);
+    int (*interface_dofs)(void *self); /* NULL: 1 */
 } rths_rig_ops;
 
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description);
@@ -47,6 +52,12 @@ void *rths_rig_backend(rths_rig *rig, const rths_rig_ops *ops);
 int rths_rig_set_forcing(rths_rig *rig, double frequency_hz, double amplitude_n, rths_error *err);
 int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const double *b,
                         rths_error *err);
+/* Targets of every interface DoF (dofs = rths_rig_interface_dofs; a[d * harmonics + k - 1]);
+ * rths_rig_set_target is its one-DoF case. */
+int rths_rig_set_target_dofs(rths_rig *rig, int dofs, int harmonics, const double *a,
+                             const double *b, rths_error *err);
+/* Interface DoFs the rig drives, one actuator each (1..RTHS_MAX_INTERFACE_DOFS). */
+int rths_rig_interface_dofs(rths_rig *rig);
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err);
 int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,
                           int *n_out, rths_error *err);

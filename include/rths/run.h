@@ -75,6 +75,20 @@ typedef struct rths_run_frf_result {
 enum { RTHS_RUN_FRF_COLUMNS = 24 };
 extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
 void rths_run_frf_row(const rths_point *pt, double *row);
+/* With several interface DoFs (n > 1) frf.csv adds, for every interface DoF d = 1..n (the split's
+ * interface order), dof<d>_amplitude_m (the matched estimate when the strategy reports it, else
+ * the measurement), dof<d>_numerical_amplitude_m, dof<d>_phase_rad and dof<d>_interface_error_m
+ * of the fundamental after the columns above; one DoF keeps the columns above alone. */
+enum {
+    RTHS_RUN_FRF_DOF_COLUMNS = 4,
+    RTHS_RUN_FRF_MAX_COLUMNS =
+        RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * RTHS_MAX_INTERFACE_DOFS
+};
+int rths_run_frf_column_count(int interface_dofs);
+/* Column i's name for a run with interface_dofs DoFs (NULL beyond the count). */
+const char *rths_run_frf_column_name(int interface_dofs, int i);
+/* The point's row with rths_run_frf_column_count(interface_dofs) entries. */
+void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row);
 
 /* Runs the test (see above). Returns RTHS_OK when it ran (status says how it ended; also when
  * cancelled), RTHS_EINPUT on bad input (nothing written), RTHS_EFAIL on a failure during it. */

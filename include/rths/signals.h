@@ -10,6 +10,9 @@
 
 #define RTHS_MAX_HARMONICS 5
 #define RTHS_MAX_SENSED_DOFS 16
+/* Interface DoFs the real-time side drives (one actuator each): PD control, Fourier sums,
+ * inertial compensation and grounding control per DoF, in fixed per-sample buffers. */
+#define RTHS_MAX_INTERFACE_DOFS 4
 
 /* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
  * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
@@ -24,9 +27,15 @@ typedef struct rths_period {
     double frequency_hz; /* forcing frequency during this period */
     double end_time_s;   /* rig time at the end of the period */
     int samples;         /* controller samples in this period (sets the coefficients' noise) */
-    rths_fourier phys;   /* physical interface displacement, m */
-    rths_fourier num;    /* numerical interface displacement, m */
-    rths_fourier force;  /* measured interface force (load cell), N */
+    rths_fourier phys;   /* physical interface displacement, m (the first interface DoF) */
+    rths_fourier num;    /* numerical interface displacement, m (the first interface DoF) */
+    rths_fourier force;  /* measured interface force (load cell), N (the first interface DoF) */
+    /* every interface DoF d < interface_dofs, in the split's interface order (d = 0 repeats
+     * phys, num and force); 0 in a record from a producer that carries one DoF only */
+    int interface_dofs;
+    rths_fourier phys_dof[RTHS_MAX_INTERFACE_DOFS];
+    rths_fourier num_dof[RTHS_MAX_INTERFACE_DOFS];
+    rths_fourier force_dof[RTHS_MAX_INTERFACE_DOFS];
 } rths_period;
 
 typedef enum {
@@ -41,13 +50,19 @@ typedef enum {
 
 /* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
  * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
- * physical DoFs, then the interface DoF), m; acceleration of the interface storey, m/s^2; load
- * cell between actuator and interface storey, N (force on the storey, positive along x). */
+ * physical DoFs, then the interface DoFs), m; acceleration of the interface storey, m/s^2; load
+ * cell between actuator and interface storey, N (force on the storey, positive along x). The
+ * scalar fields are the first interface DoF's; the arrays carry every interface DoF's (one
+ * accelerometer and one load cell per actuator); n_interface 0 means the device fills the
+ * scalars only (one interface DoF). */
 typedef struct rths_sensor_sample {
     int n;
     double displacement_m[RTHS_MAX_SENSED_DOFS];
     double interface_acceleration_m_s2;
     double interface_force_n;
+    int n_interface;
+    double interface_acceleration_dof_m_s2[RTHS_MAX_INTERFACE_DOFS];
+    double interface_force_dof_n[RTHS_MAX_INTERFACE_DOFS];
 } rths_sensor_sample;
 
 /* One decimated time trace sample. */

@@ -12,6 +12,10 @@ typedef struct rths_truth_curve {
     double *amp_m, *amp_h2_m, *amp_h3_m; /* interface displacement amplitude per harmonic, m */
     int *stable;                         /* 0 where the periodic solution is unstable */
     int exact; /* 1: the analytic FRF (linear structure), 0: the shooting solution */
+    /* several interface DoFs (linear structure): the fundamental amplitude of each, m,
+       amp_dof_m[d * n + j] for DoF d at freq_hz[j]; dofs 0 and NULL otherwise */
+    int dofs;
+    double *amp_dof_m;
 } rths_truth_curve;
 
 /* The curve over [lo_hz, hi_hz] (analytic: the modal grid; shooting: its continuation points). */

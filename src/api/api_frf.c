@@ -46,7 +46,8 @@ int rths_api_frf_available(void) {
 
 typedef struct {
     const rths_api_frf_options *o;
-    int stop; /* the point callback asked to stop */
+    int stop;           /* the point callback asked to stop */
+    int interface_dofs; /* the split's: frf.csv's columns depend on it */
 } frf_context;
 
 /* The caller's callback gets each accepted point once (a later fold-flag update is not repeated).
@@ -55,9 +56,13 @@ typedef struct {
 static int point(void *user, const rths_point *pt, int is_update) {
     frf_context *c = user;
     if (is_update || !c->o->on_point || c->stop) return RTHS_OK;
-    double row[RTHS_RUN_FRF_COLUMNS];
-    rths_run_frf_row(pt, row);
-    c->stop = c->o->on_point(c->o->user, RTHS_RUN_FRF_COLUMNS, rths_run_frf_columns, row) != 0;
+    double row[RTHS_RUN_FRF_MAX_COLUMNS];
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS];
+    int columns = rths_run_frf_column_count(c->interface_dofs);
+    for (int i = 0; i < columns; i++)
+        names[i] = rths_run_frf_column_name(c->interface_dofs, i);
+    rths_run_frf_row_dofs(pt, c->interface_dofs, row);
+    c->stop = c->o->on_point(c->o->user, columns, names, row) != 0;
     return RTHS_OK;
 }
 
@@ -140,7 +145,7 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
                                .n_overrides = cfg->n_overrides,
                                .argc = argc,
                                .argv = argv};
-    frf_context ctx = {o, 0};
+    frf_context ctx = {o, 0, rc ? 1 : setup.split.n_int};
     rths_run_callbacks cb = {.on_point = point, .should_cancel = cancel, .user = &ctx};
     rths_run_frf_result result;
     if (!rc) rc = rths_run_frf(&ro, &cb, &result, err);

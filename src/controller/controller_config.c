@@ -2,6 +2,26 @@
 #include "rths/controller.h"
 
 #include <math.h>
+#include <stdlib.h>
+
+/* controller.kp_per_dof, controller.kd_per_dof: a gain per interface DoF (V per m, or per rad
+ * for a rotation; V s per m or rad), in the split's interface order; 0 or absent: the scalar. */
+static int gains_per_dof(rths_config *cfg, const char *key, double *gains, rths_error *err) {
+    double *list = NULL;
+    int count = 0, rc = rths_config_get_double_list(cfg, key, 0, &list, &count, err);
+    if (!rc && count > RTHS_MAX_INTERFACE_DOFS)
+        rc = rths_config_error_at(cfg, key, err, "%d gains; at most %d interface DoFs", count,
+                                  RTHS_MAX_INTERFACE_DOFS);
+    for (int d = 0; !rc && d < count; d++) {
+        if (!(isfinite(list[d]) && list[d] >= 0 && list[d] <= 1e9))
+            rc = rths_config_error_at(cfg, key, err, "entry %d is %g; must be in [0, 1e9]", d + 1,
+                                      list[d]);
+        else
+            gains[d] = list[d];
+    }
+    free(list);
+    return rc;
+}
 
 int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
     static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh", "exact_foh",
@@ -38,6 +58,10 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
                                      1e-3, 1e3, &opt->min_frequency_hz, err)) ||
         (rc = rths_config_get_double(cfg, "controller.max_pending_s", 0, opt->max_pending_s, 0,
                                      3600, &opt->max_pending_s, err)) ||
+        (rc = gains_per_dof(cfg, "controller.kp_per_dof", opt->kp_dof_v_per_m, err)) ||
+        (rc = gains_per_dof(cfg, "controller.kd_per_dof", opt->kd_dof_v_s_per_m, err)) ||
+        (rc = gains_per_dof(cfg, "controller.grounding_kp_per_dof", opt->grounding_kp_dof, err)) ||
+        (rc = gains_per_dof(cfg, "controller.grounding_kd_per_dof", opt->grounding_kd_dof, err)) ||
         (rc = rths_reduction_config_read(cfg, &opt->reduction, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;

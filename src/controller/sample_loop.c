@@ -103,6 +103,8 @@ double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
                                                                        : RTHS_RIG_FAULT_LINK);
     double demand = rths_controller_step(l->ctl, &l->sensors, out);
     l->demand.demand_v = demand;
+    l->demand.n_demands = rths_controller_interface_dofs(l->ctl);
+    rths_controller_demands(l->ctl, l->demand.demand_dof_v);
     rths_controller_forcing(l->ctl, &l->demand.forcing_amplitude_n, &l->demand.forcing_theta_rad,
                             &l->demand.forcing_omega_rad_s);
     rths_io_write(l->io, &l->demand);

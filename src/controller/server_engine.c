@@ -37,6 +37,12 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
     if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
+    /* protocol version 1 carries one interface DoF's target and records */
+    if (!rc && e->setup.split.n_int != 1)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "the controller process drives one interface DoF (protocol version "
+                            "1); this split has %d: run n > 1 on the virtual rig",
+                            e->setup.split.n_int);
     /* the device is loaded, checked and opened here, before the server can arm anything; the
      * loop starts disarmed: nothing is excited until the host arms it */
     if (!rc) rc = rths_sample_loop_create_configured(cfg, &e->setup, &copt, &e->loop, err);

@@ -11,7 +11,9 @@
 
 #define RING_CAPACITY 256
 #define MAX_STATE (2 * RTHS_REALTIME_MAX_DOFS)
-#define N_INPUTS 2 /* numerical interface force, external forcing */
+/* inputs of the numerical model: the force on each interface DoF, then the external forcing */
+#define MAX_INPUTS (RTHS_MAX_INTERFACE_DOFS + 1)
+#define MAX_IFACE RTHS_MAX_INTERFACE_DOFS
 
 typedef struct {
     double a[RTHS_MAX_HARMONICS + 1], b[RTHS_MAX_HARMONICS + 1];
@@ -21,31 +23,39 @@ struct rths_controller {
     rths_controller_options opt;
     double h;
     int nn, nx, np;     /* numerical DoFs, its state size, physical DoFs (sensors) */
+    int ni, n_inputs;   /* interface DoFs (one actuator each), numerical model inputs ni + 1 */
     int forcing_index;  /* forcing DoF in the numerical substructure's order */
     int host_numerical; /* split.numerical_solver: frequency: no numerical model here */
-    double m_comp;      /* inertial compensation mass p m_int, kg */
-    double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * N_INPUTS], b_curr[MAX_STATE * N_INPUTS];
-    double z[MAX_STATE], z_next[MAX_STATE], u_prev[N_INPUTS];
+    /* inertial compensation mass p M_int: the numerical interface block, ni x ni, kg */
+    double m_comp[MAX_IFACE * MAX_IFACE];
+    double kp[MAX_IFACE], kd[MAX_IFACE];   /* PD gains per interface DoF */
+    double gkp[MAX_IFACE], gkd[MAX_IFACE]; /* grounding gains per interface DoF */
+    double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * MAX_INPUTS],
+        b_curr[MAX_STATE * MAX_INPUTS];
+    double z[MAX_STATE], z_next[MAX_STATE], u_prev[MAX_INPUTS];
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
     double pending_since_s; /* controller time of the oldest pending change */
     int harmonics;
-    double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
+    double target_a[MAX_IFACE][RTHS_MAX_HARMONICS], target_b[MAX_IFACE][RTHS_MAX_HARMONICS];
     int feedback, armed;
     rths_rig_fault fault;
-    double ramp;          /* 0..1: scales demand, forcing and target */
-    double forcing_now;   /* forcing amplitude of the last step (ramp included), N */
-    double static_offset; /* mean physical interface displacement of the last period, m */
-    /* signal state */
+    double ramp;                     /* 0..1: scales demand, forcing and target */
+    double forcing_now;              /* forcing amplitude of the last step (ramp included), N */
+    double static_offset[MAX_IFACE]; /* mean physical interface displacement, last period, m */
+    double demand[MAX_IFACE];        /* the last step's demand per actuator, V */
+    /* signal state, per interface DoF */
     double time_s, theta;
-    double x_prev, v_est, velocity_alpha;
-    double x_last, x_last_prev, xi_last_prev; /* grounding control's consistent samples */
+    double x_prev[MAX_IFACE], v_est[MAX_IFACE], velocity_alpha;
+    /* grounding control's consistent samples */
+    double x_last[MAX_IFACE], x_last_prev[MAX_IFACE], xi_last_prev[MAX_IFACE];
     int grounding_have;
     int have_prev;
-    /* running Fourier sums of the open period, and the previous sample for the trapezoid */
-    sums acc_phys, acc_num, acc_force;
-    double y_prev[3], theta_prev;
+    /* running Fourier sums of the open period, and the previous sample for the trapezoid:
+       y_prev[3 d + (0 physical, 1 numerical, 2 force)] */
+    sums acc_phys[MAX_IFACE], acc_num[MAX_IFACE], acc_force[MAX_IFACE];
+    double y_prev[3 * MAX_IFACE], theta_prev;
     int period_samples, at_boundary;
     /* published periods: single producer (step), single consumer (pop) */
     rths_period ring_storage[RING_CAPACITY];
@@ -58,6 +68,9 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->scheme = RTHS_SCHEME_DEFAULT;
     opt->kp_v_per_m = 100.0;
     opt->kd_v_s_per_m = 10.0;
+    for (int d = 0; d < RTHS_MAX_INTERFACE_DOFS; d++)
+        opt->kp_dof_v_per_m[d] = opt->kd_dof_v_s_per_m[d] = opt->grounding_kp_dof[d] =
+            opt->grounding_kd_dof[d] = 0.0;
     opt->grounding_kp_n_per_m = 50000.0;
     /* 5x the seed's 200 N s/m: the grounding force vanishes at a match, so it cannot change a
      * converged result, but it damps the numerical side's transients after every new target,
@@ -104,43 +117,69 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
                             "at most %d (RTHS_REALTIME_MAX_DOFS): set controller.reduction.method "
                             "to craig_bampton (or auto), or split.numerical_solver to frequency",
                             n, RTHS_REALTIME_MAX_DOFS);
-    double *input = rc ? NULL : rths_mat_new(s->nn, N_INPUTS), *a = NULL, *b = NULL;
+    const int ni = c->ni, n_in = c->n_inputs;
+    double *input = rc ? NULL : rths_mat_new(s->nn, n_in), *a = NULL, *b = NULL;
     if (!rc && !input) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) {
-        input[0] = 1.0; /* column 0: interface force */
-        /* column 1: external forcing on the model; none when the plant applies it; a base
+        for (int d = 0; d < ni; d++)
+            input[d + (size_t)d * s->nn] = 1.0; /* column d: force on interface DoF d */
+        /* column ni: external forcing on the model; none when the plant applies it; a base
          * excitation's -M 1 per m/s^2 on the interface and the numerical DoFs */
+        double *forcing = input + (size_t)ni * s->nn;
         if (base) {
-            input[s->nn] = setup->forcing_shape[s->int_dofs[0]];
+            for (int d = 0; d < ni; d++)
+                forcing[d] = setup->forcing_shape[s->int_dofs[d]];
             for (int i = 0; i < s->n_num; i++)
-                input[s->nn + s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
+                forcing[s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
         } else if (!forcing_physical) {
-            input[s->nn + c->forcing_index] = 1.0;
+            forcing[c->forcing_index] = 1.0;
         }
     }
-    double *reduced_input = !rc && reduce ? rths_mat_new(n, N_INPUTS) : NULL;
+    double *reduced_input = !rc && reduce ? rths_mat_new(n, n_in) : NULL;
     if (reduced_input)
-        rths_mat_mul(n, N_INPUTS, s->nn, 1.0, red.transform, 1, input, 0, 0.0, reduced_input);
+        rths_mat_mul(n, n_in, s->nn, 1.0, red.transform, 1, input, 0, 0.0, reduced_input);
     else if (!rc && reduce)
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     rths_discrete d = {0};
     if (!rc)
         rc = rths_state_space(n, reduce ? red.mass : s->mass_num,
                               reduce ? red.damping : s->damping_num,
-                              reduce ? red.stiffness : s->stiffness_num, N_INPUTS,
+                              reduce ? red.stiffness : s->stiffness_num, n_in,
                               reduce ? reduced_input : input, &a, &b, err);
     c->nn = n;
     c->nx = 2 * n;
-    if (!rc) rc = rths_discretise(c->nx, N_INPUTS, a, b, c->h, c->opt.scheme, &d, err);
+    if (!rc) rc = rths_discretise(c->nx, n_in, a, b, c->h, c->opt.scheme, &d, err);
     if (!rc) {
         memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
-        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * N_INPUTS));
-        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * N_INPUTS));
+        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * n_in));
+        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * n_in));
     }
     free(a), free(b), free(input), free(reduced_input);
     rths_discrete_free(&d);
     rths_reduced_free(&red);
     return rc;
+}
+
+/* The numerical substructure the step integrates must not be unstable on its own: a split whose
+ * interface block was divided by the coupling rule of a spring chain (model.h) can leave a beam's
+ * numerical stiffness indefinite (the follow-up's cantilever cut at 0.17 m: an eigenvalue of
+ * -2.9e4 N/m), and its integration diverges within samples. Refused at create, by name. */
+static int numerical_stiffness_definite(const rths_split *s, rths_error *err) {
+    int n = s->nn;
+    double complex *k = malloc(sizeof *k * (size_t)n * (size_t)n);
+    if (!k) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < n * n; i++)
+        k[i] = s->stiffness_num[i];
+    double ratio = rths_cmat_hermitian_eigen_ratio(n, k);
+    free(k);
+    /* rounding leaves a singular (free-floating) part at |ratio| ~ 1e-16 */
+    if (ratio < -1e-9)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the numerical substructure's stiffness is indefinite (smallest to "
+                              "largest eigenvalue %.3g): the split's interface block does not suit "
+                              "this structure, and the real-time integration would diverge",
+                              ratio);
+    return RTHS_OK;
 }
 
 int rths_controller_numerical_dofs(const rths_controller *c) {
@@ -151,10 +190,11 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                            rths_controller **out, rths_error *err) {
     *out = NULL;
     const rths_split *s = &setup->split;
-    if (s->n_int != 1)
+    if (s->n_int < 1 || s->n_int > RTHS_MAX_INTERFACE_DOFS)
         return rths_error_set(err, RTHS_EINPUT,
-                              "the controller drives one interface DoF; this split has %d",
-                              s->n_int);
+                              "the controller drives 1 to %d interface DoFs (one actuator each, "
+                              "RTHS_MAX_INTERFACE_DOFS in signals.h); this split has %d",
+                              RTHS_MAX_INTERFACE_DOFS, s->n_int);
     if (s->np > RTHS_MAX_SENSED_DOFS)
         return rths_error_set(err, RTHS_EINPUT,
                               "the physical substructure has %d DoFs; the real-time controller "
@@ -169,7 +209,10 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         return rths_error_set(err, RTHS_EINPUT,
                               "base excitation drives the physical storeys too, and this rig "
                               "does not apply a forcing on the physical side");
-    if (!base && setup->split.int_dofs[0] != setup->forcing_dof) {
+    int forcing_interface = -1;
+    for (int d = 0; d < s->n_int; d++)
+        if (s->int_dofs[d] == setup->forcing_dof) forcing_interface = d;
+    if (!base && forcing_interface < 0) {
         int numerical = 0;
         for (int i = 0; i < s->n_num; i++)
             numerical |= s->num_dofs[i] == setup->forcing_dof;
@@ -190,8 +233,19 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->nn = s->nn;
     c->nx = 2 * s->nn;
     c->np = s->np;
-    c->m_comp = RTHS_AT(s->mass_num, s->nn, 0, 0);
-    c->forcing_index = 0;
+    c->ni = s->n_int;
+    c->n_inputs = s->n_int + 1;
+    for (int d = 0; d < c->ni; d++) {
+        for (int e = 0; e < c->ni; e++)
+            c->m_comp[d + e * MAX_IFACE] = RTHS_AT(s->mass_num, s->nn, d, e);
+        c->kp[d] = opt->kp_dof_v_per_m[d] > 0 ? opt->kp_dof_v_per_m[d] : opt->kp_v_per_m;
+        c->kd[d] = opt->kd_dof_v_s_per_m[d] > 0 ? opt->kd_dof_v_s_per_m[d] : opt->kd_v_s_per_m;
+        c->gkp[d] =
+            opt->grounding_kp_dof[d] > 0 ? opt->grounding_kp_dof[d] : opt->grounding_kp_n_per_m;
+        c->gkd[d] =
+            opt->grounding_kd_dof[d] > 0 ? opt->grounding_kd_dof[d] : opt->grounding_kd_n_s_per_m;
+    }
+    c->forcing_index = forcing_interface > 0 ? forcing_interface : 0;
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
     c->host_numerical = setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY;
@@ -200,6 +254,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         rc = rths_error_set(err, RTHS_EINPUT,
                             "forcing.type: base with split.numerical_solver: frequency is not "
                             "supported (the host's receptance takes a force on one DoF)");
+    if (!rc && !c->host_numerical) rc = numerical_stiffness_definite(s, err);
     if (!rc && !c->host_numerical) rc = build_numerical(c, setup, forcing_physical, base, err);
     if (rc) {
         free(c);
@@ -237,13 +292,28 @@ void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double
 
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b) {
+    rths_controller_set_target_dofs(c, 1, harmonics, a, b);
+}
+
+void rths_controller_set_target_dofs(rths_controller *c, int dofs, int harmonics, const double *a,
+                                     const double *b) {
     if (harmonics < 0) harmonics = 0;
     if (harmonics > RTHS_MAX_HARMONICS) harmonics = RTHS_MAX_HARMONICS;
     c->harmonics = harmonics;
-    for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
-        c->target_a[k] = k < harmonics ? a[k] : 0;
-        c->target_b[k] = k < harmonics ? b[k] : 0;
-    }
+    for (int d = 0; d < MAX_IFACE; d++)
+        for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
+            int given = d < dofs && k < harmonics;
+            c->target_a[d][k] = given ? a[d * harmonics + k] : 0;
+            c->target_b[d][k] = given ? b[d * harmonics + k] : 0;
+        }
+}
+
+int rths_controller_interface_dofs(const rths_controller *c) {
+    return c->ni;
+}
+
+void rths_controller_demands(const rths_controller *c, double *demand_v) {
+    memcpy(demand_v, c->demand, sizeof(double) * (size_t)c->ni);
 }
 
 void rths_controller_set_feedback(rths_controller *c, int on) {
@@ -302,24 +372,34 @@ static void accumulate(sums *s, double dtheta, double c0, double s0, double y0, 
     }
 }
 
+static void clear_sums(rths_controller *c) {
+    memset(c->acc_phys, 0, sizeof c->acc_phys);
+    memset(c->acc_num, 0, sizeof c->acc_num);
+    memset(c->acc_force, 0, sizeof c->acc_force);
+    c->period_samples = 0;
+}
+
 static void publish(rths_controller *c, double end_time) {
     rths_period p;
     memset(&p, 0, sizeof p); /* padding too: records compare bytewise (tests, journals) */
     p.frequency_hz = c->omega / (2 * M_PI);
     p.end_time_s = end_time;
     p.samples = c->period_samples;
-    memcpy(p.phys.a, c->acc_phys.a, sizeof p.phys.a);
-    memcpy(p.phys.b, c->acc_phys.b, sizeof p.phys.b);
-    memcpy(p.num.a, c->acc_num.a, sizeof p.num.a);
-    memcpy(p.num.b, c->acc_num.b, sizeof p.num.b);
-    memcpy(p.force.a, c->acc_force.a, sizeof p.force.a);
-    memcpy(p.force.b, c->acc_force.b, sizeof p.force.b);
-    p.phys.b[0] = p.num.b[0] = p.force.b[0] = 0;
+    p.interface_dofs = c->ni;
+    for (int d = 0; d < c->ni; d++) {
+        memcpy(p.phys_dof[d].a, c->acc_phys[d].a, sizeof p.phys.a);
+        memcpy(p.phys_dof[d].b, c->acc_phys[d].b, sizeof p.phys.b);
+        memcpy(p.num_dof[d].a, c->acc_num[d].a, sizeof p.num.a);
+        memcpy(p.num_dof[d].b, c->acc_num[d].b, sizeof p.num.b);
+        memcpy(p.force_dof[d].a, c->acc_force[d].a, sizeof p.force.a);
+        memcpy(p.force_dof[d].b, c->acc_force[d].b, sizeof p.force.b);
+        p.phys_dof[d].b[0] = p.num_dof[d].b[0] = p.force_dof[d].b[0] = 0;
+    }
+    p.phys = p.phys_dof[0];
+    p.num = p.num_dof[0];
+    p.force = p.force_dof[0];
     if (!rths_spsc_push(&c->ring, &p)) atomic_fetch_add(&c->dropped, 1);
-    memset(&c->acc_phys, 0, sizeof c->acc_phys);
-    memset(&c->acc_num, 0, sizeof c->acc_num);
-    memset(&c->acc_force, 0, sizeof c->acc_force);
-    c->period_samples = 0;
+    clear_sums(c);
 }
 
 int rths_controller_pop_period(rths_controller *c, rths_period *out) {
@@ -336,10 +416,7 @@ static void start_overdue_forcing(rths_controller *c) {
     c->amplitude_n = c->pending_amplitude;
     c->pending_forcing = 0;
     c->theta = 0;
-    memset(&c->acc_phys, 0, sizeof c->acc_phys);
-    memset(&c->acc_num, 0, sizeof c->acc_num);
-    memset(&c->acc_force, 0, sizeof c->acc_force);
-    c->period_samples = 0;
+    clear_sums(c);
 }
 
 /* x* stays within the displacement limit: a target beyond it (refused by the rigs) or a ramp
@@ -366,15 +443,24 @@ static void update_ramp(rths_controller *c) {
 }
 
 typedef struct {
-    double x, acc, f_lc; /* interface displacement, acceleration, load-cell force */
+    /* per interface DoF: displacement, acceleration, load-cell force */
+    double x[MAX_IFACE], acc[MAX_IFACE], f_lc[MAX_IFACE];
 } measured;
 
 /* The sensors against the limits. A non-finite reading latches a fault and is replaced by zero,
- * so the numerical model stays finite. */
-static measured read_sensors(rths_controller *c, const rths_sensor_sample *in) {
-    measured m = {in->displacement_m[c->np - 1], in->interface_acceleration_m_s2,
-                  in->interface_force_n};
-    int finite = isfinite(m.x) && isfinite(m.acc) && isfinite(m.f_lc);
+ * so the numerical model stays finite. A device that fills only the scalar interface readings
+ * (n_interface 0) serves the first interface DoF. */
+static void read_sensors(rths_controller *c, const rths_sensor_sample *in, measured *m) {
+    int finite = 1;
+    for (int d = 0; d < c->ni; d++) {
+        int arrays = in->n_interface > d;
+        m->x[d] = in->displacement_m[c->np - c->ni + d];
+        m->acc[d] = arrays   ? in->interface_acceleration_dof_m_s2[d]
+                    : d == 0 ? in->interface_acceleration_m_s2
+                             : NAN;
+        m->f_lc[d] = arrays ? in->interface_force_dof_n[d] : d == 0 ? in->interface_force_n : NAN;
+        finite &= isfinite(m->x[d]) && isfinite(m->acc[d]) && isfinite(m->f_lc[d]);
+    }
     for (int i = 0; i < in->n && i < RTHS_MAX_SENSED_DOFS; i++) {
         finite &= isfinite(in->displacement_m[i]);
         if (fabs(in->displacement_m[i]) > c->opt.displacement_limit_m)
@@ -382,40 +468,40 @@ static measured read_sensors(rths_controller *c, const rths_sensor_sample *in) {
     }
     if (!finite) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
-        m.x = m.acc = m.f_lc = 0;
+        memset(m, 0, sizeof *m);
         c->ramp = 0;
     }
-    if (fabs(m.f_lc) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
-    /* velocity of the physical interface: filtered backward difference */
-    double v_raw = c->have_prev ? (m.x - c->x_prev) / c->h : 0.0;
-    c->v_est = c->velocity_alpha * c->v_est + (1 - c->velocity_alpha) * v_raw;
-    c->x_prev = m.x;
+    for (int d = 0; d < c->ni; d++) {
+        if (fabs(m->f_lc[d]) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
+        /* velocity of the physical interface: filtered backward difference */
+        double v_raw = c->have_prev ? (m->x[d] - c->x_prev[d]) / c->h : 0.0;
+        c->v_est[d] = c->velocity_alpha * c->v_est[d] + (1 - c->velocity_alpha) * v_raw;
+        c->x_prev[d] = m->x[d];
+    }
     c->have_prev = 1;
-    return m;
 }
 
-/* Grounding control F_ctrl. It compares like with like, the last measured x with the last xi and
- * both velocities by the same backward difference, so it vanishes exactly when the interface
- * matches (erratum 8) and adds no spurious stiffness or damping to the converged response. */
-static double grounding_force(rths_controller *c, double x) {
-    const double xi = c->z[0];
-    double x_last = c->grounding_have ? c->x_last : x;
-    double xi_last_prev = c->grounding_have ? c->xi_last_prev : xi;
-    double x_last_prev = c->grounding_have ? c->x_last_prev : x_last;
-    double f_ctrl =
-        c->opt.grounding_kp_n_per_m * (x_last - xi) +
-        c->opt.grounding_kd_n_s_per_m * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
-    c->x_last_prev = x_last;
-    c->x_last = x;
-    c->xi_last_prev = xi;
-    c->grounding_have = 1;
+/* Grounding control F_ctrl on interface DoF d. It compares like with like, the last measured x
+ * with the last xi and both velocities by the same backward difference, so it vanishes exactly
+ * when the interface matches (erratum 8) and adds no spurious stiffness or damping to the
+ * converged response. */
+static double grounding_force(rths_controller *c, int d, double x) {
+    const double xi = c->z[d];
+    double x_last = c->grounding_have ? c->x_last[d] : x;
+    double xi_last_prev = c->grounding_have ? c->xi_last_prev[d] : xi;
+    double x_last_prev = c->grounding_have ? c->x_last_prev[d] : x_last;
+    double f_ctrl = c->gkp[d] * (x_last - xi) +
+                    c->gkd[d] * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
+    c->x_last_prev[d] = x_last;
+    c->x_last[d] = x;
+    c->xi_last_prev[d] = xi;
     return f_ctrl;
 }
 
-/* One step of the discretised numerical substructure under inputs u; its interface displacement
- * and velocity after the step. */
+/* One step of the discretised numerical substructure under inputs u; its interface
+ * displacements and velocities after the step. */
 static void advance_numerical(rths_controller *c, const double *u, double *xi, double *xi_dot) {
-    const int nx = c->nx;
+    const int nx = c->nx, n_in = c->n_inputs;
     /* column by column (contiguous, vectorised); each entry sums in the same order as a row
      * by row product, so results are bitwise those of the plain loop */
     memset(c->z_next, 0, sizeof(double) * (size_t)nx);
@@ -424,24 +510,29 @@ static void advance_numerical(rths_controller *c, const double *u, double *xi, d
         for (int i = 0; i < nx; i++)
             c->z_next[i] += col[i] * zj;
     }
-    for (int j = 0; j < N_INPUTS; j++)
+    for (int j = 0; j < n_in; j++)
         for (int i = 0; i < nx; i++)
             c->z_next[i] += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
     memcpy(c->z, c->z_next, sizeof(double) * (size_t)nx);
-    memcpy(c->u_prev, u, sizeof(double) * N_INPUTS);
-    *xi = c->z[0];
-    *xi_dot = c->z[c->nn];
-    if (!isfinite(*xi)) {
+    memcpy(c->u_prev, u, sizeof(double) * (size_t)n_in);
+    int finite = 1;
+    for (int d = 0; d < c->ni; d++) {
+        xi[d] = c->z[d];
+        xi_dot[d] = c->z[c->nn + d];
+        finite &= isfinite(xi[d]);
+    }
+    if (!finite) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
         memset(c->z, 0, sizeof c->z);
         memset(c->u_prev, 0, sizeof c->u_prev);
-        *xi = *xi_dot = 0;
+        for (int d = 0; d < c->ni; d++)
+            xi[d] = xi_dot[d] = 0;
     }
 }
 
-/* x*(theta1) and its rate: the periodic target (ramped, plus the tracked static term, clamped to
- * the stroke) or, in feedback mode, the numerical interface itself. */
-static void control_target(const rths_controller *c, double cos1, double sin1, double xi,
+/* x*(theta1) of interface DoF d and its rate: the periodic target (ramped, plus the tracked
+ * static term, clamped to the stroke) or, in feedback mode, the numerical interface itself. */
+static void control_target(const rths_controller *c, int d, double cos1, double sin1, double xi,
                            double xi_dot, double *target, double *target_dot) {
     if (c->feedback) {
         *target = xi;
@@ -450,8 +541,8 @@ static void control_target(const rths_controller *c, double cos1, double sin1, d
     }
     double t = 0, t_dot = 0, ck = cos1, sk = sin1;
     for (int k = 1; k <= c->harmonics; k++) {
-        t += c->target_a[k - 1] * ck + c->target_b[k - 1] * sk;
-        t_dot += k * c->omega * (-c->target_a[k - 1] * sk + c->target_b[k - 1] * ck);
+        t += c->target_a[d][k - 1] * ck + c->target_b[d][k - 1] * sk;
+        t_dot += k * c->omega * (-c->target_a[d][k - 1] * sk + c->target_b[d][k - 1] * ck);
         double next = ck * cos1 - sk * sin1;
         sk = sk * cos1 + ck * sin1;
         ck = next;
@@ -461,15 +552,14 @@ static void control_target(const rths_controller *c, double cos1, double sin1, d
     /* The static term follows the physical side's own mean (last whole period), so the actuator
      * carries no static load: the preload alone sets the static point, as in the true assembly,
      * and the numerical interface's mean follows through the grounding. */
-    if (c->opt.track_static) t += c->static_offset;
+    if (c->opt.track_static) t += c->static_offset[d];
     clamp_target(c, &t, &t_dot);
     *target = t;
     *target_dot = t_dot;
 }
 
-static double pd_demand(rths_controller *c, double target, double target_dot, double x) {
-    double demand =
-        c->opt.kp_v_per_m * (target - x) + c->opt.kd_v_s_per_m * (target_dot - c->v_est);
+static double pd_demand(rths_controller *c, int d, double target, double target_dot, double x) {
+    double demand = c->kp[d] * (target - x) + c->kd[d] * (target_dot - c->v_est[d]);
     if (!isfinite(demand)) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
         demand = 0;
@@ -479,13 +569,16 @@ static double pd_demand(rths_controller *c, double target, double target_dot, do
     return demand;
 }
 
-/* The trapezoid of the three signals (physical, numerical, force) from ya at (c0, s0) to yb at
- * (c1, s1) over dtheta. */
+/* The trapezoid of the three signals (physical, numerical, force) of every interface DoF from
+ * ya at (c0, s0) to yb at (c1, s1) over dtheta. */
 static void accumulate_signals(rths_controller *c, double dtheta, double c0, double s0,
                                const double *ya, double c1, double s1, const double *yb) {
-    accumulate(&c->acc_phys, dtheta, c0, s0, ya[0], c1, s1, yb[0]);
-    accumulate(&c->acc_num, dtheta, c0, s0, ya[1], c1, s1, yb[1]);
-    accumulate(&c->acc_force, dtheta, c0, s0, ya[2], c1, s1, yb[2]);
+    for (int d = 0; d < c->ni; d++) {
+        const double *a = ya + 3 * d, *b = yb + 3 * d;
+        accumulate(&c->acc_phys[d], dtheta, c0, s0, a[0], c1, s1, b[0]);
+        accumulate(&c->acc_num[d], dtheta, c0, s0, a[1], c1, s1, b[1]);
+        accumulate(&c->acc_force[d], dtheta, c0, s0, a[2], c1, s1, b[2]);
+    }
 }
 
 /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
@@ -500,13 +593,14 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, dou
         return;
     }
     double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
-    double yb[3];
-    for (int i = 0; i < 3; i++)
+    double yb[3 * MAX_IFACE] = {0};
+    for (int i = 0; i < 3 * c->ni; i++)
         yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
     /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
     accumulate_signals(c, 2 * M_PI - theta0, cos0, sin0, c->y_prev, 1.0, 0.0, yb);
     c->period_samples++;
-    c->static_offset = c->acc_phys.a[0];
+    for (int d = 0; d < c->ni; d++)
+        c->static_offset[d] = c->acc_phys[d].a[0];
     publish(c, c->time_s - (1 - alpha) * c->h);
     if (c->pending_forcing) {
         c->omega = c->pending_omega;
@@ -520,41 +614,59 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, dou
     c->at_boundary = 1;
 }
 
+/* Inputs of the numerical model: on interface DoF d F_num = F_comp - F_LC + F_ctrl with
+ * F_comp = (p M_int x''_measured)_d; then the forcing. */
+static void numerical_forces(rths_controller *c, const measured *m, double cos1, double *u,
+                             double *f_interface) {
+    for (int d = 0; d < c->ni; d++) {
+        double f_comp = 0;
+        for (int e = 0; e < c->ni; e++)
+            f_comp += c->m_comp[d + e * MAX_IFACE] * m->acc[e];
+        f_interface[d] = f_comp - m->f_lc[d];
+        u[d] = f_interface[d] + grounding_force(c, d, m->x[d]);
+    }
+    c->grounding_have = 1;
+    u[c->ni] = c->forcing_now * cos1;
+}
+
 double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
                             rths_controller_output *out) {
     update_ramp(c);
-    const measured m = read_sensors(c, in);
+    measured m;
+    read_sensors(c, in, &m);
     start_overdue_forcing(c);
     /* phase of this sample */
     const double theta0 = c->theta, theta1 = theta0 + c->omega * c->h;
-    /* numerical substructure: F_num = F_comp - F_LC + F_ctrl */
-    const double f_ctrl = grounding_force(c, m.x);
     /* the only trigonometry of the step: both ends of this sample's phase interval */
     const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
     /* a sample past the period boundary belongs to the next period: its forcing amplitude */
     if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
         c->amplitude_n = c->pending_amplitude;
     c->forcing_now = c->ramp * c->amplitude_n;
-    const double u[N_INPUTS] = {c->m_comp * m.acc - m.f_lc + f_ctrl, c->forcing_now * cos1};
-    double xi = 0, xi_dot = 0, target, target_dot;
-    if (!c->host_numerical) advance_numerical(c, u, &xi, &xi_dot);
-    control_target(c, cos1, sin1, xi, xi_dot, &target, &target_dot);
-    const double demand = pd_demand(c, target, target_dot, m.x);
-
-    /* numerical substructure on the host: its interface force goes where xi would */
-    const double num_channel = c->host_numerical ? c->m_comp * m.acc - m.f_lc : xi;
-    const double y[3] = {m.x, num_channel, m.f_lc};
+    double u[MAX_INPUTS], f_interface[MAX_IFACE];
+    numerical_forces(c, &m, cos1, u, f_interface);
+    double xi[MAX_IFACE] = {0}, xi_dot[MAX_IFACE] = {0}, target[MAX_IFACE], target_dot;
+    if (!c->host_numerical) advance_numerical(c, u, xi, xi_dot);
+    double y[3 * MAX_IFACE];
+    for (int d = 0; d < c->ni; d++) {
+        control_target(c, d, cos1, sin1, xi[d], xi_dot[d], &target[d], &target_dot);
+        c->demand[d] = pd_demand(c, d, target[d], target_dot, m.x[d]);
+        /* numerical substructure on the host: its interface force goes where xi would */
+        y[3 * d] = m.x[d];
+        y[3 * d + 1] = c->host_numerical ? f_interface[d] : xi[d];
+        y[3 * d + 2] = m.f_lc[d];
+    }
     c->at_boundary = 0;
     c->time_s += c->h;
     update_fourier(c, theta0, theta1, cos0, sin0, cos1, sin1, y);
-    memcpy(c->y_prev, y, sizeof y);
+    memcpy(c->y_prev, y, sizeof(double) * (size_t)(3 * c->ni));
     if (out) {
         out->time_s = c->time_s;
-        out->demand_v = demand;
-        out->target_m = target;
-        out->x_phys_m = m.x;
-        out->x_num_m = xi;
-        out->force_n = m.f_lc;
+        out->demand_v = c->demand[0];
+        out->target_m = target[0];
+        out->x_phys_m = m.x[0];
+        out->x_num_m = xi[0];
+        out->force_n = m.f_lc[0];
     }
-    return demand;
+    return c->demand[0];
 }

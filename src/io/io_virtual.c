@@ -75,7 +75,11 @@ static void virtual_write(void *device, const rths_io_demand *demand) {
     virtual_device *d = device;
     rths_plant_set_forcing(d->plant, demand->forcing_amplitude_n, demand->forcing_theta_rad,
                            demand->forcing_omega_rad_s);
-    rths_plant_advance(d->plant, d->safe ? 0.0 : demand->demand_v);
+    double safe[RTHS_MAX_INTERFACE_DOFS] = {0};
+    if (demand->n_demands > 1)
+        rths_plant_advance_dofs(d->plant, d->safe ? safe : demand->demand_dof_v);
+    else
+        rths_plant_advance(d->plant, d->safe ? 0.0 : demand->demand_v);
 }
 
 /* The simulated actuator's safe state: no demand from now on (what a lab's amplifier-off does);

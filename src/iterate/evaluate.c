@@ -16,6 +16,14 @@ static int coefficient_vector(const rths_period *p, int harmonics, double *v) {
         v[m++] = p->num.a[k];
         v[m++] = p->num.b[k];
     }
+    /* the other interface DoFs of a rig that drives several */
+    for (int d = 1; d < p->interface_dofs; d++)
+        for (int k = 1; k <= harmonics; k++) {
+            v[m++] = p->phys_dof[d].a[k];
+            v[m++] = p->phys_dof[d].b[k];
+            v[m++] = p->num_dof[d].a[k];
+            v[m++] = p->num_dof[d].b[k];
+        }
     return m;
 }
 
@@ -30,7 +38,7 @@ static double vec_norm(const double *v, int n) {
  * *steady say how it went. */
 static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmonics, int *waited,
                        int *steady, rths_error *err) {
-    enum { NC = 4 * RTHS_MAX_HARMONICS };
+    enum { NC = 4 * RTHS_MAX_HARMONICS * RTHS_MAX_INTERFACE_DOFS };
     double prev[NC], cur[NC], change_prev = -1;
     rths_period p;
     int rc, m = 0;
@@ -81,25 +89,11 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmon
     return RTHS_OK;
 }
 
-/* Averages n_avg whole periods: mean and standard error of the mean of every coefficient the rig
- * measures, not only the matched ones (the report shows the higher harmonics' error too). */
-static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_error *err) {
-    double sum[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}},
-                                          sum2[2][2][RTHS_MAX_HARMONICS + 1] = {{{0}}};
-    rths_period p;
-    int rc;
-    for (int q = 0; q < n_avg; q++) {
-        if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
-        const rths_fourier *side[2] = {&p.phys, &p.num};
-        for (int s = 0; s < 2; s++)
-            for (int k = 0; k <= RTHS_MAX_HARMONICS; k++) {
-                sum[s][0][k] += side[s]->a[k];
-                sum[s][1][k] += side[s]->b[k];
-                sum2[s][0][k] += side[s]->a[k] * side[s]->a[k];
-                sum2[s][1][k] += side[s]->b[k] * side[s]->b[k];
-            }
-    }
-    rths_fourier *mean[2] = {&out->phys, &out->num}, *se[2] = {&out->phys_se, &out->num_se};
+/* Mean and standard error of the mean of one interface DoF's coefficients over n_avg periods
+ * (side 0 physical, 1 numerical). */
+static void mean_and_error(int n_avg, double sum[2][2][RTHS_MAX_HARMONICS + 1],
+                           double sum2[2][2][RTHS_MAX_HARMONICS + 1], rths_fourier *mean[2],
+                           rths_fourier *se[2]) {
     for (int s = 0; s < 2; s++)
         for (int k = 0; k <= RTHS_MAX_HARMONICS; k++)
             for (int c = 0; c < 2; c++) {
@@ -111,24 +105,80 @@ static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_
                 else
                     mean[s]->b[k] = mu, se[s]->b[k] = e;
             }
+}
+
+/* Averages n_avg whole periods: mean and standard error of the mean of every coefficient the rig
+ * measures, not only the matched ones (the report shows the higher harmonics' error too), of
+ * every interface DoF the periods carry. */
+static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_error *err) {
+    enum { H = RTHS_MAX_HARMONICS + 1, D = RTHS_MAX_INTERFACE_DOFS };
+    static const double zero[2][2][H];
+    double sum[D][2][2][H], sum2[D][2][2][H];
+    for (int d = 0; d < D; d++) {
+        memcpy(sum[d], zero, sizeof zero);
+        memcpy(sum2[d], zero, sizeof zero);
+    }
+    rths_period p;
+    int rc, dofs = 1;
+    for (int q = 0; q < n_avg; q++) {
+        if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+        dofs = p.interface_dofs > 1 ? p.interface_dofs : 1;
+        for (int d = 1; d < dofs; d++) {
+            const rths_fourier *side[2] = {&p.phys_dof[d], &p.num_dof[d]};
+            for (int s = 0; s < 2; s++)
+                for (int k = 0; k < H; k++) {
+                    sum[d][s][0][k] += side[s]->a[k];
+                    sum[d][s][1][k] += side[s]->b[k];
+                    sum2[d][s][0][k] += side[s]->a[k] * side[s]->a[k];
+                    sum2[d][s][1][k] += side[s]->b[k] * side[s]->b[k];
+                }
+        }
+        const rths_fourier *side[2] = {&p.phys, &p.num};
+        for (int s = 0; s < 2; s++)
+            for (int k = 0; k < H; k++) {
+                sum[0][s][0][k] += side[s]->a[k];
+                sum[0][s][1][k] += side[s]->b[k];
+                sum2[0][s][0][k] += side[s]->a[k] * side[s]->a[k];
+                sum2[0][s][1][k] += side[s]->b[k] * side[s]->b[k];
+            }
+    }
+    rths_fourier *mean[2] = {&out->phys, &out->num}, *se[2] = {&out->phys_se, &out->num_se};
+    mean_and_error(n_avg, sum[0], sum2[0], mean, se);
+    if (dofs > 1) {
+        out->interface_dofs = dofs;
+        out->phys_dof[0] = out->phys, out->num_dof[0] = out->num;
+        out->phys_dof_se[0] = out->phys_se, out->num_dof_se[0] = out->num_se;
+    }
+    for (int d = 1; d < dofs; d++) {
+        rths_fourier *mean_d[2] = {&out->phys_dof[d], &out->num_dof[d]},
+                     *se_d[2] = {&out->phys_dof_se[d], &out->num_dof_se[d]};
+        mean_and_error(n_avg, sum[d], sum2[d], mean_d, se_d);
+    }
     return RTHS_OK;
 }
 
 int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, double frequency_hz,
                   double amplitude_n, const double *target_a, const double *target_b,
                   rths_evaluation *out, rths_error *err) {
+    return rths_evaluate_dofs(rig, opt, harmonics, 1, frequency_hz, amplitude_n, target_a, target_b,
+                              out, err);
+}
+
+int rths_evaluate_dofs(rths_rig *rig, const rths_settle_options *opt, int harmonics, int dofs,
+                       double frequency_hz, double amplitude_n, const double *target_a,
+                       const double *target_b, rths_evaluation *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     out->harmonics = harmonics;
     out->frequency_hz = frequency_hz;
     if (!(isfinite(frequency_hz) && frequency_hz > 0))
         return rths_error_set(err, RTHS_EFAIL, "corrector asked for a non-physical frequency %g Hz",
                               frequency_hz);
-    for (int k = 0; k < harmonics; k++)
+    for (int k = 0; k < harmonics * dofs; k++)
         if (!isfinite(target_a[k]) || !isfinite(target_b[k]))
             return rths_error_set(err, RTHS_EFAIL, "corrector produced a non-finite target");
     double t0 = rths_rig_time_s(rig);
     int rc = rths_rig_set_forcing(rig, frequency_hz, amplitude_n, err);
-    if (!rc) rc = rths_rig_set_target(rig, harmonics, target_a, target_b, err);
+    if (!rc) rc = rths_rig_set_target_dofs(rig, dofs, harmonics, target_a, target_b, err);
     if (rc) return rc;
     int waited = 0, steady = 0;
     if ((rc = wait_steady(rig, opt, harmonics, &waited, &steady, err))) return rc;
@@ -144,31 +194,52 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, 
     return RTHS_OK;
 }
 
+/* Interface DoF d's physical and numerical means and standard errors. */
+static void dof_sides(const rths_evaluation *ev, int d, const rths_fourier **phys,
+                      const rths_fourier **num, const rths_fourier **phys_se,
+                      const rths_fourier **num_se) {
+    int several = ev->interface_dofs > 1;
+    *phys = several ? &ev->phys_dof[d] : &ev->phys;
+    *num = several ? &ev->num_dof[d] : &ev->num;
+    *phys_se = several ? &ev->phys_dof_se[d] : &ev->phys_se;
+    *num_se = several ? &ev->num_dof_se[d] : &ev->num_se;
+}
+
 void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se) {
-    int n = ev->harmonics;
-    for (int k = 1; k <= n; k++) {
-        phi[k - 1] = ev->phys.a[k] - ev->num.a[k];
-        phi[n + k - 1] = ev->phys.b[k] - ev->num.b[k];
-        if (phi_se) {
-            phi_se[k - 1] = hypot(ev->phys_se.a[k], ev->num_se.a[k]);
-            phi_se[n + k - 1] = hypot(ev->phys_se.b[k], ev->num_se.b[k]);
+    int N = ev->harmonics, dofs = ev->interface_dofs > 1 ? ev->interface_dofs : 1, M = N * dofs;
+    for (int d = 0; d < dofs; d++) {
+        const rths_fourier *ph, *nu, *ph_se, *nu_se;
+        dof_sides(ev, d, &ph, &nu, &ph_se, &nu_se);
+        for (int k = 1; k <= N; k++) {
+            int j = d * N + k - 1;
+            phi[j] = ph->a[k] - nu->a[k];
+            phi[M + j] = ph->b[k] - nu->b[k];
+            if (phi_se) {
+                phi_se[j] = hypot(ph_se->a[k], nu_se->a[k]);
+                phi_se[M + j] = hypot(ph_se->b[k], nu_se->b[k]);
+            }
         }
     }
 }
 
 void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out) {
-    int N = ev->harmonics;
-    out->n = 2 * N;
+    int N = ev->harmonics, dofs = ev->interface_dofs > 1 ? ev->interface_dofs : 1, M = N * dofs;
+    out->n = 2 * M;
     rths_evaluation_residual(ev, out->phi, out->phi_se);
-    for (int k = 1; k <= N; k++) {
-        out->response[k - 1] = ev->phys.a[k];
-        out->response[N + k - 1] = ev->phys.b[k];
-        out->response_se[k - 1] = ev->phys_se.a[k];
-        out->response_se[N + k - 1] = ev->phys_se.b[k];
-        out->reference[k - 1] = ev->num.a[k];
-        out->reference[N + k - 1] = ev->num.b[k];
-        out->reference_se[k - 1] = ev->num_se.a[k];
-        out->reference_se[N + k - 1] = ev->num_se.b[k];
+    for (int d = 0; d < dofs; d++) {
+        const rths_fourier *ph, *nu, *ph_se, *nu_se;
+        dof_sides(ev, d, &ph, &nu, &ph_se, &nu_se);
+        for (int k = 1; k <= N; k++) {
+            int j = d * N + k - 1;
+            out->response[j] = ph->a[k];
+            out->response[M + j] = ph->b[k];
+            out->response_se[j] = ph_se->a[k];
+            out->response_se[M + j] = ph_se->b[k];
+            out->reference[j] = nu->a[k];
+            out->reference[M + j] = nu->b[k];
+            out->reference_se[j] = nu_se->a[k];
+            out->reference_se[M + j] = nu_se->b[k];
+        }
     }
     out->rig_time_s = ev->rig_time_s;
     out->samples = ev->average_periods;
@@ -178,15 +249,15 @@ void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out
 static int rig_problem_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
                             rths_error *err) {
     const rths_rig_problem *rp = ctx;
-    int N = rp->harmonics;
-    double a[RTHS_MAX_HARMONICS], b[RTHS_MAX_HARMONICS];
-    for (int k = 0; k < N; k++) {
-        a[k] = u[k];
-        b[k] = u[N + k];
+    int N = rp->harmonics, dofs = rp->interface_dofs > 1 ? rp->interface_dofs : 1, M = N * dofs;
+    double a[RTHS_MAX_UNKNOWNS], b[RTHS_MAX_UNKNOWNS];
+    for (int j = 0; j < M; j++) { /* pair j = (DoF j / N, harmonic j % N + 1) */
+        a[j] = u[j];
+        b[j] = u[M + j];
     }
     rths_evaluation ev;
-    int rc = rths_evaluate(rp->rig, rp->settle, N, omega_rad_s / (2 * M_PI), rp->amplitude_n, a, b,
-                           &ev, err);
+    int rc = rths_evaluate_dofs(rp->rig, rp->settle, N, dofs, omega_rad_s / (2 * M_PI),
+                                rp->amplitude_n, a, b, &ev, err);
     memset(out, 0, sizeof *out);
     if (rc) {
         out->rig_time_s = ev.rig_time_s;
@@ -199,10 +270,31 @@ static int rig_problem_eval(void *ctx, const double *u, double omega_rad_s, rths
 
 void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
                            const rths_settle_options *settle, int harmonics, double amplitude_n) {
-    *ctx = (rths_rig_problem){
-        .rig = rig, .settle = settle, .harmonics = harmonics, .amplitude_n = amplitude_n};
+    *ctx = (rths_rig_problem){.rig = rig,
+                              .settle = settle,
+                              .harmonics = harmonics,
+                              .amplitude_n = amplitude_n,
+                              .interface_dofs = 1};
     *problem = (rths_zero_problem){
         .n = 2 * harmonics, .harmonics = harmonics, .eval = rig_problem_eval, .ctx = ctx};
+}
+
+int rths_rig_problem_init_dofs(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
+                               const rths_settle_options *settle, int harmonics, double amplitude_n,
+                               rths_error *err) {
+    rths_rig_problem_init(problem, ctx, rig, settle, harmonics, amplitude_n);
+    int dofs = rths_rig_interface_dofs(rig);
+    if (dofs == 1) return RTHS_OK;
+    if (2 * harmonics * dofs > 2 * RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%d harmonics on %d interface DoFs are %d unknowns; the corrector "
+                              "takes at most %d (2 RTHS_MAX_HARMONICS)",
+                              harmonics, dofs, 2 * harmonics * dofs, 2 * RTHS_MAX_HARMONICS);
+    ctx->interface_dofs = dofs;
+    problem->n = 2 * harmonics * dofs;
+    problem->harmonics = harmonics * dofs;
+    problem->coupled = 1;
+    return RTHS_OK;
 }
 
 /* ---- the corrector's use of one record ---- */

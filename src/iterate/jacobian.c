@@ -54,7 +54,8 @@ int corrector_fd_jacobian(rths_corrector *c, rths_error *err) {
     c->jacobian_here = 1;
     c->fresh = 1;
     int N = c->harmonics;
-    c->mem.lti = (c->m == n || c->opt.rig_lti) && N > 0 && lti_like(c->mem.jacobian, N, noise_j) &&
+    c->mem.lti = (c->m == n || c->opt.rig_lti) && N > 0 && !c->problem.coupled &&
+                 lti_like(c->mem.jacobian, N, noise_j) &&
                  lti_like(c->mem.response_jacobian, N, noise_r);
     if (c->mem.lti) {
         lti_project(c->mem.jacobian, N);

@@ -22,11 +22,15 @@ typedef struct {
     double *phi; /* nz x nz, row-major */
     double *g_target_start, *g_target_slope, *g_static;
     double *g_forcing[4];
+    /* actuators 1..ni-1 (several interface DoFs): their force targets' start and slope columns,
+       nz each, actuator d's pair at 2 (d - 1) nz; NULL with one actuator */
+    double *g_more;
 } exact_side;
 
 struct rths_plant {
     rths_plant_options opt;
-    int n; /* physical DoFs, interface last */
+    int n;  /* physical DoFs, the interface DoFs last */
+    int ni; /* interface DoFs, one actuator each: actuator d acts on physical DoF n - ni + d */
     double h;
     double *minv, *c, *k;     /* n x n */
     double *static_force;     /* n */
@@ -54,6 +58,8 @@ struct rths_plant {
     double lag_rate;          /* 2 pi f_c, 0: no lag */
     double last_force_target; /* gain x demand of the previous sample (linear hold) */
     double armature_kg;
+    /* actuators 1..ni-1 (index 0 unused: actuator 0 is fs, last_force_target, delay_line) */
+    double fs_more[RTHS_MAX_INTERFACE_DOFS], last_force_target_more[RTHS_MAX_INTERFACE_DOFS];
     int forcing_index;     /* internal physical forcing DoF, -1: none */
     double *forcing_shape; /* n: base excitation's -M 1 on the internal physical DoFs; NULL:
                               the forcing acts on forcing_index alone */
@@ -109,6 +115,7 @@ void rths_plant_destroy(rths_plant *p) {
         free(e->phi), free(e->g_target_start), free(e->g_target_slope), free(e->g_static);
         for (int k = 0; k < 4; k++)
             free(e->g_forcing[k]);
+        free(e->g_more);
     }
     free(p);
 }
@@ -129,7 +136,7 @@ static void side_stiffness(const rths_plant *p, int compressed, double *kk) {
 
 /* Continuous state matrix of one side into a (ld x ld, top-left nz x nz block). */
 static void side_state_matrix(const rths_plant *p, int compressed, double *kk, double *a, int ld) {
-    int n = p->n;
+    int n = p->n, iface = n - p->ni;
     side_stiffness(p, compressed, kk);
     for (int i = 0; i < n; i++) {
         a[i + (size_t)(n + i) * ld] = 1.0;
@@ -142,7 +149,9 @@ static void side_state_matrix(const rths_plant *p, int compressed, double *kk, d
             a[n + i + (size_t)j * ld] = -mk;
             a[n + i + (size_t)(n + j) * ld] = -mc;
         }
-        if (p->lag_rate > 0) a[n + i + (size_t)(2 * n) * ld] = p->minv[i + (n - 1) * n];
+        /* actuator d's lagged force acts on interface DoF d */
+        for (int d = 0; p->lag_rate > 0 && d < p->ni; d++)
+            a[n + i + (size_t)(2 * n + d) * ld] = p->minv[i + (iface + d) * n];
         /* the transfer function's output is its last observer state (plus the feedthrough):
          * the force, or the piston's displacement pushing the storey through the connection
          * spring, F = k_c (y - x_interface) */
@@ -151,7 +160,8 @@ static void side_state_matrix(const rths_plant *p, int compressed, double *kk, d
         if (p->tf && p->act_spring > 0)
             a[n + i + (size_t)(n - 1) * ld] -= p->minv[i + (n - 1) * n] * p->act_spring;
     }
-    if (p->lag_rate > 0) a[2 * n + (size_t)(2 * n) * ld] = -p->lag_rate;
+    for (int d = 0; p->lag_rate > 0 && d < p->ni; d++)
+        a[2 * n + d + (size_t)(2 * n + d) * ld] = -p->lag_rate;
     for (int i = 0; p->tf && i < p->na; i++) {
         for (int j = 0; j < p->na; j++)
             a[2 * n + i + (size_t)(2 * n + j) * ld] = p->act_a[i + j * p->na];
@@ -173,22 +183,26 @@ static double forcing_input(const rths_plant *p, int i) {
  * exponential of [[A h, U h, 0], [0, 0, I h], [0, 0, 0]] with U = (target, static) input
  * columns, for inputs a(tau) = a0 + d tau (Van Loan's block form of the hold integrals). */
 static int build_side(rths_plant *p, int compressed, double *kk) {
-    /* augmented: [state | target, static | their ramps | the forcing's chain of 4 integrators] */
-    int n = p->n, nz = p->nz, N = nz + 8;
+    /* augmented: [state | target, static | their ramps | the forcing's chain of 4 integrators |
+     * the further actuators' target and slope pairs] */
+    int n = p->n, nz = p->nz, more = 2 * (p->ni - 1), N = nz + 8 + more, iface = n - p->ni;
     double *aug = rths_mat_new(N, N), *e = rths_mat_new(N, N);
     exact_side *sd = &p->side[compressed];
+    sd->g_more = more > 0 ? calloc((size_t)(nz * more), sizeof(double)) : NULL;
     sd->phi = rths_mat_new(nz, nz);
     sd->g_target_start = calloc((size_t)nz, sizeof(double));
     sd->g_target_slope = calloc((size_t)nz, sizeof(double));
     sd->g_static = calloc((size_t)nz, sizeof(double));
-    int rc =
-        aug && e && sd->phi && sd->g_target_start && sd->g_target_slope && sd->g_static ? 0 : -1;
+    int rc = aug && e && sd->phi && sd->g_target_start && sd->g_target_slope && sd->g_static &&
+                     (more == 0 || sd->g_more)
+                 ? 0
+                 : -1;
     for (int k = 0; k < 4; k++)
         if (!(sd->g_forcing[k] = calloc((size_t)nz, sizeof(double)))) rc = -1;
     if (!rc) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++) {
-            double target_col = p->lag_rate > 0 ? 0.0 : p->minv[i + (n - 1) * n];
+            double target_col = p->lag_rate > 0 ? 0.0 : p->minv[i + iface * n];
             if (p->tf) target_col = p->minv[i + (n - 1) * n] * p->act_out * p->act_d;
             double static_col = 0;
             for (int l = 0; l < n; l++)
@@ -206,6 +220,14 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
             aug[n + i + (size_t)(nz + 4) * N] = forcing_input(p, i);
         for (int k = 0; k < 3; k++)
             aug[nz + 4 + k + (size_t)(nz + 5 + k) * N] = 1.0;
+        /* actuators 1..ni-1: a target column and its slope each, after the forcing's chain */
+        for (int d = 1; d < p->ni; d++) {
+            int col = nz + 8 + 2 * (d - 1);
+            for (int i = 0; i < n && p->lag_rate <= 0; i++)
+                aug[n + i + (size_t)col * N] = p->minv[i + (iface + d) * n];
+            if (p->lag_rate > 0) aug[2 * n + d + (size_t)col * N] = p->lag_rate;
+            aug[col + (size_t)(col + 1) * N] = 1.0;
+        }
         for (size_t i = 0; i < (size_t)N * N; i++)
             aug[i] *= p->h;
         rc = rths_expm(N, aug, e);
@@ -221,6 +243,12 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
             sd->g_target_slope[i] = e[i + (size_t)(nz + 2) * N] / p->h;
             for (int k = 0; k < 4; k++)
                 sd->g_forcing[k][i] = e[i + (size_t)(nz + 4 + k) * N];
+            for (int d = 1; d < p->ni; d++) {
+                int col = nz + 8 + 2 * (d - 1);
+                sd->g_more[i + (size_t)(2 * (d - 1)) * nz] = e[i + (size_t)col * N];
+                sd->g_more[i + (size_t)(2 * (d - 1) + 1) * nz] =
+                    e[i + (size_t)(col + 1) * N] / p->h;
+            }
         }
     }
     rths_mat_free(aug);
@@ -233,7 +261,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
  * F = x[na - 1] + d u (A: ones below the diagonal, -D's coefficients in the last column). */
 static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_error *err) {
     if (a->model != RTHS_ACTUATOR_TRANSFER_FUNCTION) {
-        p->na = p->lag_rate > 0 ? 1 : 0;
+        p->na = p->lag_rate > 0 ? p->ni : 0; /* one lag per actuator */
         p->command_limit = a->force_clip ? a->force_limit_n : 0;
         return RTHS_OK;
     }
@@ -308,7 +336,8 @@ static int plant_alloc(rths_plant *p, int n, int delay) {
     p->z = calloc((size_t)p->nz, sizeof(double));
     p->z_next = calloc((size_t)p->nz, sizeof(double));
     p->rk = calloc(11 * (size_t)n, sizeof(double)); /* RK4 stages and the force scratch */
-    p->delay_line = calloc((size_t)delay + 1, sizeof(double));
+    /* one delay line per actuator, delay + 1 long each, sharing the write position */
+    p->delay_line = calloc(((size_t)delay + 1) * (size_t)p->ni, sizeof(double));
     p->q = p->z;
     p->v = p->z ? p->z + n : NULL;
     return p->minv && p->c && p->k && p->static_force && p->z && p->z_next && p->rk && p->delay_line
@@ -344,7 +373,7 @@ static int static_start(rths_plant *p) {
  * interface), the interface storey with the assembly's FULL mass plus the armature. */
 static int plant_matrices(rths_plant *p, const rths_setup *setup) {
     const rths_split *s = &setup->split;
-    int n = p->n, iface = s->int_dofs[0];
+    int n = p->n, ni = p->ni;
     double *m = rths_mat_new(n, n);
     if (!m) return -1;
     for (int j = 0; j < n; j++)
@@ -353,8 +382,12 @@ static int plant_matrices(rths_plant *p, const rths_setup *setup) {
             p->c[i + j * n] = RTHS_AT(s->damping_phys, n, i, j);
             p->k[i + j * n] = RTHS_AT(s->stiffness_phys, n, i, j);
         }
-    m[(n - 1) + (n - 1) * n] =
-        RTHS_AT(setup->assembly.mass, setup->assembly.n, iface, iface) + p->opt.armature_mass_kg;
+    /* the interface block carries the assembly's full mass, each storey its armature */
+    for (int d = 0; d < ni; d++)
+        for (int e = 0; e < ni; e++)
+            m[(n - ni + d) + (n - ni + e) * n] =
+                RTHS_AT(setup->assembly.mass, setup->assembly.n, s->int_dofs[d], s->int_dofs[e]) +
+                (d == e ? p->opt.armature_mass_kg : 0.0);
     int rc = rths_mat_inverse(n, m, p->minv);
     rths_mat_free(m);
     return rc;
@@ -369,7 +402,8 @@ static int *physical_index(const rths_setup *setup) {
         to_phys[i] = -1;
     for (int i = 0; i < s->n_phys; i++)
         to_phys[s->phys_dofs[i]] = i;
-    to_phys[s->int_dofs[0]] = s->np - 1;
+    for (int d = 0; d < s->n_int; d++)
+        to_phys[s->int_dofs[d]] = s->np - s->n_int + d;
     return to_phys;
 }
 
@@ -415,8 +449,18 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
                               "the physical substructure has %d DoFs; a sensor sample "
                               "(rths_sensor_sample) carries at most %d displacements",
                               n, RTHS_MAX_SENSED_DOFS);
-    if (s->n_int != 1)
-        return rths_error_set(err, RTHS_EINPUT, "the virtual plant has one interface DoF");
+    if (s->n_int < 1 || s->n_int > RTHS_MAX_INTERFACE_DOFS)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the split has %d interface DoFs; the virtual plant drives 1 to %d "
+                              "(one actuator each, RTHS_MAX_INTERFACE_DOFS in signals.h)",
+                              s->n_int, RTHS_MAX_INTERFACE_DOFS);
+    if (s->n_int > 1 && (opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION ||
+                         opt->substeps_per_sample > 0 || setup->has_bilinear))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "with %d interface DoFs the virtual plant runs shakers on the exact "
+                              "integrator of a linear structure (rig.actuator: transfer_function, "
+                              "rig.plant_integrator: rk4 and the bilinear leg drive one actuator)",
+                              s->n_int);
     if (!(sample_rate_hz > 0 && isfinite(sample_rate_hz)) || !(opt->gain_n_per_v > 0) ||
         !(opt->delay_s >= 0 && opt->delay_s * sample_rate_hz < 1e7) || opt->lag_cutoff_hz < 0 ||
         opt->armature_mass_kg < 0 || opt->substeps_per_sample < 0)
@@ -432,6 +476,7 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
     if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     p->opt = *opt;
     p->n = n;
+    p->ni = s->n_int;
     p->h = 1.0 / sample_rate_hz;
     p->delay_samples = delay;
     p->lag_rate = opt->lag_cutoff_hz > 0 ? 2 * M_PI * opt->lag_cutoff_hz : 0;
@@ -495,7 +540,7 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
             s -= p->c[i + j * n] * v[j] + p->k[i + j * n] * q[j];
         f[i] = s;
     }
-    f[n - 1] += fs;
+    f[n - p->ni] += fs; /* one actuator only on this path (rths_plant_create) */
     if (p->forcing_shape)
         for (int i = 0; i < n; i++)
             f[i] += fe * p->forcing_shape[i];
@@ -518,9 +563,9 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
     }
 }
 
-/* The interface row of accelerations() at the current state: the only one a sensor reads. */
-static double interface_acceleration(const rths_plant *p) {
-    int n = p->n;
+/* Interface row `row` of accelerations() at the current state: the only ones a sensor reads. */
+static double interface_acceleration(const rths_plant *p, int row) {
+    int n = p->n, iface = n - p->ni;
     double delta = leg_extension(p, p->q);
     double extra = p->leg_upper >= 0 && delta < 0 ? p->leg_extra_k * delta : 0.0;
     double acc = 0;
@@ -528,14 +573,15 @@ static double interface_acceleration(const rths_plant *p) {
         double f = p->static_force[i];
         for (int j = 0; j < n; j++)
             f -= p->c[i + j * n] * p->v[j] + p->k[i + j * n] * p->q[j];
-        if (i == n - 1) f += p->fs;
+        if (i == iface) f += p->fs;
+        if (i > iface) f += p->fs_more[i - iface];
         if (p->forcing_shape)
             f += p->forcing_now * p->forcing_shape[i];
         else if (i == p->forcing_index)
             f += p->forcing_now;
         if (i == p->leg_upper) f -= extra;
         if (i == p->leg_lower) f += extra;
-        acc += p->minv[(n - 1) + i * n] * f;
+        acc += p->minv[row + i * n] * f;
     }
     return acc;
 }
@@ -564,7 +610,7 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_ad
 }
 
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
-    double acc = interface_acceleration(p);
+    double acc = interface_acceleration(p, p->n - p->ni);
     out->n = p->n;
     for (int i = 0; i < p->n; i++)
         out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
@@ -573,6 +619,16 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     /* the load cell sits between the armature and the storey */
     out->interface_force_n =
         measure(p, &p->opt.load_cell, &p->opt.load_cell_adc, p->fs - p->armature_kg * acc);
+    out->n_interface = p->ni;
+    out->interface_acceleration_dof_m_s2[0] = out->interface_acceleration_m_s2;
+    out->interface_force_dof_n[0] = out->interface_force_n;
+    for (int d = 1; d < p->ni; d++) {
+        double acc_d = interface_acceleration(p, p->n - p->ni + d);
+        out->interface_acceleration_dof_m_s2[d] =
+            measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc_d);
+        out->interface_force_dof_n[d] = measure(p, &p->opt.load_cell, &p->opt.load_cell_adc,
+                                                p->fs_more[d] - p->armature_kg * acc_d);
+    }
 }
 
 /* Classical RK4 on (q, v, fs) from tau0 to tau1 inside the sample in m substeps, the force
@@ -633,10 +689,13 @@ static void rk4_span(rths_plant *p, double tau0, double tau1, int m, double targ
 }
 
 /* z_next = phi z + inputs over one whole sample on one side (see exact_side). */
-static void exact_step(rths_plant *p, int side, double target_start, double target_end) {
+static void exact_step(rths_plant *p, int side, double target_start, double target_end,
+                       const double *more_start, const double *more_end) {
     exact_side *sd = &p->side[side];
     int nz = p->nz;
     if (p->lag_rate > 0) p->z[2 * p->n] = p->fs;
+    for (int d = 1; p->lag_rate > 0 && d < p->ni; d++)
+        p->z[2 * p->n + d] = p->fs_more[d];
     double dt_target = target_end - target_start, f[4] = {0, 0, 0, 0};
     int forced = p->forcing_index >= 0 && p->forcing_amplitude != 0;
     if (forced) { /* amplitude cos(theta + omega tau) and its first three derivatives at 0 */
@@ -650,6 +709,10 @@ static void exact_step(rths_plant *p, int side, double target_start, double targ
         if (forced)
             acc += sd->g_forcing[0][i] * f[0] + sd->g_forcing[1][i] * f[1] +
                    sd->g_forcing[2][i] * f[2] + sd->g_forcing[3][i] * f[3];
+        for (int d = 1; d < p->ni; d++) {
+            const double *g = sd->g_more + (size_t)(2 * (d - 1)) * nz;
+            acc += g[i] * more_start[d] + g[i + nz] * (more_end[d] - more_start[d]);
+        }
         const double *row = sd->phi + (size_t)i * nz;
         for (int j = 0; j < nz; j++)
             acc += row[j] * p->z[j];
@@ -684,7 +747,13 @@ static void crossing_step(rths_plant *p, int side, double target_start, double t
 static void limits_update(rths_plant *p) {
     const rths_actuator_options *a = &p->opt.actuator;
     rths_actuator_status *st = &p->status;
-    double x = fabs(p->q[p->n - 1]), v = fabs(p->v[p->n - 1]), f = fabs(p->fs);
+    int iface = p->n - p->ni;
+    double x = fabs(p->q[iface]), v = fabs(p->v[iface]), f = fabs(p->fs);
+    for (int d = 1; d < p->ni; d++) {
+        x = fmax(x, fabs(p->q[iface + d]));
+        v = fmax(v, fabs(p->v[iface + d]));
+        f = fmax(f, fabs(p->fs_more[d]));
+    }
     st->peak_stroke_m = fmax(st->peak_stroke_m, x);
     st->peak_velocity_m_per_s = fmax(st->peak_velocity_m_per_s, v);
     st->peak_force_n = fmax(st->peak_force_n, f);
@@ -725,15 +794,16 @@ static double process_force_n(rths_plant *p) {
                                            : 0.0;
 }
 
-void rths_plant_advance(rths_plant *p, double demand_v) {
-    /* the DAC, the transport delay in whole samples, then the actuator */
+/* Actuator d's force command at the end of this sample from its demand: the DAC, the transport
+ * delay in whole samples (its own line; the caller advances the shared position), the gain or
+ * the transfer function's input, the clip and the lab's process force. */
+static double actuator_command(rths_plant *p, int d, double demand_v) {
     double u = convert(p->opt.actuator.dac_bits, p->opt.actuator.dac_range_v, demand_v);
     if (p->delay_samples > 0) {
-        int len = p->delay_samples;
+        double *line = p->delay_line + (size_t)d * (size_t)(p->delay_samples + 1);
         double converted = u; /* the DAC's output is what travels down the delay */
-        u = p->delay_line[p->delay_pos];
-        p->delay_line[p->delay_pos] = converted;
-        p->delay_pos = (p->delay_pos + 1) % len;
+        u = line[p->delay_pos];
+        line[p->delay_pos] = converted;
     }
     /* the actuator's input: the force command (shaker) or the demand (transfer function) */
     double target_end = p->tf ? u : p->opt.gain_n_per_v * u;
@@ -743,13 +813,29 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
     }
     /* rig.noise: lab: a random force on the interface beside the shaker's (0 otherwise, no draw) */
     if (!p->tf) target_end += process_force_n(p);
+    return target_end;
+}
+
+void rths_plant_advance(rths_plant *p, double demand_v) {
+    rths_plant_advance_dofs(p, &demand_v);
+}
+
+void rths_plant_advance_dofs(rths_plant *p, const double *demand_v) {
+    double target_end = actuator_command(p, 0, demand_v[0]);
+    double more_start[RTHS_MAX_INTERFACE_DOFS] = {0}, more_end[RTHS_MAX_INTERFACE_DOFS] = {0};
+    for (int d = 1; d < p->ni; d++) {
+        more_end[d] = actuator_command(p, d, demand_v[d]);
+        more_start[d] = p->opt.linear_hold ? p->last_force_target_more[d] : more_end[d];
+        p->last_force_target_more[d] = more_end[d];
+    }
+    if (p->delay_samples > 0) p->delay_pos = (p->delay_pos + 1) % p->delay_samples;
     double target_start = p->opt.linear_hold ? p->last_force_target : target_end;
     p->last_force_target = target_end;
     if (p->opt.substeps_per_sample > 0) {
         rk4_span(p, 0, p->h, p->opt.substeps_per_sample, target_start, target_end, -1);
     } else {
         int side = p->leg_upper >= 0 && leg_extension(p, p->z) < 0;
-        exact_step(p, side, target_start, target_end);
+        exact_step(p, side, target_start, target_end, more_start, more_end);
         int side_end = p->leg_upper >= 0 && leg_extension(p, p->z_next) < 0;
         if (side_end != side) {
             crossing_step(p, side, target_start, target_end);
@@ -761,6 +847,8 @@ void rths_plant_advance(rths_plant *p, double demand_v) {
                         p->act_spring * p->q[p->n - 1];
             else
                 p->fs = p->lag_rate > 0 ? p->z[2 * p->n] : target_end;
+            for (int d = 1; d < p->ni; d++)
+                p->fs_more[d] = p->lag_rate > 0 ? p->z[2 * p->n + d] : more_end[d];
         }
     }
     p->forcing_now = forcing_at(p, p->h);
@@ -772,7 +860,7 @@ double rths_plant_time_s(const rths_plant *p) {
     return p->time_s;
 }
 double rths_plant_interface_displacement_m(const rths_plant *p) {
-    return p->q[p->n - 1];
+    return p->q[p->n - p->ni];
 }
 double rths_plant_noise_level_m(const rths_plant *p) {
     return p->opt.noise ? p->opt.laser.noise_std : 0.0;

@@ -382,6 +382,25 @@ static int obs_set_target(void *self, int harmonics, const double *a, const doub
     return RTHS_OK;
 }
 
+/* Several interface DoFs: forwarded; the live record shows the first DoF's target. */
+static int obs_set_target_dofs(void *self, int dofs, int harmonics, const double *a,
+                               const double *b, rths_error *err) {
+    observing_rig *o = self;
+    publish_if_done(o);
+    int rc = rths_rig_set_target_dofs(o->inner, dofs, harmonics, a, b, err);
+    if (rc) return rc;
+    o->ev.harmonics = harmonics;
+    for (int k = 0; k < harmonics; k++) {
+        o->ev.target_a_m[k] = a[k];
+        o->ev.target_b_m[k] = b[k];
+    }
+    return RTHS_OK;
+}
+
+static int obs_interface_dofs(void *self) {
+    return rths_rig_interface_dofs(((observing_rig *)self)->inner);
+}
+
 static int obs_run_periods(void *self, int count, rths_period *out, rths_error *err) {
     observing_rig *o = self;
     int rc = rths_rig_run_periods(o->inner, count, out, err);
@@ -434,6 +453,8 @@ static const rths_rig_ops observing_ops = {
     .reset_fault = obs_reset_fault,
     .noise_level_m = obs_noise_level_m,
     .destroy = obs_destroy,
+    .set_target_dofs = obs_set_target_dofs,
+    .interface_dofs = obs_interface_dofs,
 };
 
 int rths_live_wrap_rig(rths_live *live, rths_rig *inner, rths_rig **out, rths_error *err) {

@@ -65,6 +65,23 @@ int rths_rig_set_target(rths_rig *rig, int harmonics, const double *a, const dou
     return rig->ops->set_target(rig->self, harmonics, a, b, err);
 }
 
+int rths_rig_interface_dofs(rths_rig *rig) {
+    return rig->ops->interface_dofs ? rig->ops->interface_dofs(rig->self) : 1;
+}
+
+int rths_rig_set_target_dofs(rths_rig *rig, int dofs, int harmonics, const double *a,
+                             const double *b, rths_error *err) {
+    int have = rths_rig_interface_dofs(rig);
+    if (dofs != have)
+        return rths_error_set(err, RTHS_EINPUT, "target for %d interface DoFs; rig '%s' drives %d",
+                              dofs, rig->description, have);
+    if (dofs == 1) return rths_rig_set_target(rig, harmonics, a, b, err);
+    if (harmonics < 0 || harmonics > RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT, "target has %d harmonics; at most %d supported",
+                              harmonics, RTHS_MAX_HARMONICS);
+    return rig->ops->set_target_dofs(rig->self, dofs, harmonics, a, b, err);
+}
+
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err) {
     return rig->ops->run_periods(rig->self, count, out, err);
 }

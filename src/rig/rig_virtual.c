@@ -71,23 +71,38 @@ static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rt
     return RTHS_OK;
 }
 
-static int v_set_target(void *self, int harmonics, const double *a, const double *b,
-                        rths_error *err) {
+/* Every DoF's target finite and within the stroke, then set (a[d * harmonics + k]). */
+static int v_set_target_dofs(void *self, int dofs, int harmonics, const double *a, const double *b,
+                             rths_error *err) {
     virtual_rig *v = self;
     if (harmonics < 0 || harmonics > RTHS_MAX_HARMONICS)
         return rths_error_set(err, RTHS_EINPUT, "%d harmonics: 0..%d supported", harmonics,
                               RTHS_MAX_HARMONICS);
-    for (int k = 0; k < harmonics; k++)
+    if (dofs != rths_controller_interface_dofs(v->ctrl))
+        return rths_error_set(err, RTHS_EINPUT, "target for %d interface DoFs; the rig drives %d",
+                              dofs, rths_controller_interface_dofs(v->ctrl));
+    for (int k = 0; k < dofs * harmonics; k++)
         if (!isfinite(a[k]) || !isfinite(b[k]))
             return rths_error_set(err, RTHS_EINPUT, "target coefficient %d is not finite", k + 1);
-    double peak = rths_target_peak_bound_m(harmonics, a, b);
-    if (peak > v->displacement_limit_m)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "target of up to %g m is beyond the displacement limit %g m "
-                              "(controller.limits.displacement_m)",
-                              peak, v->displacement_limit_m);
-    rths_controller_set_target(v->ctrl, harmonics, a, b);
+    for (int d = 0; d < dofs; d++) {
+        double peak = rths_target_peak_bound_m(harmonics, a + d * harmonics, b + d * harmonics);
+        if (peak > v->displacement_limit_m)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "target of up to %g m is beyond the displacement limit %g m "
+                                  "(controller.limits.displacement_m)",
+                                  peak, v->displacement_limit_m);
+    }
+    rths_controller_set_target_dofs(v->ctrl, dofs, harmonics, a, b);
     return RTHS_OK;
+}
+
+static int v_set_target(void *self, int harmonics, const double *a, const double *b,
+                        rths_error *err) {
+    return v_set_target_dofs(self, 1, harmonics, a, b, err);
+}
+
+static int v_interface_dofs(void *self) {
+    return rths_controller_interface_dofs(((virtual_rig *)self)->ctrl);
 }
 
 static int v_run_periods(void *self, int count, rths_period *out, rths_error *err) {
@@ -172,6 +187,8 @@ static const rths_rig_ops virtual_ops = {
     .reset_fault = v_reset_fault,
     .noise_level_m = v_noise,
     .destroy = v_destroy,
+    .set_target_dofs = v_set_target_dofs,
+    .interface_dofs = v_interface_dofs,
 };
 
 int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,

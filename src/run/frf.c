@@ -67,6 +67,18 @@ static int create_rig(frf_state *st, rths_error *err) {
     if (!rc && !opt->rig_uri) st->virtual_rig = st->rig;
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
+    int dofs = st->setup->split.n_int;
+    if (!rc && dofs > 1 && (opt->resume || st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY))
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "with %d interface DoFs rths frf runs the real-time numerical "
+                            "substructure from the start (--resume and split.numerical_solver: "
+                            "frequency take one interface DoF)",
+                            dofs);
+    if (!rc && dofs > 1 && 2 * st->harmonics * dofs > 2 * RTHS_MAX_HARMONICS)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%d harmonic(s) on %d interface DoFs are %d unknowns; the corrector "
+                            "takes at most %d: lower iteration.harmonics",
+                            st->harmonics, dofs, 2 * st->harmonics * dofs, 2 * RTHS_MAX_HARMONICS);
     return rc;
 }
 
@@ -267,6 +279,20 @@ static int run_frequency_form(frf_state *st, rths_error *err) {
     return rc;
 }
 
+/* Several interface DoFs: the continuation on the zero problem over all of them (iterate.h,
+ * rths_rig_problem_init_dofs), whose solutions carry every DoF's targets. */
+static int run_interface_dofs(frf_state *st, rths_error *err) {
+    rths_zero_problem problem;
+    rths_rig_problem ctx;
+    int rc = rths_rig_problem_init_dofs(&problem, &ctx, st->rig, &st->settle, st->harmonics,
+                                        st->setup->forcing_amplitude_n, err);
+    if (!rc)
+        rc = rths_continuation_run_problem(&problem, st->rig, &st->cont, &st->newton,
+                                           problem.harmonics, st->resume_pts, st->n_resume,
+                                           on_point, on_progress, st, &st->result, err);
+    return rc;
+}
+
 /* The continuation itself; returns its status (RTHS_OK also when cancelled). */
 static int run_continuation(frf_state *st, rths_error *run_err) {
     if (st->limit_warning[0]) rths_report_log(st->rep, "warning: %s", st->limit_warning);
@@ -278,6 +304,8 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
     int run_rc = RTHS_OK;
     if (!st->cancelled && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         run_rc = run_frequency_form(st, run_err);
+    else if (!st->cancelled && st->setup->split.n_int > 1)
+        run_rc = run_interface_dofs(st, run_err);
     else if (!st->cancelled)
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,

@@ -81,14 +81,57 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
     memcpy(row, values, sizeof values);
 }
 
+static const char *const dof_column_names[RTHS_MAX_INTERFACE_DOFS][RTHS_RUN_FRF_DOF_COLUMNS] = {
+    {"dof1_amplitude_m", "dof1_numerical_amplitude_m", "dof1_phase_rad", "dof1_interface_error_m"},
+    {"dof2_amplitude_m", "dof2_numerical_amplitude_m", "dof2_phase_rad", "dof2_interface_error_m"},
+    {"dof3_amplitude_m", "dof3_numerical_amplitude_m", "dof3_phase_rad", "dof3_interface_error_m"},
+    {"dof4_amplitude_m", "dof4_numerical_amplitude_m", "dof4_phase_rad", "dof4_interface_error_m"}};
+
+static int dof_columns(int interface_dofs) {
+    return interface_dofs > 1 && interface_dofs <= RTHS_MAX_INTERFACE_DOFS ? interface_dofs : 0;
+}
+
+int rths_run_frf_column_count(int interface_dofs) {
+    return RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dof_columns(interface_dofs);
+}
+
+const char *rths_run_frf_column_name(int interface_dofs, int i) {
+    if (i < 0 || i >= rths_run_frf_column_count(interface_dofs)) return NULL;
+    if (i < RTHS_RUN_FRF_COLUMNS) return rths_run_frf_columns[i];
+    i -= RTHS_RUN_FRF_COLUMNS;
+    return dof_column_names[i / RTHS_RUN_FRF_DOF_COLUMNS][i % RTHS_RUN_FRF_DOF_COLUMNS];
+}
+
+void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row) {
+    rths_run_frf_row(pt, row);
+    const rths_solution *s = &pt->sol;
+    const rths_evaluation *ev = &s->eval;
+    int dofs = dof_columns(interface_dofs), M = s->harmonics, N = dofs ? M / dofs : 0;
+    /* the matched estimate stands for the reported amplitude when the strategy reports it */
+    int matched = s->have_matched && s->amplitude_m == s->matched_amplitude_m;
+    for (int d = 0; d < dofs && ev->interface_dofs == dofs; d++) {
+        const rths_fourier *ph = &ev->phys_dof[d], *nu = &ev->num_dof[d];
+        double *r = row + RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
+        int j = d * N; /* DoF d's fundamental among the solution's pairs (iterate.h) */
+        r[0] = matched ? hypot(s->matched_a[j], s->matched_b[j]) : hypot(ph->a[1], ph->b[1]);
+        r[1] = hypot(nu->a[1], nu->b[1]);
+        r[2] = atan2(-ph->b[1], ph->a[1]);
+        r[3] = hypot(ph->a[1] - nu->a[1], ph->b[1] - nu->b[1]);
+    }
+}
+
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, RTHS_RUN_FRF_COLUMNS, rths_run_frf_columns, &csv, err)
+    int dofs = run->setup->split.n_int, columns = rths_run_frf_column_count(dofs);
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS];
+    for (int i = 0; i < columns; i++)
+        names[i] = rths_run_frf_column_name(dofs, i);
+    int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_COLUMNS];
-        rths_run_frf_row(&run->pts[i], row);
+        double row[RTHS_RUN_FRF_MAX_COLUMNS];
+        rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -96,20 +139,48 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     return rc;
 }
 
+/* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
+ * also dof<d>_amplitude_m of each (frf.csv's names). */
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err) {
-    static const char *const header[5] = {"frequency_hz", "amplitude_m", "amplitude_h2_m",
-                                          "amplitude_h3_m", "stable"};
+    const char *header[5 + RTHS_MAX_INTERFACE_DOFS] = {
+        "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
+    int dofs = t->dofs > 1 && t->dofs <= RTHS_MAX_INTERFACE_DOFS ? t->dofs : 0;
+    for (int d = 0; d < dofs; d++)
+        header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + 4 * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, 5, header, &csv, err)
+    int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
+        double row[5 + RTHS_MAX_INTERFACE_DOFS] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j],
+                                                   t->amp_h3_m[j], t->stable[j]};
+        for (int d = 0; d < dofs; d++)
+            row[5 + d] = t->amp_dof_m[d * t->n + j];
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
+}
+
+/* Several interface DoFs: the other DoFs' truth (truth.csv) and hybrid points (frf.csv's
+ * dof<d>_amplitude_m), one colour each, appended to the plot command. */
+static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t, char *out,
+                                 size_t size) {
+    static const char *const colour[RTHS_MAX_INTERFACE_DOFS] = {"#1f77b4", "#2ca02c", "#ff7f0e",
+                                                                "#9467bd"};
+    int dofs = t->dofs, used = 0;
+    for (int d = 1; d < dofs && d < RTHS_MAX_INTERFACE_DOFS && used < (int)size; d++) {
+        int dof = run->setup->split.int_dofs[d] + 1;
+        used += snprintf(out + used, size - (size_t)used,
+                         ", \\\n     'truth.csv' using 1:%d skip 1 with lines lw 2 lc rgb '%s' "
+                         "title 'true assembly, interface DoF %d (DoF %d)', \\\n"
+                         "     'frf.csv' using 2:%d skip 1 with points pt 7 ps 0.8 lc rgb '%s' "
+                         "title 'hybrid test, interface DoF %d (DoF %d)'",
+                         6 + d, colour[d], d + 1, dof,
+                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, colour[d], d + 1,
+                         dof);
+    }
 }
 
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
@@ -134,7 +205,8 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
         any_fold |= run->pts[i].fold;
         any_unstable_pt |= !rths_point_stable(&run->pts[i]);
     }
-    char body[4096];
+    char body[8192], more[2048] = "";
+    interface_dof_curves(run, t, more, sizeof more);
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
              "set title \"%s\" noenhanced\n"
@@ -147,7 +219,7 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
              "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
              "'black' title 'true assembly%s'%s, \\\n"
              "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
-             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s (bars: interface error x %g)'%s%s\n",
+             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s (bars: interface error x %g)'%s%s%s\n",
              title, any_unstable ? ", stable" : "",
              any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
                             "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
@@ -159,7 +231,8 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
                              : "",
              any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
                         "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
-                      : "");
+                      : "",
+             more);
     int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
     if (rc) return rc;
     int max_iterations = 0;
@@ -192,8 +265,9 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_settle_options *
     double t0 = rths_rig_time_s(rig);
     rths_evaluation ev;
     double f_hz = pt->sol.omega_rad_s / (2 * M_PI);
-    int rc = rths_evaluate(rig, settle, harmonics, f_hz, amplitude_n, pt->sol.target_a,
-                           pt->sol.target_b, &ev, err);
+    /* every interface DoF's targets (target_a[d N + k - 1]; one DoF: the usual layout) */
+    int rc = rths_evaluate_dofs(rig, settle, harmonics, rths_rig_interface_dofs(rig), f_hz,
+                                amplitude_n, pt->sol.target_a, pt->sol.target_b, &ev, err);
     enum { MAX_SAMPLES = 4000 };
     rths_trace_sample *tr = calloc(MAX_SAMPLES, sizeof *tr);
     int n = 0;

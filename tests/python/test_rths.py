@@ -256,6 +256,21 @@ class Frf(unittest.TestCase):
         np.testing.assert_allclose([r["amplitude_m"] for r in rows], want["amplitude_m"],
                                    rtol=1e-12)
 
+    def test_two_interface_dofs_rows(self):
+        # two interface storeys: the callback's rows carry frf.csv's dof<d>_* columns, and the
+        # first DoF's equal amplitude_m
+        out = folder("frf_two_interface")
+        cfg = os.path.join(SRC, "examples", "two_interface_storeys.yaml")
+        rows = []
+        run = rths.frf(rths.Config.load(cfg, set={"rig.noise": "false"}), out=out,
+                       on_point=rows.append)
+        self.assertEqual(len(rows), len(run.frf.point))
+        for name in ("dof1_amplitude_m", "dof2_amplitude_m", "dof2_interface_error_m"):
+            self.assertIn(name, rows[0])
+            np.testing.assert_allclose([r[name] for r in rows], run.frf[name], rtol=1e-12)
+        np.testing.assert_allclose([r["dof1_amplitude_m"] for r in rows],
+                                   [r["amplitude_m"] for r in rows], rtol=1e-12)
+
     def test_typo_in_a_read_section_refused(self):
         # the virtual rig reads rig.*: a misspelt rig key would run with noise on, silently
         out = folder("frf_typo")
