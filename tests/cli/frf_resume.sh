@@ -11,7 +11,9 @@ cfg="$src/examples/four_storey_linear.yaml"
 opts=(--quiet --set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=13.3)
 fail() { echo "FAIL: $*"; exit 1; }
 
-"$bin" frf "$cfg" --out "$work/run" "${opts[@]}" &
+# paced at 10x real time (the results are the same): the run lasts about 2 s, so the kill lands
+# mid-sweep however fast or loaded the machine (unpaced it sometimes finished first)
+"$bin" frf "$cfg" --out "$work/run" "${opts[@]}" --pace 10 &
 pid=$!
 # wait until at least three points are journaled (header + 3 lines), then kill without warning
 for _ in $(seq 1 600); do
