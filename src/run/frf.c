@@ -327,6 +327,7 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
  * figures. */
 static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
     int rc = frf_write_frf_csv(st->rep, st, err);
+    if (!rc && st->setup->base_excitation) rc = frf_write_absolute_csv(st->rep, st, err);
     int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
     if (!rc && pick >= 0) {
         rths_error trace_err;

@@ -63,6 +63,9 @@ int frf_check_resume_config(frf_state *st, rths_error *err);
 /* frf_outputs.c */
 double frf_harmonic_error(const rths_point *pt, int k);
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err);
+/* frf_absolute.c: absolute.csv for a base-excited run (absolute interface displacement, hybrid
+ * and true, beside the relative one frf.csv reports). */
+int frf_write_absolute_csv(rths_report *rep, const frf_state *run, rths_error *err);
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err);
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                  const char *title, rths_error *err);
