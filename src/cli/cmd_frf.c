@@ -49,7 +49,9 @@ static const char usage[] =
     "without the hybrid loop: analytic, or by shooting with a bilinear leg), frf.png/.svg\n"
     "(response with magnified interface-error bars), iterations.png (histogram of iterations per\n"
     "point), trace.csv + lissajous.png (time and phase plot at one point), summary.json,\n"
-    "config.yaml, run.log.\n"
+    "config.yaml, run.log, results.mat (every table for MATLAB/h5py), live.json (the run in\n"
+    "progress, for rths view), run.lock (held while the run owns DIR); absolute.csv with a base\n"
+    "excitation (forcing.type: base).\n"
     "\n"
     "Ctrl-C (SIGINT) or SIGTERM stops after the point in progress and writes everything\n"
     "accepted (exit 130); a second Ctrl-C kills at once (the journal still resumes).\n"
@@ -57,7 +59,8 @@ static const char usage[] =
     "Exit status: 0 the run ended normally (also when it stopped early after\n"
     "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault,\n"
     "I/O failure, or no point accepted at all (everything accepted so far is saved); 2 bad\n"
-    "usage or configuration, a journal of another configuration, or DIR in use by another run.\n";
+    "usage or configuration, a journal of another configuration, or DIR in use by another run;\n"
+    "130 interrupted (everything accepted saved).\n";
 
 /* Ctrl-C (or SIGTERM) ends the run cleanly after the point in progress: everything accepted is
  * written out (frf.csv, summary.json, figures) and --resume continues it. A second signal kills at
