@@ -205,8 +205,11 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
         any_fold |= run->pts[i].fold;
         any_unstable_pt |= !rths_point_stable(&run->pts[i]);
     }
-    char body[8192], more[2048] = "";
+    char body[8192], more[2048] = "", first[64] = "";
     interface_dof_curves(run, t, more, sizeof more);
+    if (run->setup->split.n_int > 1) /* several interface DoFs: name the first as the others */
+        snprintf(first, sizeof first, ", interface DoF 1 (DoF %d)",
+                 run->setup->split.int_dofs[0] + 1);
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
              "set title \"%s\" noenhanced\n"
@@ -217,14 +220,14 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
              "set key below\n"
              "set bmargin 8\n"
              "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
-             "'black' title 'true assembly%s'%s, \\\n"
+             "'black' title 'true assembly%s%s'%s, \\\n"
              "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
-             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s (bars: interface error x %g)'%s%s%s\n",
-             title, any_unstable ? ", stable" : "",
+             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s%s (bars: interface error x %g)'%s%s%s\n",
+             title, first, any_unstable ? ", stable" : "",
              any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
                             "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
                           : "",
-             mag, any_unstable_pt ? ", stable" : "", mag,
+             mag, first, any_unstable_pt ? ", stable" : "", mag,
              any_unstable_pt ? ", \\\n     'frf.csv' using 2:($24 == 0 ? $3 : 1/0) skip 1 with "
                                "points pt 6 ps 1.0 lw 1.5 lc rgb '#1f77b4' title 'hybrid test, "
                                "unstable (fold-based label)'"
