@@ -17,8 +17,6 @@
 #include "rths/core.h"
 #include "rths/signals.h"
 
-const char *rths_rig_fault_name(rths_rig_fault f);
-
 typedef struct rths_rig rths_rig;
 
 /* Backend operations; every call returns RTHS_OK or an error code with err filled. */

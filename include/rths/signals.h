@@ -48,6 +48,9 @@ typedef enum {
     RTHS_RIG_FAULT_WATCHDOG = 6,     /* remote rig: host went silent, excitation ramped to zero */
 } rths_rig_fault;
 
+/* "displacement limit", "watchdog", ... ("none" for RTHS_RIG_OK). */
+const char *rths_rig_fault_name(rths_rig_fault f);
+
 /* One sample of sensor readings: the per-sample I/O seam between controller and rig (the virtual
  * plant, or a DAQ card). Displacements in the physical substructure's DoF order (internal
  * physical DoFs, then the interface DoFs), m; acceleration of the interface storey, m/s^2; load

@@ -479,23 +479,9 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
     }
 }
 
-/* The rths_rig_fault numbering (rig.h is above this module, so the names are repeated). */
+/* The shared names (signals.h), with "no" for none as the controller page's API has it. */
 static const char *fault_name(int f) {
-    switch (f) {
-    case 0:
-        return "no";
-    case 1:
-        return "displacement limit";
-    case 2:
-        return "force limit";
-    case 3:
-        return "demand limit";
-    case 4:
-        return "non-finite signal";
-    case 6:
-        return "watchdog";
-    }
-    return "unknown";
+    return f == RTHS_RIG_OK ? "no" : rths_rig_fault_name((rths_rig_fault)f);
 }
 
 static void reply_ack(rths_server *s, const rths_msg *req, double t) {
