@@ -368,18 +368,22 @@ static int obs_set_forcing(void *self, double frequency_hz, double amplitude_n, 
     return rths_rig_set_forcing(o->inner, frequency_hz, amplitude_n, err);
 }
 
-static int obs_set_target(void *self, int harmonics, const double *a, const double *b,
-                          rths_error *err) {
-    observing_rig *o = self;
-    publish_if_done(o);
-    int rc = rths_rig_set_target(o->inner, harmonics, a, b, err);
-    if (rc) return rc;
+/* The target the live record shows (the first interface DoF's harmonics). */
+static void remember_target(observing_rig *o, int harmonics, const double *a, const double *b) {
     o->ev.harmonics = harmonics;
     for (int k = 0; k < harmonics; k++) {
         o->ev.target_a_m[k] = a[k];
         o->ev.target_b_m[k] = b[k];
     }
-    return RTHS_OK;
+}
+
+static int obs_set_target(void *self, int harmonics, const double *a, const double *b,
+                          rths_error *err) {
+    observing_rig *o = self;
+    publish_if_done(o);
+    int rc = rths_rig_set_target(o->inner, harmonics, a, b, err);
+    if (!rc) remember_target(o, harmonics, a, b);
+    return rc;
 }
 
 /* Several interface DoFs: forwarded; the live record shows the first DoF's target. */
@@ -388,13 +392,8 @@ static int obs_set_target_dofs(void *self, int dofs, int harmonics, const double
     observing_rig *o = self;
     publish_if_done(o);
     int rc = rths_rig_set_target_dofs(o->inner, dofs, harmonics, a, b, err);
-    if (rc) return rc;
-    o->ev.harmonics = harmonics;
-    for (int k = 0; k < harmonics; k++) {
-        o->ev.target_a_m[k] = a[k];
-        o->ev.target_b_m[k] = b[k];
-    }
-    return RTHS_OK;
+    if (!rc) remember_target(o, harmonics, a, b); /* the first DoF's come first */
+    return rc;
 }
 
 static int obs_interface_dofs(void *self) {
