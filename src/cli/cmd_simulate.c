@@ -15,7 +15,7 @@
 #include <string.h>
 
 static const char usage[] =
-    "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...] "
+    "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...][;...] "
     "--periods N --out DIR\n"
     "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] [--pace F] "
     "[--set KEY=VALUE]... "
@@ -47,7 +47,9 @@ static const char usage[] =
     "\n"
     "Writes DIR/coefficients.csv (one row per period: Fourier coefficients of "
     "the physical and\n"
-    "numerical interface displacements, m), trace.csv (time_s, x_phys_m, "
+    "numerical interface displacements, m; with several interface DoFs the first DoF's, then\n"
+    "dof<d>_phys_* and dof<d>_num_* for every DoF d, 1-based DoF numbers), trace.csv (the first\n"
+    "interface DoF) (time_s, x_phys_m, "
     "x_num_m, target_m,\n"
     "force_n, demand), summary.json, config.yaml, simulate.gp/.png/.svg (time "
     "traces and the\n"
@@ -58,7 +60,9 @@ static const char usage[] =
     "  --frequency F        forcing frequency, Hz (> 0)\n"
     "  --target LIST        target coefficients A1,B1[,A2,B2,...], m "
     "(iterative mode; an even\n"
-    "                       count, at most 2 x 5 harmonics)\n"
+    "                       count, at most 2 x 5 harmonics); with several interface DoFs one\n"
+    "                       list per DoF in the split's order, separated by ';' (the same\n"
+    "                       harmonics in each), e.g. '1e-5,0;2e-5,0'\n"
     "  --periods N          forcing periods to run (>= 1)\n"
     "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
     "controller)\n"
@@ -95,12 +99,55 @@ enum {
 typedef struct {
     int feedback;
     double frequency_hz;
-    int harmonics; /* target harmonics (iterative) */
-    double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS];
+    int harmonics;   /* target harmonics (iterative) */
+    int target_dofs; /* interface DoFs the target names (';'-separated lists) */
+    /* DoF d's coefficient k at [d * harmonics + k - 1] (rths_rig_set_target_dofs's layout) */
+    double target_a[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS],
+        target_b[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
     long periods, trace_periods;
     int has_delay;
     double delay_s;
 } sim_args;
+
+/* --target: one list A1,B1[,A2,B2,...] per interface DoF, lists separated by ';' */
+static int parse_target(const char *text, sim_args *a, rths_error *err) {
+    char buf[1024];
+    if (strlen(text) >= sizeof buf)
+        return rths_error_set(err, RTHS_EINPUT, "option --target: longer than %zu characters",
+                              sizeof buf - 1);
+    strcpy(buf, text);
+    a->target_dofs = 0;
+    char *save = NULL;
+    for (char *list = strtok_r(buf, ";", &save); list; list = strtok_r(NULL, ";", &save)) {
+        int d = a->target_dofs, count, rc;
+        if (d == RTHS_MAX_INTERFACE_DOFS)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --target: more than %d ';'-separated lists (one per "
+                                  "interface DoF)",
+                                  RTHS_MAX_INTERFACE_DOFS);
+        double v[2 * RTHS_MAX_HARMONICS];
+        if ((rc = rths_cli_double_list("--target", list, v, 2 * RTHS_MAX_HARMONICS, &count, err)))
+            return rc;
+        if (count % 2)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --target: %d values in list %d; give pairs A_k,B_k per "
+                                  "harmonic",
+                                  count, d + 1);
+        if (d > 0 && count / 2 != a->harmonics)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --target: list %d has %d harmonics, list 1 has %d; give "
+                                  "every interface DoF the same harmonics",
+                                  d + 1, count / 2, a->harmonics);
+        a->harmonics = count / 2;
+        for (int k = 0; k < a->harmonics; k++)
+            a->target_a[d * a->harmonics + k] = v[2 * k],
+                                           a->target_b[d * a->harmonics + k] = v[2 * k + 1];
+        a->target_dofs++;
+    }
+    if (a->target_dofs == 0)
+        return rths_error_set(err, RTHS_EINPUT, "option --target: no coefficients");
+    return RTHS_OK;
+}
 
 static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
     int rc;
@@ -147,17 +194,7 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
         return rths_error_set(
             err, RTHS_EINPUT,
             "missing --target A1,B1[,A2,B2,...] (target Fourier coefficients, m)");
-    double v[2 * RTHS_MAX_HARMONICS];
-    int count;
-    if ((rc = rths_cli_double_list("--target", opts[OPT_TARGET].value, v, 2 * RTHS_MAX_HARMONICS,
-                                   &count, err)))
-        return rc;
-    if (count % 2)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "option --target: %d values; give pairs A_k,B_k per harmonic", count);
-    a->harmonics = count / 2;
-    for (int k = 0; k < a->harmonics; k++)
-        a->target_a[k] = v[2 * k], a->target_b[k] = v[2 * k + 1];
+    if ((rc = parse_target(opts[OPT_TARGET].value, a, err))) return rc;
     a->trace_periods = a->periods < 5 ? a->periods : 5;
     if (opts[OPT_TRACE].value && (rc = rths_cli_int("--trace-periods", opts[OPT_TRACE].value, 1,
                                                     1000, &a->trace_periods, err)))
@@ -170,8 +207,10 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
 /* coefficients.csv: period, frequency_hz, end_time_s, then for the physical and the numerical
  * interface displacement a0 and a_k, b_k for k = 1..harmonics (m). */
 static int write_coefficients(rths_report *rep, const rths_period *p, int count, int harmonics,
-                              rths_error *err) {
-    int cols = 3 + 2 * (1 + 2 * harmonics);
+                              int dofs, const int *dof_numbers, rths_error *err) {
+    /* several interface DoFs: every DoF's physical and numerical sides after the first's */
+    int per_side = 1 + 2 * harmonics, extra = dofs > 1 ? dofs : 0;
+    int cols = 3 + 2 * per_side * (1 + extra);
     const char **header = calloc((size_t)cols, sizeof *header);
     char(*names)[32] = calloc((size_t)cols, sizeof *names);
     double *row = calloc((size_t)cols, sizeof *row);
@@ -183,25 +222,32 @@ static int write_coefficients(rths_report *rep, const rths_period *p, int count,
     header[0] = "period", header[1] = "frequency_hz", header[2] = "end_time_s";
     int c = 3;
     static const char *const side[2] = {"phys", "num"};
-    for (int s = 0; s < 2; s++) {
-        snprintf(names[c], sizeof names[c], "%s_a0_m", side[s]);
-        header[c] = names[c], c++;
-        for (int k = 1; k <= harmonics; k++) {
-            snprintf(names[c], sizeof names[c], "%s_a%d_m", side[s], k);
+    for (int d = -1; d < extra; d++) {
+        char prefix[16] = "";
+        if (d >= 0) snprintf(prefix, sizeof prefix, "dof%d_", dof_numbers[d] + 1);
+        for (int s = 0; s < 2; s++) {
+            snprintf(names[c], sizeof names[c], "%s%s_a0_m", prefix, side[s]);
             header[c] = names[c], c++;
-            snprintf(names[c], sizeof names[c], "%s_b%d_m", side[s], k);
-            header[c] = names[c], c++;
+            for (int k = 1; k <= harmonics; k++) {
+                snprintf(names[c], sizeof names[c], "%s%s_a%d_m", prefix, side[s], k);
+                header[c] = names[c], c++;
+                snprintf(names[c], sizeof names[c], "%s%s_b%d_m", prefix, side[s], k);
+                header[c] = names[c], c++;
+            }
         }
     }
     if ((rc = rths_csv_open(path, cols, header, &csv, err))) goto done;
     for (int i = 0; i < count && !rc; i++) {
         row[0] = i + 1, row[1] = p[i].frequency_hz, row[2] = p[i].end_time_s;
         c = 3;
-        const rths_fourier *f[2] = {&p[i].phys, &p[i].num};
-        for (int s = 0; s < 2; s++) {
-            row[c++] = f[s]->a[0];
-            for (int k = 1; k <= harmonics; k++)
-                row[c++] = f[s]->a[k], row[c++] = f[s]->b[k];
+        for (int d = -1; d < extra; d++) {
+            const rths_fourier *f[2] = {d < 0 ? &p[i].phys : &p[i].phys_dof[d],
+                                        d < 0 ? &p[i].num : &p[i].num_dof[d]};
+            for (int s = 0; s < 2; s++) {
+                row[c++] = f[s]->a[0];
+                for (int k = 1; k <= harmonics; k++)
+                    row[c++] = f[s]->a[k], row[c++] = f[s]->b[k];
+            }
         }
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing %s failed", path);
     }
@@ -351,9 +397,10 @@ static int periods_from_trace(const rths_trace_sample *t, int n, double f_hz, in
 
 static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const rths_cli *cli,
                               int feedback, rths_rig **rig, rths_error *err) {
-    if (setup->split.n_int != 1)
+    if (feedback && setup->split.n_int != 1)
         return rths_error_set(err, RTHS_EINPUT,
-                              "rths simulate drives one interface DoF; this split has %d",
+                              "feedback mode through the rig drives one interface DoF; this split "
+                              "has %d (--delay TAU simulates the pure-delay model with several)",
                               setup->split.n_int);
     int rc = rths_virtual_rig_create(cfg, setup, cli->has_seed, cli->seed, rig, err);
     if (rc) return rc;
@@ -514,8 +561,51 @@ static int arm_rig(rths_rig *rig, rths_config *cfg, const rths_setup *setup, con
                               top, a->frequency_hz, 0.5 * copt.sample_rate_hz);
     if ((rc = rths_rig_set_forcing(rig, a->frequency_hz, setup->forcing_amplitude_n, err)))
         return rc;
-    if (!a->feedback) rc = rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err);
-    return rc;
+    if (a->feedback) return RTHS_OK;
+    int dofs = setup->split.n_int;
+    if (a->target_dofs != dofs)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "option --target: %d ';'-separated list%s for %d interface DoF%s; "
+                              "give one list A1,B1[,...] per interface DoF",
+                              a->target_dofs, a->target_dofs == 1 ? "" : "s", dofs,
+                              dofs == 1 ? "" : "s");
+    return dofs == 1
+               ? rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err)
+               : rths_rig_set_target_dofs(rig, dofs, a->harmonics, a->target_a, a->target_b, err);
+}
+
+/* {"dof": 1-based DoF number, "a_m": [...], "b_m": [...]} of list d of --target */
+static json_object *target_json(const sim_args *a, int d) {
+    json_object *ta = json_object_new_array(), *tb = json_object_new_array();
+    for (int k = 0; k < a->harmonics; k++) {
+        json_object_array_add(ta, json_object_new_double(a->target_a[d * a->harmonics + k]));
+        json_object_array_add(tb, json_object_new_double(a->target_b[d * a->harmonics + k]));
+    }
+    json_object *tg = json_object_new_object();
+    json_object_object_add(tg, "a_m", ta);
+    json_object_object_add(tg, "b_m", tb);
+    return tg;
+}
+
+/* With several interface DoFs: the last period's interface error of every DoF and harmonic, m
+ * (summary.json "final_interface_error_dofs_m": [[DoF 1's harmonics], ...]), printed per DoF. */
+static void add_dof_errors(json_object *summary, const rths_cli *cli, const rths_setup *setup,
+                           const rths_period *last, int harmonics) {
+    json_object *all = json_object_new_array();
+    for (int d = 0; d < setup->split.n_int; d++) {
+        json_object *errs = json_object_new_array();
+        for (int k = 1; k <= harmonics; k++)
+            json_object_array_add(errs, json_object_new_double(interface_error(
+                                            &last->phys_dof[d], &last->num_dof[d], k)));
+        json_object_array_add(all, errs);
+        rths_cli_print(cli,
+                       "  DoF %d: physical a1 = %.6e m, b1 = %.6e m; numerical a1 = %.6e m, "
+                       "b1 = %.6e m; interface error %.3e m\n",
+                       setup->split.int_dofs[d] + 1, last->phys_dof[d].a[1], last->phys_dof[d].b[1],
+                       last->num_dof[d].a[1], last->num_dof[d].b[1],
+                       interface_error(&last->phys_dof[d], &last->num_dof[d], 1));
+    }
+    json_object_object_add(summary, "final_interface_error_dofs_m", all);
 }
 
 /* summary.json's description of the run and its last period (printed too). */
@@ -536,15 +626,14 @@ static void add_run_summary(json_object *summary, const rths_cli *cli, const rth
         json_object_new_string(r->fault == RTHS_RIG_OK ? "none" : rths_rig_fault_name(r->fault)));
     json_object_object_add(summary, "rig_time_s", json_object_new_double(r->rig_time_s));
     if (!a->feedback) {
-        json_object *ta = json_object_new_array(), *tb = json_object_new_array();
-        for (int k = 0; k < a->harmonics; k++) {
-            json_object_array_add(ta, json_object_new_double(a->target_a[k]));
-            json_object_array_add(tb, json_object_new_double(a->target_b[k]));
+        /* the first interface DoF's target (as with one), then every DoF's with several */
+        json_object_object_add(summary, "target", target_json(a, 0));
+        if (a->target_dofs > 1) {
+            json_object *all = json_object_new_array();
+            for (int d = 0; d < a->target_dofs; d++)
+                json_object_array_add(all, target_json(a, d));
+            json_object_object_add(summary, "target_dofs", all);
         }
-        json_object *tg = json_object_new_object();
-        json_object_object_add(tg, "a_m", ta);
-        json_object_object_add(tg, "b_m", tb);
-        json_object_object_add(summary, "target", tg);
     }
     if (r->n_periods > 0) {
         const rths_period *last = &r->periods[r->n_periods - 1];
@@ -564,6 +653,8 @@ static void add_run_summary(json_object *summary, const rths_cli *cli, const rth
                        "numerical a1 = %.6e m, b1 = %.6e m; interface error %.3e m\n",
                        r->n_periods, a->frequency_hz, last->phys.a[1], last->phys.b[1],
                        last->num.a[1], last->num.b[1], interface_error(&last->phys, &last->num, 1));
+        if (!a->feedback && setup->split.n_int > 1)
+            add_dof_errors(summary, cli, setup, last, harmonics);
     }
 }
 
@@ -636,7 +727,8 @@ int rths_cmd_simulate(int argc, char **argv) {
         rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
         goto done;
     }
-    if ((rc = write_coefficients(rep, r.periods, r.n_periods, harmonics, &err)) ||
+    if ((rc = write_coefficients(rep, r.periods, r.n_periods, harmonics,
+                                 a.feedback ? 1 : setup.split.n_int, setup.split.int_dofs, &err)) ||
         (rc = write_trace(rep, shown, n_shown, &err)))
         goto done;
 
