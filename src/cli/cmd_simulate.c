@@ -48,8 +48,8 @@ static const char usage[] =
     "Writes DIR/coefficients.csv (one row per period: Fourier coefficients of "
     "the physical and\n"
     "numerical interface displacements, m; with several interface DoFs the first DoF's, then\n"
-    "dof<d>_phys_* and dof<d>_num_* for every DoF d, 1-based DoF numbers), trace.csv (the first\n"
-    "interface DoF) (time_s, x_phys_m, "
+    "dof<d>_phys_* and dof<d>_num_* for every interface DoF d, 1-based in split.interface's\n"
+    "order), trace.csv (the first interface DoF) (time_s, x_phys_m, "
     "x_num_m, target_m,\n"
     "force_n, demand), summary.json, config.yaml, simulate.gp/.png/.svg (time "
     "traces and the\n"
@@ -207,7 +207,7 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
 /* coefficients.csv: period, frequency_hz, end_time_s, then for the physical and the numerical
  * interface displacement a0 and a_k, b_k for k = 1..harmonics (m). */
 static int write_coefficients(rths_report *rep, const rths_period *p, int count, int harmonics,
-                              int dofs, const int *dof_numbers, rths_error *err) {
+                              int dofs, rths_error *err) {
     /* several interface DoFs: every DoF's physical and numerical sides after the first's */
     int per_side = 1 + 2 * harmonics, extra = dofs > 1 ? dofs : 0;
     int cols = 3 + 2 * per_side * (1 + extra);
@@ -224,7 +224,7 @@ static int write_coefficients(rths_report *rep, const rths_period *p, int count,
     static const char *const side[2] = {"phys", "num"};
     for (int d = -1; d < extra; d++) {
         char prefix[16] = "";
-        if (d >= 0) snprintf(prefix, sizeof prefix, "dof%d_", dof_numbers[d] + 1);
+        if (d >= 0) snprintf(prefix, sizeof prefix, "dof%d_", d + 1);
         for (int s = 0; s < 2; s++) {
             snprintf(names[c], sizeof names[c], "%s%s_a0_m", prefix, side[s]);
             header[c] = names[c], c++;
@@ -599,10 +599,11 @@ static void add_dof_errors(json_object *summary, const rths_cli *cli, const rths
                                             &last->phys_dof[d], &last->num_dof[d], k)));
         json_object_array_add(all, errs);
         rths_cli_print(cli,
-                       "  DoF %d: physical a1 = %.6e m, b1 = %.6e m; numerical a1 = %.6e m, "
+                       "  interface DoF %d (DoF %d): physical a1 = %.6e m, b1 = %.6e m; numerical "
+                       "a1 = %.6e m, "
                        "b1 = %.6e m; interface error %.3e m\n",
-                       setup->split.int_dofs[d] + 1, last->phys_dof[d].a[1], last->phys_dof[d].b[1],
-                       last->num_dof[d].a[1], last->num_dof[d].b[1],
+                       d + 1, setup->split.int_dofs[d] + 1, last->phys_dof[d].a[1],
+                       last->phys_dof[d].b[1], last->num_dof[d].a[1], last->num_dof[d].b[1],
                        interface_error(&last->phys_dof[d], &last->num_dof[d], 1));
     }
     json_object_object_add(summary, "final_interface_error_dofs_m", all);
@@ -728,7 +729,7 @@ int rths_cmd_simulate(int argc, char **argv) {
         goto done;
     }
     if ((rc = write_coefficients(rep, r.periods, r.n_periods, harmonics,
-                                 a.feedback ? 1 : setup.split.n_int, setup.split.int_dofs, &err)) ||
+                                 a.feedback ? 1 : setup.split.n_int, &err)) ||
         (rc = write_trace(rep, shown, n_shown, &err)))
         goto done;
 
