@@ -13,9 +13,14 @@ const COLORS = {
   tol: "#888888",
 };
 
+// Further interface DoFs (frf.csv's dof<d>_* columns, d = 2, 3, 4); DoF 1 is COLORS.point.
+const DOF_COLORS = ["#1565c0", "#6a1b9a", "#00838f", "#ad1457"];
+
 const state = { status: null, points: [], truth: null, live: null, summary: null, error: null };
 // What the page drew, for tests and the curious: window.rthsView.drawn.frf = [[f_hz, a_m], ...]
-window.rthsView = { state, drawn: { frf: [] }, renders: 0 };
+// (the first interface DoF); with several, drawn.frfDofs[d] = [[f_hz, dof<d>_amplitude_m], ...]
+// for every DoF d >= 2; drawn.unstable = points drawn open as unstable.
+window.rthsView = { state, drawn: { frf: [], frfDofs: {}, unstable: 0 }, renders: 0 };
 
 // ---------- plots ----------
 
@@ -88,11 +93,24 @@ function clipToPlot(u, ctx) {
 
 // ---------- the FRF ----------
 
+// The interface DoFs beyond the first that the run reports (frf.csv's dof<d>_amplitude_m), sorted.
+function extraDofs() {
+  const first = state.points.find((p) => p.frequency_hz != null);
+  if (!first) return [];
+  return Object.keys(first)
+    .map((k) => /^dof(\d+)_amplitude_m$/.exec(k))
+    .filter((m) => m && Number(m[1]) > 1)
+    .map((m) => Number(m[1]))
+    .sort((a, b) => a - b);
+}
+
 function frfRanges() {
   const xs = [], ys = [];
+  const dofs = extraDofs();
   for (const p of state.points) {
     if (p.frequency_hz != null) xs.push(p.frequency_hz);
     if (p.amplitude_m != null) ys.push(p.amplitude_m * UM);
+    for (const d of dofs) if (p[`dof${d}_amplitude_m`] != null) ys.push(p[`dof${d}_amplitude_m`] * UM);
   }
   const plan = state.status && state.status.plan;
   if (plan) xs.push(plan.start_hz, plan.end_hz);
@@ -100,11 +118,77 @@ function frfRanges() {
   const xr = padded(Math.min(...xs), Math.max(...xs), 0.02);
   if (state.truth) {
     const t = state.truth;
-    for (let i = 0; i < t.frequency_hz.length; i++)
-      if (t.frequency_hz[i] >= xr[0] && t.frequency_hz[i] <= xr[1]) ys.push(t.amplitude_m[i] * UM);
+    const curves = [t.amplitude_m].concat(dofs.map((d) => t[`dof${d}_amplitude_m`]).filter(Boolean));
+    for (const c of curves)
+      for (let i = 0; i < t.frequency_hz.length; i++)
+        if (t.frequency_hz[i] >= xr[0] && t.frequency_hz[i] <= xr[1] && c[i] != null) ys.push(c[i] * UM);
   }
   const yr = ys.length ? [0, Math.max(...ys) * 1.08] : [0, 1];
   return [xr, yr];
+}
+
+// One interface DoF's points (amplitude column, its standard error column, colour): filled when
+// accepted and stable, open when accepted but unstable (the run's fold-based label), open red
+// when not converged; bars of +-3 standard errors.
+function drawPoints(u, ctx, column, seColumn, color) {
+  const drawn = [];
+  let inside = 0, unstable = 0; // inside: marker centres within the plotting area
+  const r = 4 * devicePixelRatio;
+  for (const p of state.points) {
+    if (p.frequency_hz == null || p[column] == null) continue;
+    const x = u.valToPos(p.frequency_hz, "x", true);
+    const y = u.valToPos(p[column] * UM, "y", true);
+    const se = (p[seColumn] || 0) * 3 * UM;
+    ctx.strokeStyle = ctx.fillStyle = p.converged ? color : COLORS.failed;
+    ctx.lineWidth = 1.5 * devicePixelRatio;
+    if (se > 0) {
+      const y0 = u.valToPos(p[column] * UM - se, "y", true);
+      const y1 = u.valToPos(p[column] * UM + se, "y", true);
+      ctx.beginPath();
+      ctx.moveTo(x, y0);
+      ctx.lineTo(x, y1);
+      ctx.moveTo(x - r, y0);
+      ctx.lineTo(x + r, y0);
+      ctx.moveTo(x - r, y1);
+      ctx.lineTo(x + r, y1);
+      ctx.stroke();
+    }
+    const isUnstable = p.converged && p.stable === 0;
+    ctx.beginPath();
+    ctx.arc(x, y, r, 0, 2 * Math.PI);
+    if (p.converged && !isUnstable) ctx.fill();
+    else {
+      if (isUnstable) {
+        ctx.fillStyle = "#ffffff";
+        ctx.fill();
+      }
+      ctx.stroke();
+    }
+    unstable += isUnstable;
+    drawn.push([p.frequency_hz, p[column]]);
+    inside += x >= u.bbox.left && x <= u.bbox.left + u.bbox.width && y >= u.bbox.top && y <= u.bbox.top + u.bbox.height;
+  }
+  return { drawn, inside, unstable };
+}
+
+// With several interface DoFs: which colour is which DoF, in the plot's top right corner.
+function dofKey(u, ctx, dofs) {
+  const dpr = devicePixelRatio, lh = 16 * dpr;
+  ctx.save();
+  ctx.font = `${12 * dpr}px sans-serif`;
+  ctx.textAlign = "right";
+  ctx.textBaseline = "middle";
+  const x = u.bbox.left + u.bbox.width - 10 * dpr;
+  dofs.forEach((d, i) => {
+    const y = u.bbox.top + (i + 1) * lh;
+    ctx.fillStyle = DOF_COLORS[(d - 1) % 4];
+    ctx.beginPath();
+    ctx.arc(x - 4 * dpr, y, 4 * dpr, 0, 2 * Math.PI);
+    ctx.fill();
+    ctx.fillStyle = "#222222";
+    ctx.fillText(`interface DoF ${d}`, x - 14 * dpr, y);
+  });
+  ctx.restore();
 }
 
 function drawFrf(u, ctx) {
@@ -120,35 +204,22 @@ function drawFrf(u, ctx) {
     line(u, ctx, stable, ys, COLORS.truth, 2);
     line(u, ctx, unstable, ys, COLORS.truth, 1.5, [6, 4]);
   }
-  const drawn = [];
-  let inside = 0; // points whose marker centre lies inside the plotting area
-  const r = 4 * devicePixelRatio;
-  for (const p of state.points) {
-    if (p.frequency_hz == null || p.amplitude_m == null) continue;
-    const x = u.valToPos(p.frequency_hz, "x", true);
-    const y = u.valToPos(p.amplitude_m * UM, "y", true);
-    const se = (p.amplitude_se_m || 0) * 3 * UM;
-    ctx.strokeStyle = ctx.fillStyle = p.converged ? COLORS.point : COLORS.failed;
-    ctx.lineWidth = 1.5 * devicePixelRatio;
-    if (se > 0) {
-      const y0 = u.valToPos(p.amplitude_m * UM - se, "y", true);
-      const y1 = u.valToPos(p.amplitude_m * UM + se, "y", true);
-      ctx.beginPath();
-      ctx.moveTo(x, y0);
-      ctx.lineTo(x, y1);
-      ctx.moveTo(x - r, y0);
-      ctx.lineTo(x + r, y0);
-      ctx.moveTo(x - r, y1);
-      ctx.lineTo(x + r, y1);
-      ctx.stroke();
-    }
-    ctx.beginPath();
-    ctx.arc(x, y, r, 0, 2 * Math.PI);
-    if (p.converged) ctx.fill();
-    else ctx.stroke();
-    drawn.push([p.frequency_hz, p.amplitude_m]);
-    inside += x >= u.bbox.left && x <= u.bbox.left + u.bbox.width && y >= u.bbox.top && y <= u.bbox.top + u.bbox.height;
+  const dofs = extraDofs();
+  for (const d of dofs) {
+    const c = t && t[`dof${d}_amplitude_m`];
+    if (c) line(u, ctx, t.frequency_hz, c.map((a) => (a == null ? null : a * UM)), DOF_COLORS[(d - 1) % 4], 1.5);
   }
+  const first = drawPoints(u, ctx, "amplitude_m", "amplitude_se_m", COLORS.point);
+  window.rthsView.drawn.frfDofs = {};
+  let unstable = first.unstable;
+  for (const d of dofs) {
+    const r = drawPoints(u, ctx, `dof${d}_amplitude_m`, `dof${d}_amplitude_se_m`, DOF_COLORS[(d - 1) % 4]);
+    window.rthsView.drawn.frfDofs[d] = r.drawn;
+    unstable += r.unstable;
+  }
+  if (dofs.length) dofKey(u, ctx, [1].concat(dofs));
+  const drawn = first.drawn, inside = first.inside;
+  window.rthsView.drawn.unstable = unstable;
   for (const f of folds()) {
     const x = u.valToPos(f.frequency_hz, "x", true), y = u.valToPos(f.amplitude_m * UM, "y", true);
     const s = 9 * devicePixelRatio;
@@ -237,7 +308,7 @@ function makePlots() {
     [
       { label: "true assembly, stable", color: COLORS.truth },
       { label: "true assembly, unstable", color: COLORS.truth, dash: [6, 4] },
-      { label: "hybrid test, accepted points (bars: ±3 standard errors)", color: COLORS.point },
+      { label: "hybrid test, accepted points (bars: ±3 standard errors; open: unstable)", color: COLORS.point },
       { label: "not converged", color: COLORS.failed },
       { label: "fold", color: COLORS.fold },
       { label: "frequency being tested", color: COLORS.current, dash: [3, 3] },

@@ -85,6 +85,20 @@ export async function drawsCsv(page, csvFile) {
     if (bad >= 0) fail(`point ${bad}: page (${drawn[bad]}) != frf.csv (${csv[bad].frequency_hz}, ${csv[bad].amplitude_m})`);
     else ok(`the page draws frf.csv's ${csv.length} points exactly`);
   }
+  // several interface DoFs: every further DoF's points too (frf.csv's dof<d>_amplitude_m)
+  const dofs = csv.length ? Object.keys(csv[0]).map((k) => /^dof(\d+)_amplitude_m$/.exec(k)).filter((m) => m && Number(m[1]) > 1) : [];
+  const drawnDofs = await page.evaluate(() => window.rthsView.drawn.frfDofs || {});
+  for (const m of dofs) {
+    const d = m[1], got = drawnDofs[d] || [];
+    const bad = csv.findIndex((r, i) => !got[i] || r.frequency_hz !== got[i][0] || r[m[0]] !== got[i][1]);
+    if (got.length !== csv.length || bad >= 0) fail(`interface DoF ${d}: page draws ${got.length} points, frf.csv has ${csv.length}${bad >= 0 ? `; first difference at point ${bad}` : ""}`);
+    else ok(`the page draws interface DoF ${d}'s ${csv.length} points exactly`);
+  }
+  // unstable points (frf.csv's stable = 0, converged) are drawn open
+  const unstable = csv.filter((r) => r.converged === 1 && r.stable === 0).length * (1 + dofs.length);
+  const drawnUnstable = await page.evaluate(() => window.rthsView.drawn.unstable);
+  if (drawnUnstable !== unstable) fail(`the page draws ${drawnUnstable} points as unstable, frf.csv has ${unstable}`);
+  else ok(`${unstable} unstable points drawn open, as frf.csv labels them`);
   const inside = await page.evaluate(() => window.rthsView.drawn.frfInside);
   if (inside !== csv.length) fail(`${csv.length - inside} of ${csv.length} points drawn outside the plot`);
   else ok("every point lies inside the plot's axes");

@@ -3,7 +3,8 @@
 # is in progress), refusals (bad command lines, missing/non-run folders, path traversal, a port in
 # use), a free port picked, loopback by default, a vanished folder survived; then the page in
 # headless Chromium (tests/browser/view_browser.mjs: no console error, drawn points = frf.csv, a
-# screenshot that is not blank, a growing run followed), a real run paced by rig.pace watched from
+# screenshot that is not blank, a growing run followed; a two-interface run's every DoF and a
+# bilinear run's unstable points drawn as frf.csv says: view_runs_browser.mjs), a real run paced by rig.pace watched from
 # start to end (paced_browser.mjs), and the controller process's page on a driven controller
 # (controller_browser.mjs). Screenshots stay in view-test-output/.
 set -u
@@ -128,6 +129,19 @@ else
     start_view finished_view "$work/run" --listen 127.0.0.1:0 && finished=$base
     timeout 300 node "$src/tests/browser/view_browser.mjs" "$src/web" "$chromium" "$out" \
         "$finished" "$work/run" "$growing" "$work/growing" || fail "browser test"
+
+    # 6b. several interface DoFs (every DoF's points) and a nonlinear run (unstable points open)
+    "$bin" frf "$src/examples/two_interface_storeys.yaml" --out "$work/two" --quiet ||
+        fail "two-interface frf run"
+    "$bin" frf "$src/examples/four_storey_bilinear.yaml" --out "$work/bilinear" --quiet ||
+        fail "bilinear frf run"
+    start_view two_view "$work/two" --listen 127.0.0.1:0 && two=$base
+    start_view bilinear_view "$work/bilinear" --listen 127.0.0.1:0 && bilinear=$base
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next } $c["stable"] == 0 { n++ }
+             END { exit !(n > 0) }' "$work/bilinear/frf.csv" || fail "bilinear run has no unstable point"
+    timeout 300 node "$src/tests/browser/view_runs_browser.mjs" "$src/web" "$chromium" "$out" \
+        two_interface "$two" "$work/two" bilinear "$bilinear" "$work/bilinear" ||
+        fail "other runs in the browser"
 
     # 7. a real paced run: rths frf at 4 x real time (59 s of rig time: about 15 s of wall time),
     # watched from its first points to its end
