@@ -260,11 +260,11 @@ static void test_session_rules_and_hello(void **state) {
     raw_reply(&r, raw_send(&r, &m), &reply);
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
-    /* A HELLO with another protocol version: ERROR 3, closed. */
+    /* A HELLO naming another protocol version: ERROR 3, closed. */
     raw r2;
     raw_connect(&r2, rths_server_port(s)); /* replaces the disarmed first client */
     rths_msg_init(&m, RTHS_MSG_HELLO, 0);
-    m.u.hello.version = 2;
+    m.u.hello.version = 3;
     raw_send(&r2, &m);
     assert_int_equal(raw_until_closed(&r2), RTHS_PROTO_EVERSION);
     assert_int_equal(raw_until_closed(&r), 0); /* the replaced connection was closed */
@@ -286,7 +286,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     raw_connect(&r, port);
     raw_hello(&r);
     /* Well-framed, unknown type: ERROR 6 naming the type, the connection stays. */
-    uint8_t unknown[12] = {0x52, 0x54, 0x01, 0x42, 0x05, 0x00, 0x00, 0x00};
+    uint8_t unknown[12] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x42, 0x05, 0x00, 0x00, 0x00};
     put_crc(unknown, 8);
     raw_send_bytes(&r, unknown, sizeof unknown);
     raw_reply(&r, 5, &reply);
@@ -302,7 +302,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ETYPE);
     /* Malformed payload (ARM with one byte): ERROR 7, and the ARM is not performed. */
-    uint8_t arm1[13] = {0x52, 0x54, 0x01, 0x02, 0x06, 0x00, 0x01, 0x00, 0x00};
+    uint8_t arm1[13] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x02, 0x06, 0x00, 0x01, 0x00, 0x00};
     put_crc(arm1, 9);
     raw_send_bytes(&r, arm1, sizeof arm1);
     raw_reply(&r, 6, &reply);
@@ -317,7 +317,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
      * it keeps running and serves the next client. */
     static const uint8_t garbage[] = "GET / HTTP/1.0\r\n\r\n";
     static const uint8_t version[] = {0x52, 0x54, 0x07, 0x0a, 0, 0, 0, 0, 0, 0, 0, 0};
-    static const uint8_t oversize[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0xff, 0xff};
+    static const uint8_t oversize[] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x0a, 0, 0, 0xff, 0xff};
     uint8_t badcrc[12];
     rths_msg_init(&m, RTHS_MSG_PING, 1);
     assert_int_equal(rths_proto_encode(&m, badcrc, sizeof badcrc), 12);
