@@ -1,7 +1,8 @@
 #!/bin/bash
 # rths controller from the command line: usage errors (exit 2, nothing started), start on an
 # ephemeral port ("listening on ADDR:PORT" on stdout), a host run over TCP, a second controller on
-# the same port refused, SIGTERM -> disarm, statistics, exit 0. No timing is asserted: waits poll
+# the same port refused, SIGTERM -> disarm, statistics, exit 0; then two interface DoFs over
+# protocol version 2 (a version-1 host refused by name, rths frf against the in-process run). No timing is asserted: waits poll
 # for a state with generous limits (this is not a real-time kernel).
 set -u
 RTHS=$1
@@ -164,4 +165,112 @@ rc=$?
 pid=
 [ "$rc" -eq 0 ] || fail "controller exit $rc after SIGTERM"
 grep -q "stopped after [0-9]* samples" "$tmp/ctl.err" || fail "no statistics after stop"
+
+# ---- Two interface DoFs (examples/two_interface_storeys.yaml: storeys 2 and 3 on two shakers),
+# protocol version 2 carrying every DoF's target and records. Noise off.
+CFG2="$SRC/examples/two_interface_storeys.yaml"
+"$RTHS" controller --config "$CFG2" --listen 127.0.0.1:0 --set server.realtime=false \
+    --set rig.noise=false --io "$BUILD/rths_io_virtual.so" >"$tmp/ctl2.out" 2>"$tmp/ctl2.err" &
+pid=$!
+port=
+for _ in $(seq 1 400); do
+    port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$tmp/ctl2.out")
+    [ -n "$port" ] && break
+    kill -0 "$pid" 2>/dev/null || fail "two-DoF controller exited before listening"
+    sleep 0.05
+done
+[ -n "$port" ] || fail "two-DoF controller: no 'listening on' line"
+
+# A version-1 host (its HELLO byte for byte, docs/protocol.md section 6) is told, in a frame it
+# can read (version-1 framing), that the versions differ; the connection is closed.
+/usr/bin/python3 - "$port" <<'PY' >"$tmp/v1.out" 2>&1 || fail "version-1 host: $(cat "$tmp/v1.out")"
+import socket, struct, sys, zlib
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=20)
+s.sendall(bytes.fromhex("5254010101000700010004686f7374b4542391"))
+data = b""
+while True:
+    chunk = s.recv(4096)
+    if not chunk:
+        break
+    data += chunk
+magic, version, typ, seq, length = struct.unpack("<HBBHH", data[:8])
+code, request, n = struct.unpack("<HBB", data[8:12])
+text = data[12:12 + n].decode()
+crc, = struct.unpack("<I", data[8 + length:12 + length])
+print(f"version {version} type {typ:#x} code {code}: {text}")
+ok = (version == 1 and typ == 0xFF and code == 3 and crc == zlib.crc32(data[:8 + length])
+      and "peer speaks rths protocol version 1; this build speaks version 2" in text
+      and len(data) == 12 + length)
+sys.exit(0 if ok else 1)
+PY
+wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice on the controller"
+
+# rths frf of the example through the controller process against the in-process run. Both solve
+# every point to the run's tolerance (tolerance_m) but their histories differ (the controller
+# idles disarmed before ARM; a remote rig is not assumed LTI, so the corrector takes other
+# steps), and at the 13.45 Hz resonance (damping ratio ~0.1 %, a ~12 s time constant, longer
+# than the settle waits) each carries its own unsettled transient. The issue's acceptance bounds
+# each run's interface amplitudes to 0.5 % of the analytic FRF (checked here for the TCP run,
+# and by frf_two_interface.sh for the in-process one), i.e. a complex relative error eps <= 0.005
+# which bounds the phase error by ~eps rad too; so the runs' dof<d>_ amplitudes may differ by
+# 2 eps = 1 % relative and phases by 0.01 rad, and their interface errors, each below the
+# tolerance, by the larger tolerance_m. (Measured: 0.36 %, 0.006 rad.)
+"$RTHS" frf "$CFG2" --out "$tmp/remote2" --rig "tcp://127.0.0.1:$port" --set rig.noise=false \
+    --quiet >"$tmp/frf2_remote.out" 2>"$tmp/frf2_remote.err" || fail "two-DoF rths frf over tcp failed"
+"$RTHS" frf "$CFG2" --out "$tmp/local2" --set rig.noise=false --quiet \
+    >"$tmp/frf2_local.out" 2>"$tmp/frf2_local.err" || fail "two-DoF rths frf in-process failed"
+/usr/bin/python3 - "$tmp/remote2/frf.csv" "$tmp/local2/frf.csv" <<'PY' || fail "two-DoF frf over tcp differs from the in-process run"
+import csv, sys
+import numpy as np
+remote = list(csv.DictReader(open(sys.argv[1])))
+local = list(csv.DictReader(open(sys.argv[2])))
+m = np.array([5.37, 5.37, 5.37, 10.74])
+c = np.array([4.4062, 3.7979, 3.7421, 3.7421])
+k = np.array([53048, 45724, 45052, 45052])
+def chain(v):  # storey i joined to i-1 (storey 1 to the ground)
+    n = len(v); a = np.zeros((n, n))
+    for i in range(n):
+        a[i, i] += v[i]
+        if i > 0:
+            a[i, i - 1] -= v[i]; a[i - 1, i] -= v[i]; a[i - 1, i - 1] += v[i]
+    return a
+M, C, K = np.diag(m), chain(c), chain(k)
+bad = []
+if len(remote) != len(local) or len(remote) < 20:
+    bad.append(f"{len(remote)} points over tcp, {len(local)} in-process")
+cols = [h for h in local[0] if h.startswith("dof")]
+if sorted(set(h[:4] for h in cols)) != ["dof1", "dof2"] or len(cols) != 8:
+    bad.append(f"dof columns {cols}")
+worst = {h: 0.0 for h in cols}
+for r, l in zip(remote, local):
+    if r["frequency_hz"] != l["frequency_hz"] or r["converged"] != "1":
+        bad.append(f"point {r['point']}: {r['frequency_hz']} Hz converged {r['converged']}")
+    w = 2 * np.pi * float(r["frequency_hz"])
+    x = np.abs(np.linalg.solve(K - w * w * M + 1j * w * C, np.array([0, 0, 0, 1.0])))
+    tol = max(float(r["tolerance_m"]), float(l["tolerance_m"]))
+    for h in cols:
+        a, b = float(r[h]), float(l[h])
+        if h.endswith("_phase_rad"):
+            d, limit = abs(a - b), 0.01
+        elif h.endswith("_interface_error_m"):
+            d, limit = abs(a - b), tol
+        else:
+            d, limit = abs(a - b) / abs(b), 0.01
+        worst[h] = max(worst[h], d)
+        if d > limit:
+            bad.append(f"{h} at {r['frequency_hz']} Hz: {a} over tcp vs {b} ({d:.3g} > {limit:.3g})")
+    for dof in (1, 2):
+        e = abs(float(r[f"dof{dof}_amplitude_m"]) / x[dof] - 1)
+        if e > 0.005:
+            bad.append(f"dof{dof}_amplitude_m at {r['frequency_hz']} Hz over tcp: {100 * e:.3f} % from the analytic FRF")
+print("two interface DoFs, tcp vs in-process, largest difference per column:",
+      ", ".join(f"{h} {v:.3g}" for h, v in worst.items()))
+print("\n".join(bad))
+sys.exit(1 if bad else 0)
+PY
+kill -TERM "$pid"
+wait "$pid"
+rc=$?
+pid=
+[ "$rc" -eq 0 ] || fail "two-DoF controller exit $rc after SIGTERM"
 echo "ok"
