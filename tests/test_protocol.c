@@ -5,6 +5,7 @@
 
 #include "rths/protocol.h"
 
+#include <dirent.h>
 #include <float.h>
 #include <math.h>
 #include <stdio.h>
@@ -575,6 +576,56 @@ static void test_frame_sizes(void **state) {
     }
 }
 
+/* The fuzzer's seed corpus (fuzz/corpus/, written by fuzz/make_corpus.py from docs/protocol.md
+ * with Python's struct and zlib, independently of this codec) decodes as its names say: every
+ * well-formed frame to OK and back to exactly its bytes, every refused one with its status. */
+static void test_seed_corpus(void **state) {
+    (void)state;
+    DIR *dir = opendir(rths_test_source_path("fuzz/corpus"));
+    assert_non_null(dir);
+    struct dirent *e;
+    int files = 0, vectors = 0;
+    while ((e = readdir(dir))) {
+        if (e->d_name[0] == '.') continue;
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s", rths_test_source_path("fuzz/corpus"), e->d_name);
+        static uint8_t data[2 * RTHS_PROTO_MAX_FRAME];
+        FILE *f = fopen(path, "rb");
+        assert_non_null(f);
+        size_t n = fread(data, 1, sizeof data, f);
+        fclose(f);
+        const char *name = e->d_name;
+        int want = RTHS_PROTO_OK;
+        if (!strncmp(name, "bad_version", 11)) want = RTHS_PROTO_EVERSION;
+        if (!strcmp(name, "bad_crc")) want = RTHS_PROTO_ECRC;
+        if (!strcmp(name, "oversize")) want = RTHS_PROTO_EOVERSIZE;
+        if (!strncmp(name, "bad_dofs", 8)) want = RTHS_PROTO_EPAYLOAD;
+        if (!strcmp(name, "truncated")) want = RTHS_PROTO_INCOMPLETE;
+        if (!strcmp(name, "unknown_type")) want = RTHS_PROTO_ETYPE;
+        size_t pos = 0;
+        int frames = 0;
+        while (pos < n) {
+            rths_msg m;
+            size_t used = 0;
+            int st = rths_proto_decode(data + pos, n - pos, &m, &used);
+            if (st != want) fail_msg("fuzz/corpus/%s: %s", name, rths_proto_status_name(st));
+            if (st == RTHS_PROTO_EPAYLOAD) assert_non_null(strstr(m.problem, "interface DoFs"));
+            if (st != RTHS_PROTO_OK) break;
+            uint8_t again[RTHS_PROTO_MAX_FRAME];
+            assert_int_equal(rths_proto_encode(&m, again, sizeof again), used);
+            assert_memory_equal(again, data + pos, used);
+            vectors += m.type == RTHS_MSG_PERIOD && m.u.period.interface_dofs > 1;
+            pos += used;
+            frames++;
+        }
+        if (want == RTHS_PROTO_OK) assert_int_equal(frames, strcmp(name, "two_frames") ? 1 : 2);
+        files++;
+    }
+    closedir(dir);
+    assert_true(files >= 30);
+    assert_int_equal(vectors, 2); /* PERIOD of 2 and of 4 interface DoFs */
+}
+
 /* docs/protocol.md's message tables are the message list of protocol.h: every row of the form
  * "| 0xNN | NAME | payload | reply |" (requests) or "| 0xNN | NAME | payload |" (controller to
  * host) equals the row the list gives, and every listed message has its row. A field added to the
@@ -668,6 +719,7 @@ int main(void) {
         cmocka_unit_test(test_dof_counts_are_bounded),
         cmocka_unit_test(test_version_one_peer),
         cmocka_unit_test(test_frame_sizes),
+        cmocka_unit_test(test_seed_corpus),
         cmocka_unit_test(test_document_tables_match_the_message_list),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

@@ -31,7 +31,7 @@ expect_exit() { # expected-status description command...
 expect_exit 0 "--help" "$RTHS" controller --help
 grep -q -- "--listen ADDR:PORT" "$tmp/x.out" || fail "--help does not document --listen"
 expect_exit 2 "no config" "$RTHS" controller --listen 127.0.0.1:0
-grep -q "config" "$tmp/x.err" || fail "missing-config message does not name the config"
+grep -q "CONFIG" "$tmp/x.err" || fail "missing-config message does not name the config"
 expect_exit 2 "bad --listen" "$RTHS" controller --config "$CFG" --listen localhost
 expect_exit 2 "bad port" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:70000
 expect_exit 2 "bad watchdog" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
@@ -205,16 +205,17 @@ sys.exit(0 if ok else 1)
 PY
 wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice on the controller"
 
-# rths frf of the example through the controller process against the in-process run. Both solve
-# every point to the run's tolerance (tolerance_m) but their histories differ (the controller
-# idles disarmed before ARM; a remote rig is not assumed LTI, so the corrector takes other
-# steps), and at the 13.45 Hz resonance (damping ratio ~0.1 %, a ~12 s time constant, longer
-# than the settle waits) each carries its own unsettled transient. The issue's acceptance bounds
-# each run's interface amplitudes to 0.5 % of the analytic FRF (checked here for the TCP run,
-# and by frf_two_interface.sh for the in-process one), i.e. a complex relative error eps <= 0.005
-# which bounds the phase error by ~eps rad too; so the runs' dof<d>_ amplitudes may differ by
-# 2 eps = 1 % relative and phases by 0.01 rad, and their interface errors, each below the
-# tolerance, by the larger tolerance_m. (Measured: 0.36 %, 0.006 rad.)
+# rths frf of the example through the controller process against the in-process run. The link
+# itself adds nothing (test_controller_process: the same per-period records to 1e-13 m), but the
+# two runs are different iterations: their histories differ (the controller idles disarmed
+# before ARM) and a remote rig is not assumed LTI, so the corrector takes other steps; at the
+# 13.45 Hz resonance (damping ratio ~0.1 %, a ~12 s time constant, longer than the settle waits)
+# each keeps its own unsettled transient. So the runs agree as far as each is accurate: every
+# point converged, each run's interface amplitudes within 0.5 % of the analytic FRF (the issue's
+# acceptance) and its complex responses within 1 % (so phases within asin 0.01 = 0.01 rad);
+# hence dof<d>_amplitude_m and dof<d>_numerical_amplitude_m differ by at most 1 % relative,
+# dof<d>_phase_rad by 0.02 rad, dof<d>_interface_error_m (each below the run's tolerance) by the
+# larger tolerance_m. Measured: 0.39 %, 0.0083 rad; complex errors 0.67 % (TCP), 0.07 %.
 "$RTHS" frf "$CFG2" --out "$tmp/remote2" --rig "tcp://127.0.0.1:$port" --set rig.noise=false \
     --quiet >"$tmp/frf2_remote.out" 2>"$tmp/frf2_remote.err" || fail "two-DoF rths frf over tcp failed"
 "$RTHS" frf "$CFG2" --out "$tmp/local2" --set rig.noise=false --quiet \
@@ -242,16 +243,26 @@ cols = [h for h in local[0] if h.startswith("dof")]
 if sorted(set(h[:4] for h in cols)) != ["dof1", "dof2"] or len(cols) != 8:
     bad.append(f"dof columns {cols}")
 worst = {h: 0.0 for h in cols}
+truth_err = {"tcp": [0.0, 0.0], "in-process": [0.0, 0.0]}  # amplitude, complex
 for r, l in zip(remote, local):
-    if r["frequency_hz"] != l["frequency_hz"] or r["converged"] != "1":
+    if r["frequency_hz"] != l["frequency_hz"] or r["converged"] != "1" or l["converged"] != "1":
         bad.append(f"point {r['point']}: {r['frequency_hz']} Hz converged {r['converged']}")
     w = 2 * np.pi * float(r["frequency_hz"])
-    x = np.abs(np.linalg.solve(K - w * w * M + 1j * w * C, np.array([0, 0, 0, 1.0])))
+    x = np.linalg.solve(K - w * w * M + 1j * w * C, np.array([0, 0, 0, 1.0]))
+    for run, row in (("tcp", r), ("in-process", l)):
+        for dof in (1, 2):
+            amp, phase = float(row[f"dof{dof}_amplitude_m"]), float(row[f"dof{dof}_phase_rad"])
+            e_amp = abs(amp / abs(x[dof]) - 1)
+            e_cx = abs(amp * np.exp(1j * phase) - x[dof]) / abs(x[dof])
+            truth_err[run] = [max(truth_err[run][0], e_amp), max(truth_err[run][1], e_cx)]
+            if e_amp > 0.005 or e_cx > 0.01:
+                bad.append(f"{run} dof{dof} at {row['frequency_hz']} Hz: {100 * e_amp:.3f} % "
+                           f"(amplitude), {100 * e_cx:.3f} % (complex) from the analytic FRF")
     tol = max(float(r["tolerance_m"]), float(l["tolerance_m"]))
     for h in cols:
         a, b = float(r[h]), float(l[h])
         if h.endswith("_phase_rad"):
-            d, limit = abs(a - b), 0.01
+            d, limit = abs(a - b), 0.02
         elif h.endswith("_interface_error_m"):
             d, limit = abs(a - b), tol
         else:
@@ -259,12 +270,10 @@ for r, l in zip(remote, local):
         worst[h] = max(worst[h], d)
         if d > limit:
             bad.append(f"{h} at {r['frequency_hz']} Hz: {a} over tcp vs {b} ({d:.3g} > {limit:.3g})")
-    for dof in (1, 2):
-        e = abs(float(r[f"dof{dof}_amplitude_m"]) / x[dof] - 1)
-        if e > 0.005:
-            bad.append(f"dof{dof}_amplitude_m at {r['frequency_hz']} Hz over tcp: {100 * e:.3f} % from the analytic FRF")
 print("two interface DoFs, tcp vs in-process, largest difference per column:",
       ", ".join(f"{h} {v:.3g}" for h, v in worst.items()))
+print("largest error from the analytic FRF (amplitude, complex):",
+      ", ".join(f"{run} {v[0]:.3g}, {v[1]:.3g}" for run, v in truth_err.items()))
 print("\n".join(bad))
 sys.exit(1 if bad else 0)
 PY
