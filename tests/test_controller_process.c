@@ -1092,8 +1092,29 @@ static void test_two_interface_dofs_raw(void **state) {
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
     assert_non_null(strstr(reply.u.error.message, "interface DoF 2"));
-    m.u.target.a[1] = 1e-4;
+    m.u.target.a[1] = -0.5e-4;
     raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    /* Armed with these targets, both actuators work, each towards its own target: STATUS's
+     * demands are both non-zero and differ, and the latest PERIOD carries both DoFs, their
+     * physical fundamentals of opposite sign as the targets (1e-4 and -0.5e-4 m) are. */
+    set_forcing(&r, 12.0, 1.0);
+    const double t_armed = arm(&r);
+    double deadline = now_s() + WAIT_S;
+    for (;;) { /* a period starting half a second (6 periods) after ARM */
+        raw_request(&r, RTHS_MSG_GET_COEFFS, &reply);
+        if (reply.type == RTHS_MSG_PERIOD && reply.u.period.start_time_s > t_armed + 0.5) break;
+        assert_true(now_s() < deadline);
+        sleep_s(0.05);
+    }
+    assert_int_equal(reply.u.period.interface_dofs, 2);
+    assert_true(reply.u.period.phys.a[1] > 0 && reply.u.period.phys_dof[1].a[1] < 0);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_true(reply.u.status.flags & RTHS_STATUS_ARMED);
+    assert_int_equal(reply.u.status.demand_v.n, 2);
+    assert_true(reply.u.status.demand_v.v[0] != 0 && reply.u.status.demand_v.v[1] != 0);
+    assert_true(reply.u.status.demand_v.v[0] != reply.u.status.demand_v.v[1]);
+    raw_request(&r, RTHS_MSG_DISARM, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ACK);
     /* SET_TARGET claiming 5 interface DoFs: malformed, skipped, named; the stream stays usable */
     uint8_t frame[64] = {0x52, 0x54, RTHS_PROTO_VERSION, RTHS_MSG_SET_TARGET, 0x21, 0x00, 2, 0,
