@@ -212,10 +212,13 @@ wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice o
 # 13.45 Hz resonance (damping ratio ~0.1 %, a ~12 s time constant, longer than the settle waits)
 # each keeps its own unsettled transient. So the runs agree as far as each is accurate: every
 # point converged, each run's interface amplitudes within 0.5 % of the analytic FRF (the issue's
-# acceptance) and its complex responses within 1 % (so phases within asin 0.01 = 0.01 rad);
-# hence dof<d>_amplitude_m and dof<d>_numerical_amplitude_m differ by at most 1 % relative,
-# dof<d>_phase_rad by 0.02 rad, dof<d>_interface_error_m (each below the run's tolerance) by the
-# larger tolerance_m. Measured: 0.39 %, 0.0083 rad; complex errors 0.67 % (TCP), 0.07 %.
+# acceptance) and its complex responses within 2 % (so phases within asin 0.02 = 0.02 rad: the
+# phase moves ~20 rad/Hz at the 0.35 %-damped resonance, where the amplitude is flat); hence
+# dof<d>_amplitude_m and dof<d>_numerical_amplitude_m differ by at most 1 % relative,
+# dof<d>_phase_rad by 0.04 rad, dof<d>_interface_error_m (each below the run's tolerance) by the
+# larger tolerance_m. Measured over three runs: up to 0.39 %, 0.0083 rad; errors from the
+# analytic FRF up to 0.37 % (amplitude) and 0.85 % (complex) over TCP, 0.064 % and 0.074 %
+# in-process.
 "$RTHS" frf "$CFG2" --out "$tmp/remote2" --rig "tcp://127.0.0.1:$port" --set rig.noise=false \
     --quiet >"$tmp/frf2_remote.out" 2>"$tmp/frf2_remote.err" || fail "two-DoF rths frf over tcp failed"
 "$RTHS" frf "$CFG2" --out "$tmp/local2" --set rig.noise=false --quiet \
@@ -255,14 +258,14 @@ for r, l in zip(remote, local):
             e_amp = abs(amp / abs(x[dof]) - 1)
             e_cx = abs(amp * np.exp(1j * phase) - x[dof]) / abs(x[dof])
             truth_err[run] = [max(truth_err[run][0], e_amp), max(truth_err[run][1], e_cx)]
-            if e_amp > 0.005 or e_cx > 0.01:
+            if e_amp > 0.005 or e_cx > 0.02:
                 bad.append(f"{run} dof{dof} at {row['frequency_hz']} Hz: {100 * e_amp:.3f} % "
                            f"(amplitude), {100 * e_cx:.3f} % (complex) from the analytic FRF")
     tol = max(float(r["tolerance_m"]), float(l["tolerance_m"]))
     for h in cols:
         a, b = float(r[h]), float(l[h])
         if h.endswith("_phase_rad"):
-            d, limit = abs(a - b), 0.02
+            d, limit = abs(a - b), 0.04
         elif h.endswith("_interface_error_m"):
             d, limit = abs(a - b), tol
         else:
