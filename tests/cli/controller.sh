@@ -209,7 +209,8 @@ wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice o
 # itself adds nothing (test_controller_process: the same per-period records to 1e-13 m), but the
 # two runs are different iterations: their histories differ (the controller idles disarmed
 # before ARM) and a remote rig is not assumed LTI, so the corrector takes other steps; at the
-# 13.45 Hz resonance (damping ratio ~0.1 %, a ~12 s time constant, longer than the settle waits)
+# 13.47 Hz resonance (the second mode, damping ratio 0.35 %: a 3.4 s time constant, as long as a
+# point's settle wait)
 # each keeps its own unsettled transient. So the runs agree as far as each is accurate: every
 # point converged, each run's interface amplitudes within 0.5 % of the analytic FRF (the issue's
 # acceptance) and its complex responses within 2 % (so phases within asin 0.02 = 0.02 rad: the
