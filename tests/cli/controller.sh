@@ -210,8 +210,8 @@ wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice o
 # two runs are different iterations: their histories differ (the controller idles disarmed
 # before ARM) and a remote rig is not assumed LTI, so the corrector takes other steps; at the
 # 13.47 Hz resonance (the second mode, damping ratio 0.35 %: a 3.4 s time constant, as long as a
-# point's settle wait)
-# each keeps its own unsettled transient. So the runs agree as far as each is accurate: every
+# point's settle wait) each keeps its own unsettled transient. So the runs agree as far as each
+# is accurate: every
 # point converged, each run's interface amplitudes within 0.5 % of the analytic FRF (the issue's
 # acceptance) and its complex responses within 2 % (so phases within asin 0.02 = 0.02 rad: the
 # phase moves ~20 rad/Hz at the 0.35 %-damped resonance, where the amplitude is flat); hence
