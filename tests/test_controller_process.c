@@ -23,6 +23,7 @@
 #include <math.h>
 #include <netinet/in.h>
 #include <poll.h>
+#include <pthread.h>
 #include <stdio.h>
 #include <string.h>
 #include <sys/socket.h>
@@ -42,21 +43,27 @@ static void sleep_s(double s) {
     nanosleep(&ts, NULL);
 }
 
-/* The seed configuration (examples/four_storey.yaml), sensor noise off unless sets say otherwise.
- */
-static rths_config *seed_config(const char *const *sets, int n_sets) {
+/* An example configuration, sensor noise off unless sets say otherwise. */
+static rths_config *example_config(const char *example, const char *const *sets, int n_sets) {
     const char *all[16] = {"rig.noise=false"};
     int n = 1;
     for (int i = 0; i < n_sets && n < 16; i++)
         all[n++] = sets[i];
     rths_config *cfg = NULL;
     rths_error err;
-    int rc =
-        rths_config_load(rths_test_source_path("examples/four_storey.yaml"), all, n, &cfg, &err);
+    int rc = rths_config_load(rths_test_source_path(example), all, n, &cfg, &err);
     if (rc) fprintf(stderr, "config: %s\n", err.msg);
     assert_int_equal(rc, RTHS_OK);
     return cfg;
 }
+
+/* The seed configuration (examples/four_storey.yaml). */
+static rths_config *seed_config(const char *const *sets, int n_sets) {
+    return example_config("examples/four_storey.yaml", sets, n_sets);
+}
+
+/* Two interface storeys on two shakers (examples/two_interface_storeys.yaml). */
+#define TWO_INTERFACE "examples/two_interface_storeys.yaml"
 
 /* The test servers' options: an ephemeral loopback port, no real-time scheduling, quiet. */
 static rths_server_options test_server_options(int port, double watchdog_s) {
@@ -69,8 +76,8 @@ static rths_server_options test_server_options(int port, double watchdog_s) {
     return opt;
 }
 
-static rths_server *start_server_opts(rths_server_options opt, const char *const *sets,
-                                      int n_sets) {
+static rths_server *start_example_server(const char *example, rths_server_options opt,
+                                         const char *const *sets, int n_sets) {
     rths_server *s = NULL;
     rths_error err;
     rths_error_clear(&err);
@@ -80,13 +87,18 @@ static rths_server *start_server_opts(rths_server_options opt, const char *const
     int n = 1;
     for (int i = 0; i < n_sets && n < 16; i++)
         all[n++] = sets[i];
-    rths_config *cfg = seed_config(all, n);
+    rths_config *cfg = example_config(example, all, n);
     int rc = rths_server_create(cfg, &opt, &s, &err);
     rths_config_free(cfg);
     if (rc) fprintf(stderr, "server: %s\n", err.msg);
     assert_int_equal(rc, RTHS_OK);
     assert_int_equal(rths_server_start(s, &err), RTHS_OK);
     return s;
+}
+
+static rths_server *start_server_opts(rths_server_options opt, const char *const *sets,
+                                      int n_sets) {
+    return start_example_server("examples/four_storey.yaml", opt, sets, n_sets);
 }
 
 static rths_server *start_server_with(int port, double watchdog_s, const char *const *sets,
@@ -260,11 +272,11 @@ static void test_session_rules_and_hello(void **state) {
     raw_reply(&r, raw_send(&r, &m), &reply);
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
-    /* A HELLO with another protocol version: ERROR 3, closed. */
+    /* A HELLO naming another protocol version: ERROR 3, closed. */
     raw r2;
     raw_connect(&r2, rths_server_port(s)); /* replaces the disarmed first client */
     rths_msg_init(&m, RTHS_MSG_HELLO, 0);
-    m.u.hello.version = 2;
+    m.u.hello.version = 3;
     raw_send(&r2, &m);
     assert_int_equal(raw_until_closed(&r2), RTHS_PROTO_EVERSION);
     assert_int_equal(raw_until_closed(&r), 0); /* the replaced connection was closed */
@@ -286,7 +298,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     raw_connect(&r, port);
     raw_hello(&r);
     /* Well-framed, unknown type: ERROR 6 naming the type, the connection stays. */
-    uint8_t unknown[12] = {0x52, 0x54, 0x01, 0x42, 0x05, 0x00, 0x00, 0x00};
+    uint8_t unknown[12] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x42, 0x05, 0x00, 0x00, 0x00};
     put_crc(unknown, 8);
     raw_send_bytes(&r, unknown, sizeof unknown);
     raw_reply(&r, 5, &reply);
@@ -302,7 +314,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ETYPE);
     /* Malformed payload (ARM with one byte): ERROR 7, and the ARM is not performed. */
-    uint8_t arm1[13] = {0x52, 0x54, 0x01, 0x02, 0x06, 0x00, 0x01, 0x00, 0x00};
+    uint8_t arm1[13] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x02, 0x06, 0x00, 0x01, 0x00, 0x00};
     put_crc(arm1, 9);
     raw_send_bytes(&r, arm1, sizeof arm1);
     raw_reply(&r, 6, &reply);
@@ -317,7 +329,7 @@ static void test_malformed_frames_keep_controller_safe(void **state) {
      * it keeps running and serves the next client. */
     static const uint8_t garbage[] = "GET / HTTP/1.0\r\n\r\n";
     static const uint8_t version[] = {0x52, 0x54, 0x07, 0x0a, 0, 0, 0, 0, 0, 0, 0, 0};
-    static const uint8_t oversize[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0xff, 0xff};
+    static const uint8_t oversize[] = {0x52, 0x54, RTHS_PROTO_VERSION, 0x0a, 0, 0, 0xff, 0xff};
     uint8_t badcrc[12];
     rths_msg_init(&m, RTHS_MSG_PING, 1);
     assert_int_equal(rths_proto_encode(&m, badcrc, sizeof badcrc), 12);
@@ -857,6 +869,270 @@ static void test_remote_continuation_matches_in_process(void **state) {
     rths_config_free(cfg);
 }
 
+/* ---- protocol versions ---- */
+
+/* A version-1 host (its HELLO, byte for byte as a version-1 build sends it: docs/protocol.md,
+ * section 6) is refused with ERROR 3 framed as version 1, which it can read, naming both
+ * versions; the connection is closed and the controller serves the next (version-2) host. */
+static void test_version_one_host_refused(void **state) {
+    (void)state;
+    static const uint8_t hello_v1[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
+                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
+    rths_server *s = start_server(0, 5.0);
+    raw r;
+    raw_connect(&r, rths_server_port(s));
+    raw_send_bytes(&r, hello_v1, sizeof hello_v1);
+    /* read everything until the controller closes */
+    double deadline = now_s() + WAIT_S;
+    for (;;) {
+        struct pollfd p = {r.fd, POLLIN, 0};
+        assert_true(now_s() < deadline);
+        if (poll(&p, 1, 100) <= 0) continue;
+        ssize_t k = recv(r.fd, r.rx + r.len, sizeof r.rx - r.len, 0);
+        if (k == 0 || (k < 0 && errno == ECONNRESET)) break;
+        assert_true(k > 0);
+        r.len += (size_t)k;
+    }
+    close(r.fd);
+    assert_int_equal(rths_proto_frame_version(r.rx, r.len), 1);
+    rths_msg m;
+    size_t used;
+    assert_int_equal(rths_proto_decode_error_any_version(r.rx, r.len, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(used, r.len); /* one frame, then the close */
+    assert_int_equal(m.u.error.code, RTHS_PROTO_EVERSION);
+    print_message("a version-1 host reads: %s\n", m.u.error.message);
+    assert_non_null(strstr(m.u.error.message,
+                           "peer speaks rths protocol version 1; this build speaks version 2"));
+    raw_connect(&r, rths_server_port(s));
+    raw_hello(&r);
+    close(r.fd);
+    rths_server_destroy(s);
+}
+
+/* A stand-in for a version-1 controller: it refuses the host's (version-2) HELLO exactly as a
+ * version-1 build did, with a version-1 ERROR 3 "unsupported protocol version; closing the
+ * connection", and closes. */
+typedef struct {
+    int listen_fd;
+} fake_v1;
+
+static void *fake_v1_main(void *arg) {
+    fake_v1 *f = arg;
+    int fd = accept(f->listen_fd, NULL, NULL);
+    if (fd < 0) return NULL;
+    uint8_t in[64];
+    ssize_t got = recv(fd, in, sizeof in, 0); /* the HELLO's first bytes: its version byte */
+    (void)got;
+    rths_msg m;
+    rths_msg_error(&m, 0, RTHS_PROTO_EVERSION, 0, "%s",
+                   "unsupported protocol version; closing the connection");
+    uint8_t out[RTHS_PROTO_MAX_FRAME];
+    size_t n = rths_proto_encode_error_as(&m, 1, out, sizeof out);
+    ssize_t sent = send(fd, out, n, MSG_NOSIGNAL);
+    (void)sent;
+    close(fd);
+    return NULL;
+}
+
+static void test_version_one_controller_refused(void **state) {
+    (void)state;
+    fake_v1 f;
+    f.listen_fd = socket(AF_INET, SOCK_STREAM, 0);
+    struct sockaddr_in sa = {.sin_family = AF_INET, .sin_port = 0};
+    sa.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    assert_int_equal(bind(f.listen_fd, (struct sockaddr *)&sa, sizeof sa), 0);
+    assert_int_equal(listen(f.listen_fd, 1), 0);
+    socklen_t sl = sizeof sa;
+    getsockname(f.listen_fd, (struct sockaddr *)&sa, &sl);
+    pthread_t th;
+    assert_int_equal(pthread_create(&th, NULL, fake_v1_main, &f), 0);
+    char uri[64];
+    snprintf(uri, sizeof uri, "tcp://127.0.0.1:%d", ntohs(sa.sin_port));
+    rths_rig *rig = NULL;
+    rths_error err;
+    rths_error_clear(&err);
+    assert_int_equal(rths_remote_rig_create(uri, NULL, &rig, &err), RTHS_EFAIL);
+    assert_null(rig);
+    print_message("the host says: %s\n", err.msg);
+    assert_non_null(strstr(err.msg, "peer speaks rths protocol version 1; this build speaks "
+                                    "version 2"));
+    assert_non_null(strstr(err.msg, "unsupported protocol version")); /* the controller's word */
+    pthread_join(th, NULL);
+    close(f.listen_fd);
+}
+
+/* ---- several interface DoFs ---- */
+
+/* Runs whole periods until every interface DoF's coefficients of two consecutive periods agree
+ * to tol; returns the last period. */
+static rths_period run_to_steady_dofs(rths_rig *rig, int max_periods, double tol) {
+    rths_period prev, cur;
+    rths_error err;
+    int rc = rths_rig_run_periods(rig, 1, &prev, &err);
+    if (rc) fprintf(stderr, "run: %s\n", err.msg);
+    assert_int_equal(rc, RTHS_OK);
+    for (int i = 1; i < max_periods; i++) {
+        assert_int_equal(rths_rig_run_periods(rig, 1, &cur, &err), RTHS_OK);
+        assert_int_equal(cur.interface_dofs, 2);
+        double d = 0;
+        for (int dof = 0; dof < cur.interface_dofs; dof++)
+            for (int k = 0; k <= 2; k++) {
+                d = fmax(d, fabs(cur.phys_dof[dof].a[k] - prev.phys_dof[dof].a[k]));
+                d = fmax(d, fabs(cur.phys_dof[dof].b[k] - prev.phys_dof[dof].b[k]));
+                d = fmax(d, fabs(cur.num_dof[dof].a[k] - prev.num_dof[dof].a[k]));
+                d = fmax(d, fabs(cur.num_dof[dof].b[k] - prev.num_dof[dof].b[k]));
+            }
+        if (d < tol) return cur;
+        prev = cur;
+    }
+    fail_msg("no steady state within %d periods", max_periods);
+    return cur;
+}
+
+/* The controller process drives two interface DoFs (examples/two_interface_storeys.yaml, one
+ * shaker per interface storey) and, through the remote rig, reaches the steady state of the
+ * in-process virtual rig for every DoF: the same step with the same plant, the link adding only
+ * transport of the vectors. As in the one-DoF test the histories differ (the controller idles
+ * disarmed before ARM), so agreement is to the settling tolerance. */
+static void test_remote_two_interface_dofs_match_in_process(void **state) {
+    (void)state;
+    const char *sets[] = {"structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]"};
+    /* DoF d's coefficients at d * harmonics + k - 1: storey 2, then storey 3 */
+    const double f = 12.0, amp = 1.0, a[2] = {1.2e-4, 0.8e-4}, b[2] = {-0.4e-4, 0.3e-4};
+    const double settle_tol = 1e-10;
+    rths_config *cfg = example_config(TWO_INTERFACE, sets, 1);
+    rths_setup setup;
+    rths_error err;
+    assert_int_equal(rths_setup_read(cfg, &setup, &err), RTHS_OK);
+    rths_rig *local = NULL;
+    assert_int_equal(rths_virtual_rig_create(cfg, &setup, 0, 0, &local, &err), RTHS_OK);
+    assert_int_equal(rths_rig_interface_dofs(local), 2);
+    assert_int_equal(rths_rig_set_forcing(local, f, amp, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target_dofs(local, 2, 1, a, b, &err), RTHS_OK);
+    rths_period want = run_to_steady_dofs(local, 2000, settle_tol);
+
+    rths_server *s = start_example_server(TWO_INTERFACE, test_server_options(0, 30.0), sets, 1);
+    rths_rig *remote = remote_rig(rths_server_port(s));
+    assert_int_equal(rths_rig_interface_dofs(remote), 2);
+    assert_non_null(strstr(rths_rig_description(remote), "2 interface DoF(s)"));
+    /* a one-DoF target does not fit a two-DoF controller: refused, naming both counts */
+    assert_int_not_equal(rths_rig_set_target(remote, 1, a, b, &err), RTHS_OK);
+    assert_non_null(strstr(err.msg, "drives 2"));
+    assert_int_equal(rths_rig_set_forcing(remote, f, amp, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target_dofs(remote, 2, 1, a, b, &err), RTHS_OK);
+    rths_period got = run_to_steady_dofs(remote, 400, settle_tol);
+
+    assert_close(got.frequency_hz, f, 1e-12);
+    assert_int_equal(got.samples, want.samples);
+    double worst = 0;
+    for (int d = 0; d < 2; d++) {
+        for (int k = 0; k <= 2; k++) {
+            const double pairs[6][2] = {{got.phys_dof[d].a[k], want.phys_dof[d].a[k]},
+                                        {got.phys_dof[d].b[k], want.phys_dof[d].b[k]},
+                                        {got.num_dof[d].a[k], want.num_dof[d].a[k]},
+                                        {got.num_dof[d].b[k], want.num_dof[d].b[k]},
+                                        {got.force_dof[d].a[k], want.force_dof[d].a[k]},
+                                        {got.force_dof[d].b[k], want.force_dof[d].b[k]}};
+            for (int i = 0; i < 4; i++) {
+                worst = fmax(worst, fabs(pairs[i][0] - pairs[i][1]));
+                assert_close(pairs[i][0], pairs[i][1], 10 * settle_tol);
+            }
+            /* forces are ~1e6 times the displacements (N against m on 45 kN/m storeys) */
+            for (int i = 4; i < 6; i++)
+                assert_close(pairs[i][0], pairs[i][1], 1e-6);
+        }
+        print_message("interface DoF %d: phys a1 %.9e (remote) vs %.9e m (in-process)\n", d + 1,
+                      got.phys_dof[d].a[1], want.phys_dof[d].a[1]);
+    }
+    print_message("two interface DoFs, remote vs in-process: largest displacement difference "
+                  "%.3g m\n",
+                  worst);
+    /* each physical interface storey follows its own target (PD tracking: of the target's
+     * size, not zero), and the two differ as the targets do (not one DoF's copied twice) */
+    for (int d = 0; d < 2; d++)
+        assert_true(fabs(got.phys_dof[d].a[1]) > 0.3 * a[d]);
+    assert_true(fabs(got.phys_dof[0].a[1] - got.phys_dof[1].a[1]) > 1e-6);
+    /* the first DoF is also the record's scalar channel, as in the in-process rig */
+    assert_true(got.phys.a[1] == got.phys_dof[0].a[1]);
+    rths_rig_destroy(remote);
+    rths_server_destroy(s);
+    rths_rig_destroy(local);
+    rths_setup_free(&setup);
+    rths_config_free(cfg);
+}
+
+/* The two-DoF controller over the raw protocol: HELLO_REPLY announces 2 interface DoFs, STATUS
+ * carries both actuators' demands, a target for one DoF or beyond the stroke on the second DoF
+ * is refused (ERROR 10 naming the count or the DoF), a frame with 5 DoFs is malformed and named. */
+static void test_two_interface_dofs_raw(void **state) {
+    (void)state;
+    rths_server *s = start_example_server(TWO_INTERFACE, test_server_options(0, 30.0), NULL, 0);
+    raw r;
+    rths_msg m, reply;
+    raw_connect(&r, rths_server_port(s));
+    rths_msg_init(&m, RTHS_MSG_HELLO, 0);
+    m.u.hello.version = RTHS_PROTO_VERSION;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_HELLO_REPLY);
+    assert_int_equal(reply.u.hello_reply.interface_dofs, 2);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_int_equal(reply.u.status.demand_v.n, 2);
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
+    m.u.target.dofs = 1;
+    m.u.target.harmonics = 1;
+    m.u.target.a[0] = 1e-4;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
+    assert_string_equal(reply.u.error.message,
+                        "target for 1 interface DoF(s); this controller drives 2");
+    m.u.target.dofs = 2;
+    m.u.target.a[1] = 0.3; /* the second DoF beyond the 0.01 m stroke */
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_ERANGE);
+    assert_non_null(strstr(reply.u.error.message, "interface DoF 2"));
+    m.u.target.a[1] = -0.5e-4;
+    raw_reply(&r, raw_send(&r, &m), &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    /* Armed with these targets, both actuators work, each towards its own target: STATUS's
+     * demands are both non-zero and differ, and the latest PERIOD carries both DoFs, their
+     * physical fundamentals of opposite sign as the targets (1e-4 and -0.5e-4 m) are. */
+    set_forcing(&r, 12.0, 1.0);
+    const double t_armed = arm(&r);
+    double deadline = now_s() + WAIT_S;
+    for (;;) { /* a period starting half a second (6 periods) after ARM */
+        raw_request(&r, RTHS_MSG_GET_COEFFS, &reply);
+        if (reply.type == RTHS_MSG_PERIOD && reply.u.period.start_time_s > t_armed + 0.5) break;
+        assert_true(now_s() < deadline);
+        sleep_s(0.05);
+    }
+    assert_int_equal(reply.u.period.interface_dofs, 2);
+    assert_true(reply.u.period.phys.a[1] > 0 && reply.u.period.phys_dof[1].a[1] < 0);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_true(reply.u.status.flags & RTHS_STATUS_ARMED);
+    assert_int_equal(reply.u.status.demand_v.n, 2);
+    assert_true(reply.u.status.demand_v.v[0] != 0 && reply.u.status.demand_v.v[1] != 0);
+    assert_true(reply.u.status.demand_v.v[0] != reply.u.status.demand_v.v[1]);
+    raw_request(&r, RTHS_MSG_DISARM, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    /* SET_TARGET claiming 5 interface DoFs: malformed, skipped, named; the stream stays usable */
+    uint8_t frame[64] = {0x52, 0x54, RTHS_PROTO_VERSION, RTHS_MSG_SET_TARGET, 0x21, 0x00, 2, 0,
+                         5,    0};
+    put_crc(frame, 10);
+    raw_send_bytes(&r, frame, 14);
+    raw_reply(&r, 0x21, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ERROR);
+    assert_int_equal(reply.u.error.code, RTHS_PROTO_EPAYLOAD);
+    assert_string_equal(reply.u.error.message,
+                        "malformed payload for SET_TARGET (type 0x05): 5 interface DoFs; the "
+                        "protocol carries 1..4");
+    raw_request(&r, RTHS_MSG_PING, &reply);
+    assert_int_equal(reply.type, RTHS_MSG_ACK);
+    close(r.fd);
+    rths_server_destroy(s);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_uri_parsing),
@@ -872,6 +1148,10 @@ int main(void) {
         cmocka_unit_test(test_remote_matches_in_process_at_4096_hz),
         cmocka_unit_test(test_remote_forcing_on_physical_storey),
         cmocka_unit_test(test_remote_continuation_matches_in_process),
+        cmocka_unit_test(test_version_one_host_refused),
+        cmocka_unit_test(test_version_one_controller_refused),
+        cmocka_unit_test(test_remote_two_interface_dofs_match_in_process),
+        cmocka_unit_test(test_two_interface_dofs_raw),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -5,6 +5,7 @@
 
 #include "rths/protocol.h"
 
+#include <dirent.h>
 #include <float.h>
 #include <math.h>
 #include <stdio.h>
@@ -17,19 +18,28 @@ static void test_crc32_known_answer(void **state) {
     assert_int_equal(rths_crc32(NULL, 0), 0x00000000u);
 }
 
-/* Known-answer frames: {bytes, length}. */
-static const uint8_t kat_ping[] = {0x52, 0x54, 0x01, 0x0a, 0x02, 0x01,
-                                   0x00, 0x00, 0xce, 0x8f, 0x9c, 0x8f};
-static const uint8_t kat_forcing[] = {0x52, 0x54, 0x01, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
+/* Known-answer frames (docs/protocol.md, section 6); the last two are version-1 frames, as a
+ * version-1 host sends and reads them. */
+static const uint8_t kat_ping[] = {0x52, 0x54, 0x02, 0x0a, 0x02, 0x01,
+                                   0x00, 0x00, 0x60, 0xfd, 0x08, 0x09};
+static const uint8_t kat_forcing[] = {0x52, 0x54, 0x02, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
                                       0x0a, 0xd7, 0xa3, 0xf0, 0x2a, 0x40, 0x00, 0x00, 0x00, 0x00,
-                                      0x00, 0x00, 0xf0, 0x3f, 0x52, 0x45, 0x00, 0x08};
-static const uint8_t kat_target[] = {0x52, 0x54, 0x01, 0x05, 0x03, 0x00, 0x11, 0x00, 0x01, 0x2d,
-                                     0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x1a, 0x3f, 0x2d, 0x43, 0x1c,
-                                     0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x1c, 0xf9, 0xf4, 0x73};
-static const uint8_t kat_hello[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
-                                    0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
-static const uint8_t kat_error[] = {0x52, 0x54, 0x01, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
-                                    0x00, 0x42, 0x02, 0x6e, 0x6f, 0xbd, 0x4b, 0xba, 0xa7};
+                                      0x00, 0x00, 0xf0, 0x3f, 0x12, 0xe8, 0x78, 0x31};
+static const uint8_t kat_target[] = {0x52, 0x54, 0x02, 0x05, 0x03, 0x00, 0x12, 0x00, 0x01, 0x01,
+                                     0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x1a, 0x3f, 0x2d, 0x43,
+                                     0x1c, 0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x01, 0x2c, 0x0d, 0xc4};
+static const uint8_t kat_target2[] = {
+    0x52, 0x54, 0x02, 0x05, 0x04, 0x00, 0x22, 0x00, 0x02, 0x01, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36,
+    0x1a, 0x3f, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x61, 0x32, 0x55, 0x30, 0x2a, 0xa9,
+    0x33, 0x3f, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x0a, 0x3f, 0x92, 0x71, 0x11, 0x17};
+static const uint8_t kat_hello[] = {0x52, 0x54, 0x02, 0x01, 0x01, 0x00, 0x07, 0x00, 0x02, 0x00,
+                                    0x04, 0x68, 0x6f, 0x73, 0x74, 0xe7, 0x22, 0x01, 0x1d};
+static const uint8_t kat_error[] = {0x52, 0x54, 0x02, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
+                                    0x00, 0x42, 0x02, 0x6e, 0x6f, 0x4d, 0x99, 0x24, 0xd0};
+static const uint8_t kat_hello_v1[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
+                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
+static const uint8_t kat_error_v1[] = {0x52, 0x54, 0x01, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
+                                       0x00, 0x42, 0x02, 0x6e, 0x6f, 0xbd, 0x4b, 0xba, 0xa7};
 
 static void check_encodes_to(const rths_msg *m, const uint8_t *want, size_t n) {
     uint8_t buf[RTHS_PROTO_MAX_FRAME];
@@ -55,8 +65,17 @@ static void test_known_answer_frames(void **state) {
     m.u.target.b[0] = -2e-4;
     check_encodes_to(&m, kat_target, sizeof kat_target);
 
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 4);
+    m.u.target.dofs = 2;
+    m.u.target.harmonics = 1;
+    m.u.target.a[0] = 1e-4; /* DoF d's coefficient k at d * harmonics + k - 1 */
+    m.u.target.b[0] = -2e-4;
+    m.u.target.a[1] = 3e-4;
+    m.u.target.b[1] = 5e-5;
+    check_encodes_to(&m, kat_target2, sizeof kat_target2);
+
     rths_msg_init(&m, RTHS_MSG_HELLO, 1);
-    m.u.hello.version = 1;
+    m.u.hello.version = 2;
     strcpy(m.u.hello.name, "host");
     check_encodes_to(&m, kat_hello, sizeof kat_hello);
 
@@ -72,7 +91,11 @@ static void test_known_answer_frames(void **state) {
     assert_true(m.u.forcing.frequency_hz == 13.47 && m.u.forcing.amplitude_n == 1.0);
     assert_int_equal(rths_proto_decode(kat_target, sizeof kat_target, &m, &used), RTHS_PROTO_OK);
     assert_int_equal(m.u.target.harmonics, 1);
+    assert_int_equal(m.u.target.dofs, 1);
     assert_true(m.u.target.a[0] == 1e-4 && m.u.target.b[0] == -2e-4);
+    assert_int_equal(rths_proto_decode(kat_target2, sizeof kat_target2, &m, &used), RTHS_PROTO_OK);
+    assert_int_equal(m.u.target.dofs, 2);
+    assert_true(m.u.target.a[1] == 3e-4 && m.u.target.b[1] == 5e-5);
     assert_int_equal(rths_proto_decode(kat_hello, sizeof kat_hello, &m, &used), RTHS_PROTO_OK);
     assert_string_equal(m.u.hello.name, "host");
     assert_int_equal(rths_proto_decode(kat_error, sizeof kat_error, &m, &used), RTHS_PROTO_OK);
@@ -105,12 +128,15 @@ static int sample_messages(rths_msg *out) {
     m->u.forcing.frequency_hz = 4.339;
     m->u.forcing.amplitude_n = 2.5e-3;
     for (int h = 0; h <= RTHS_PROTO_HARMONICS; h++) {
-        m = &out[n++];
-        rths_msg_init(m, RTHS_MSG_SET_TARGET, (uint16_t)(200 + h));
-        m->u.target.harmonics = h;
-        for (int k = 0; k < h; k++) {
-            m->u.target.a[k] = 1e-4 / (k + 1);
-            m->u.target.b[k] = -DBL_MIN * (k + 1);
+        for (int dofs = 1; dofs <= RTHS_PROTO_MAX_DOFS; dofs += RTHS_PROTO_MAX_DOFS - 1) {
+            m = &out[n++];
+            rths_msg_init(m, RTHS_MSG_SET_TARGET, (uint16_t)(200 + h));
+            m->u.target.dofs = dofs;
+            m->u.target.harmonics = h;
+            for (int k = 0; k < h * dofs; k++) {
+                m->u.target.a[k] = 1e-4 / (k + 1);
+                m->u.target.b[k] = -DBL_MIN * (k + 1);
+            }
         }
     }
     m = &out[n++];
@@ -121,6 +147,7 @@ static int sample_messages(rths_msg *out) {
     rths_msg_init(m, RTHS_MSG_HELLO_REPLY, 1);
     m->u.hello_reply.version = RTHS_PROTO_VERSION;
     m->u.hello_reply.max_harmonics = RTHS_PROTO_HARMONICS;
+    m->u.hello_reply.interface_dofs = RTHS_PROTO_MAX_DOFS;
     m->u.hello_reply.sample_period_s = 1e-4;
     m->u.hello_reply.watchdog_s = 2.0;
     m->u.hello_reply.noise_level_m = 1e-7;
@@ -143,6 +170,9 @@ static int sample_messages(rths_msg *out) {
     m->u.status.periods_dropped = 2;
     for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
         m->u.status.latency_hist[i] = (uint64_t)1 << (3 * i);
+    m->u.status.demand_v.n = 2;
+    m->u.status.demand_v.v[0] = -1.25;
+    m->u.status.demand_v.v[1] = 9.5;
     m = &out[n++];
     rths_msg_init(m, RTHS_MSG_PERIOD, 0);
     m->u.period.index = 4000000000u;
@@ -153,13 +183,40 @@ static int sample_messages(rths_msg *out) {
     fill_fourier(&m->u.period.phys, 3.42e-4);
     fill_fourier(&m->u.period.num, -3.40e-4);
     fill_fourier(&m->u.period.force, 0.75);
+    m->u.period.interface_dofs = 1;
+    for (int dofs = 2; dofs <= RTHS_PROTO_MAX_DOFS; dofs++) {
+        m = &out[n++];
+        *m = out[n - 2];
+        m->u.period.interface_dofs = dofs;
+        fill_fourier(&m->u.period.phys_dof[dofs - 1], 1e-4 * dofs);
+        fill_fourier(&m->u.period.num_dof[dofs - 1], -2e-4 * dofs);
+        fill_fourier(&m->u.period.force_dof[dofs - 1], 0.5 * dofs);
+    }
     m = &out[n++];
     rths_msg_init(m, RTHS_MSG_TRACE, 0);
     m->u.trace.count = RTHS_PROTO_MAX_TRACE_BATCH;
+    m->u.trace.dofs = 1;
     for (int i = 0; i < RTHS_PROTO_MAX_TRACE_BATCH; i++) {
-        m->u.trace.s[i] =
-            (rths_proto_trace_sample){i * 1e-3, 1e-4 * i, -2e-4 * i, 3e-4, -0.5 * i, 0.01 * i};
+        m->u.trace.s[i] = (rths_proto_trace_sample){.time_s = i * 1e-3,
+                                                    .x_phys_m = 1e-4 * i,
+                                                    .x_num_m = -2e-4 * i,
+                                                    .target_m = 3e-4,
+                                                    .force_n = -0.5 * i,
+                                                    .demand = 0.01 * i};
     }
+    /* the largest message: a full batch of the most interface DoFs */
+    m = &out[n++];
+    *m = out[n - 2];
+    m->u.trace.dofs = RTHS_PROTO_MAX_DOFS;
+    for (int i = 0; i < RTHS_PROTO_MAX_TRACE_BATCH; i++)
+        for (int d = 1; d < RTHS_PROTO_MAX_DOFS; d++) {
+            rths_proto_trace_sample *x = &m->u.trace.s[i];
+            x->x_phys_dof_m[d] = 1e-5 * d - i;
+            x->x_num_dof_m[d] = -1e-5 * d;
+            x->target_dof_m[d] = 2e-5 * d;
+            x->force_dof_n[d] = 0.1 * d * i;
+            x->demand_dof[d] = -0.02 * d;
+        }
     m = &out[n++];
     rths_msg_error(m, 77, RTHS_PROTO_EBUSY, RTHS_MSG_ARM, "controller armed by %s", "10.0.0.1");
     return n;
@@ -167,7 +224,7 @@ static int sample_messages(rths_msg *out) {
 
 static void test_round_trip_every_type(void **state) {
     (void)state;
-    rths_msg msgs[32];
+    rths_msg msgs[40];
     int n = sample_messages(msgs);
     int seen[256] = {0};
     for (int i = 0; i < n; i++) {
@@ -197,7 +254,7 @@ static void test_round_trip_every_type(void **state) {
 
 static void test_truncated_frames_are_incomplete(void **state) {
     (void)state;
-    rths_msg msgs[32];
+    rths_msg msgs[40];
     int n = sample_messages(msgs);
     for (int i = 0; i < n; i++) {
         uint8_t buf[RTHS_PROTO_MAX_FRAME];
@@ -253,14 +310,16 @@ static void test_header_errors_detected_early(void **state) {
     assert_int_equal(used, 0);
     const uint8_t half_magic[] = {0x52, 0x00};
     assert_int_equal(rths_proto_decode(half_magic, 2, &m, &used), RTHS_PROTO_EMAGIC);
-    const uint8_t v2[] = {0x52, 0x54, 0x02};
-    assert_int_equal(rths_proto_decode(v2, 3, &m, &used), RTHS_PROTO_EVERSION);
+    const uint8_t v1[] = {0x52, 0x54, 0x01};
+    assert_int_equal(rths_proto_decode(v1, 3, &m, &used), RTHS_PROTO_EVERSION);
+    const uint8_t v3[] = {0x52, 0x54, 0x03};
+    assert_int_equal(rths_proto_decode(v3, 3, &m, &used), RTHS_PROTO_EVERSION);
     const uint8_t v0[] = {0x52, 0x54, 0x00, 0x0a, 0, 0, 0, 0};
     assert_int_equal(rths_proto_decode(v0, sizeof v0, &m, &used), RTHS_PROTO_EVERSION);
-    /* Payload length 1025: refused from the header alone, before any payload arrives. */
-    const uint8_t big[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0x01, 0x04};
+    /* Payload length 4097: refused from the header alone, before any payload arrives. */
+    const uint8_t big[] = {0x52, 0x54, 0x02, 0x0a, 0, 0, 0x01, 0x10};
     assert_int_equal(rths_proto_decode(big, sizeof big, &m, &used), RTHS_PROTO_EOVERSIZE);
-    const uint8_t huge[] = {0x52, 0x54, 0x01, 0x0a, 0, 0, 0xff, 0xff};
+    const uint8_t huge[] = {0x52, 0x54, 0x02, 0x0a, 0, 0, 0xff, 0xff};
     assert_int_equal(rths_proto_decode(huge, sizeof huge, &m, &used), RTHS_PROTO_EOVERSIZE);
     assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EMAGIC));
     assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EVERSION));
@@ -277,7 +336,7 @@ static void test_maximum_payload_is_accepted_by_framing(void **state) {
     size_t len = raw_frame(buf, 0x7E, 11, payload, sizeof payload);
     rths_msg m;
     size_t used;
-    /* Framing accepts the full 1024 bytes; the (unknown) type is what gets refused. */
+    /* Framing accepts the full 4096 bytes; the (unknown) type is what gets refused. */
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_ETYPE);
     assert_int_equal(used, len);
     assert_int_equal(m.seq, 11);
@@ -321,13 +380,17 @@ static void test_malformed_payloads(void **state) {
     memcpy(buf, kat_forcing, sizeof kat_forcing);
     len = raw_frame(buf, RTHS_MSG_SET_FORCING, 7, kat_forcing + 8, 15);
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
-    /* SET_TARGET with 6 harmonics (above the maximum of 5). */
-    uint8_t tgt[1 + 12 * 8] = {6};
+    /* SET_TARGET with 6 harmonics (above the maximum of 5), named. */
+    uint8_t tgt[2 + 12 * 8] = {1, 6};
     len = raw_frame(buf, RTHS_MSG_SET_TARGET, 1, tgt, sizeof tgt);
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
-    /* SET_TARGET declaring 2 harmonics but carrying 1. */
-    uint8_t tgt2[1 + 2 * 8] = {2};
+    assert_string_equal(m.problem, "6 harmonics; the protocol carries 0..5");
+    /* SET_TARGET declaring 2 harmonics but carrying 1; two DoFs but carrying one. */
+    uint8_t tgt2[2 + 2 * 8] = {1, 2};
     len = raw_frame(buf, RTHS_MSG_SET_TARGET, 1, tgt2, sizeof tgt2);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+    uint8_t tgt3[2 + 2 * 8] = {2, 1};
+    len = raw_frame(buf, RTHS_MSG_SET_TARGET, 1, tgt3, sizeof tgt3);
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
     /* A NaN frequency (quiet NaN, little-endian) and an infinite amplitude. */
     uint8_t nanf[16] = {0, 0, 0, 0, 0, 0, 0xf8, 0x7f, 0, 0, 0, 0, 0, 0, 0xf0, 0x3f};
@@ -351,7 +414,7 @@ static void test_malformed_payloads(void **state) {
     len = raw_frame(buf, RTHS_MSG_SUBSCRIBE, 1, badflag, sizeof badflag);
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
     /* TRACE with zero samples. */
-    const uint8_t tr0[] = {0};
+    const uint8_t tr0[] = {1, 0};
     len = raw_frame(buf, RTHS_MSG_TRACE, 1, tr0, sizeof tr0);
     assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
     /* Unknown types. */
@@ -380,8 +443,187 @@ static void test_encoder_refuses_invalid_messages(void **state) {
     assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
     rths_msg_init(&m, RTHS_MSG_TRACE, 1);
     assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0); /* count 0 */
+    /* more interface DoFs than a frame carries, in every vector message */
+    rths_msg_init(&m, RTHS_MSG_SET_TARGET, 1);
+    m.u.target.dofs = RTHS_PROTO_MAX_DOFS + 1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_PERIOD, 1);
+    m.u.period.interface_dofs = RTHS_PROTO_MAX_DOFS + 1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_STATUS, 1);
+    m.u.status.demand_v.n = -1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_HELLO_REPLY, 1);
+    m.u.hello_reply.sample_period_s = 1e-4;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0); /* interface DoFs 0 */
     rths_msg_init(&m, RTHS_MSG_PING, 1);
     assert_int_equal(rths_proto_encode(&m, buf, 11), 0); /* a 12-byte frame */
+}
+
+/* Every vector message refuses an interface DoF count of 0 or above RTHS_PROTO_MAX_DOFS as a
+ * malformed payload naming the count (the frame is skipped; the connection stays in step). */
+static void test_dof_counts_are_bounded(void **state) {
+    (void)state;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME], payload[RTHS_PROTO_MAX_PAYLOAD];
+    rths_msg m;
+    size_t used, len;
+    const unsigned bad[] = {0, RTHS_PROTO_MAX_DOFS + 1, 255};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; i++) {
+        char want[96];
+        snprintf(want, sizeof want, "%u interface DoFs; the protocol carries 1..%d", bad[i],
+                 RTHS_PROTO_MAX_DOFS);
+        /* SET_TARGET: the count first; sized as if the count were true, with H = 1 */
+        memset(payload, 0, sizeof payload);
+        payload[0] = (uint8_t)bad[i];
+        payload[1] = 1;
+        len = raw_frame(buf, RTHS_MSG_SET_TARGET, 3, payload, 2 + 16 * bad[i]);
+        assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+        assert_int_equal(used, len);
+        assert_string_equal(m.problem, want);
+        /* PERIOD: 32 bytes of scalars, then the count */
+        memset(payload, 0, sizeof payload);
+        payload[32] = (uint8_t)bad[i];
+        len = raw_frame(buf, RTHS_MSG_PERIOD, 0, payload, 33 + 288 * (bad[i] < 5 ? bad[i] : 5));
+        assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+        assert_string_equal(m.problem, want);
+        /* TRACE: the count, then one sample */
+        memset(payload, 0, sizeof payload);
+        payload[0] = (uint8_t)bad[i];
+        payload[1] = 1;
+        len = raw_frame(buf, RTHS_MSG_TRACE, 0, payload, 2 + 8 + 40 * (bad[i] < 5 ? bad[i] : 5));
+        assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+        assert_string_equal(m.problem, want);
+    }
+    /* HELLO_REPLY announcing 0 interface DoFs */
+    rths_msg_init(&m, RTHS_MSG_HELLO_REPLY, 1);
+    m.u.hello_reply.interface_dofs = 1;
+    len = rths_proto_encode(&m, buf, sizeof buf);
+    assert_true(len > 0);
+    memcpy(payload, buf + 8, len - 12);
+    payload[3] = 0; /* u16 version, u8 max harmonics, then the count */
+    len = raw_frame(buf, RTHS_MSG_HELLO_REPLY, 1, payload, len - 12);
+    assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
+}
+
+/* A version-1 peer: its frames are refused from byte 2 alone, and the version is named; an ERROR
+ * frame (the same layout in both versions) can be written in version-1 framing and read from it,
+ * so either end can tell the other why the link is refused. */
+static void test_version_one_peer(void **state) {
+    (void)state;
+    rths_msg m;
+    size_t used = 99;
+    assert_int_equal(rths_proto_decode(kat_hello_v1, sizeof kat_hello_v1, &m, &used),
+                     RTHS_PROTO_EVERSION);
+    assert_int_equal(used, 0);
+    assert_int_equal(rths_proto_frame_version(kat_hello_v1, sizeof kat_hello_v1), 1);
+    assert_int_equal(rths_proto_frame_version(kat_hello_v1, 2), -1);
+    assert_int_equal(rths_proto_frame_version((const uint8_t *)"GET", 3), -1);
+    char msg[RTHS_PROTO_MAX_TEXT + 1];
+    rths_proto_version_message(msg, sizeof msg, 1);
+    assert_string_equal(msg, "peer speaks rths protocol version 1; this build speaks version 2");
+
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    rths_msg_error(&m, 9, RTHS_PROTO_ETYPE, 0x42, "%s", "no");
+    assert_int_equal(rths_proto_encode_error_as(&m, 1, buf, sizeof buf), sizeof kat_error_v1);
+    assert_memory_equal(buf, kat_error_v1, sizeof kat_error_v1);
+    assert_int_equal(rths_proto_encode_error_as(&m, 2, buf, sizeof buf), sizeof kat_error);
+    assert_memory_equal(buf, kat_error, sizeof kat_error);
+    assert_int_equal(rths_proto_encode_error_as(&m, 3, buf, sizeof buf), 0);
+    assert_int_equal(rths_proto_encode_error_as(&m, 0, buf, sizeof buf), 0);
+    rths_msg_init(&m, RTHS_MSG_PING, 1); /* only ERROR frames cross versions */
+    assert_int_equal(rths_proto_encode_error_as(&m, 1, buf, sizeof buf), 0);
+
+    assert_int_equal(
+        rths_proto_decode_error_any_version(kat_error_v1, sizeof kat_error_v1, &m, &used),
+        RTHS_PROTO_OK);
+    assert_int_equal(used, sizeof kat_error_v1);
+    assert_int_equal(m.u.error.code, RTHS_PROTO_ETYPE);
+    assert_string_equal(m.u.error.message, "no");
+    assert_int_equal(
+        rths_proto_decode_error_any_version(kat_hello_v1, sizeof kat_hello_v1, &m, &used),
+        RTHS_PROTO_ETYPE);
+    assert_int_equal(rths_proto_decode_error_any_version(kat_error_v1, 10, &m, &used),
+                     RTHS_PROTO_INCOMPLETE);
+}
+
+/* Frame sizes of the messages that grew, version 1 against version 2 (docs/protocol.md, section
+ * 1): version 1's from its layout (PERIOD 8 + 32 + 3 x 96 + 4, SET_TARGET 8 + 1 + H x 16 + 4,
+ * TRACE 8 + 1 + 16 x 48 + 4), version 2's from the encoder, checked against the layout. */
+static void test_frame_sizes(void **state) {
+    (void)state;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    rths_msg m;
+    const size_t fourier = 12 * 8, frame = RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_CRC_SIZE;
+    for (int n = 1; n <= RTHS_PROTO_MAX_DOFS; n++) {
+        rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
+        m.u.period.interface_dofs = n;
+        size_t period = rths_proto_encode(&m, buf, sizeof buf);
+        assert_int_equal(period, frame + 32 + 1 + (size_t)n * 3 * fourier);
+        rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
+        m.u.target.dofs = n;
+        m.u.target.harmonics = 1;
+        size_t target = rths_proto_encode(&m, buf, sizeof buf);
+        assert_int_equal(target, frame + 2 + (size_t)n * 16);
+        rths_msg_init(&m, RTHS_MSG_TRACE, 0);
+        m.u.trace.dofs = n;
+        m.u.trace.count = RTHS_PROTO_MAX_TRACE_BATCH;
+        size_t trace = rths_proto_encode(&m, buf, sizeof buf);
+        assert_int_equal(trace, frame + 2 + RTHS_PROTO_MAX_TRACE_BATCH * (8 + (size_t)n * 40));
+        print_message("n = %d: PERIOD %zu bytes (v1: %zu), SET_TARGET H=1 %zu (v1: %zu), "
+                      "TRACE of 16 %zu (v1: %zu)\n",
+                      n, period, frame + 32 + 3 * fourier, target, frame + 1 + 16, trace,
+                      frame + 1 + 16 * 48);
+    }
+}
+
+/* The fuzzer's seed corpus (fuzz/corpus/, written by fuzz/make_corpus.py from docs/protocol.md
+ * with Python's struct and zlib, independently of this codec) decodes as its names say: every
+ * well-formed frame to OK and back to exactly its bytes, every refused one with its status. */
+static void test_seed_corpus(void **state) {
+    (void)state;
+    DIR *dir = opendir(rths_test_source_path("fuzz/corpus"));
+    assert_non_null(dir);
+    struct dirent *e;
+    int files = 0, vectors = 0;
+    while ((e = readdir(dir))) {
+        if (e->d_name[0] == '.') continue;
+        char path[4096];
+        snprintf(path, sizeof path, "%s/%s", rths_test_source_path("fuzz/corpus"), e->d_name);
+        static uint8_t data[2 * RTHS_PROTO_MAX_FRAME];
+        FILE *f = fopen(path, "rb");
+        assert_non_null(f);
+        size_t n = fread(data, 1, sizeof data, f);
+        fclose(f);
+        const char *name = e->d_name;
+        int want = RTHS_PROTO_OK;
+        if (!strncmp(name, "bad_version", 11)) want = RTHS_PROTO_EVERSION;
+        if (!strcmp(name, "bad_crc")) want = RTHS_PROTO_ECRC;
+        if (!strcmp(name, "oversize")) want = RTHS_PROTO_EOVERSIZE;
+        if (!strncmp(name, "bad_dofs", 8)) want = RTHS_PROTO_EPAYLOAD;
+        if (!strcmp(name, "truncated")) want = RTHS_PROTO_INCOMPLETE;
+        if (!strcmp(name, "unknown_type")) want = RTHS_PROTO_ETYPE;
+        size_t pos = 0;
+        int frames = 0;
+        while (pos < n) {
+            rths_msg m;
+            size_t used = 0;
+            int st = rths_proto_decode(data + pos, n - pos, &m, &used);
+            if (st != want) fail_msg("fuzz/corpus/%s: %s", name, rths_proto_status_name(st));
+            if (st == RTHS_PROTO_EPAYLOAD) assert_non_null(strstr(m.problem, "interface DoFs"));
+            if (st != RTHS_PROTO_OK) break;
+            uint8_t again[RTHS_PROTO_MAX_FRAME];
+            assert_int_equal(rths_proto_encode(&m, again, sizeof again), used);
+            assert_memory_equal(again, data + pos, used);
+            vectors += m.type == RTHS_MSG_PERIOD && m.u.period.interface_dofs > 1;
+            pos += used;
+            frames++;
+        }
+        if (want == RTHS_PROTO_OK) assert_int_equal(frames, strcmp(name, "two_frames") ? 1 : 2);
+        files++;
+    }
+    closedir(dir);
+    assert_true(files >= 30);
+    assert_int_equal(vectors, 2); /* PERIOD of 2 and of 4 interface DoFs */
 }
 
 /* docs/protocol.md's message tables are the message list of protocol.h: every row of the form
@@ -474,6 +716,10 @@ int main(void) {
         cmocka_unit_test(test_every_bit_flip_is_caught),
         cmocka_unit_test(test_malformed_payloads),
         cmocka_unit_test(test_encoder_refuses_invalid_messages),
+        cmocka_unit_test(test_dof_counts_are_bounded),
+        cmocka_unit_test(test_version_one_peer),
+        cmocka_unit_test(test_frame_sizes),
+        cmocka_unit_test(test_seed_corpus),
         cmocka_unit_test(test_document_tables_match_the_message_list),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

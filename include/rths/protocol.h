@@ -24,15 +24,17 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define RTHS_PROTO_VERSION 1
+#define RTHS_PROTO_VERSION 2
 #define RTHS_PROTO_MAGIC0 0x52u
 #define RTHS_PROTO_MAGIC1 0x54u
 #define RTHS_PROTO_HEADER_SIZE 8
 #define RTHS_PROTO_CRC_SIZE 4
-#define RTHS_PROTO_MAX_PAYLOAD 1024
+/* the largest message, a TRACE of 16 samples of 4 interface DoFs, is 2690 bytes */
+#define RTHS_PROTO_MAX_PAYLOAD 4096
 #define RTHS_PROTO_MAX_FRAME (RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_MAX_PAYLOAD + RTHS_PROTO_CRC_SIZE)
 #define RTHS_PROTO_MAX_TEXT 200 /* bytes of a name or error message (no NUL on the wire) */
 #define RTHS_PROTO_HARMONICS 5  /* coefficients k = 0..5 per signal in a PERIOD frame */
+#define RTHS_PROTO_MAX_DOFS 4   /* interface DoFs (one actuator each) a frame carries */
 #define RTHS_PROTO_MAX_TRACE_BATCH 16
 #define RTHS_PROTO_LATENCY_BINS 16
 
@@ -40,9 +42,10 @@
  * tables come from: X(NAME, code, direction, reply). direction: RTHS_PROTO_REQUEST (host to
  * controller; reply names the answer) or RTHS_PROTO_REPLY (controller to host; reply ""). Each
  * message's payload, in wire order, is RTHS_PROTO_PAYLOAD_<NAME>(F): F(kind, member, doc) per
- * field, kind the wire encoding (u8, u16, u32, u64, f64, text, fourier, latency_hist, harmonics,
- * trace_batch), member the field of rths_msg.u, doc its docs/protocol.md description
- * (tests/test_protocol.c fails when the document's tables and this list disagree). */
+ * field, kind the wire encoding (u8, u16, u32, u64, f64, text, latency_hist, dof_values,
+ * target_dofs, period_dofs, trace_batch), member the field of rths_msg.u, doc its
+ * docs/protocol.md description (tests/test_protocol.c fails when the document's tables and this
+ * list disagree). */
 #define RTHS_PROTO_MESSAGES(X)                                                                     \
     X(HELLO, 0x01, RTHS_PROTO_REQUEST, "HELLO_REPLY")                                              \
     X(ARM, 0x02, RTHS_PROTO_REQUEST, "ACK")                                                        \
@@ -65,14 +68,16 @@
 #define RTHS_PROTO_REPLY 1
 
 #define RTHS_PROTO_PAYLOAD_HELLO(F)                                                                \
-    F(u16, hello.version, "u16 version (=1)")                                                      \
+    F(u16, hello.version, "u16 version (=2)")                                                      \
     F(text, hello.name, "text client name")
 #define RTHS_PROTO_PAYLOAD_ARM(F)
 #define RTHS_PROTO_PAYLOAD_DISARM(F)
 #define RTHS_PROTO_PAYLOAD_SET_FORCING(F)                                                          \
     F(f64, forcing.frequency_hz, "f64 frequency (Hz)")                                             \
     F(f64, forcing.amplitude_n, "f64 amplitude (N)")
-#define RTHS_PROTO_PAYLOAD_SET_TARGET(F) F(harmonics, target, "u8 H (0..5), f64 a[H], f64 b[H] (m)")
+#define RTHS_PROTO_PAYLOAD_SET_TARGET(F)                                                           \
+    F(target_dofs, target,                                                                         \
+      "u8 n interface DoFs (1..4), u8 H (0..5), then n × (f64 a[H], f64 b[H]) (m)")
 #define RTHS_PROTO_PAYLOAD_GET_STATUS(F)
 #define RTHS_PROTO_PAYLOAD_GET_COEFFS(F)
 #define RTHS_PROTO_PAYLOAD_SUBSCRIBE(F)                                                            \
@@ -83,6 +88,7 @@
 #define RTHS_PROTO_PAYLOAD_HELLO_REPLY(F)                                                          \
     F(u16, hello_reply.version, "u16 version")                                                     \
     F(u8, hello_reply.max_harmonics, "u8 max harmonics (5)")                                       \
+    F(u8, hello_reply.interface_dofs, "u8 interface DoFs n (1..4, one actuator each)")             \
     F(f64, hello_reply.sample_period_s, "f64 sample period (s)")                                   \
     F(f64, hello_reply.watchdog_s, "f64 watchdog time (s)")                                        \
     F(f64, hello_reply.noise_level_m, "f64 displacement noise std (m)")                            \
@@ -101,20 +107,21 @@
     F(u64, status.overruns, "u64 overruns")                                                        \
     F(f64, status.worst_lateness_s, "f64 worst wake-up lateness (s)")                              \
     F(u64, status.periods_dropped, "u64 periods dropped")                                          \
-    F(latency_hist, status.latency_hist, "16 × u64 lateness histogram counts")
+    F(latency_hist, status.latency_hist, "16 × u64 lateness histogram counts")                     \
+    F(dof_values, status.demand_v, "u8 n (1..4), n × f64 actuator demand (V)")
 #define RTHS_PROTO_PAYLOAD_PERIOD(F)                                                               \
     F(u32, period.index, "u32 index")                                                              \
     F(f64, period.frequency_hz, "f64 frequency (Hz)")                                              \
     F(f64, period.start_time_s, "f64 start time (s)")                                              \
     F(f64, period.end_time_s, "f64 end time (s)")                                                  \
     F(u32, period.samples, "u32 samples")                                                          \
-    F(fourier, period.phys, "fourier physical interface displacement (m)")                         \
-    F(fourier, period.num, "fourier numerical interface displacement (m)")                         \
-    F(fourier, period.force, "fourier load-cell force (N)")
+    F(period_dofs, period,                                                                         \
+      "u8 n interface DoFs (1..4), then n × (fourier physical interface displacement (m), "       \
+      "fourier numerical interface displacement (m), fourier load-cell force (N))")
 #define RTHS_PROTO_PAYLOAD_TRACE(F)                                                                \
     F(trace_batch, trace,                                                                          \
-      "u8 n (1..16), then n × (f64 time (s), x_phys (m), x_num (m), target (m), force (N), "      \
-      "demand (V))")
+      "u8 n interface DoFs (1..4), u8 count (1..16), then count × (f64 time (s), n × (x_phys "   \
+      "(m), x_num (m), target (m), force (N), demand (V)))")
 #define RTHS_PROTO_PAYLOAD_ERROR(F)                                                                \
     F(u16, error.code, "u16 code (§2)")                                                            \
     F(u8, error.request_type, "u8 request type")                                                   \
@@ -169,6 +176,12 @@ typedef struct rths_proto_fourier {
 /* Lateness histogram bin upper edges, seconds (last bin: everything above the previous edge). */
 extern const double rths_proto_latency_edges_s[RTHS_PROTO_LATENCY_BINS];
 
+/* A value per interface DoF (DoF d at v[d], d < n). */
+typedef struct rths_proto_dof_values {
+    int n; /* 1..RTHS_PROTO_MAX_DOFS on the wire (0 encodes as 1) */
+    double v[RTHS_PROTO_MAX_DOFS];
+} rths_proto_dof_values;
+
 typedef struct rths_proto_status_msg {
     double time_s;       /* controller (rig) time: samples run * sample period */
     uint8_t flags;       /* RTHS_STATUS_* */
@@ -181,6 +194,7 @@ typedef struct rths_proto_status_msg {
     double worst_lateness_s;  /* largest wake-up lateness seen */
     uint64_t periods_dropped; /* per-period records the network side could not keep up with */
     uint64_t latency_hist[RTHS_PROTO_LATENCY_BINS];
+    rths_proto_dof_values demand_v; /* every actuator's demand after the last sample, V */
 } rths_proto_status_msg;
 
 /* Why the controller is (or was last) disarmed. */
@@ -199,23 +213,39 @@ typedef struct rths_proto_period {
     double start_time_s; /* controller time at the period's first sample */
     double end_time_s;   /* ... and at its end */
     uint32_t samples;
-    rths_proto_fourier phys;  /* physical interface displacement, m */
-    rths_proto_fourier num;   /* numerical interface displacement, m */
-    rths_proto_fourier force; /* load cell, N */
+    rths_proto_fourier phys;  /* physical interface displacement, m (the first interface DoF) */
+    rths_proto_fourier num;   /* numerical interface displacement, m (the first interface DoF) */
+    rths_proto_fourier force; /* load cell, N (the first interface DoF) */
+    /* interface DoFs carried (1..RTHS_PROTO_MAX_DOFS; 0 encodes as 1) and, for d >= 1, DoF d's
+     * coefficients ([0] unused: the first DoF is phys, num and force above) */
+    int interface_dofs;
+    rths_proto_fourier phys_dof[RTHS_PROTO_MAX_DOFS];
+    rths_proto_fourier num_dof[RTHS_PROTO_MAX_DOFS];
+    rths_proto_fourier force_dof[RTHS_PROTO_MAX_DOFS];
 } rths_proto_period;
 
+/* One trace sample: the scalars are the first interface DoF's; for d >= 1, DoF d's signals are
+ * at index d of the arrays ([0] unused). */
 typedef struct rths_proto_trace_sample {
     double time_s, x_phys_m, x_num_m, target_m, force_n, demand;
+    double x_phys_dof_m[RTHS_PROTO_MAX_DOFS], x_num_dof_m[RTHS_PROTO_MAX_DOFS];
+    double target_dof_m[RTHS_PROTO_MAX_DOFS], force_dof_n[RTHS_PROTO_MAX_DOFS];
+    double demand_dof[RTHS_PROTO_MAX_DOFS];
 } rths_proto_trace_sample;
 
-/* SET_TARGET's payload: x*(t) = sum_{k=1..harmonics} a[k-1] cos(k w t) + b[k-1] sin(k w t). */
+/* SET_TARGET's payload: for interface DoF d < dofs, x*_d(t) = sum_{k=1..harmonics}
+ * a[d * harmonics + k-1] cos(k w t) + b[d * harmonics + k-1] sin(k w t), the layout of
+ * rths_rig_set_target_dofs (one DoF: a[k-1], b[k-1]). dofs 0 encodes as 1. */
 typedef struct rths_proto_target {
     int harmonics;
-    double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
+    double a[RTHS_PROTO_MAX_DOFS * RTHS_PROTO_HARMONICS],
+        b[RTHS_PROTO_MAX_DOFS * RTHS_PROTO_HARMONICS];
+    int dofs;
 } rths_proto_target;
 
 typedef struct rths_proto_trace {
     int count;
+    int dofs; /* interface DoFs each sample carries, 1..RTHS_PROTO_MAX_DOFS (0 encodes as 1) */
     rths_proto_trace_sample s[RTHS_PROTO_MAX_TRACE_BATCH];
 } rths_proto_trace;
 
@@ -233,6 +263,7 @@ typedef struct rths_msg {
         struct {
             uint16_t version;
             uint8_t max_harmonics;
+            uint8_t interface_dofs; /* 1..RTHS_PROTO_MAX_DOFS: the length of every vector */
             double sample_period_s, watchdog_s, noise_level_m;
             char name[RTHS_PROTO_MAX_TEXT + 1];
         } hello_reply;
@@ -259,6 +290,9 @@ typedef struct rths_msg {
             char message[RTHS_PROTO_MAX_TEXT + 1];
         } error;
     } u;
+    /* set by the decoder on RTHS_PROTO_EPAYLOAD when it can name the problem (e.g. "5 interface
+     * DoFs; the protocol carries 1..4"), else empty */
+    char problem[96];
 } rths_msg;
 
 /* Encodes msg into buf (cap bytes). Returns the frame length, or 0 when msg is invalid (unknown
@@ -274,6 +308,22 @@ size_t rths_proto_encode(const rths_msg *msg, uint8_t *buf, size_t cap);
  * Errors are detected as early as possible: a bad magic, version or length fails on the header
  * bytes alone, without waiting for the rest. Never reads outside buf[0..len). */
 int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *consumed);
+
+/* The version byte of the frame starting at buf (-1: fewer than 3 bytes, or not a frame start).
+ * For naming a peer's version after RTHS_PROTO_EVERSION. */
+int rths_proto_frame_version(const uint8_t *buf, size_t len);
+
+/* "peer speaks rths protocol version V; this build speaks version 2", into out. */
+void rths_proto_version_message(char *out, size_t cap, int peer_version);
+
+/* The ERROR frame's layout (u16 code, u8 request type, text) is the same in every version, so a
+ * peer of another version can be told why it is refused in frames it reads, and can read such a
+ * refusal: rths_proto_encode_error_as frames msg (an ERROR) as `version` (1..RTHS_PROTO_VERSION;
+ * 0 on anything else), rths_proto_decode_error_any_version decodes an ERROR frame of any
+ * version (RTHS_PROTO_OK, or a decoder status; a frame of another type is RTHS_PROTO_ETYPE). */
+size_t rths_proto_encode_error_as(const rths_msg *msg, int version, uint8_t *buf, size_t cap);
+int rths_proto_decode_error_any_version(const uint8_t *buf, size_t len, rths_msg *msg,
+                                        size_t *consumed);
 
 /* Convenience builders. */
 void rths_msg_init(rths_msg *msg, int type, uint16_t seq);

@@ -5,7 +5,13 @@
  * is the controller's time as it reports it (samples run x sample period). Link errors (lost
  * connection, protocol error, reply timeout) latch RTHS_RIG_FAULT_LINK; rths_rig_reset_fault then
  * reconnects and restores the last forcing and target (the controller is left disarmed until the
- * next run). Faults the controller latches (limits, watchdog) are reported as they are. */
+ * next run). Faults the controller latches (limits, watchdog) are reported as they are.
+ *
+ * Protocol version 2 carries every interface DoF: the rig drives the interface DoFs the
+ * controller announces in HELLO_REPLY (rths_rig_interface_dofs), sends every DoF's target
+ * (rths_rig_set_target_dofs; rths_rig_set_target is its one-DoF case) and returns periods
+ * carrying every DoF (rths_period.interface_dofs, phys_dof...). Traces carry the first interface
+ * DoF. A controller of another protocol version is refused naming both versions. */
 #ifndef RTHS_RIG_REMOTE_H
 #define RTHS_RIG_REMOTE_H
 

@@ -6,7 +6,9 @@
  * never allocates, blocks, locks or does I/O. The network thread serves one host over TCP
  * (docs/protocol.md) and talks to the loop only through preallocated single-producer
  * single-consumer rings and atomics. Safety (explicit arm, latched limits with a ramp to zero,
- * the host watchdog, disarm on loss of the controlling connection) is enforced on the loop side. */
+ * the host watchdog, disarm on loss of the controlling connection) is enforced on the loop side.
+ * It drives every interface DoF of the configuration's split (1 to RTHS_PROTO_MAX_DOFS, one
+ * actuator each) and speaks protocol version 2, which carries them all. */
 #ifndef RTHS_SERVER_H
 #define RTHS_SERVER_H
 
@@ -68,7 +70,7 @@ void rths_server_get_stats(rths_server *s, rths_server_stats *out);
  * single-consumer ring (never waited for: a full ring drops the sample, counted) and its lateness
  * into histogram bins, all lock-free; the functions below read them from another thread. ---- */
 
-/* One decimated loop sample. */
+/* One decimated loop sample, of the first interface DoF. */
 typedef struct rths_server_scope_sample {
     double time_s;   /* controller (rig) time, s */
     double x_phys_m; /* physical interface displacement (measured) */

@@ -1,6 +1,8 @@
 /* rths controller: the real-time controller process (docs/protocol.md, include/rths/server.h). */
+#include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/config.h"
+#include "rths/protocol.h"
 #include "rths/server.h"
 #include "rths/view.h"
 
@@ -12,42 +14,59 @@
 #include <string.h>
 #include <time.h>
 
-static void usage(FILE *to) {
-    fprintf(
-        to,
+/* The usage text, with the defaults this build really has (rths_server_options_defaults). */
+static void usage_text(char *out, size_t cap) {
+    rths_server_options d;
+    rths_server_options_defaults(&d);
+    snprintf(
+        out, cap,
         "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--io PLUGIN.so]\n"
         "                       [--set key=value]... [--view ADDR:PORT] [--duration SECONDS]\n"
         "                       [--quiet]\n"
         "       rths controller CONFIG [options]\n\n"
         "Runs the real-time controller: the per-sample step of the hybrid test (numerical\n"
-        "substructure, PD control of the physical interface, Fourier sums, safety limits) on\n"
-        "a device behind the per-sample I/O seam (an I/O plug-in, docs/io-plugins.md; by\n"
-        "default the simulated plant), paced by the wall clock, and serves one host over\n"
-        "TCP (docs/protocol.md). The host runs e.g.\n"
+        "substructure, PD control of every interface DoF's actuator, Fourier sums, safety\n"
+        "limits) on a device behind the per-sample I/O seam (an I/O plug-in,\n"
+        "docs/io-plugins.md; by default the simulated plant), paced by the wall clock, and\n"
+        "serves one host over TCP with rths protocol version %d (docs/protocol.md; 1 to %d\n"
+        "interface DoFs, one actuator each, as split.interface says). The host runs e.g.\n"
         "  rths frf CONFIG --rig tcp://HOST:PORT\n\n"
-        "Options:\n"
-        "  --listen ADDR:PORT  address to listen on (default 127.0.0.1:7400, loopback only);\n"
+        "Options (a value may also be given as --option=VALUE):\n"
+        "  --config CONFIG     the test configuration (YAML), required (or as the one\n"
+        "                      positional argument); its server section sets the watchdog\n"
+        "                      and real-time options (docs/config/server.md), defaults:\n"
+        "                      server.watchdog_s %g, server.realtime %s, server.priority %d,\n"
+        "                      server.cpu %d (the last CPU), server.max_frequency_hz %g,\n"
+        "                      server.max_amplitude_n %g\n"
+        "  --listen ADDR:PORT  address to listen on (default %s:%d, loopback only);\n"
         "                      port 0 picks a free port. [IPv6]:PORT accepted.\n"
-        "  --config CONFIG     the test configuration (YAML); the server section sets the\n"
-        "                      watchdog and real-time options (docs/config/server.md)\n"
         "  --io PLUGIN.so      the I/O plug-in driving the lab's hardware (the same as\n"
         "                      io.plugin in the configuration; its settings are the io\n"
-        "                      section). Refused before anything runs when its ABI version\n"
-        "                      differs or a symbol is missing.\n"
-        "  --set key=value     override a configuration key (repeatable)\n"
+        "                      section; default: the simulated plant). Refused before\n"
+        "                      anything runs when its ABI version differs or a symbol is\n"
+        "                      missing.\n"
+        "  --set key=value     override a configuration key (repeatable, at most %d)\n"
         "  --view ADDR:PORT    serve a web page of the process (docs/view.md): the interface\n"
         "                      signals as an oscilloscope, limit state, watchdog, the loop's\n"
         "                      lateness histogram and overruns, read without disturbing the\n"
         "                      loop. Loopback unless asked (another address: a warning); port\n"
         "                      0 picks a free one. Prints 'view at http://ADDR:PORT/'.\n"
-        "  --duration SECONDS  stop after this long (default: until SIGINT/SIGTERM)\n"
-        "  --quiet             no notices on stderr\n\n"
+        "                      Default: no page.\n"
+        "  --duration SECONDS  stop after this long, 0 < SECONDS <= 1e7 (default: until\n"
+        "                      SIGINT/SIGTERM)\n"
+        "  --quiet, -q         no notices on stderr\n"
+        "  --help, -h          this text\n\n"
         "On start it prints 'listening on ADDR:PORT' on stdout. The controller starts\n"
         "disarmed; only the host's ARM starts excitation. Limits latch a fault and ramp the\n"
         "demand to zero; a host silent for longer than server.watchdog_s, or a lost\n"
-        "connection, disarms with the same ramp. On SIGINT/SIGTERM it disarms, ramps down,\n"
-        "prints loop statistics on stderr and exits 0.\n\n"
-        "Exit status: 0 stopped normally; 1 cannot listen or run; 2 bad usage or configuration.\n");
+        "connection, disarms with the same ramp. A host of another protocol version is\n"
+        "refused, naming both versions. On SIGINT/SIGTERM (or after --duration) it disarms,\n"
+        "ramps down, prints loop statistics on stderr and exits 0.\n\n"
+        "Exit status: 0 stopped normally; 1 cannot listen or run (e.g. the port is in use);\n"
+        "2 bad usage or configuration (nothing started).\n",
+        RTHS_PROTO_VERSION, RTHS_PROTO_MAX_DOFS, d.watchdog_s, d.realtime ? "true" : "false",
+        d.priority, d.cpu, d.max_frequency_hz, d.max_amplitude_n, d.host, d.port,
+        RTHS_CLI_MAX_SETS);
 }
 
 /* "HOST:PORT" or "[V6]:PORT", PORT 0..65535. */
@@ -78,88 +97,78 @@ static int parse_listen(const char *arg, char *host, size_t cap, int *port) {
     return 0;
 }
 
-int rths_cmd_controller(int argc, char **argv) {
-    const char *config_path = NULL, *listen = NULL, *io_path = NULL, *view_listen = NULL;
-    double duration = -1.0;
-    int quiet = 0;
-    const char **sets = calloc((size_t)argc + 1, sizeof *sets);
-    int n_sets = 0;
-    if (!sets) return RTHS_EFAIL;
-    for (int i = 1; i < argc; i++) {
-        const char *a = argv[i];
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout);
-            free(sets);
-            return RTHS_OK;
-        }
-        int has_value = i + 1 < argc;
-        if (!strcmp(a, "--listen") && has_value) {
-            listen = argv[++i];
-        } else if (!strcmp(a, "--view") && has_value) {
-            view_listen = argv[++i];
-        } else if (!strcmp(a, "--io") && has_value) {
-            io_path = argv[++i];
-        } else if (!strcmp(a, "--config") && has_value) {
-            config_path = argv[++i];
-        } else if (!strcmp(a, "--set") && has_value) {
-            sets[n_sets++] = argv[++i];
-        } else if (!strcmp(a, "--duration") && has_value) {
-            char *end;
-            duration = strtod(argv[++i], &end);
-            if (*end || !(duration > 0) || duration > 1e7) {
-                fprintf(stderr, "rths controller: --duration '%s': expected seconds > 0\n",
-                        argv[i]);
-                free(sets);
-                return RTHS_EINPUT;
-            }
-        } else if (!strcmp(a, "--quiet")) {
-            quiet = 1;
-        } else if (a[0] != '-' && !config_path) {
-            config_path = a;
-        } else {
-            fprintf(stderr, "rths controller: unexpected argument '%s'%s (see --help)\n", a,
-                    has_value ? "" : " or missing value");
-            free(sets);
-            return RTHS_EINPUT;
-        }
+/* 1 when argv names the configuration with --config (else it is the positional CONFIG). */
+static int has_config_option(int argc, char **argv) {
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "--config") || !strncmp(argv[i], "--config=", 9)) return 1;
+    return 0;
+}
+
+/* The command line through the shared parser (cli_common.h); the controller's own checks of
+ * --listen and --duration. Fills opt, *duration and the overrides (--io becomes io.plugin). */
+typedef struct controller_args {
+    rths_cli cli;
+    const char *config_path, *view_listen;
+    double duration_s; /* -1: until a signal */
+    char io_set[2 * 4096 + 16];
+} controller_args;
+
+enum { OPT_CONFIG, OPT_LISTEN, OPT_IO, OPT_VIEW, OPT_DURATION, N_OPTS };
+
+static int parse_args(int argc, char **argv, controller_args *args, rths_server_options *opt) {
+    char usage[4096];
+    usage_text(usage, sizeof usage);
+    rths_cli_opt opts[N_OPTS] = {[OPT_CONFIG] = {"--config", "CONFIG", NULL},
+                                 [OPT_LISTEN] = {"--listen", "ADDR:PORT", NULL},
+                                 [OPT_IO] = {"--io", "PLUGIN.so", NULL},
+                                 [OPT_VIEW] = {"--view", "ADDR:PORT", NULL},
+                                 [OPT_DURATION] = {"--duration", "SECONDS", NULL}};
+    rths_cli *cli = &args->cli;
+    /* CONFIG is either --config's value or the one positional argument, never both */
+    int flags = has_config_option(argc, argv) ? 0 : RTHS_CLI_CONFIG;
+    int rc = rths_cli_parse(cli, argc, argv, flags, usage, opts, N_OPTS);
+    if (rc || cli->help) return rc;
+    args->config_path = flags ? cli->config_path : opts[OPT_CONFIG].value;
+    args->view_listen = opts[OPT_VIEW].value;
+    args->duration_s = -1.0;
+    rths_server_options_defaults(opt);
+    opt->quiet = cli->quiet;
+    rths_error err;
+    const char *listen = opts[OPT_LISTEN].value;
+    if (listen && parse_listen(listen, opt->host, sizeof opt->host, &opt->port)) {
+        rths_error_set(&err, RTHS_EINPUT, "--listen '%s': expected ADDR:PORT (port 0..65535)",
+                       listen);
+        return rths_cli_fail(cli, RTHS_EINPUT, &err);
     }
-    if (!config_path) {
-        fprintf(stderr, "rths controller: --config CONFIG is required (see --help)\n");
-        free(sets);
-        return RTHS_EINPUT;
-    }
-    rths_server_options opt;
-    rths_server_options_defaults(&opt);
-    opt.quiet = quiet;
-    if (listen && parse_listen(listen, opt.host, sizeof opt.host, &opt.port)) {
-        fprintf(stderr, "rths controller: --listen '%s': expected ADDR:PORT (port 0..65535)\n",
-                listen);
-        free(sets);
-        return RTHS_EINPUT;
-    }
-    /* --io is the override io.plugin, single-quoted for YAML (a quote doubled) */
-    char *io_set = io_path ? malloc(2 * strlen(io_path) + 16) : NULL;
+    if (opts[OPT_DURATION].value &&
+        (rc = rths_cli_double_ex("--duration", opts[OPT_DURATION].value, 0.0, 1e7,
+                                 RTHS_CONFIG_LO_OPEN, &args->duration_s, &err)))
+        return rths_cli_fail(cli, rc, &err);
+    const char *io_path = opts[OPT_IO].value;
     if (io_path) {
-        if (!io_set) {
-            free(sets);
-            return RTHS_EFAIL;
+        /* --io is the override io.plugin, single-quoted for YAML (a quote doubled) */
+        if (strlen(io_path) > 4096 || cli->n_sets >= RTHS_CLI_MAX_SETS) {
+            rths_error_set(&err, RTHS_EINPUT, "--io '%.40s...': too long, or too many --set",
+                           io_path);
+            return rths_cli_fail(cli, RTHS_EINPUT, &err);
         }
-        char *w = io_set + sprintf(io_set, "io.plugin='");
+        char *w = args->io_set + sprintf(args->io_set, "io.plugin='");
         for (const char *r = io_path; *r; r++) {
             if (*r == '\'') *w++ = '\'';
             *w++ = *r;
         }
         strcpy(w, "'");
-        sets[n_sets++] = io_set;
+        cli->sets[cli->n_sets++] = args->io_set;
     }
-    rths_error err;
-    rths_error_clear(&err);
-    rths_config *cfg = NULL;
-    rths_server *srv = NULL;
-    int rc = rths_config_load(config_path, sets, n_sets, &cfg, &err);
-    free(sets);
-    free(io_set);
-    if (!rc) rc = rths_server_config_read(cfg, &opt, &err);
+    return RTHS_OK;
+}
+
+/* The configuration with the overrides, the server section, and the server built from it
+ * (step, plant or plug-in, listening socket): everything that can refuse input. */
+static int create_server(const controller_args *args, rths_server_options *opt, rths_config **cfg,
+                         rths_server **srv, rths_error *err) {
+    int rc = rths_config_load(args->config_path, args->cli.sets, args->cli.n_sets, cfg, err);
+    if (!rc) rc = rths_server_config_read(*cfg, opt, err);
     /* Everything a command run does not read (iteration, continuation, output...) is fine in a
      * test configuration shared with the host; only typos within read sections are refused. */
     if (!rc) {
@@ -167,17 +176,43 @@ int rths_cmd_controller(int argc, char **argv) {
                                                     "stability", "fidelity",     "simulate",
                                                     "model",     "report",       NULL};
         for (int i = 0; host_sections[i]; i++)
-            rths_config_mark_known(cfg, host_sections[i]);
-        rths_config_mark_known(cfg, "rig.pace"); /* paces the host's in-process rig only */
-        rc = rths_server_create(cfg, &opt, &srv, &err);
+            rths_config_mark_known(*cfg, host_sections[i]);
+        rths_config_mark_known(*cfg, "rig.pace"); /* paces the host's in-process rig only */
+        rc = rths_server_create(*cfg, opt, srv, err);
     }
-    if (!rc) rc = rths_config_check_unknown(cfg, &err);
-    if (rc) {
-        fprintf(stderr, "rths controller: %s\n", err.msg);
-        rths_server_destroy(srv);
-        rths_config_free(cfg);
-        return rc;
+    if (!rc) rc = rths_config_check_unknown(*cfg, err);
+    return rc;
+}
+
+/* Waits for SIGINT/SIGTERM, or for duration_s when positive. */
+static void wait_for_stop(const sigset_t *sigs, double duration_s) {
+    int sig;
+    if (duration_s > 0) {
+        struct timespec ts = {(time_t)duration_s,
+                              (long)((duration_s - (double)(time_t)duration_s) * 1e9)};
+        siginfo_t info;
+        while ((sig = sigtimedwait(sigs, &info, &ts)) < 0 && errno == EINTR) {
+        }
+    } else {
+        sigwait(sigs, &sig);
     }
+}
+
+static void print_stats(rths_server *srv) {
+    rths_server_stats st;
+    rths_server_get_stats(srv, &st);
+    fprintf(stderr,
+            "rths controller: stopped after %llu samples; lateness p50 %.0f us, p99 %.0f us, "
+            "p99.9 %.0f us, worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
+            (unsigned long long)st.samples, st.lateness_p50_s * 1e6, st.lateness_p99_s * 1e6,
+            st.lateness_p999_s * 1e6, st.worst_lateness_s * 1e6, (unsigned long long)st.overruns,
+            st.step_mean_s * 1e6, st.step_max_s * 1e6);
+}
+
+/* Starts the page (--view) and the server, prints where they listen, runs until stopped. */
+static int serve(const controller_args *args, const rths_server_options *opt, rths_server *srv,
+                 rths_error *err) {
+    const int quiet = args->cli.quiet;
     /* Signals are taken synchronously by this thread; the loop and network threads inherit the
      * blocked mask, so a signal never interrupts the loop. */
     sigset_t sigs;
@@ -187,26 +222,20 @@ int rths_cmd_controller(int argc, char **argv) {
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
     /* the page's threads inherit the blocked signals; a bad --view stops before the loop runs */
     rths_server_view *view = NULL;
-    if (view_listen && (rc = rths_server_view_start(srv, view_listen, &view, &err))) {
-        fprintf(stderr, "rths controller: %s\n", err.msg);
-        rths_server_destroy(srv);
-        rths_config_free(cfg);
+    int rc;
+    if (args->view_listen && (rc = rths_server_view_start(srv, args->view_listen, &view, err)))
         return rc;
-    }
     if (view && !quiet && !rths_view_host_is_loopback(rths_server_view_host(view)))
         fprintf(stderr,
                 "rths controller: warning: the page on %s is reachable from other machines; it "
                 "has no authentication\n",
                 rths_server_view_host(view));
-    if ((rc = rths_server_start(srv, &err))) {
-        fprintf(stderr, "rths controller: %s\n", err.msg);
+    if ((rc = rths_server_start(srv, err))) {
         rths_server_view_stop(view);
-        rths_server_destroy(srv);
-        rths_config_free(cfg);
         return rc;
     }
-    printf("listening on %s%s%s:%d\n", strchr(opt.host, ':') ? "[" : "", opt.host,
-           strchr(opt.host, ':') ? "]" : "", rths_server_port(srv));
+    printf("listening on %s%s%s:%d\n", strchr(opt->host, ':') ? "[" : "", opt->host,
+           strchr(opt->host, ':') ? "]" : "", rths_server_port(srv));
     if (view) {
         const char *vh = rths_server_view_host(view);
         int v6 = strchr(vh, ':') != NULL;
@@ -214,29 +243,26 @@ int rths_cmd_controller(int argc, char **argv) {
                rths_server_view_port(view));
     }
     fflush(stdout);
-    if (duration > 0) {
-        struct timespec ts = {(time_t)duration,
-                              (long)((duration - (double)(time_t)duration) * 1e9)};
-        int sig;
-        siginfo_t info;
-        while ((sig = sigtimedwait(&sigs, &info, &ts)) < 0 && errno == EINTR) {
-        }
-    } else {
-        int sig;
-        sigwait(&sigs, &sig);
-    }
+    wait_for_stop(&sigs, args->duration_s);
     rths_server_view_stop(view);
     rths_server_stop(srv);
-    rths_server_stats st;
-    rths_server_get_stats(srv, &st);
-    if (!quiet)
-        fprintf(stderr,
-                "rths controller: stopped after %llu samples; lateness p50 %.0f us, p99 %.0f us, "
-                "p99.9 %.0f us, worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
-                (unsigned long long)st.samples, st.lateness_p50_s * 1e6, st.lateness_p99_s * 1e6,
-                st.lateness_p999_s * 1e6, st.worst_lateness_s * 1e6,
-                (unsigned long long)st.overruns, st.step_mean_s * 1e6, st.step_max_s * 1e6);
+    if (!quiet) print_stats(srv);
+    return RTHS_OK;
+}
+
+int rths_cmd_controller(int argc, char **argv) {
+    controller_args args;
+    rths_server_options opt;
+    int rc = parse_args(argc, argv, &args, &opt);
+    if (rc || args.cli.help) return rc;
+    rths_error err;
+    rths_error_clear(&err);
+    rths_config *cfg = NULL;
+    rths_server *srv = NULL;
+    rc = create_server(&args, &opt, &cfg, &srv, &err);
+    if (!rc) rc = serve(&args, &opt, srv, &err);
+    if (rc) fprintf(stderr, "rths controller: %s\n", err.msg);
     rths_server_destroy(srv);
     rths_config_free(cfg);
-    return RTHS_OK;
+    return rc;
 }

@@ -161,29 +161,62 @@ static void enc_latency_hist(writer *w, const uint64_t (*h)[RTHS_PROTO_LATENCY_B
     for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
         w_u64(w, (*h)[i]);
 }
-static void enc_harmonics(writer *w, const rths_proto_target *t) {
+/* A DoF count as sent: 0 (a message built for one DoF) is 1; above the maximum is invalid. */
+static unsigned w_dofs(writer *w, int n) {
+    if (n < 0 || n > RTHS_PROTO_MAX_DOFS) {
+        w->bad = 1;
+        return 1;
+    }
+    unsigned d = n ? (unsigned)n : 1u;
+    w_u8(w, d);
+    return d;
+}
+static void enc_dof_values(writer *w, const rths_proto_dof_values *v) {
+    unsigned n = w_dofs(w, v->n);
+    for (unsigned d = 0; d < n && !w->bad; d++)
+        w_f64(w, v->v[d]);
+}
+static void enc_target_dofs(writer *w, const rths_proto_target *t) {
+    unsigned n = w_dofs(w, t->dofs);
     if (t->harmonics < 0 || t->harmonics > RTHS_PROTO_HARMONICS) {
         w->bad = 1;
         return;
     }
-    w_u8(w, (unsigned)t->harmonics);
-    for (int k = 0; k < t->harmonics; k++)
-        w_f64(w, t->a[k]);
-    for (int k = 0; k < t->harmonics; k++)
-        w_f64(w, t->b[k]);
+    const int h = t->harmonics;
+    w_u8(w, (unsigned)h);
+    for (unsigned d = 0; d < n && !w->bad; d++) {
+        for (int k = 0; k < h; k++)
+            w_f64(w, t->a[d * (unsigned)h + (unsigned)k]);
+        for (int k = 0; k < h; k++)
+            w_f64(w, t->b[d * (unsigned)h + (unsigned)k]);
+    }
+}
+static void enc_period_dofs(writer *w, const rths_proto_period *p) {
+    unsigned n = w_dofs(w, p->interface_dofs);
+    for (unsigned d = 0; d < n && !w->bad; d++) {
+        enc_fourier(w, d ? &p->phys_dof[d] : &p->phys);
+        enc_fourier(w, d ? &p->num_dof[d] : &p->num);
+        enc_fourier(w, d ? &p->force_dof[d] : &p->force);
+    }
 }
 static void enc_trace_batch(writer *w, const rths_proto_trace *t) {
+    unsigned n = w_dofs(w, t->dofs);
     if (t->count < 1 || t->count > RTHS_PROTO_MAX_TRACE_BATCH) {
         w->bad = 1;
         return;
     }
     w_u8(w, (unsigned)t->count);
-    for (int i = 0; i < t->count; i++) {
+    for (int i = 0; i < t->count && !w->bad; i++) {
         const rths_proto_trace_sample *s = &t->s[i];
-        const double v[6] = {s->time_s,   s->x_phys_m, s->x_num_m,
-                             s->target_m, s->force_n,  s->demand};
-        for (int j = 0; j < 6; j++)
-            w_f64(w, v[j]);
+        w_f64(w, s->time_s);
+        for (unsigned d = 0; d < n; d++) {
+            const double v[5] = {
+                d ? s->x_phys_dof_m[d] : s->x_phys_m, d ? s->x_num_dof_m[d] : s->x_num_m,
+                d ? s->target_dof_m[d] : s->target_m, d ? s->force_dof_n[d] : s->force_n,
+                d ? s->demand_dof[d] : s->demand};
+            for (int j = 0; j < 5; j++)
+                w_f64(w, v[j]);
+        }
     }
 }
 
@@ -192,6 +225,9 @@ static int payload_valid(const rths_msg *m) {
     if (m->type == RTHS_MSG_SUBSCRIBE)
         return !(m->u.subscribe.flags & ~(RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES)) &&
                m->u.subscribe.trace_decimation >= 1;
+    if (m->type == RTHS_MSG_HELLO_REPLY)
+        return m->u.hello_reply.interface_dofs >= 1 &&
+               m->u.hello_reply.interface_dofs <= RTHS_PROTO_MAX_DOFS;
     return 1;
 }
 
@@ -212,7 +248,7 @@ static void encode_payload(writer *w, const rths_msg *m) {
     }
 }
 
-size_t rths_proto_encode(const rths_msg *msg, uint8_t *buf, size_t cap) {
+static size_t encode_as(const rths_msg *msg, int version, uint8_t *buf, size_t cap) {
     if (!msg || !buf || cap < RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_CRC_SIZE) return 0;
     /* The payload is written straight after the header's slot; the header is filled afterwards,
      * once the length is known. The payload may not use the CRC's 4 bytes. */
@@ -224,7 +260,7 @@ size_t rths_proto_encode(const rths_msg *msg, uint8_t *buf, size_t cap) {
     writer hw = {buf, 0, RTHS_PROTO_HEADER_SIZE, 0};
     w_u8(&hw, RTHS_PROTO_MAGIC0);
     w_u8(&hw, RTHS_PROTO_MAGIC1);
-    w_u8(&hw, RTHS_PROTO_VERSION);
+    w_u8(&hw, (unsigned)version);
     w_u8(&hw, msg->type);
     w_u16(&hw, msg->seq);
     w_u16(&hw, (unsigned)pw.n);
@@ -234,12 +270,24 @@ size_t rths_proto_encode(const rths_msg *msg, uint8_t *buf, size_t cap) {
     return body + RTHS_PROTO_CRC_SIZE;
 }
 
+size_t rths_proto_encode(const rths_msg *msg, uint8_t *buf, size_t cap) {
+    return encode_as(msg, RTHS_PROTO_VERSION, buf, cap);
+}
+
+size_t rths_proto_encode_error_as(const rths_msg *msg, int version, uint8_t *buf, size_t cap) {
+    if (!msg || msg->type != RTHS_MSG_ERROR || version < 1 || version > RTHS_PROTO_VERSION)
+        return 0;
+    return encode_as(msg, version, buf, cap);
+}
+
 /* ---- reader ---- */
 
 typedef struct {
     const uint8_t *p;
     size_t n, pos;
     int bad;
+    char *problem; /* the message's: what was wrong, when it can be said */
+    size_t problem_cap;
 } reader;
 
 static const uint8_t *r_take(reader *r, size_t n) {
@@ -337,33 +385,71 @@ static void dec_latency_hist(reader *r, uint64_t (*h)[RTHS_PROTO_LATENCY_BINS]) 
     for (int i = 0; i < RTHS_PROTO_LATENCY_BINS; i++)
         (*h)[i] = r_u64(r);
 }
-static void dec_harmonics(reader *r, rths_proto_target *t) {
-    unsigned h = r_u8(r);
-    if (h > RTHS_PROTO_HARMONICS) {
+/* A DoF count: 1..RTHS_PROTO_MAX_DOFS, anything else malformed and named. */
+static unsigned r_dofs(reader *r) {
+    unsigned n = r_u8(r);
+    if (!r->bad && (n < 1 || n > RTHS_PROTO_MAX_DOFS)) {
+        snprintf(r->problem, r->problem_cap, "%u interface DoFs; the protocol carries 1..%d", n,
+                 RTHS_PROTO_MAX_DOFS);
         r->bad = 1;
-        return;
     }
+    return r->bad ? 0 : n;
+}
+static void dec_dof_values(reader *r, rths_proto_dof_values *v) {
+    unsigned n = r_dofs(r);
+    v->n = (int)n;
+    for (unsigned d = 0; d < n; d++)
+        v->v[d] = r_f64(r);
+}
+static void dec_target_dofs(reader *r, rths_proto_target *t) {
+    unsigned n = r_dofs(r), h = r_u8(r);
+    if (!r->bad && h > RTHS_PROTO_HARMONICS) {
+        snprintf(r->problem, r->problem_cap, "%u harmonics; the protocol carries 0..%d", h,
+                 RTHS_PROTO_HARMONICS);
+        r->bad = 1;
+    }
+    if (r->bad) return;
+    t->dofs = (int)n;
     t->harmonics = (int)h;
-    for (unsigned k = 0; k < h; k++)
-        t->a[k] = r_f64(r);
-    for (unsigned k = 0; k < h; k++)
-        t->b[k] = r_f64(r);
+    for (unsigned d = 0; d < n; d++) {
+        for (unsigned k = 0; k < h; k++)
+            t->a[d * h + k] = r_f64(r);
+        for (unsigned k = 0; k < h; k++)
+            t->b[d * h + k] = r_f64(r);
+    }
+}
+static void dec_period_dofs(reader *r, rths_proto_period *p) {
+    unsigned n = r_dofs(r);
+    p->interface_dofs = (int)n;
+    for (unsigned d = 0; d < n; d++) {
+        dec_fourier(r, d ? &p->phys_dof[d] : &p->phys);
+        dec_fourier(r, d ? &p->num_dof[d] : &p->num);
+        dec_fourier(r, d ? &p->force_dof[d] : &p->force);
+    }
 }
 static void dec_trace_batch(reader *r, rths_proto_trace *t) {
-    unsigned c = r_u8(r);
-    if (c < 1 || c > RTHS_PROTO_MAX_TRACE_BATCH) {
+    unsigned n = r_dofs(r), c = r_u8(r);
+    if (!r->bad && (c < 1 || c > RTHS_PROTO_MAX_TRACE_BATCH)) {
+        snprintf(r->problem, r->problem_cap, "%u trace samples; a frame carries 1..%d", c,
+                 RTHS_PROTO_MAX_TRACE_BATCH);
         r->bad = 1;
-        return;
     }
+    if (r->bad) return;
+    t->dofs = (int)n;
     t->count = (int)c;
     for (unsigned i = 0; i < c; i++) {
         rths_proto_trace_sample *s = &t->s[i];
         s->time_s = r_f64(r);
-        s->x_phys_m = r_f64(r);
-        s->x_num_m = r_f64(r);
-        s->target_m = r_f64(r);
-        s->force_n = r_f64(r);
-        s->demand = r_f64(r);
+        for (unsigned d = 0; d < n; d++) {
+            double v[5];
+            for (int j = 0; j < 5; j++)
+                v[j] = r_f64(r);
+            *(d ? &s->x_phys_dof_m[d] : &s->x_phys_m) = v[0];
+            *(d ? &s->x_num_dof_m[d] : &s->x_num_m) = v[1];
+            *(d ? &s->target_dof_m[d] : &s->target_m) = v[2];
+            *(d ? &s->force_dof_n[d] : &s->force_n) = v[3];
+            *(d ? &s->demand_dof[d] : &s->demand) = v[4];
+        }
     }
 }
 
@@ -384,13 +470,15 @@ static int decode_payload(reader *r, rths_msg *m) {
     return RTHS_PROTO_OK;
 }
 
-int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *consumed) {
+/* version < 0: any version, ERROR frames only (their layout is the same in every version). */
+static int decode_as(const uint8_t *buf, size_t len, rths_msg *msg, size_t *consumed, int version) {
     *consumed = 0;
     /* Judge each header byte as soon as it arrives, so garbage is refused without waiting for
      * (or trusting) a length. */
     if (len >= 1 && buf[0] != RTHS_PROTO_MAGIC0) return RTHS_PROTO_EMAGIC;
     if (len >= 2 && buf[1] != RTHS_PROTO_MAGIC1) return RTHS_PROTO_EMAGIC;
-    if (len >= 3 && buf[2] != RTHS_PROTO_VERSION) return RTHS_PROTO_EVERSION;
+    if (len >= 3 && version >= 0 && buf[2] != version) return RTHS_PROTO_EVERSION;
+    if (len >= 4 && version < 0 && buf[3] != RTHS_MSG_ERROR) return RTHS_PROTO_ETYPE;
     if (len < RTHS_PROTO_HEADER_SIZE) return RTHS_PROTO_INCOMPLETE;
     size_t plen = (size_t)buf[6] | (size_t)buf[7] << 8;
     if (plen > RTHS_PROTO_MAX_PAYLOAD) return RTHS_PROTO_EOVERSIZE;
@@ -404,8 +492,27 @@ int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *con
     msg->type = buf[3];
     msg->seq = (uint16_t)(buf[4] | buf[5] << 8);
     *consumed = total;
-    reader r = {buf + RTHS_PROTO_HEADER_SIZE, plen, 0, 0};
+    reader r = {buf + RTHS_PROTO_HEADER_SIZE, plen, 0, 0, msg->problem, sizeof msg->problem};
     return decode_payload(&r, msg);
+}
+
+int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *consumed) {
+    return decode_as(buf, len, msg, consumed, RTHS_PROTO_VERSION);
+}
+
+int rths_proto_decode_error_any_version(const uint8_t *buf, size_t len, rths_msg *msg,
+                                        size_t *consumed) {
+    return decode_as(buf, len, msg, consumed, -1);
+}
+
+int rths_proto_frame_version(const uint8_t *buf, size_t len) {
+    if (len < 3 || buf[0] != RTHS_PROTO_MAGIC0 || buf[1] != RTHS_PROTO_MAGIC1) return -1;
+    return buf[2];
+}
+
+void rths_proto_version_message(char *out, size_t cap, int peer_version) {
+    snprintf(out, cap, "peer speaks rths protocol version %d; this build speaks version %d",
+             peer_version, RTHS_PROTO_VERSION);
 }
 
 void rths_msg_init(rths_msg *msg, int type, uint16_t seq) {

@@ -59,8 +59,9 @@ typedef struct loop_cmd {
     int type;
     int reason; /* CMD_DISARM: rths_disarm_reason */
     double frequency_hz, amplitude_n;
-    int harmonics;
-    double a[RTHS_PROTO_HARMONICS], b[RTHS_PROTO_HARMONICS];
+    int dofs, harmonics; /* CMD_TARGET: DoF d's coefficients at a[d * harmonics + k - 1] */
+    double a[RTHS_PROTO_MAX_DOFS * RTHS_PROTO_HARMONICS],
+        b[RTHS_PROTO_MAX_DOFS * RTHS_PROTO_HARMONICS];
 } loop_cmd;
 
 typedef struct client {
@@ -100,10 +101,11 @@ struct rths_server {
     _Atomic uint64_t samples, overruns, resyncs, worst_late_ns, worst_step_ns, step_sum_ns;
     atomic_int armed, fault, last_disarm, rt_flags;
     _Atomic uint64_t freq_bits, amp_bits;
-    _Atomic uint64_t time_bits;      /* controller time after the last step, s */
-    _Atomic uint64_t engine_dropped; /* periods the step's ring dropped */
-    _Atomic uint32_t *lat_hist;      /* LAT_BINS + 1 */
-    _Atomic uint32_t *step_hist;     /* STEP_BINS + 1 */
+    _Atomic uint64_t time_bits;                        /* controller time after the last step, s */
+    _Atomic uint64_t engine_dropped;                   /* periods the step's ring dropped */
+    _Atomic uint64_t demand_bits[RTHS_PROTO_MAX_DOFS]; /* every actuator's demand, V */
+    _Atomic uint32_t *lat_hist;                        /* LAT_BINS + 1 */
+    _Atomic uint32_t *step_hist;                       /* STEP_BINS + 1 */
 
     /* the viewer's scope: decimation set by the viewer (0: off), the ring filled by the loop */
     _Atomic uint32_t scope_decimation;
@@ -222,7 +224,7 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         atomic_store_explicit(&s->amp_bits, dbits(c->amplitude_n), memory_order_relaxed);
         break;
     case CMD_TARGET:
-        rths_engine_set_target(e, c->harmonics, c->a, c->b);
+        rths_engine_set_target(e, c->dofs, c->harmonics, c->a, c->b);
         break;
     case CMD_RESET:
         rths_engine_reset_fault(e);
@@ -331,6 +333,10 @@ static void publish_state(rths_server *s, int *prev_armed) {
                           memory_order_relaxed);
     atomic_store_explicit(&s->engine_dropped, (uint64_t)rths_engine_dropped_periods(s->engine),
                           memory_order_relaxed);
+    double demand_v[RTHS_PROTO_MAX_DOFS];
+    rths_engine_demands(s->engine, demand_v);
+    for (int d = 0; d < s->info.interface_dofs; d++)
+        atomic_store_explicit(&s->demand_bits[d], dbits(demand_v[d]), memory_order_relaxed);
     add64(&s->samples, 1);
 }
 
@@ -477,6 +483,9 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
             bin++;
         st->latency_hist[bin] += atomic_load_explicit(&s->lat_hist[i], memory_order_relaxed);
     }
+    st->demand_v.n = s->info.interface_dofs;
+    for (int d = 0; d < s->info.interface_dofs; d++)
+        st->demand_v.v[d] = bitsd(atomic_load_explicit(&s->demand_bits[d], memory_order_relaxed));
 }
 
 /* The shared names (signals.h), with "no" for none as the controller page's API has it. */
@@ -496,10 +505,9 @@ static void handle_hello(rths_server *s, const rths_msg *m) {
     client *c = &s->c;
     if (m->u.hello.version != RTHS_PROTO_VERSION) {
         char msg[RTHS_PROTO_MAX_TEXT + 1];
-        snprintf(msg, sizeof msg, "this controller speaks protocol %d, not %u", RTHS_PROTO_VERSION,
-                 m->u.hello.version);
+        rths_proto_version_message(msg, sizeof msg, m->u.hello.version);
         send_error(s, m->seq, RTHS_PROTO_EVERSION, m->type, msg);
-        drop_client(s, "protocol version mismatch");
+        drop_client(s, msg);
         return;
     }
     c->hello = 1;
@@ -507,6 +515,7 @@ static void handle_hello(rths_server *s, const rths_msg *m) {
     rths_msg_init(&r, RTHS_MSG_HELLO_REPLY, m->seq);
     r.u.hello_reply.version = RTHS_PROTO_VERSION;
     r.u.hello_reply.max_harmonics = (uint8_t)s->info.max_harmonics;
+    r.u.hello_reply.interface_dofs = (uint8_t)s->info.interface_dofs;
     r.u.hello_reply.sample_period_s = s->info.sample_period_s;
     r.u.hello_reply.watchdog_s = s->opt.watchdog_s;
     r.u.hello_reply.noise_level_m = s->info.noise_level_m;
@@ -548,16 +557,27 @@ static int check_target(rths_server *s, const rths_msg *m, loop_cmd *cmd) {
         send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
         return -1;
     }
-    double peak = rths_target_peak_bound_m(t->harmonics, t->a, t->b);
-    if (peak > s->info.displacement_limit_m) {
-        snprintf(msg, sizeof msg,
-                 "target of up to %g m is beyond the displacement limit %g m "
-                 "(controller.limits.displacement_m)",
-                 peak, s->info.displacement_limit_m);
+    const int dofs = t->dofs ? t->dofs : 1;
+    if (dofs != s->info.interface_dofs) {
+        snprintf(msg, sizeof msg, "target for %d interface DoF(s); this controller drives %d", dofs,
+                 s->info.interface_dofs);
         send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
         return -1;
     }
+    for (int d = 0; d < dofs; d++) {
+        const int off = d * t->harmonics;
+        double peak = rths_target_peak_bound_m(t->harmonics, t->a + off, t->b + off);
+        if (peak > s->info.displacement_limit_m) {
+            snprintf(msg, sizeof msg,
+                     "target of up to %g m (interface DoF %d) is beyond the displacement limit "
+                     "%g m (controller.limits.displacement_m)",
+                     peak, d + 1, s->info.displacement_limit_m);
+            send_error(s, m->seq, RTHS_PROTO_ERANGE, m->type, msg);
+            return -1;
+        }
+    }
     cmd->type = CMD_TARGET;
+    cmd->dofs = dofs;
     cmd->harmonics = t->harmonics;
     memcpy(cmd->a, t->a, sizeof cmd->a);
     memcpy(cmd->b, t->b, sizeof cmd->b);
@@ -655,6 +675,23 @@ static void handle(rths_server *s, const rths_msg *m) {
     reply_ack(s, m, t);
 }
 
+/* A frame of another protocol version: the refusal names both versions, framed in the peer's
+ * version when this build can write it (the ERROR layout is the same in every version), so an
+ * older host reads why; then the connection closes (the stream cannot be read). */
+static void refuse_version(rths_server *s, const uint8_t *frame, size_t len) {
+    client *c = &s->c;
+    int peer = rths_proto_frame_version(frame, len);
+    char why[RTHS_PROTO_MAX_TEXT + 1];
+    rths_proto_version_message(why, sizeof why, peer);
+    rths_msg m;
+    rths_msg_error(&m, 0, RTHS_PROTO_EVERSION, 0, "%s; closing the connection", why);
+    size_t room = TX_CAP - c->tx_len;
+    size_t n = rths_proto_encode_error_as(&m, peer, c->tx + c->tx_len, room);
+    if (!n) n = rths_proto_encode(&m, c->tx + c->tx_len, room);
+    c->tx_len += n;
+    drop_client(s, why);
+}
+
 static void read_client(rths_server *s) {
     client *c = &s->c;
     ssize_t k = recv(c->fd, c->rx + c->rx_len, RX_CAP - c->rx_len, MSG_DONTWAIT);
@@ -670,6 +707,10 @@ static void read_client(rths_server *s) {
         size_t used = 0;
         int st = rths_proto_decode(c->rx + off, c->rx_len - off, &m, &used);
         if (st == RTHS_PROTO_INCOMPLETE) break;
+        if (st == RTHS_PROTO_EVERSION) {
+            refuse_version(s, c->rx + off, c->rx_len - off);
+            return;
+        }
         if (rths_proto_status_is_fatal(st)) {
             char why[160];
             snprintf(why, sizeof why, "%s; closing the connection", rths_proto_status_name(st));
@@ -684,8 +725,8 @@ static void read_client(rths_server *s) {
             if (st == RTHS_PROTO_ETYPE)
                 snprintf(why, sizeof why, "unknown message type 0x%02x", m.type);
             else
-                snprintf(why, sizeof why, "%s for %s (type 0x%02x)", rths_proto_status_name(st),
-                         rths_msg_type_name(m.type), m.type);
+                snprintf(why, sizeof why, "%s for %s (type 0x%02x)%s%s", rths_proto_status_name(st),
+                         rths_msg_type_name(m.type), m.type, m.problem[0] ? ": " : "", m.problem);
             send_error(s, m.seq, st, m.type, why);
             continue;
         }
@@ -754,6 +795,7 @@ static void pump_streams(rths_server *s) {
         if (c->batch_n == RTHS_PROTO_MAX_TRACE_BATCH) {
             rths_msg_init(&m, RTHS_MSG_TRACE, 0);
             m.u.trace.count = c->batch_n;
+            m.u.trace.dofs = 1; /* the loop's trace samples carry the first interface DoF */
             memcpy(m.u.trace.s, c->batch, sizeof c->batch);
             queue_frame(s, &m, 0);
             c->batch_n = 0;
@@ -763,6 +805,7 @@ static void pump_streams(rths_server *s) {
     if (c->fd >= 0 && c->batch_n) {
         rths_msg_init(&m, RTHS_MSG_TRACE, 0);
         m.u.trace.count = c->batch_n;
+        m.u.trace.dofs = 1;
         memcpy(m.u.trace.s, c->batch, sizeof c->batch[0] * (size_t)c->batch_n);
         queue_frame(s, &m, 0);
         c->batch_n = 0;

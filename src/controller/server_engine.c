@@ -13,6 +13,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+_Static_assert(RTHS_PROTO_MAX_DOFS == RTHS_MAX_INTERFACE_DOFS,
+               "frames carry every interface DoF the step drives");
+_Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
+               "PERIOD frames carry exactly the step's harmonics");
+
 struct rths_engine {
     rths_setup setup;
     int have_setup;
@@ -37,12 +42,12 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
     if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
-    /* protocol version 1 carries one interface DoF's target and records */
-    if (!rc && e->setup.split.n_int != 1)
+    /* protocol version 2 carries every interface DoF's target and records, up to its maximum */
+    if (!rc && e->setup.split.n_int > RTHS_PROTO_MAX_DOFS)
         rc = rths_error_set(err, RTHS_EINPUT,
-                            "the controller process drives one interface DoF (protocol version "
-                            "1); this split has %d: run n > 1 on the virtual rig",
-                            e->setup.split.n_int);
+                            "this split has %d interface DoFs; the controller link carries at "
+                            "most %d",
+                            e->setup.split.n_int, RTHS_PROTO_MAX_DOFS);
     /* the device is loaded, checked and opened here, before the server can arm anything; the
      * loop starts disarmed: nothing is excited until the host arms it */
     if (!rc) rc = rths_sample_loop_create_configured(cfg, &e->setup, &copt, &e->loop, err);
@@ -56,12 +61,13 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     const rths_io_device_info *device = rths_sample_loop_device(e->loop);
     info->noise_level_m = device->displacement_noise_m;
     info->max_harmonics = RTHS_MAX_HARMONICS;
+    info->interface_dofs = rths_controller_interface_dofs(e->ctl);
     info->ramp_time_s = copt.ramp_time_s;
     info->min_frequency_hz = copt.min_frequency_hz;
     info->displacement_limit_m = copt.displacement_limit_m;
     snprintf(info->description, sizeof info->description,
-             "rths controller: %d DoF assembly, %.0f Hz; %s", e->setup.assembly.n,
-             copt.sample_rate_hz, device->description);
+             "rths controller: %d DoF assembly, %d interface DoF(s), %.0f Hz; %.120s",
+             e->setup.assembly.n, info->interface_dofs, copt.sample_rate_hz, device->description);
     *out = e;
     return RTHS_OK;
 }
@@ -76,12 +82,14 @@ void rths_engine_destroy(rths_engine *e) {
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig) {
     rths_controller_output o;
     rths_sample_loop_run(e->loop, &o);
-    sig->time_s = o.time_s;
-    sig->x_phys_m = o.x_phys_m;
-    sig->x_num_m = o.x_num_m;
-    sig->target_m = o.target_m;
-    sig->force_n = o.force_n;
-    sig->demand = o.demand_v;
+    /* the first interface DoF's signals (what the step reports per sample); the other DoFs'
+     * entries stay zero, and traces carry one DoF */
+    *sig = (rths_proto_trace_sample){.time_s = o.time_s,
+                                     .x_phys_m = o.x_phys_m,
+                                     .x_num_m = o.x_num_m,
+                                     .target_m = o.target_m,
+                                     .force_n = o.force_n,
+                                     .demand = o.demand_v};
 }
 
 int rths_engine_arm(rths_engine *e) {
@@ -101,8 +109,13 @@ void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitu
     rths_controller_set_forcing(e->ctl, frequency_hz, amplitude_n);
 }
 
-void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b) {
-    rths_controller_set_target(e->ctl, harmonics, a, b);
+void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,
+                            const double *b) {
+    rths_controller_set_target_dofs(e->ctl, dofs, harmonics, a, b);
+}
+
+void rths_engine_demands(const rths_engine *e, double *demand_v) {
+    rths_controller_demands(e->ctl, demand_v);
 }
 
 void rths_engine_reset_fault(rths_engine *e) {
@@ -149,5 +162,12 @@ int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
     copy_fourier(&p.phys, &out->phys);
     copy_fourier(&p.num, &out->num);
     copy_fourier(&p.force, &out->force);
+    /* the record carries every interface DoF (a one-DoF step may leave interface_dofs 0) */
+    out->interface_dofs = p.interface_dofs > 1 ? p.interface_dofs : 1;
+    for (int d = 1; d < out->interface_dofs; d++) {
+        copy_fourier(&p.phys_dof[d], &out->phys_dof[d]);
+        copy_fourier(&p.num_dof[d], &out->num_dof[d]);
+        copy_fourier(&p.force_dof[d], &out->force_dof[d]);
+    }
     return 1;
 }

@@ -14,6 +14,7 @@ typedef struct rths_engine_info {
     double sample_period_s;
     double noise_level_m; /* displacement noise std of the plant's sensors, m */
     int max_harmonics;
+    int interface_dofs;          /* interface DoFs the loop drives, one actuator each */
     double ramp_time_s;          /* disarm/fault ramp of demand, forcing and target to zero, s */
     double min_frequency_hz;     /* controller.min_frequency_hz: SET_FORCING below is refused */
     double displacement_limit_m; /* controller.limits.displacement_m: targets beyond are refused */
@@ -33,7 +34,11 @@ int rths_engine_arm(rths_engine *e);
 void rths_engine_disarm(rths_engine *e);        /* loop: ramp excitation and target to zero */
 void rths_engine_trip_watchdog(rths_engine *e); /* loop: latch the watchdog fault + disarm */
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
-void rths_engine_set_target(rths_engine *e, int harmonics, const double *a, const double *b);
+/* loop: targets of every interface DoF, DoF d's coefficients at a[d * harmonics + k - 1] */
+void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,
+                            const double *b);
+/* loop: every actuator's demand after the last sample, V (info.interface_dofs of them) */
+void rths_engine_demands(const rths_engine *e, double *demand_v);
 void rths_engine_reset_fault(rths_engine *e);           /* loop */
 int rths_engine_armed(const rths_engine *e);            /* loop */
 int rths_engine_fault(const rths_engine *e);            /* loop; rths_rig_fault numbering */

@@ -22,6 +22,8 @@
 
 _Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
                "PERIOD frames carry exactly the rig's harmonics");
+_Static_assert(RTHS_PROTO_MAX_DOFS == RTHS_MAX_INTERFACE_DOFS,
+               "frames carry every interface DoF a rig drives");
 
 #define RX_CAP (64 * 1024)
 
@@ -37,6 +39,7 @@ typedef struct remote {
     size_t rx_len;
     /* controller facts from HELLO_REPLY */
     double h, watchdog_s, noise_m;
+    int interface_dofs; /* the controller's: every target and record has this many */
     char controller_name[RTHS_PROTO_MAX_TEXT + 1];
     /* periods received and not yet handed out (ring, grows) */
     rths_proto_period *q;
@@ -50,8 +53,9 @@ typedef struct remote {
     /* the last settings, replayed after a reconnect */
     int have_forcing;
     double frequency_hz, amplitude_n;
-    int harmonics;
-    double ta[RTHS_MAX_HARMONICS], tb[RTHS_MAX_HARMONICS];
+    int harmonics; /* DoF d's coefficients at ta[d * harmonics + k - 1] */
+    double ta[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
+    double tb[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
     /* trace collection in progress */
     int tracing;
     rths_trace_sample *trace_out;
@@ -190,6 +194,19 @@ static void absorb(remote *r, const rths_msg *m) {
     }
 }
 
+/* A frame of another protocol version: the link is unusable; the message names both versions
+ * and, when the controller's frame is an ERROR (its layout is the same in every version), what
+ * the controller said. */
+static int version_fail(remote *r, rths_error *err) {
+    char why[RTHS_PROTO_MAX_TEXT + 1];
+    rths_proto_version_message(why, sizeof why, rths_proto_frame_version(r->rx, r->rx_len));
+    rths_msg m;
+    size_t used;
+    if (rths_proto_decode_error_any_version(r->rx, r->rx_len, &m, &used) == RTHS_PROTO_OK)
+        return link_fail(r, err, "%s (the controller says: %s)", why, m.u.error.message);
+    return link_fail(r, err, "%s", why);
+}
+
 /* Reads one frame, waiting at most timeout_s. RTHS_OK with *got = 1 (frame in m) or 0 (timeout). */
 static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_error *err) {
     double deadline = rths_monotonic_s() + timeout_s;
@@ -203,9 +220,10 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
             *got = 1;
             return RTHS_OK;
         }
+        if (st == RTHS_PROTO_EVERSION) return version_fail(r, err);
         if (st != RTHS_PROTO_INCOMPLETE)
-            return link_fail(r, err, "bad frame from the controller: %s",
-                             rths_proto_status_name(st));
+            return link_fail(r, err, "bad frame from the controller: %s%s%s",
+                             rths_proto_status_name(st), m->problem[0] ? ": " : "", m->problem);
         double left = deadline - rths_monotonic_s();
         if (left <= 0) return RTHS_OK;
         struct pollfd pfd = {r->fd, POLLIN, 0};
@@ -294,10 +312,11 @@ static int send_forcing(remote *r, rths_error *err) {
 static int send_target(remote *r, rths_error *err) {
     rths_msg m, reply;
     rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
+    m.u.target.dofs = r->interface_dofs;
     m.u.target.harmonics = r->harmonics;
-    for (int k = 0; k < r->harmonics; k++) {
-        m.u.target.a[k] = r->ta[k];
-        m.u.target.b[k] = r->tb[k];
+    for (int i = 0; i < r->interface_dofs * r->harmonics; i++) {
+        m.u.target.a[i] = r->ta[i];
+        m.u.target.b[i] = r->tb[i];
     }
     int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
     if (rc) return rc;
@@ -368,12 +387,21 @@ static int connect_and_hello(remote *r, rths_error *err) {
         !(reply.u.hello_reply.sample_period_s > 0)) {
         close(r->fd);
         r->fd = -1;
-        return rths_error_set(err, RTHS_EFAIL,
-                              "controller %s speaks protocol %u with sample period %g s; this host "
-                              "needs protocol %d",
-                              r->uri, reply.u.hello_reply.version,
-                              reply.u.hello_reply.sample_period_s, RTHS_PROTO_VERSION);
+        char why[RTHS_PROTO_MAX_TEXT + 1];
+        rths_proto_version_message(why, sizeof why, reply.u.hello_reply.version);
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: %s; sample period %g s", r->uri, why,
+                              reply.u.hello_reply.sample_period_s);
     }
+    if (r->interface_dofs && reply.u.hello_reply.interface_dofs != r->interface_dofs) {
+        /* a reconnection to a controller configured otherwise: the host's targets would not fit */
+        int had = r->interface_dofs;
+        close(r->fd);
+        r->fd = -1;
+        return rths_error_set(err, RTHS_EFAIL,
+                              "controller %s now drives %d interface DoF(s); this run drives %d",
+                              r->uri, reply.u.hello_reply.interface_dofs, had);
+    }
+    r->interface_dofs = reply.u.hello_reply.interface_dofs;
     r->h = reply.u.hello_reply.sample_period_s;
     r->watchdog_s = reply.u.hello_reply.watchdog_s;
     r->noise_m = reply.u.hello_reply.noise_level_m;
@@ -455,21 +483,28 @@ static int r_set_forcing(void *self, double frequency_hz, double amplitude_n, rt
     return rc;
 }
 
-static int r_set_target(void *self, int harmonics, const double *a, const double *b,
-                        rths_error *err) {
+static int r_set_target_dofs(void *self, int dofs, int harmonics, const double *a, const double *b,
+                             rths_error *err) {
     remote *r = self;
     int rc = check_usable(r, err);
     if (rc) return rc;
+    if (dofs != r->interface_dofs)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "target for %d interface DoF(s); controller %s drives %d", dofs,
+                              r->uri, r->interface_dofs);
+    if (harmonics < 0 || harmonics > RTHS_MAX_HARMONICS)
+        return rths_error_set(err, RTHS_EINPUT, "%d harmonics: 0..%d supported", harmonics,
+                              RTHS_MAX_HARMONICS);
     /* a refused target (e.g. beyond the displacement limit) must not be the one restored on
      * reconnection: keep the last accepted one */
     int old_harmonics = r->harmonics;
-    double old_a[RTHS_MAX_HARMONICS], old_b[RTHS_MAX_HARMONICS];
+    double old_a[sizeof r->ta / sizeof r->ta[0]], old_b[sizeof r->tb / sizeof r->tb[0]];
     memcpy(old_a, r->ta, sizeof old_a);
     memcpy(old_b, r->tb, sizeof old_b);
     r->harmonics = harmonics;
-    for (int k = 0; k < harmonics; k++) {
-        r->ta[k] = a[k];
-        r->tb[k] = b[k];
+    for (int i = 0; i < dofs * harmonics; i++) {
+        r->ta[i] = a[i];
+        r->tb[i] = b[i];
     }
     if ((rc = send_target(r, err))) {
         r->harmonics = old_harmonics;
@@ -477,6 +512,35 @@ static int r_set_target(void *self, int harmonics, const double *a, const double
         memcpy(r->tb, old_b, sizeof old_b);
     }
     return rc;
+}
+
+static int r_set_target(void *self, int harmonics, const double *a, const double *b,
+                        rths_error *err) {
+    return r_set_target_dofs(self, 1, harmonics, a, b, err);
+}
+
+static int r_interface_dofs(void *self) {
+    return ((remote *)self)->interface_dofs;
+}
+
+/* A PERIOD frame as the rig's record: every interface DoF, [0] repeating the first (signals.h). */
+static void to_period(const rths_proto_period *p, rths_period *o) {
+    memset(o, 0, sizeof *o);
+    o->frequency_hz = p->frequency_hz;
+    o->end_time_s = p->end_time_s;
+    o->samples = (int)p->samples;
+    to_fourier(&p->phys, &o->phys);
+    to_fourier(&p->num, &o->num);
+    to_fourier(&p->force, &o->force);
+    o->interface_dofs = p->interface_dofs > 1 ? p->interface_dofs : 1;
+    o->phys_dof[0] = o->phys;
+    o->num_dof[0] = o->num;
+    o->force_dof[0] = o->force;
+    for (int d = 1; d < o->interface_dofs; d++) {
+        to_fourier(&p->phys_dof[d], &o->phys_dof[d]);
+        to_fourier(&p->num_dof[d], &o->num_dof[d]);
+        to_fourier(&p->force_dof[d], &o->force_dof[d]);
+    }
 }
 
 static int r_run_periods(void *self, int count, rths_period *out, rths_error *err) {
@@ -490,14 +554,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
     int n = 0;
     while (n < count) {
         if (r->q_len) {
-            const rths_proto_period *p = &r->q[r->q_head];
-            rths_period *o = &out[n++];
-            o->frequency_hz = p->frequency_hz;
-            o->end_time_s = p->end_time_s;
-            o->samples = (int)p->samples;
-            to_fourier(&p->phys, &o->phys);
-            to_fourier(&p->num, &o->num);
-            to_fourier(&p->force, &o->force);
+            to_period(&r->q[r->q_head], &out[n++]);
             r->q_head = (r->q_head + 1) % r->q_cap;
             r->q_len--;
             last_progress = rths_monotonic_s();
@@ -614,6 +671,8 @@ static const rths_rig_ops remote_ops = {
     .reset_fault = r_reset_fault,
     .noise_level_m = r_noise_level_m,
     .destroy = r_destroy,
+    .set_target_dofs = r_set_target_dofs,
+    .interface_dofs = r_interface_dofs,
 };
 
 int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths_rig **out,
