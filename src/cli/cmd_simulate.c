@@ -698,6 +698,13 @@ int rths_cmd_simulate(int argc, char **argv) {
     if (rig_uri) {
         /* a controller process: its own rig and controller sections apply there */
         if ((rc = rths_remote_rig_create(rig_uri, NULL, &rig, &err))) goto done;
+        if (rths_rig_interface_dofs(rig) != setup.split.n_int) {
+            rc = rths_error_set(&err, RTHS_EINPUT,
+                                "controller %s drives %d interface DoF(s); this configuration's "
+                                "split.interface has %d",
+                                rig_uri, rths_rig_interface_dofs(rig), setup.split.n_int);
+            goto done;
+        }
     } else if (!pure_delay &&
                (rc = create_virtual_rig(cfg, &setup, &cli, a.feedback, &rig, &err))) {
         goto done;
