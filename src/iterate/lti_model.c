@@ -6,14 +6,13 @@
 #include <math.h>
 #include <string.h>
 
-enum { UMAX = 2 * DOF_MAX + 2, RHS_MAX = 3 * DOF_MAX };
+enum { UMAX = 2 * DOF_MAX + 2, RHS_MAX = 2 * DOF_MAX };
 
 /* Normal equations of harmonic k's fit for n DoFs. Unknowns of every residual row d (and response
  * row): G's entries (d, e) as lines, coefficients of 1 and d_w = (w - omega) / spread, at
  * 2 e + j, then f_d's at 2 n + j; targets scaled by zs. The rows share the regressor, so one
  * normal matrix serves them all. Right-hand sides (leading dimension U): Phi_d at column d, x_d at
- * n + d, and the unit vectors at G's constant terms 2 e (column 2 n + e) for the covariance of
- * those terms. */
+ * n + d. */
 typedef struct {
     int U, count;
     double complex rows[RTHS_LTI_HISTORY][UMAX];
@@ -30,8 +29,6 @@ static void dofs_normal_equations(const corrector_memory *mem, int P, int n, int
     memset(ne, 0, sizeof *ne);
     ne->U = U;
     ne->count = mem->history_count;
-    for (int e = 0; e < n; e++)
-        ne->atb[(2 * n + e) * U + 2 * e] = 1.0;
     for (int h = 0; h < mem->history_count; h++) {
         double d = (mem->history[h].omega_rad_s - omega) / spread;
         double complex *row = ne->rows[h];
@@ -62,58 +59,88 @@ static double complex fitted(const dofs_normal *ne, int h, int col) {
     return v;
 }
 
-/* Per DoF d', the variances of the fundamental's matched estimate x - K Phi (K = R G^-1):
- * delta K Phi = delta R v - K delta G v with v = G^-1 Phi, the rows of G and R independent with
- * the residual variances of their fits, so Var((delta K Phi)_d') = v^H C v (s_x,d'^2 +
- * sum_d |K_d'd|^2 s_phi,d^2), C the covariance factor of G's constant terms; half of it for the
- * amplitude (the error's phase is random). The scatter of x - K Phi about the fit, per
- * evaluation, is the noise as the evaluations show it. */
-static int dofs_variances(const corrector_memory *mem, int P, int n, const dofs_normal *ne,
-                          double zs, const double complex *G, const double complex *R,
-                          const double *phi, lti_model *out) {
-    int N = P / n, U = ne->U, dof = ne->count - U;
-    double complex ginv[DOF_MAX * DOF_MAX], a[DOF_MAX * DOF_MAX], K[DOF_MAX * DOF_MAX] = {0};
-    double complex v[DOF_MAX];
-    memcpy(a, G, sizeof(double complex) * (size_t)(n * n));
-    for (int j = 0; j < n * n; j++)
-        ginv[j] = j % (n + 1) == 0 ? 1.0 : 0.0;
-    if (rths_cmat_solve(n, n, a, ginv) != 0) return -1;
-    for (int d = 0; d < n; d++)
-        for (int e = 0; e < n; e++)
-            for (int q = 0; q < n; q++)
-                K[d + n * e] += R[d + n * q] * ginv[q + n * e];
+/* K Phi = R G^-1 Phi of the fundamental from solved normal equations (solution columns d: G's
+ * row d, n + d: R's row d), per DoF into kphi. Returns 0, or -1 if G is singular. */
+static int move_of(int P, int n, int U, const double complex *sol, double zs, const double *phi,
+                   double complex *kphi) {
+    int N = P / n;
+    double complex G[DOF_MAX * DOF_MAX], v[DOF_MAX];
     for (int d = 0; d < n; d++) {
-        v[d] = 0;
+        v[d] = pair_value(phi, P, d * N);
         for (int e = 0; e < n; e++)
-            v[d] += ginv[d + n * e] * pair_value(phi, P, e * N);
+            G[d + n * e] = sol[d * U + 2 * e] / zs;
     }
-    double complex qv = 0;
-    for (int e = 0; e < n; e++)
-        for (int f = 0; f < n; f++)
-            qv += conj(v[f]) * ne->atb[(2 * n + e) * U + 2 * f] * v[e];
-    double quad = fabs(creal(qv)) / (zs * zs), var_phi[DOF_MAX] = {0}, var_x[DOF_MAX] = {0};
-    double scatter[DOF_MAX] = {0};
-    for (int h = 0; h < ne->count; h++) {
-        double complex dphi[DOF_MAX], dx[DOF_MAX];
-        for (int d = 0; d < n; d++) {
-            dphi[d] = pair_value(mem->history[h].phi, P, d * N) - fitted(ne, h, d);
-            dx[d] = pair_value(mem->history[h].response, P, d * N) - fitted(ne, h, n + d);
-            var_phi[d] += creal(conj(dphi[d]) * dphi[d]) / dof;
-            var_x[d] += creal(conj(dx[d]) * dx[d]) / dof;
+    if (rths_cmat_solve(n, 1, G, v) != 0) return -1;
+    for (int d = 0; d < n; d++) {
+        kphi[d] = 0;
+        for (int e = 0; e < n; e++)
+            kphi[d] += sol[(n + d) * U + 2 * e] / zs * v[e];
+    }
+    return 0;
+}
+
+/* Per DoF, the variances of the fundamental's matched estimate x - K Phi (K = R G^-1), half of
+ * each complex variance for the amplitude (the error's phase is random):
+ * - model_var, the uncertainty of K Phi, by the jackknife over the history (the fit without each
+ *   evaluation in turn). The first-order propagation of the fit's covariance is useless here: the
+ *   targets of neighbouring points are nearly parallel (both interface DoFs move in the mode's
+ *   shape), so the entries of G and R are separately ill-determined (covariance factors of 1e7)
+ *   while K Phi along the branch is not; on the two-interface example the propagation claimed
+ *   standard errors up to 19 % where the estimates were 0.6 % off at most;
+ * - scatter_var, the scatter of x - K Phi about the fit per evaluation: the noise as the
+ *   evaluations show it, with the noise the two sides share (the physical side's, in both x and
+ *   Phi) cancelled as it is in the estimate. */
+static int dofs_variances(const corrector_memory *mem, int P, int n, const dofs_normal *ne,
+                          const double complex *raw_atb, double zs, const double *phi,
+                          lti_model *out) {
+    int N = P / n, U = ne->U, count = ne->count, dof = count - U;
+    double complex kphi[RTHS_LTI_HISTORY][DOF_MAX], mean[DOF_MAX] = {0};
+    for (int h = 0; h < count; h++) {
+        const double complex *row = ne->rows[h];
+        double complex ata[UMAX * UMAX], atb[UMAX * 2 * DOF_MAX];
+        for (int p = 0; p < U; p++) {
+            for (int q = 0; q < U; q++)
+                ata[p + U * q] = ne->ata[p + U * q] - conj(row[p]) * row[q];
+            for (int r = 0; r < n; r++) {
+                atb[r * U + p] =
+                    raw_atb[r * U + p] - conj(row[p]) * pair_value(mem->history[h].phi, P, r * N);
+                atb[(n + r) * U + p] =
+                    raw_atb[(n + r) * U + p] -
+                    conj(row[p]) * pair_value(mem->history[h].response, P, r * N);
+            }
         }
+        if (rths_cmat_solve(U, 2 * n, ata, atb) != 0 || move_of(P, n, U, atb, zs, phi, kphi[h]))
+            return -1;
+        for (int d = 0; d < n; d++)
+            mean[d] += kphi[h][d] / count;
+    }
+    double complex K[DOF_MAX * DOF_MAX] = {0};
+    double jack[DOF_MAX] = {0}, scatter[DOF_MAX] = {0};
+    for (int h = 0; h < count; h++)
         for (int d = 0; d < n; d++) {
-            double complex m = dx[d];
+            double complex dev = kphi[h][d] - mean[d];
+            jack[d] += (count - 1.0) / count * creal(conj(dev) * dev);
+        }
+    /* K itself, for the scatter of x - K Phi: K e_e, column by column */
+    for (int e = 0; e < n; e++) {
+        double unit[2 * RTHS_MAX_HARMONICS] = {0};
+        double complex col[DOF_MAX];
+        unit[e * N] = 1.0;
+        if (move_of(P, n, U, ne->atb, zs, unit, col) != 0) return -1;
+        for (int d = 0; d < n; d++)
+            K[d + n * e] = col[d];
+    }
+    for (int h = 0; h < count; h++)
+        for (int d = 0; d < n; d++) {
+            double complex m =
+                pair_value(mem->history[h].response, P, d * N) - fitted(ne, h, n + d);
             for (int e = 0; e < n; e++)
-                m -= K[d + n * e] * dphi[e];
+                m -= K[d + n * e] * (pair_value(mem->history[h].phi, P, e * N) - fitted(ne, h, e));
             scatter[d] += creal(conj(m) * m) / dof;
         }
-    }
     for (int d = 0; d < n; d++) {
-        double spread = var_x[d];
-        for (int e = 0; e < n; e++)
-            spread += creal(conj(K[d + n * e]) * K[d + n * e]) * var_phi[e];
-        out->model_var[d] = 0.5 * quad * spread;
         out->scatter_var[d] = 0.5 * scatter[d];
+        out->model_var[d] = 0.5 * jack[d];
     }
     return 0;
 }
@@ -137,9 +164,10 @@ static int dofs_fit_harmonic(const corrector_memory *mem, int P, int n, int k, d
     /* as for one DoF: a rank-deficient history (targets that never left one direction at one
      * frequency) would still give made-up gains; demand a well-conditioned fit */
     if (!(rths_cmat_hermitian_eigen_ratio(U, ne.ata) > 1e-10)) return -1;
-    double complex ata[UMAX * UMAX];
+    double complex ata[UMAX * UMAX], raw_atb[UMAX * RHS_MAX];
     memcpy(ata, ne.ata, sizeof ata);
-    if (rths_cmat_solve(U, 3 * n, ata, ne.atb) != 0) return -1;
+    memcpy(raw_atb, ne.atb, sizeof raw_atb);
+    if (rths_cmat_solve(U, 2 * n, ata, ne.atb) != 0) return -1;
     double complex *G = out->g[k], *R = out->r[k], f[DOF_MAX], a[DOF_MAX * DOF_MAX];
     for (int d = 0; d < n; d++) {
         f[d] = ne.atb[d * U + 2 * n];
@@ -156,7 +184,7 @@ static int dofs_fit_harmonic(const corrector_memory *mem, int P, int n, int k, d
         if (!finite_complex(f[d])) return -1;
         out->z[k][d] = f[d];
     }
-    if (k == 0 && phi) return dofs_variances(mem, P, n, &ne, zs, G, R, phi, out);
+    if (k == 0 && phi) return dofs_variances(mem, P, n, &ne, raw_atb, zs, phi, out);
     return 0;
 }
 
