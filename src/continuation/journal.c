@@ -295,7 +295,9 @@ static int get_interface_dofs(json_object *o, rths_solution *s) {
         get_dof_fouriers(o, "phys_dof_se", e->phys_dof_se, dofs) ||
         get_dof_fouriers(o, "num_dof_se", e->num_dof_se, dofs))
         return -1;
+    if (s->harmonics % dofs) return -1;
     e->interface_dofs = dofs;
+    e->harmonics = s->harmonics / dofs; /* the solution's harmonics count (DoF, harmonic) pairs */
     if (!json_object_object_get_ex(o, "dof_amplitude_m", &v)) return 0;
     s->interface_dofs = dofs;
     return get_arr(o, "dof_amplitude_m", s->dof_amplitude_m, dofs) ||
