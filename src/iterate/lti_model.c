@@ -7,6 +7,14 @@
 #include <string.h>
 
 enum { UMAX = 2 * DOF_MAX + 2, RHS_MAX = 2 * DOF_MAX };
+/* Smallest eigenvalue ratio of the normal matrix for a fit. Neighbouring points' targets are
+ * nearly parallel (both DoFs move in the mode's shape), so the n x n fit is less well conditioned
+ * than one DoF's: with one DoF's 1e-10, 246 of 251 points of a pseudo-arclength run over the
+ * two-interface example (noise off) had no fitted model and 3 % lay beyond 3 standard errors; at
+ * 1e-13 (a condition number of the regressor near 3e6, still far from rounding) 36 of 252 had
+ * none and every point lay within 3 SE.
+ * The jackknife standard error shows what an ill-determined fit costs. */
+static const double LTI_DOFS_MIN_EIGEN_RATIO = 1e-13;
 
 /* Normal equations of harmonic k's fit for n DoFs. Unknowns of every residual row d (and response
  * row): G's entries (d, e) as lines, coefficients of 1 and d_w = (w - omega) / spread, at
@@ -163,7 +171,7 @@ static int dofs_fit_harmonic(const corrector_memory *mem, int P, int n, int k, d
     int U = ne.U;
     /* as for one DoF: a rank-deficient history (targets that never left one direction at one
      * frequency) would still give made-up gains; demand a well-conditioned fit */
-    if (!(rths_cmat_hermitian_eigen_ratio(U, ne.ata) > 1e-10)) return -1;
+    if (!(rths_cmat_hermitian_eigen_ratio(U, ne.ata) > LTI_DOFS_MIN_EIGEN_RATIO)) return -1;
     double complex ata[UMAX * UMAX], raw_atb[UMAX * RHS_MAX];
     memcpy(ata, ne.ata, sizeof ata);
     memcpy(raw_atb, ne.atb, sizeof raw_atb);
