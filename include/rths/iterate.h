@@ -321,9 +321,10 @@ int rths_corrector_saved_jacobians(const rths_corrector_saved *in, double *jacob
                                    double *response_jacobian);
 
 /* Residual-model predictor on an LTI rig (natural sweep): the target at omega from the local
- * model fitted to the recorded evaluations, z_k = f_k / g_k, with the model's Jacobians seeding
- * the corrector. Returns 0, or -1 when the evaluations do not determine the model (fewer than
- * two frequencies or six evaluations, or a singular fit) or the rig is not LTI-like. */
+ * model fitted to the recorded evaluations, z_k = f_k / g_k (with n interface DoFs z_k = G_k^-1
+ * f_k, G_k the complex n x n gain of harmonic k), with the model's Jacobians seeding the corrector.
+ * Returns 0, or -1 when the evaluations do not determine the model (fewer than two frequencies or
+ * 2 n + 4 evaluations, or an ill-conditioned fit) or the rig is not LTI-like. */
 int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u);
 
 /* Replaces the target columns of the carried Jacobians (n x n, leading dimension

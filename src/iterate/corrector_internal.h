@@ -18,7 +18,8 @@ enum {
 typedef struct corrector_memory {
     int have_jacobian;
     /* 1: the last finite-difference Jacobians (natural sweep) were of a linear time-invariant
-     * rig's form, one complex gain per harmonic and no coupling between harmonics, within 5 %
+     * rig's form, one complex gain per harmonic (an n x n complex matrix with n interface DoFs)
+     * and no coupling between harmonics, within 5 %
      * plus what their noise explains. The gains are then refitted to the evaluation history after
      * every step (or, while the history cannot determine them, fixed by each secant pair), and
      * the Jacobians always keep that form. */
