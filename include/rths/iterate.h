@@ -121,10 +121,15 @@ typedef struct rths_zero_problem {
     int harmonics;
     rths_zero_eval_fn eval;
     void *ctx;
-    /* 1: the Fourier pairs are coupled (several interface DoFs: "harmonics" counts DoF x
-       harmonic pairs), so the LTI form, one complex gain per pair, never applies: the corrector
-       keeps finite-difference and Broyden Jacobians */
+    /* 1: the Fourier pairs are coupled in ways the corrector cannot model, so the LTI form never
+       applies: it keeps finite-difference and Broyden Jacobians */
     int coupled;
+    /* > 1: the pairs belong to this many interface DoFs, N = harmonics / interface_dofs each,
+       pair d N + k for DoF d's harmonic k + 1 (rths_rig_problem_init_dofs). On a linear rig the
+       gain of harmonic k is then a complex n x n matrix (every DoF's response to every DoF's
+       target), which the LTI form and the residual-model predictor fit; the solution reports
+       every DoF's amplitude and standard error. 0 or 1: one DoF */
+    int interface_dofs;
 } rths_zero_problem;
 
 /* The rig-backed zero problem of a hybrid test: set the forcing and the target, wait for steady
@@ -144,9 +149,8 @@ void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rt
  * the cos terms of every (DoF d, harmonic k) pair at j = d N + k - 1, then the sin terms at
  * N n + j, and the residual, response and reference likewise; the problem's harmonics is N n
  * (so a solution's target_a[j], matched_a[j] carry every DoF, its amplitude the first DoF's
- * fundamental) and coupled is 1: finite-difference and Broyden Jacobians, no LTI model (the DoFs
- * couple); the matched estimate uses those Jacobians. RTHS_EINPUT when 2 N n exceeds
- * 2 RTHS_MAX_HARMONICS. */
+ * fundamental, dof_amplitude_m[d] DoF d's) and interface_dofs is n: on a linear rig the LTI form
+ * holds n x n complex gains per harmonic. RTHS_EINPUT when 2 N n exceeds 2 RTHS_MAX_HARMONICS. */
 int rths_rig_problem_init_dofs(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,
                                const rths_settle_options *settle, int harmonics, double amplitude_n,
                                rths_error *err);
@@ -234,6 +238,12 @@ typedef struct rths_solution {
      * response's sensitivity to it, the uncertainty of that sensitivity); 0: no trusted Jacobian
      * gave the sensitivity, and amplitude_se_m covers the noise alone (a lower bound) */
     int amplitude_se_honest;
+    /* Several interface DoFs (rths_zero_problem.interface_dofs = n > 1; else 0): DoF d's reported
+     * fundamental amplitude and its standard error, as amplitude_m and amplitude_se_m are the
+     * first DoF's (d = 0 repeats them): the matched estimate with every known source when the
+     * options ask for it and it exists, else the measurement. */
+    int interface_dofs;
+    double dof_amplitude_m[RTHS_MAX_INTERFACE_DOFS], dof_amplitude_se_m[RTHS_MAX_INTERFACE_DOFS];
 } rths_solution;
 
 /* ---- the corrector: Newton-Broyden with line search, an opaque object ----
@@ -311,9 +321,10 @@ int rths_corrector_saved_jacobians(const rths_corrector_saved *in, double *jacob
                                    double *response_jacobian);
 
 /* Residual-model predictor on an LTI rig (natural sweep): the target at omega from the local
- * model fitted to the recorded evaluations, z_k = f_k / g_k, with the model's Jacobians seeding
- * the corrector. Returns 0, or -1 when the evaluations do not determine the model (fewer than
- * two frequencies or six evaluations, or a singular fit) or the rig is not LTI-like. */
+ * model fitted to the recorded evaluations, z_k = f_k / g_k (with n interface DoFs z_k = G_k^-1
+ * f_k, G_k the complex n x n gain of harmonic k), with the model's Jacobians seeding the corrector.
+ * Returns 0, or -1 when the evaluations do not determine the model (fewer than two frequencies or
+ * 2 n + 4 evaluations, or an ill-conditioned fit) or the rig is not LTI-like. */
 int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u);
 
 /* Replaces the target columns of the carried Jacobians (n x n, leading dimension

@@ -107,6 +107,37 @@ static void add_fourier(json_object *o, const char *name, const rths_fourier *f,
     json_object_object_add(o, key, dbl_array(f->b, harmonics + 1));
 }
 
+/* Several interface DoFs' fields of a point (dofs > 1): every DoF's coefficients one after
+ * another (RTHS_MAX_HARMONICS + 1 per DoF) and the reported amplitudes. */
+static void add_dof_fouriers(json_object *o, const char *name, const rths_fourier *f, int dofs) {
+    enum { H = RTHS_MAX_HARMONICS + 1 };
+    double a[RTHS_MAX_INTERFACE_DOFS * H], b[RTHS_MAX_INTERFACE_DOFS * H];
+    for (int d = 0; d < dofs; d++) {
+        memcpy(a + d * H, f[d].a, sizeof(double) * H);
+        memcpy(b + d * H, f[d].b, sizeof(double) * H);
+    }
+    char key[64];
+    snprintf(key, sizeof key, "%s_a", name);
+    json_object_object_add(o, key, dbl_array(a, dofs * H));
+    snprintf(key, sizeof key, "%s_b", name);
+    json_object_object_add(o, key, dbl_array(b, dofs * H));
+}
+
+static void add_interface_dofs(json_object *o, const rths_solution *s) {
+    const rths_evaluation *e = &s->eval;
+    int dofs = e->interface_dofs;
+    if (dofs <= 1 || dofs > RTHS_MAX_INTERFACE_DOFS) return;
+    json_object_object_add(o, "interface_dofs", json_object_new_int(dofs));
+    add_dof_fouriers(o, "phys_dof", e->phys_dof, dofs);
+    add_dof_fouriers(o, "num_dof", e->num_dof, dofs);
+    add_dof_fouriers(o, "phys_dof_se", e->phys_dof_se, dofs);
+    add_dof_fouriers(o, "num_dof_se", e->num_dof_se, dofs);
+    if (s->interface_dofs == dofs) {
+        json_object_object_add(o, "dof_amplitude_m", dbl_array(s->dof_amplitude_m, dofs));
+        json_object_object_add(o, "dof_amplitude_se_m", dbl_array(s->dof_amplitude_se_m, dofs));
+    }
+}
+
 int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rths_error *err) {
     const rths_solution *s = &pt->sol;
     const rths_evaluation *e = &s->eval;
@@ -153,6 +184,7 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "amplitude_m", json_object_new_double(s->amplitude_m));
     json_object_object_add(o, "amplitude_se_m", json_object_new_double(s->amplitude_se_m));
     json_object_object_add(o, "amplitude_se_honest", json_object_new_int(s->amplitude_se_honest));
+    add_interface_dofs(o, s);
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -236,6 +268,44 @@ static int get_fourier(json_object *o, const char *name, rths_fourier *f, int ha
     return get_arr(o, key, f->b, harmonics + 1);
 }
 
+static int get_dof_fouriers(json_object *o, const char *name, rths_fourier *f, int dofs) {
+    enum { H = RTHS_MAX_HARMONICS + 1 };
+    double a[RTHS_MAX_INTERFACE_DOFS * H], b[RTHS_MAX_INTERFACE_DOFS * H];
+    char key[64];
+    snprintf(key, sizeof key, "%s_a", name);
+    if (get_arr(o, key, a, dofs * H)) return -1;
+    snprintf(key, sizeof key, "%s_b", name);
+    if (get_arr(o, key, b, dofs * H)) return -1;
+    for (int d = 0; d < dofs; d++) {
+        memcpy(f[d].a, a + d * H, sizeof(double) * H);
+        memcpy(f[d].b, b + d * H, sizeof(double) * H);
+    }
+    return 0;
+}
+
+/* Added within format 3: several interface DoFs' fields; a record without them has one. */
+static int get_interface_dofs(json_object *o, rths_solution *s) {
+    rths_evaluation *e = &s->eval;
+    json_object *v;
+    if (!json_object_object_get_ex(o, "interface_dofs", &v)) return 0;
+    int dofs = 0;
+    if (get_int(o, "interface_dofs", &dofs) || dofs < 2 || dofs > RTHS_MAX_INTERFACE_DOFS ||
+        get_dof_fouriers(o, "phys_dof", e->phys_dof, dofs) ||
+        get_dof_fouriers(o, "num_dof", e->num_dof, dofs) ||
+        get_dof_fouriers(o, "phys_dof_se", e->phys_dof_se, dofs) ||
+        get_dof_fouriers(o, "num_dof_se", e->num_dof_se, dofs))
+        return -1;
+    if (s->harmonics % dofs) return -1;
+    e->interface_dofs = dofs;
+    e->harmonics = s->harmonics / dofs; /* the solution's harmonics count (DoF, harmonic) pairs */
+    if (!json_object_object_get_ex(o, "dof_amplitude_m", &v)) return 0;
+    s->interface_dofs = dofs;
+    return get_arr(o, "dof_amplitude_m", s->dof_amplitude_m, dofs) ||
+                   get_arr(o, "dof_amplitude_se_m", s->dof_amplitude_se_m, dofs)
+               ? -1
+               : 0;
+}
+
 /* Format 3: the corrector's saved record as written. */
 static int get_corrector(json_object *o, rths_corrector_saved *c) {
     json_object *v;
@@ -315,7 +385,7 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
         get_dbl(o, "matched_omega_rad_s", &s->matched_omega_rad_s) ||
         get_dbl(o, "reported_frequency_hz", &s->frequency_hz) ||
         get_dbl(o, "amplitude_m", &s->amplitude_m) ||
-        get_dbl(o, "amplitude_se_m", &s->amplitude_se_m))
+        get_dbl(o, "amplitude_se_m", &s->amplitude_se_m) || get_interface_dofs(o, s))
         return -1;
     /* added within format 3: a journal without it makes no claim for its standard errors */
     json_object *honest = NULL;

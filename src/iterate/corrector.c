@@ -41,18 +41,26 @@ void rths_newton_defaults(rths_newton_options *opt, int paper) {
 int rths_corrector_create(const rths_zero_problem *problem, const rths_newton_options *opt,
                           rths_corrector **out, rths_error *err) {
     *out = NULL;
+    int dofs = problem->interface_dofs > 1 ? problem->interface_dofs : 1;
     if (problem->n < 1 || problem->n > 2 * RTHS_MAX_HARMONICS || !problem->eval ||
         problem->harmonics < 0 || (problem->harmonics && problem->n != 2 * problem->harmonics))
         return rths_error_set(err, RTHS_EINPUT,
                               "zero problem: %d unknowns (%d harmonics) is not 1..%d (2 per "
                               "harmonic)",
                               problem->n, problem->harmonics, 2 * RTHS_MAX_HARMONICS);
+    if (dofs > RTHS_MAX_INTERFACE_DOFS ||
+        (dofs > 1 && (!problem->harmonics || problem->harmonics % dofs)))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "zero problem: %d interface DoFs do not share %d Fourier pairs "
+                              "evenly (at most %d DoFs)",
+                              dofs, problem->harmonics, RTHS_MAX_INTERFACE_DOFS);
     rths_corrector *c = calloc(1, sizeof *c);
     if (!c) return rths_error_set(err, RTHS_EFAIL, "out of memory for the corrector");
     c->problem = *problem;
     c->opt = *opt;
     c->n = problem->n;
     c->harmonics = problem->harmonics;
+    c->dofs = dofs;
     c->m = c->n;
     c->default_amp_scale = 1e-4;
     c->default_omega_scale = 1.0;
@@ -284,16 +292,17 @@ void rths_corrector_forget_jacobian(rths_corrector *c) {
 }
 
 int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u) {
-    int N = c->harmonics;
-    double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-    if (!c->mem.lti || N == 0 || lti_fit(&c->mem, N, omega_rad_s, g, r, z, NULL, NULL) != 0)
+    int P = c->harmonics;
+    lti_model model;
+    if (!c->mem.lti || P == 0 || lti_model_fit(&c->mem, P, c->dofs, omega_rad_s, NULL, &model) != 0)
         return -1;
-    for (int k = 0; k < N; k++) {
-        u[k] = creal(z[k]);
-        u[N + k] = cimag(z[k]);
-        lti_block(c->mem.jacobian, N, k, g[k]);
-        lti_block(c->mem.response_jacobian, N, k, r[k]);
-    }
+    for (int k = 0; k < model.harmonics; k++)
+        for (int d = 0; d < model.dofs; d++) {
+            int p = d * model.harmonics + k;
+            u[p] = creal(model.z[k][d]);
+            u[P + p] = cimag(model.z[k][d]);
+        }
+    lti_model_apply(&model, c->mem.jacobian, c->mem.response_jacobian);
     return 0;
 }
 
@@ -306,8 +315,8 @@ void rths_corrector_seed_jacobians(rths_corrector *c, const double *jacobian,
             c->mem.response_jacobian[i + j * LD] = response_jacobian[i + j * LD];
         }
     if (c->mem.lti && c->harmonics > 0) {
-        lti_project(c->mem.jacobian, c->harmonics);
-        lti_project(c->mem.response_jacobian, c->harmonics);
+        lti_project(c->mem.jacobian, c->harmonics, c->dofs);
+        lti_project(c->mem.response_jacobian, c->harmonics, c->dofs);
     }
 }
 

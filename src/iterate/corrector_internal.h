@@ -6,14 +6,20 @@
 
 #include <complex.h>
 
-enum { LD = RTHS_MAX_UNKNOWNS, HISTORY_WIDTH = 2 * RTHS_MAX_HARMONICS };
+enum {
+    LD = RTHS_MAX_UNKNOWNS,
+    HISTORY_WIDTH = 2 * RTHS_MAX_HARMONICS,
+    DOF_MAX = RTHS_MAX_INTERFACE_DOFS,
+    LTI_TERMS = 2 /* each gain and offset of the local LTI model is a line in omega */
+};
 
 /* What the corrector learns and carries from one correction (and continuation point) to the
  * next; save() writes exactly this. */
 typedef struct corrector_memory {
     int have_jacobian;
     /* 1: the last finite-difference Jacobians (natural sweep) were of a linear time-invariant
-     * rig's form, one complex gain per harmonic and no coupling between harmonics, within 5 %
+     * rig's form, one complex gain per harmonic (an n x n complex matrix with n interface DoFs)
+     * and no coupling between harmonics, within 5 %
      * plus what their noise explains. The gains are then refitted to the evaluation history after
      * every step (or, while the history cannot determine them, fixed by each secant pair), and
      * the Jacobians always keep that form. */
@@ -51,7 +57,8 @@ struct rths_corrector {
     rths_zero_problem problem;
     rths_newton_options opt;
     int n;         /* unknowns */
-    int harmonics; /* problem->harmonics (0: no Fourier structure) */
+    int harmonics; /* problem->harmonics (0: no Fourier structure): Fourier pairs, N per DoF */
+    int dofs;      /* interface DoFs sharing the pairs (1: one) */
     int m;         /* n, or n + 1 with the arclength row */
     double default_amp_scale, default_omega_scale;
     double scale[LD];
@@ -69,15 +76,48 @@ struct rths_corrector {
 /* evaluate.c */
 int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, rths_error *err);
 
-/* lti.c: the LTI rig's complex-gain form and its local model */
+/* lti.c: the LTI rig's complex-gain form and its local model (one interface DoF: P = N pairs) */
+void lti_pair_block(double *J, int P, int p, int q, double complex g);
 void lti_block(double *J, int N, int k, double complex g);
-int lti_like(const double *J, int N, double noise_entry);
-void lti_project(double *J, int N);
+/* the complex gain of the (p, q) block of J, its LTI-form projection */
+double complex lti_gain(const double *J, int P, int p, int q);
+int lti_like(const double *J, int P, int dofs, double noise_entry);
+void lti_project(double *J, int P, int dofs);
+int lti_history_usable(const corrector_memory *mem, double omega, int unknowns, double *spread);
 int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g, double complex *r,
             double complex *z_pred, double *var_ratio, double *var_matched);
 void lti_update(double *J, int N, const double *s, const double *y, const double *noise);
 void lti_secant_noise(const rths_residual *r0, const rths_residual *r1, int N, double scale,
                       double *noise_phi, double *noise_resp);
+
+/* lti_model.c: the LTI rig's local model for any number n of interface DoFs. Per harmonic k the
+ * residual and the physical response are Phi_k = G_k(w) z_k - f_k(w), x_k = R_k(w) z_k + e_k(w),
+ * z_k the n targets of harmonic k (complex), G_k and R_k complex n x n matrices (entry (d, e):
+ * DoF d's response to DoF e's target), each entry a line in w fitted to the evaluation history.
+ * One DoF: lti_fit's scalar gains. */
+typedef struct lti_model {
+    int harmonics, dofs; /* N per DoF, n */
+    /* G_k, R_k column-major n x n; the prediction z_k = G_k^-1 f_k */
+    double complex g[RTHS_MAX_HARMONICS][DOF_MAX * DOF_MAX],
+        r[RTHS_MAX_HARMONICS][DOF_MAX * DOF_MAX];
+    double complex z[RTHS_MAX_HARMONICS][DOF_MAX];
+    /* given a residual: per DoF, the variance of its fundamental amplitude's matched estimate
+     * x - R G^-1 Phi from the fitted ratio's uncertainty times the residual (model_var), and the
+     * evaluations' scatter about the model (scatter_var), m^2 */
+    double model_var[DOF_MAX], scatter_var[DOF_MAX];
+} lti_model;
+
+/* Fits the model at omega to the history (P pairs, dofs DoFs); phi (metres, P cos then P sin
+ * terms, or NULL) asks for the variances. Returns 0, or -1 when the history does not determine
+ * the model (too few evaluations or frequencies, an ill-conditioned fit, a singular gain). */
+int lti_model_fit(const corrector_memory *mem, int P, int dofs, double omega, const double *phi,
+                  lti_model *out);
+/* Writes the model's gains into the target blocks of J and R (scaled units = metres here). */
+void lti_model_apply(const lti_model *m, double *J, double *R);
+/* Secant update in the LTI form: one DoF, lti_update; several, Broyden's update of each
+ * harmonic's complex gain matrix, for each harmonic whose change stands above 3 noise. */
+void lti_model_secant(double *J, int P, int dofs, const double *s, const double *y,
+                      const double *noise);
 
 /* jacobian.c */
 int corrector_fd_jacobian(rths_corrector *c, rths_error *err);

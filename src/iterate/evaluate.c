@@ -293,7 +293,7 @@ int rths_rig_problem_init_dofs(rths_zero_problem *problem, rths_rig_problem *ctx
     ctx->interface_dofs = dofs;
     problem->n = 2 * harmonics * dofs;
     problem->harmonics = harmonics * dofs;
-    problem->coupled = 1;
+    problem->interface_dofs = dofs;
     return RTHS_OK;
 }
 

@@ -55,11 +55,11 @@ int corrector_fd_jacobian(rths_corrector *c, rths_error *err) {
     c->fresh = 1;
     int N = c->harmonics;
     c->mem.lti = (c->m == n || c->opt.rig_lti) && N > 0 && !c->problem.coupled &&
-                 lti_like(c->mem.jacobian, N, noise_j) &&
-                 lti_like(c->mem.response_jacobian, N, noise_r);
+                 lti_like(c->mem.jacobian, N, c->dofs, noise_j) &&
+                 lti_like(c->mem.response_jacobian, N, c->dofs, noise_r);
     if (c->mem.lti) {
-        lti_project(c->mem.jacobian, N);
-        lti_project(c->mem.response_jacobian, N);
+        lti_project(c->mem.jacobian, N, c->dofs);
+        lti_project(c->mem.response_jacobian, N, c->dofs);
     }
     return RTHS_OK;
 }
@@ -125,7 +125,7 @@ void corrector_secant_update(rths_corrector *c, const corrector_point *trial) {
     for (int i = 0; i < n; i++)
         y[i] = trial->phi[i] - cur->phi[i];
     int lti = c->mem.lti && c->m == n && N > 0;
-    double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
+    lti_model model;
     if (c->mem.lti && c->m > n && N > 0) {
         /* pseudo-arclength on a rig known to be LTI: Broyden keeps the frequency column, the
          * target block keeps the LTI form, refitted to the history when it can be */
@@ -133,25 +133,20 @@ void corrector_secant_update(rths_corrector *c, const corrector_point *trial) {
         for (int i = 0; i < n; i++)
             y[i] = trial->resp[i] - cur->resp[i];
         broyden_update(c->mem.response_jacobian, n, c->m, s, y, ss);
-        lti_project(c->mem.jacobian, N);
-        lti_project(c->mem.response_jacobian, N);
-        if (lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL, NULL) == 0)
-            for (int k = 0; k < N; k++) {
-                lti_block(c->mem.jacobian, N, k, g[k]);
-                lti_block(c->mem.response_jacobian, N, k, r[k]);
-            }
-    } else if (lti && lti_fit(&c->mem, N, trial->sol.omega_rad_s, g, r, z, NULL, NULL) == 0) {
-        for (int k = 0; k < N; k++) {
-            lti_block(c->mem.jacobian, N, k, g[k]);
-            lti_block(c->mem.response_jacobian, N, k, r[k]);
-        }
+        lti_project(c->mem.jacobian, N, c->dofs);
+        lti_project(c->mem.response_jacobian, N, c->dofs);
+        if (lti_model_fit(&c->mem, N, c->dofs, trial->sol.omega_rad_s, NULL, &model) == 0)
+            lti_model_apply(&model, c->mem.jacobian, c->mem.response_jacobian);
+    } else if (lti &&
+               lti_model_fit(&c->mem, N, c->dofs, trial->sol.omega_rad_s, NULL, &model) == 0) {
+        lti_model_apply(&model, c->mem.jacobian, c->mem.response_jacobian);
     } else if (lti) {
         double noise_phi[RTHS_MAX_HARMONICS], noise_resp[RTHS_MAX_HARMONICS];
         lti_secant_noise(&cur->rec, &trial->rec, N, c->scale[0], noise_phi, noise_resp);
-        lti_update(c->mem.jacobian, N, s, y, noise_phi);
+        lti_model_secant(c->mem.jacobian, N, c->dofs, s, y, noise_phi);
         for (int i = 0; i < n; i++)
             y[i] = trial->resp[i] - cur->resp[i];
-        lti_update(c->mem.response_jacobian, N, s, y, noise_resp);
+        lti_model_secant(c->mem.response_jacobian, N, c->dofs, s, y, noise_resp);
     } else {
         broyden_update(c->mem.jacobian, n, c->m, s, y, ss);
         for (int i = 0; i < n; i++)

@@ -8,55 +8,72 @@
 /* A linear time-invariant rig maps each harmonic of the target to the same harmonic alone, by a
  * complex gain g_k: (Phi_a + i Phi_b)_k = g_k (A* + i B*)_k, i.e. the 2N x 2N Jacobian (cos rows
  * and columns k, sin rows and columns N + k) has blocks [[Re g, -Im g], [Im g, Re g]] on the
- * diagonal and zeros elsewhere. */
-void lti_block(double *J, int N, int k, double complex g) {
-    int a = k, b = N + k;
-    J[a + a * LD] = creal(g);
-    J[a + b * LD] = -cimag(g);
-    J[b + a * LD] = cimag(g);
-    J[b + b * LD] = creal(g);
+ * diagonal and zeros elsewhere. With several interface DoFs the unknowns hold P = N n Fourier
+ * pairs, pair p = d N + k for DoF d and harmonic k (iterate.h), and every DoF's harmonic k drives
+ * every DoF's harmonic k: the gain of harmonic k is a complex n x n matrix, whose entry (d, e) is
+ * the block of rows of pair d N + k and columns of pair e N + k. */
+void lti_pair_block(double *J, int P, int p, int q, double complex g) {
+    J[p + q * LD] = creal(g);
+    J[p + (P + q) * LD] = -cimag(g);
+    J[P + p + q * LD] = cimag(g);
+    J[P + p + (P + q) * LD] = creal(g);
 }
 
-static double complex lti_gain(const double *J, int N, int k) {
-    int a = k, b = N + k;
-    return 0.5 * (J[a + a * LD] + J[b + b * LD]) + I * 0.5 * (J[b + a * LD] - J[a + b * LD]);
+void lti_block(double *J, int N, int k, double complex g) {
+    lti_pair_block(J, N, k, k, g);
+}
+
+double complex lti_gain(const double *J, int P, int p, int q) {
+    return 0.5 * (J[p + q * LD] + J[P + p + (P + q) * LD]) +
+           I * 0.5 * (J[P + p + q * LD] - J[p + (P + q) * LD]);
+}
+
+/* Pairs p and q (0..P-1) of a problem with `dofs` interface DoFs belong to the same harmonic. */
+static int lti_coupled(int P, int dofs, int p, int q) {
+    int N = P / dofs;
+    return p % N == q % N;
 }
 
 /* Whether the target block of a measured J is of the LTI form: its Frobenius distance from the
  * nearest LTI form is within 5 % of its size plus what entry noise of std noise_entry explains
- * (the distance has 4N^2 - 2N degrees of freedom; twice its expected size under noise alone). */
-int lti_like(const double *J, int N, double noise_entry) {
-    int n = 2 * N;
+ * (the distance has 4P^2 - 2 N n^2 degrees of freedom; twice its expected size under noise
+ * alone). */
+int lti_like(const double *J, int P, int dofs, double noise_entry) {
+    int n = 2 * P;
     double total = 0, off = 0;
     for (int j = 0; j < n; j++)
         for (int i = 0; i < n; i++) {
             double v = J[i + j * LD];
             total += v * v;
-            if (i % N != j % N) off += v * v;
+            if (!lti_coupled(P, dofs, i % P, j % P)) off += v * v;
         }
-    for (int k = 0; k < N; k++) {
-        double P[LD * LD];
-        lti_block(P, N, k, lti_gain(J, N, k));
-        int idx[2] = {k, N + k};
-        for (int p = 0; p < 2; p++)
-            for (int q = 0; q < 2; q++) {
-                double d = J[idx[p] + idx[q] * LD] - P[idx[p] + idx[q] * LD];
-                off += d * d;
-            }
-    }
-    double dof = 4.0 * N * N - 2.0 * N;
+    for (int p = 0; p < P; p++)
+        for (int q = 0; q < P; q++) {
+            if (!lti_coupled(P, dofs, p, q)) continue;
+            double complex g = lti_gain(J, P, p, q);
+            double form[2][2] = {{creal(g), -cimag(g)}, {cimag(g), creal(g)}};
+            int row[2] = {p, P + p}, col[2] = {q, P + q};
+            for (int a = 0; a < 2; a++)
+                for (int b = 0; b < 2; b++) {
+                    double d = J[row[a] + col[b] * LD] - form[a][b];
+                    off += d * d;
+                }
+        }
+    double dof = 4.0 * P * P - 2.0 * (P / dofs) * dofs * dofs;
     return total > 0 && sqrt(off) <= 0.05 * sqrt(total) + 2.0 * noise_entry * sqrt(dof);
 }
 
-void lti_project(double *J, int N) {
-    double complex g[RTHS_MAX_HARMONICS];
-    for (int k = 0; k < N; k++)
-        g[k] = lti_gain(J, N, k);
-    for (int j = 0; j < 2 * N; j++)
-        for (int i = 0; i < 2 * N; i++)
+void lti_project(double *J, int P, int dofs) {
+    double complex g[RTHS_MAX_HARMONICS * RTHS_MAX_HARMONICS];
+    for (int p = 0; p < P; p++)
+        for (int q = 0; q < P; q++)
+            g[p + P * q] = lti_gain(J, P, p, q);
+    for (int j = 0; j < 2 * P; j++)
+        for (int i = 0; i < 2 * P; i++)
             J[i + j * LD] = 0;
-    for (int k = 0; k < N; k++)
-        lti_block(J, N, k, g[k]);
+    for (int p = 0; p < P; p++)
+        for (int q = 0; q < P; q++)
+            if (lti_coupled(P, dofs, p, q)) lti_pair_block(J, P, p, q, g[p + P * q]);
 }
 
 /* Least-squares fit of the local LTI model (see corrector_memory.history) at omega: per
@@ -65,12 +82,13 @@ void lti_project(double *J, int N) {
  * three standard errors against none); returns the gains g and r at omega, the prediction
  * z = f / g and, if var_ratio is given, the variance E|d(r/g)|^2 of the ratio that maps a residual
  * onto the response, from the fits' scatter (noise and model error alike). */
-enum { LTI_TERMS = 2, LTI_UNKNOWNS = 2 * LTI_TERMS };
+enum { LTI_UNKNOWNS = 2 * LTI_TERMS };
 
-/* The history spans at least LTI_TERMS distinct frequencies; *spread: the largest |w - omega|. */
-static int history_usable(const corrector_memory *mem, double omega, double *spread) {
+/* The history holds at least `unknowns` + 2 evaluations at LTI_TERMS or more distinct frequencies;
+ * *spread: the largest |w - omega|. */
+int lti_history_usable(const corrector_memory *mem, double omega, int unknowns, double *spread) {
     int count = mem->history_count, distinct = 0;
-    if (count < LTI_UNKNOWNS + 2) return 0;
+    if (count < unknowns + 2) return 0;
     double seen[LTI_TERMS];
     *spread = 0;
     for (int e = 0; e < count; e++) {
@@ -154,7 +172,7 @@ int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g,
             double complex *z_pred, double *var_ratio, double *var_matched) {
     enum { U = LTI_UNKNOWNS };
     double spread;
-    if (!history_usable(mem, omega, &spread)) return -1;
+    if (!lti_history_usable(mem, omega, LTI_UNKNOWNS, &spread)) return -1;
     for (int k = 0; k < N; k++) {
         double zs = 0;
         for (int e = 0; e < mem->history_count; e++)

@@ -22,23 +22,18 @@ static void entry_noise(const rths_corrector *c, double *sp, double *sn) {
 }
 
 /* LTI rig on a natural sweep: the gains refitted with this point's own evaluations; the fit's
- * scatter says how well r/g is known, and that uncertainty times the residual joins the standard
- * error (for the amplitude, half the complex variance: the error's phase is random). Returns 1
- * with *model_var when the fit succeeded. */
-static int refit_lti(rths_corrector *c, double *model_var, double *scatter_var) {
+ * scatter says how well R G^-1 is known, and that uncertainty times the residual joins the
+ * standard error (per interface DoF; for the amplitude half the complex variance: the error's
+ * phase is random). Returns 1 with *model (model_var, scatter_var) when the fit succeeded. */
+static int refit_lti(rths_corrector *c, lti_model *model) {
     int N = c->harmonics;
-    const double *phi = c->cur.rec.phi;
+    memset(model, 0, sizeof *model);
     if (!(c->mem.lti && (c->m == c->n || c->opt.rig_lti) && N > 0)) return 0;
-    double complex g[RTHS_MAX_HARMONICS], r[RTHS_MAX_HARMONICS], z[RTHS_MAX_HARMONICS];
-    double var_ratio[RTHS_MAX_HARMONICS], var_matched[RTHS_MAX_HARMONICS];
-    if (lti_fit(&c->mem, N, c->cur.sol.omega_rad_s, g, r, z, var_ratio, var_matched) != 0) return 0;
-    for (int k = 0; k < N; k++) {
-        lti_block(c->mem.jacobian, N, k, g[k]);
-        lti_block(c->mem.response_jacobian, N, k, r[k]);
+    if (lti_model_fit(&c->mem, N, c->dofs, c->cur.sol.omega_rad_s, c->cur.rec.phi, model) != 0) {
+        memset(model, 0, sizeof *model);
+        return 0;
     }
-    *model_var = 0.5 * var_ratio[0] * (phi[0] * phi[0] + phi[N] * phi[N]);
-    /* one evaluation's share of the scatter, for the amplitude half the complex variance */
-    *scatter_var = 0.5 * var_matched[0];
+    lti_model_apply(model, c->mem.jacobian, c->mem.response_jacobian);
     return 1;
 }
 
@@ -75,14 +70,16 @@ static int matched_gain(const rths_corrector *c, int m, int fitted, double *K, d
     return 0;
 }
 
-/* x* = (I - K) x_phys + K x_num with independent noise on the two sides; the amplitude's
- * gradient (a1, b1) / |x*_1| maps the covariance to a variance. */
-static double matched_variance(int n, int N, const double *xm, double am, const double *K,
+/* x* = (I - K) x_phys + K x_num with independent noise on the two sides; the gradient of the
+ * amplitude of pair p0 (cos entry p0, sin entry P + p0), (a, b) / |x*|, maps the covariance to a
+ * variance. */
+static double matched_variance(int n, int P, int p0, const double *xm, double am, const double *K,
                                const double *sp, const double *sn) {
-    double g0 = xm[0] / fmax(am, 1e-300), gN = xm[N] / fmax(am, 1e-300), var = 0;
+    int c0 = p0, s0 = P + p0;
+    double g0 = xm[c0] / fmax(am, 1e-300), gN = xm[s0] / fmax(am, 1e-300), var = 0;
     for (int p = 0; p < n; p++) {
-        double w = g0 * K[0 + p * LD] + gN * K[N + p * LD];
-        double v = (p == 0 ? g0 : p == N ? gN : 0.0) - w;
+        double w = g0 * K[c0 + p * LD] + gN * K[s0 + p * LD];
+        double v = (p == c0 ? g0 : p == s0 ? gN : 0.0) - w;
         var += v * v * sp[p] * sp[p] + w * w * sn[p] * sn[p];
     }
     return var;
@@ -133,32 +130,60 @@ static int choose_step(const rths_corrector *c, int fitted, double *K, double *k
  * more than the step itself: at the point's frequency that is an amplitude uncertainty of the
  * branch's slope dA/d(omega) (from the arclength tangent, targets standing in for the response)
  * times d_omega. Grows without bound towards a fold, where the branch is vertical. */
-static double frequency_move_variance(const rths_corrector *c, double d_omega) {
-    int n = c->n, N = c->harmonics;
+static double frequency_move_variance(const rths_corrector *c, double d_omega, int p0) {
+    int n = c->n, c0 = p0, s0 = c->harmonics + p0;
     if (c->m == n || d_omega == 0.0) return 0.0;
     const double *t = c->arc.tangent, *u = c->cur.u;
-    double amp = hypot(u[0], u[N]);
-    double dA = amp > 0 ? (u[0] * t[0] + u[N] * t[N]) / amp * c->scale[0] : 0.0;
+    double amp = hypot(u[c0], u[s0]);
+    double dA = amp > 0 ? (u[c0] * t[c0] + u[s0] * t[s0]) / amp * c->scale[0] : 0.0;
     double dw = t[n] * c->scale[n];
     if (!(fabs(dw) > 0)) return INFINITY;
     double v = dA / dw * d_omega;
     return v * v;
 }
 
-/* Fills the matched estimate when a Jacobian allows it; returns 1 if it did. *move_m receives the
- * step's change of the fundamental amplitude (the mismatch times the response's sensitivity to
- * it), *unfitted 1 when no fitted LTI model stands behind the step. */
-static int matched_estimate(rths_corrector *c, const double *sp, const double *sn, double *move_m,
-                            int *unfitted) {
-    int n = c->n, N = c->harmonics;
+/* The matched estimate of every interface DoF's fundamental amplitude (pair d N of P) and its
+ * standard error from the step's gains; move[d]: the step's change of that amplitude. */
+typedef struct {
+    double amplitude[DOF_MAX], se[DOF_MAX], move[DOF_MAX];
+} matched_dofs;
+
+/* The standard error of DoF d's matched amplitude am (see rths_solution): the noise, the
+ * sensitivity's uncertainty times the mismatch, the frequency move. */
+static double matched_se(const rths_corrector *c, const double *K, const double *xm, double am,
+                         double move, double wm, int p0, const lti_model *model, int d, int fitted,
+                         const double *sp, const double *sn) {
+    /* a fitted model's own scatter can understate a wrong model (on a 4-DoF structure with a
+     * non-diagonal mass the matched amplitude was once 6.9 % off where the measurement was
+     * 0.02 % off): whatever the fit says, the standard error is at least a third of the step, so
+     * the estimate is never further from the measurement than three standard errors */
+    double jac_var = fitted ? fmax(model->model_var[d],
+                                   move * move / (FITTED_MIN_STEPS_SE * FITTED_MIN_STEPS_SE))
+                            : UNFITTED_STEP_UNCERTAINTY * UNFITTED_STEP_UNCERTAINTY * move * move;
+    /* the noise as the periods of this point show it, or as the evaluations' scatter about the
+     * fitted model shows it, whichever is larger: on the virtual rig the numerical side's
+     * resonant response to sensor noise is correlated from period to period, and on a 3-25 Hz
+     * sweep the periods' scatter alone left 6 % of the points beyond three standard errors */
+    double noise_var =
+        fmax(matched_variance(c->n, c->harmonics, p0, xm, am, K, sp, sn), model->scatter_var[d]);
+    double freq_var = frequency_move_variance(c, wm - c->cur.sol.omega_rad_s, p0);
+    return sqrt(noise_var + jac_var + freq_var);
+}
+
+/* Fills the matched estimate when a Jacobian allows it; returns 1 if it did. out->move receives
+ * each DoF's step (the mismatch times the response's sensitivity to it; NAN without a usable
+ * Jacobian). */
+static int matched_estimate(rths_corrector *c, const double *sp, const double *sn,
+                            matched_dofs *out) {
+    int n = c->n, P = c->harmonics, N = P / c->dofs;
     rths_solution *sol = &c->cur.sol;
     const double *phi = c->cur.rec.phi, *x = c->cur.rec.response;
-    double model_var = 0, scatter_var = 0;
-    int fitted = refit_lti(c, &model_var, &scatter_var);
+    lti_model model;
+    int fitted = refit_lti(c, &model);
     double K[LD * LD], kw[LD] = {0};
-    *move_m = NAN;
-    *unfitted = !fitted;
-    if (N == 0 || choose_step(c, fitted, K, kw) != 0) return 0;
+    for (int d = 0; d < DOF_MAX; d++)
+        out->move[d] = NAN;
+    if (P == 0 || choose_step(c, fitted, K, kw) != 0) return 0;
     double xm[LD] = {0}, wm = sol->omega_rad_s, step = 0, phi_norm = 0;
     for (int i = 0; i < n; i++) {
         xm[i] = x[i];
@@ -168,8 +193,11 @@ static int matched_estimate(rths_corrector *c, const double *sp, const double *s
         step += (xm[i] - x[i]) * (xm[i] - x[i]);
         phi_norm += phi[i] * phi[i];
     }
-    double am = hypot(xm[0], xm[N]);
-    *move_m = am - hypot(x[0], x[N]);
+    for (int d = 0; d < c->dofs; d++) {
+        int p0 = d * N;
+        out->amplitude[d] = hypot(xm[p0], xm[P + p0]);
+        out->move[d] = out->amplitude[d] - hypot(x[p0], x[P + p0]);
+    }
     /* Without a fitted model (a nonlinear rig, secant-updated Jacobians) a step of more than 50
      * times the mismatch (a resonance amplifies by up to ~40) says the Jacobians are not known
      * well enough to extrapolate: near a fold a stale one moved the estimate by 18 % where the
@@ -178,60 +206,69 @@ static int matched_estimate(rths_corrector *c, const double *sp, const double *s
     if (!fitted && step > (double)MATCHED_MAX_STEP_RATIO * MATCHED_MAX_STEP_RATIO * phi_norm)
         return 0;
     sol->matched_omega_rad_s = wm;
-    for (int k = 0; k < N; k++) {
+    for (int k = 0; k < P; k++) {
         sol->matched_a[k] = xm[k];
-        sol->matched_b[k] = xm[N + k];
+        sol->matched_b[k] = xm[P + k];
     }
-    sol->matched_amplitude_m = am;
-    /* a fitted model's own scatter can understate a wrong model (on a 4-DoF structure with a
-     * non-diagonal mass the matched amplitude was once 6.9 % off where the measurement was
-     * 0.02 % off): whatever the fit says, the standard error is at least a third of the step, so
-     * the estimate is never further from the measurement than three standard errors */
-    double jac_var =
-        fitted
-            ? fmax(model_var, (*move_m) * (*move_m) / (FITTED_MIN_STEPS_SE * FITTED_MIN_STEPS_SE))
-            : UNFITTED_STEP_UNCERTAINTY * UNFITTED_STEP_UNCERTAINTY * (*move_m) * (*move_m);
-    /* the noise as the periods of this point show it, or as the evaluations' scatter about the
-     * fitted model shows it, whichever is larger: on the virtual rig the numerical side's
-     * resonant response to sensor noise is correlated from period to period, and on a 3-25 Hz
-     * sweep the periods' scatter alone left 6 % of the points beyond three standard errors */
-    double noise_var = fmax(matched_variance(n, N, xm, am, K, sp, sn), scatter_var);
-    double freq_var = frequency_move_variance(c, wm - sol->omega_rad_s);
-    sol->matched_amplitude_se_m = sqrt(noise_var + jac_var + freq_var);
+    for (int d = 0; d < c->dofs; d++)
+        out->se[d] = matched_se(c, K, xm, out->amplitude[d], out->move[d], wm, d * N, &model, d,
+                                fitted, sp, sn);
+    sol->matched_amplitude_m = out->amplitude[0];
+    sol->matched_amplitude_se_m = out->se[0];
     return 1;
+}
+
+/* The measured fundamental amplitude of pair p0 and its standard error: the noise and, when a
+ * Jacobian gave it, the step to zero mismatch (move; NAN: none). *honest: whether it did. */
+static double measured_amplitude(const rths_corrector *c, int p0, const double *sp, double move,
+                                 double *se, int *honest) {
+    const double *x = c->cur.rec.response;
+    int s0 = c->harmonics + p0;
+    double amp = hypot(x[p0], x[s0]);
+    double noise_se = hypot(x[p0] * sp[p0], x[s0] * sp[s0]) / fmax(amp, 1e-300);
+    /* the measurement still carries the mismatch's effect, of the size of the step to zero
+     * mismatch: reported as its standard error also where the step was not trusted to be
+     * taken (a Jacobian that overstates the sensitivity, near a fold, only makes the error
+     * bar longer); without any Jacobian nothing says how large it is */
+    *honest = isfinite(move);
+    *se = isfinite(move) ? sqrt(noise_se * noise_se + move * move) : noise_se;
+    return amp;
 }
 
 /* The reported amplitude and its standard error, with every known source: the noise, the
  * remaining mismatch times the response's sensitivity to it (the step to zero mismatch), and the
  * uncertainty of that sensitivity (a fitted model's scatter, else the whole step). When no
  * Jacobian gives the sensitivity the standard error covers the noise alone and
- * amplitude_se_honest says so. */
+ * amplitude_se_honest says so. With several interface DoFs, every DoF's likewise. */
 void corrector_finish(rths_corrector *c) {
     int N = c->harmonics;
     rths_solution *sol = &c->cur.sol;
-    const double *x = c->cur.rec.response;
-    double sp[LD], sn[LD], move = NAN;
-    int unfitted = 1;
+    double sp[LD], sn[LD];
+    matched_dofs m;
     entry_noise(c, sp, sn);
-    sol->have_matched = matched_estimate(c, sp, sn, &move, &unfitted);
+    sol->have_matched = matched_estimate(c, sp, sn, &m);
     sol->amplitude_se_honest = 0;
-    if (c->opt.report_matched && sol->have_matched) {
+    int use_matched = c->opt.report_matched && sol->have_matched, honest = 0;
+    if (use_matched) {
         sol->frequency_hz = sol->matched_omega_rad_s / (2 * M_PI);
         sol->amplitude_m = sol->matched_amplitude_m;
         sol->amplitude_se_m = sol->matched_amplitude_se_m;
         sol->amplitude_se_honest = 1;
     } else if (N > 0) {
-        double amp = hypot(x[0], x[N]);
-        double noise_se = hypot(x[0] * sp[0], x[N] * sp[N]) / fmax(amp, 1e-300);
         sol->frequency_hz = sol->omega_rad_s / (2 * M_PI);
-        sol->amplitude_m = amp;
-        /* the measurement still carries the mismatch's effect, of the size of the step to zero
-         * mismatch: reported as its standard error also where the step was not trusted to be
-         * taken (a Jacobian that overstates the sensitivity, near a fold, only makes the error
-         * bar longer); without any Jacobian nothing says how large it is */
-        sol->amplitude_se_honest = isfinite(move);
-        sol->amplitude_se_m = isfinite(move) ? sqrt(noise_se * noise_se + move * move) : noise_se;
+        sol->amplitude_m = measured_amplitude(c, 0, sp, m.move[0], &sol->amplitude_se_m, &honest);
+        sol->amplitude_se_honest = honest;
     } else {
         sol->frequency_hz = sol->omega_rad_s / (2 * M_PI);
+    }
+    sol->interface_dofs = c->dofs > 1 ? c->dofs : 0;
+    for (int d = 0; d < c->dofs && c->dofs > 1; d++) {
+        if (use_matched) {
+            sol->dof_amplitude_m[d] = m.amplitude[d];
+            sol->dof_amplitude_se_m[d] = m.se[d];
+        } else {
+            sol->dof_amplitude_m[d] = measured_amplitude(c, d * (N / c->dofs), sp, m.move[d],
+                                                         &sol->dof_amplitude_se_m[d], &honest);
+        }
     }
 }
