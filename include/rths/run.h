@@ -77,10 +77,11 @@ extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
 void rths_run_frf_row(const rths_point *pt, double *row);
 /* With several interface DoFs (n > 1) frf.csv adds, for every interface DoF d = 1..n (the split's
  * interface order), dof<d>_amplitude_m (the matched estimate when the strategy reports it, else
- * the measurement), dof<d>_numerical_amplitude_m, dof<d>_phase_rad and dof<d>_interface_error_m
- * of the fundamental after the columns above; one DoF keeps the columns above alone. */
+ * the measurement), dof<d>_numerical_amplitude_m, dof<d>_phase_rad, dof<d>_interface_error_m
+ * and dof<d>_amplitude_se_m (the standard error of dof<d>_amplitude_m) of the fundamental after
+ * the columns above; one DoF keeps the columns above alone. */
 enum {
-    RTHS_RUN_FRF_DOF_COLUMNS = 4,
+    RTHS_RUN_FRF_DOF_COLUMNS = 5,
     RTHS_RUN_FRF_MAX_COLUMNS =
         RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * RTHS_MAX_INTERFACE_DOFS
 };

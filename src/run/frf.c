@@ -67,12 +67,17 @@ static int create_rig(frf_state *st, rths_error *err) {
     if (!rc && !opt->rig_uri) st->virtual_rig = st->rig;
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
+    if (!rc && opt->rig_uri && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "controller %s drives %d interface DoF(s); this configuration's "
+                            "split.interface has %d",
+                            opt->rig_uri, rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
     int dofs = st->setup->split.n_int;
-    if (!rc && dofs > 1 && (opt->resume || st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY))
+    if (!rc && dofs > 1 && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "with %d interface DoFs rths frf runs the real-time numerical "
-                            "substructure from the start (--resume and split.numerical_solver: "
-                            "frequency take one interface DoF)",
+                            "substructure (split.numerical_solver: frequency takes one interface "
+                            "DoF)",
                             dofs);
     if (!rc && dofs > 1 && 2 * st->harmonics * dofs > 2 * RTHS_MAX_HARMONICS)
         rc = rths_error_set(err, RTHS_EINPUT,
@@ -106,6 +111,7 @@ static int load_resume(frf_state *st, rths_error *err) {
     int rc = rths_journal_read(st->journal_path, &st->resume_pts, &st->n_resume, &jstrategy, err);
     if (rc) return rc;
     const rths_point *pts = st->resume_pts;
+    int dofs = st->setup->split.n_int > 1 ? st->setup->split.n_int : 1;
     if (!jstrategy)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "%s has no header record (the run was killed before it started): "
@@ -115,10 +121,11 @@ static int load_resume(frf_state *st, rths_error *err) {
         rc = rths_error_set(err, RTHS_EINPUT,
                             "%s was written by a '%s' run; resume it with --strategy %s",
                             st->journal_path, jstrategy, jstrategy);
-    else if (st->n_resume > 0 && pts[0].sol.harmonics != st->harmonics)
-        rc = rths_error_set(err, RTHS_EINPUT,
-                            "%s matched %d harmonic(s); resume it with --harmonics %d",
-                            st->journal_path, pts[0].sol.harmonics, pts[0].sol.harmonics);
+    else if (st->n_resume > 0 && pts[0].sol.harmonics != st->harmonics * dofs)
+        /* with several interface DoFs a solution's harmonics counts the (DoF, harmonic) pairs */
+        rc = rths_error_set(
+            err, RTHS_EINPUT, "%s matched %d harmonic(s); resume it with --harmonics %d",
+            st->journal_path, pts[0].sol.harmonics / dofs, pts[0].sol.harmonics / dofs);
     free(jstrategy);
     if (rc) return rc;
     size_t len = strlen(st->journal_path) + 16;

@@ -82,10 +82,14 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
 }
 
 static const char *const dof_column_names[RTHS_MAX_INTERFACE_DOFS][RTHS_RUN_FRF_DOF_COLUMNS] = {
-    {"dof1_amplitude_m", "dof1_numerical_amplitude_m", "dof1_phase_rad", "dof1_interface_error_m"},
-    {"dof2_amplitude_m", "dof2_numerical_amplitude_m", "dof2_phase_rad", "dof2_interface_error_m"},
-    {"dof3_amplitude_m", "dof3_numerical_amplitude_m", "dof3_phase_rad", "dof3_interface_error_m"},
-    {"dof4_amplitude_m", "dof4_numerical_amplitude_m", "dof4_phase_rad", "dof4_interface_error_m"}};
+    {"dof1_amplitude_m", "dof1_numerical_amplitude_m", "dof1_phase_rad", "dof1_interface_error_m",
+     "dof1_amplitude_se_m"},
+    {"dof2_amplitude_m", "dof2_numerical_amplitude_m", "dof2_phase_rad", "dof2_interface_error_m",
+     "dof2_amplitude_se_m"},
+    {"dof3_amplitude_m", "dof3_numerical_amplitude_m", "dof3_phase_rad", "dof3_interface_error_m",
+     "dof3_amplitude_se_m"},
+    {"dof4_amplitude_m", "dof4_numerical_amplitude_m", "dof4_phase_rad", "dof4_interface_error_m",
+     "dof4_amplitude_se_m"}};
 
 static int dof_columns(int interface_dofs) {
     return interface_dofs > 1 && interface_dofs <= RTHS_MAX_INTERFACE_DOFS ? interface_dofs : 0;
@@ -109,6 +113,9 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
     int dofs = dof_columns(interface_dofs), M = s->harmonics, N = dofs ? M / dofs : 0;
     /* the matched estimate stands for the reported amplitude when the strategy reports it */
     int matched = s->have_matched && s->amplitude_m == s->matched_amplitude_m;
+    /* a record carrying another number of DoFs than the split leaves its cells empty, not stale */
+    for (int i = 0; i < RTHS_RUN_FRF_DOF_COLUMNS * dofs; i++)
+        row[RTHS_RUN_FRF_COLUMNS + i] = NAN;
     for (int d = 0; d < dofs && ev->interface_dofs == dofs; d++) {
         const rths_fourier *ph = &ev->phys_dof[d], *nu = &ev->num_dof[d];
         double *r = row + RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
@@ -117,6 +124,8 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
         r[1] = hypot(nu->a[1], nu->b[1]);
         r[2] = atan2(-ph->b[1], ph->a[1]);
         r[3] = hypot(ph->a[1] - nu->a[1], ph->b[1] - nu->b[1]);
+        /* the standard error of r[0], with every known source (iterate.h, rths_solution) */
+        r[4] = s->interface_dofs == dofs ? s->dof_amplitude_se_m[d] : NAN;
     }
 }
 
@@ -146,7 +155,8 @@ int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error 
         "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = t->dofs > 1 && t->dofs <= RTHS_MAX_INTERFACE_DOFS ? t->dofs : 0;
     for (int d = 0; d < dofs; d++)
-        header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + 4 * d);
+        header[5 + d] =
+            rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
     int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
