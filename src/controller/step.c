@@ -32,7 +32,7 @@ struct rths_controller {
     double gkp[MAX_IFACE], gkd[MAX_IFACE]; /* grounding gains per interface DoF */
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * MAX_INPUTS],
         b_curr[MAX_STATE * MAX_INPUTS];
-    double z[MAX_STATE], z_next[MAX_STATE], u_prev[MAX_INPUTS];
+    double z[MAX_STATE], u_prev[MAX_INPUTS];
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
@@ -47,6 +47,10 @@ struct rths_controller {
     double demand[MAX_IFACE];        /* the last step's demand per actuator, V */
     /* signal state, per interface DoF */
     double time_s, theta;
+    /* cos and sin of theta, advanced by rotation through omega h (cos/sin of rotor_omega h) so
+     * a sample costs no trigonometry; set exactly at every period start, which bounds the
+     * rounding drift to one period's worth of rotations (~1e-13) */
+    double cos_theta, sin_theta, rotor_omega, cos_step, sin_step;
     double x_prev[MAX_IFACE], v_est[MAX_IFACE], velocity_alpha;
     /* grounding control's consistent samples */
     double x_last[MAX_IFACE], x_last_prev[MAX_IFACE], xi_last_prev[MAX_IFACE];
@@ -230,6 +234,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     if (!c) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     c->opt = *opt;
     c->h = 1.0 / opt->sample_rate_hz;
+    c->cos_theta = 1.0, c->cos_step = 1.0; /* theta 0, no frequency yet: rotation by zero */
     c->nn = s->nn;
     c->nx = 2 * s->nn;
     c->np = s->np;
@@ -353,22 +358,37 @@ long rths_controller_dropped_periods(const rths_controller *c) {
     return atomic_load(&c->dropped);
 }
 
-/* Adds the trapezoid of y(theta) cos/sin(k theta) over [t0, t1] to the sums, given cos and sin
- * of both ends (computed once per sample for all three signals). */
-static void accumulate(sums *s, double dtheta, double c0, double s0, double y0, double c1,
-                       double s1, double y1) {
-    double w = 0.5 * dtheta / M_PI;
-    s->a[0] += 0.5 * w * (y0 + y1);
+/* cos and sin of k theta, k = 1..RTHS_MAX_HARMONICS, at both ends of a sample's phase interval:
+ * computed once per sample for every signal of every interface DoF */
+typedef struct {
+    double c0[RTHS_MAX_HARMONICS + 1], s0[RTHS_MAX_HARMONICS + 1];
+    double c1[RTHS_MAX_HARMONICS + 1], s1[RTHS_MAX_HARMONICS + 1];
+    double w; /* trapezoid weight dtheta / (2 pi) */
+} harmonic_ends;
+
+static void harmonic_ends_init(harmonic_ends *h, double dtheta, double c0, double s0, double c1,
+                               double s1) {
+    h->w = 0.5 * dtheta / M_PI;
     /* cos/sin of k theta by the angle-addition recurrence */
     double ck0 = c0, sk0 = s0, ck1 = c1, sk1 = s1;
     for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
-        s->a[k] += w * (y0 * ck0 + y1 * ck1);
-        s->b[k] += w * (y0 * sk0 + y1 * sk1);
+        h->c0[k] = ck0, h->s0[k] = sk0, h->c1[k] = ck1, h->s1[k] = sk1;
         double n0 = ck0 * c0 - sk0 * s0, n1 = ck1 * c1 - sk1 * s1;
         sk0 = sk0 * c0 + ck0 * s0;
         sk1 = sk1 * c1 + ck1 * s1;
         ck0 = n0;
         ck1 = n1;
+    }
+}
+
+/* Adds the trapezoid of y(theta) cos/sin(k theta) over the interval to the sums, from y0 at its
+ * start to y1 at its end. */
+static void accumulate(sums *s, const harmonic_ends *h, double y0, double y1) {
+    const double w = h->w;
+    s->a[0] += 0.5 * w * (y0 + y1);
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
+        s->a[k] += w * (y0 * h->c0[k] + y1 * h->c1[k]);
+        s->b[k] += w * (y0 * h->s0[k] + y1 * h->s1[k]);
     }
 }
 
@@ -406,6 +426,12 @@ int rths_controller_pop_period(rths_controller *c, rths_period *out) {
     return rths_spsc_pop(&c->ring, out);
 }
 
+/* theta and its exact cos and sin (the rotation in the step restarts from these) */
+static void set_phase(rths_controller *c, double theta) {
+    c->theta = theta;
+    c->cos_theta = cos(theta), c->sin_theta = sin(theta);
+}
+
 /* A forcing change waits for the period boundary, so every published period has one forcing;
  * but an old forcing of very low frequency must not hold a change back for its whole period (at
  * 0.001 Hz: 1000 s, and no period ever closes meanwhile). Past max_pending_s the open period is
@@ -415,7 +441,7 @@ static void start_overdue_forcing(rths_controller *c) {
     c->omega = c->pending_omega;
     c->amplitude_n = c->pending_amplitude;
     c->pending_forcing = 0;
-    c->theta = 0;
+    set_phase(c, 0.0);
     clear_sums(c);
 }
 
@@ -502,19 +528,25 @@ static double grounding_force(rths_controller *c, int d, double x) {
  * displacements and velocities after the step. */
 static void advance_numerical(rths_controller *c, const double *u, double *xi, double *xi_dot) {
     const int nx = c->nx, n_in = c->n_inputs;
-    /* column by column (contiguous, vectorised); each entry sums in the same order as a row
-     * by row product, so results are bitwise those of the plain loop */
-    memset(c->z_next, 0, sizeof(double) * (size_t)nx);
-    for (int j = 0; j < nx; j++) {
-        const double zj = c->z[j], *col = c->ad + (size_t)j * (size_t)nx;
-        for (int i = 0; i < nx; i++)
-            c->z_next[i] += col[i] * zj;
+    /* row by row, each sum in a register: in c the partial sums would alias ad and z and go
+     * through memory on every term (the step's largest cost at the seed's size). The order of
+     * the terms is that of a plain product, z's columns first, then the held inputs. */
+    double next[MAX_STATE];
+    const double *restrict ad = c->ad, *restrict z = c->z, *restrict up = c->u_prev,
+                           *restrict bp = c->b_prev, *restrict bc = c->b_curr;
+    for (int i = 0; i < nx; i++) {
+        double sum = 0;
+        for (int j = 0; j < nx; j++)
+            sum += ad[i + (size_t)j * (size_t)nx] * z[j];
+        for (int j = 0; j < n_in; j++)
+            sum += bp[i + (size_t)j * (size_t)nx] * up[j] + bc[i + (size_t)j * (size_t)nx] * u[j];
+        next[i] = sum;
     }
+    /* element by element: a handful of doubles, where a libc call would cost more than the copy */
+    for (int i = 0; i < nx; i++)
+        c->z[i] = next[i];
     for (int j = 0; j < n_in; j++)
-        for (int i = 0; i < nx; i++)
-            c->z_next[i] += c->b_prev[i + j * nx] * c->u_prev[j] + c->b_curr[i + j * nx] * u[j];
-    memcpy(c->z, c->z_next, sizeof(double) * (size_t)nx);
-    memcpy(c->u_prev, u, sizeof(double) * (size_t)n_in);
+        c->u_prev[j] = u[j];
     int finite = 1;
     for (int d = 0; d < c->ni; d++) {
         xi[d] = c->z[d];
@@ -573,11 +605,13 @@ static double pd_demand(rths_controller *c, int d, double target, double target_
  * ya at (c0, s0) to yb at (c1, s1) over dtheta. */
 static void accumulate_signals(rths_controller *c, double dtheta, double c0, double s0,
                                const double *ya, double c1, double s1, const double *yb) {
+    harmonic_ends h;
+    harmonic_ends_init(&h, dtheta, c0, s0, c1, s1);
     for (int d = 0; d < c->ni; d++) {
         const double *a = ya + 3 * d, *b = yb + 3 * d;
-        accumulate(&c->acc_phys[d], dtheta, c0, s0, a[0], c1, s1, b[0]);
-        accumulate(&c->acc_num[d], dtheta, c0, s0, a[1], c1, s1, b[1]);
-        accumulate(&c->acc_force[d], dtheta, c0, s0, a[2], c1, s1, b[2]);
+        accumulate(&c->acc_phys[d], &h, a[0], b[0]);
+        accumulate(&c->acc_num[d], &h, a[1], b[1]);
+        accumulate(&c->acc_force[d], &h, a[2], b[2]);
     }
 }
 
@@ -589,7 +623,7 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, dou
     if (theta1 < 2 * M_PI) {
         accumulate_signals(c, theta1 - theta0, cos0, sin0, c->y_prev, cos1, sin1, y);
         c->period_samples++;
-        c->theta = theta1;
+        c->theta = theta1, c->cos_theta = cos1, c->sin_theta = sin1;
         return;
     }
     double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
@@ -610,7 +644,7 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, dou
     /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
     double rest = theta1 - 2 * M_PI;
     accumulate_signals(c, rest, 1.0, 0.0, yb, cos1, sin1, y);
-    c->theta = rest;
+    set_phase(c, rest);
     c->at_boundary = 1;
 }
 
@@ -635,10 +669,15 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     measured m;
     read_sensors(c, in, &m);
     start_overdue_forcing(c);
-    /* phase of this sample */
+    /* phase of this sample: both ends of its interval, the end by one rotation */
     const double theta0 = c->theta, theta1 = theta0 + c->omega * c->h;
-    /* the only trigonometry of the step: both ends of this sample's phase interval */
-    const double cos0 = cos(theta0), sin0 = sin(theta0), cos1 = cos(theta1), sin1 = sin(theta1);
+    if (c->omega != c->rotor_omega) { /* a new frequency: once per change, not per sample */
+        c->rotor_omega = c->omega;
+        c->cos_step = cos(c->omega * c->h), c->sin_step = sin(c->omega * c->h);
+    }
+    const double cos0 = c->cos_theta, sin0 = c->sin_theta;
+    const double cos1 = cos0 * c->cos_step - sin0 * c->sin_step,
+                 sin1 = sin0 * c->cos_step + cos0 * c->sin_step;
     /* a sample past the period boundary belongs to the next period: its forcing amplitude */
     if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
         c->amplitude_n = c->pending_amplitude;
@@ -659,7 +698,8 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->at_boundary = 0;
     c->time_s += c->h;
     update_fourier(c, theta0, theta1, cos0, sin0, cos1, sin1, y);
-    memcpy(c->y_prev, y, sizeof(double) * (size_t)(3 * c->ni));
+    for (int i = 0; i < 3 * c->ni; i++)
+        c->y_prev[i] = y[i];
     if (out) {
         out->time_s = c->time_s;
         out->demand_v = c->demand[0];
