@@ -63,14 +63,12 @@ int rths_expm(int n, const double *a, double *out);
 
 typedef struct rths_rng {
     uint64_t s[4];
-    int has_spare;
-    double spare;
 } rths_rng;
 
 void rths_rng_seed(rths_rng *rng, uint64_t seed);
 uint64_t rths_rng_next(rths_rng *rng);
 double rths_rng_uniform(rths_rng *rng); /* [0, 1) */
-double rths_rng_normal(rths_rng *rng);  /* standard normal, Marsaglia polar method */
+double rths_rng_normal(rths_rng *rng);  /* standard normal, ziggurat (rng.c) */
 
 /* ---- small numeric helpers ---- */
 int rths_is_finite(double x);

@@ -233,7 +233,7 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     return RTHS_OK;
 }
 
-enum { BOUND_OK, BOUND_RANGE, BOUND_MOVED_BACK };
+enum { BOUND_OK, BOUND_RANGE, BOUND_MOVED_BACK, BOUND_PAST_END };
 
 /* A converged point the branch may not take: outside the range (beyond start: *leave = 1, the
  * run ends), or moving back on a branch without folds. Returns BOUND_OK, or which bound with err
@@ -254,6 +254,13 @@ static int out_of_bounds(const cont_run *run, const rths_solution *sol, int *lea
     if (opt->range_margin > 0 && run->dir * (f - opt->end_hz) > margin) {
         rths_error_set(err, RTHS_EFAIL, "step overshot the end frequency to %.6g Hz", f);
         return BOUND_RANGE;
+    }
+    /* a branch without folds ends exactly at end_hz (predict.c): an arclength correction that
+     * carried the point past it, within the margin, is retried as a natural step onto it */
+    if (opt->monotonic && run->n >= 1 && run->dir * (f - opt->end_hz) > 1e-9) {
+        rths_error_set(err, RTHS_EFAIL, "the correction carried the point past the end to %.6g Hz",
+                       f);
+        return BOUND_PAST_END;
     }
     if (opt->monotonic && run->n >= 1 &&
         run->dir * (sol->omega_rad_s - run->pts[run->n - 1].sol.omega_rad_s) <= 0) {
@@ -288,6 +295,10 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
         run->step_hz = fmax(last_hz, 0.1 * run->opt->initial_step_hz);
     }
     if (bound == BOUND_MOVED_BACK) run->natural_next = 1;
+    if (bound == BOUND_PAST_END) {
+        run->step_hz = fabs(run->opt->end_hz - run->pts[run->n - 1].sol.omega_rad_s / (2 * M_PI));
+        run->natural_next = 1;
+    }
     if (bound) {
         rc = RTHS_EFAIL;
         if (leave) {

@@ -96,10 +96,11 @@ static int converged(const rths_corrector *c, const corrector_point *p) {
     return p->sol.residual_norm_m < p->sol.tolerance_m && arc_satisfied(c, p);
 }
 
-static void accept_converged(rths_corrector *c) {
+static int accept_converged(rths_corrector *c, rths_error *err) {
     c->cur.sol.converged = 1;
-    corrector_finish(c);
+    int rc = corrector_finish(c, err);
     c->status = RTHS_CORRECTOR_CONVERGED;
+    return rc;
 }
 
 /* Scales, the arclength row and the per-correction counters for a new correction. */
@@ -142,10 +143,7 @@ int rths_corrector_set(rths_corrector *c, const double *u0, double omega_rad_s,
     c->cur.sol.omega_rad_s = omega_rad_s;
     int rc = corrector_evaluate(c, u, &c->cur, err);
     if (rc) return rc;
-    if (converged(c, &c->cur)) {
-        accept_converged(c);
-        return RTHS_OK;
-    }
+    if (converged(c, &c->cur)) return accept_converged(c, err);
     /* no carried Jacobian, the seed's flowchart, or a carried one without the frequency column
      * (natural sweep before) on an arclength step: measure */
     if (!c->mem.have_jacobian || c->opt.fresh_jacobian ||
@@ -234,7 +232,7 @@ int rths_corrector_iterate(rths_corrector *c, rths_error *err) {
         c->fresh = 0;
         c->jacobian_here = 1;
         c->cur = *trial;
-        if (converged(c, &c->cur)) accept_converged(c);
+        if (converged(c, &c->cur)) rc = accept_converged(c, err);
     } else if (!rc && c->fresh) {
         c->status = RTHS_CORRECTOR_STUCK; /* a fresh Jacobian could not reduce the residual */
     } else if (!rc) {

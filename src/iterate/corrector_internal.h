@@ -124,7 +124,8 @@ int corrector_fd_jacobian(rths_corrector *c, rths_error *err);
 void corrector_secant_update(rths_corrector *c, const corrector_point *trial);
 int solve_small(int m, double *a, int lda, double *b);
 
-/* matched.c */
-void corrector_finish(rths_corrector *c);
+/* matched.c: the converged point's report; on a natural sweep of an LTI rig it may evaluate
+ * once more (the fundamental's local gain), so it can return a rig error */
+int corrector_finish(rths_corrector *c, rths_error *err);
 
 #endif
