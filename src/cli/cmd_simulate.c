@@ -397,11 +397,6 @@ static int periods_from_trace(const rths_trace_sample *t, int n, double f_hz, in
 
 static int create_virtual_rig(rths_config *cfg, const rths_setup *setup, const rths_cli *cli,
                               int feedback, rths_rig **rig, rths_error *err) {
-    if (feedback && setup->split.n_int != 1)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "feedback mode through the rig drives one interface DoF; this split "
-                              "has %d (--delay TAU simulates the pure-delay model with several)",
-                              setup->split.n_int);
     int rc = rths_virtual_rig_create(cfg, setup, cli->has_seed, cli->seed, rig, err);
     if (rc) return rc;
     if (feedback) {
