@@ -12,7 +12,8 @@
  *
  *   y_k = sum_{i=1..n} a_i(phi_k) y_{k-i} + sum_{j=0..n} b_j(phi_k) u_{k-j} + e_k,
  *
- * each coefficient a Fourier series of order H in the phase phi_k = 2 pi (k mod P) / P, fitted
+ * the coefficients of the first lags a Fourier series of order H in the phase
+ * phi_k = 2 pi (k mod P) / P (varying_lags), fitted
  * by linear least squares (LAPACK dgelsd). The true assembly is the hybrid system with the
  * interface matched, u = y: substituting gives the closed recurrence
  *   (1 - b_0) y_k = sum_i (a_i + b_i) y_{k-i},
@@ -25,30 +26,43 @@
 
 #include "rths/core.h"
 
-enum { RTHS_FLOQUET_MAX_ORDER = 24, RTHS_FLOQUET_MAX_PHASE_HARMONICS = 12 };
+enum { RTHS_FLOQUET_MAX_ORDER = 40, RTHS_FLOQUET_MAX_PHASE_HARMONICS = 12 };
 
 typedef struct rths_floquet_options {
     int min_order, max_order; /* ARX orders n tried (1..RTHS_FLOQUET_MAX_ORDER); BIC picks one */
     int phase_harmonics;      /* H: Fourier order of the coefficients in phase (0: LTI) */
+    /* lags 0..varying_lags (of u and y) vary with phase, the later lags are constant: the orbit's
+     * time variation sits in the physical substructure's stiffness, felt at once, while the
+     * model order that resolves the dynamics is high; a phase basis on every lag would multiply
+     * the parameters by 2 H + 1 */
+    int varying_lags;
+    /* > 0: piecewise-constant coefficients over this many equal phase bins instead of the
+     * Fourier series (at most P; a bilinear kink switches the stiffness within a sample) */
+    int phase_bins;
     /* trust limits: one-step residual RMS over the output deviation's RMS, and the condition
      * number of the column-scaled regression matrix */
     double max_relative_residual;
     double max_condition;
 } rths_floquet_options;
 
-/* min_order 2, max_order 16, phase_harmonics 3, max_relative_residual 0.2, max_condition 1e12. */
+/* min_order 2, max_order 16, phase_harmonics 3, varying_lags 2, max_relative_residual 0.2,
+ * max_condition 1e12. */
 void rths_floquet_defaults(rths_floquet_options *opt);
 
 typedef struct rths_floquet_estimate {
     int order;           /* n chosen by the Bayesian information criterion */
-    int phase_harmonics; /* H used */
-    int parameters;      /* (2 n + 1)(2 H + 1) */
+    int phase_harmonics; /* H used (0 with bins) */
+    int phase_bins;      /* bins used (0: Fourier) */
+    int parameters;      /* (2 v + 1)(2 H + 1) + 2 (n - v), v = min(varying_lags, n) */
     int rows;            /* regression rows (grid samples with a full history) */
     int n_multipliers;   /* n */
     double multiplier_re[RTHS_FLOQUET_MAX_ORDER], multiplier_im[RTHS_FLOQUET_MAX_ORDER];
     double max_abs;           /* largest multiplier modulus (sorted: multiplier 0) */
     double max_abs_half[2];   /* the same order fitted to the first and the second half of the
                                  periods: their spread is a look at the estimate's variance */
+    double max_abs_order[2];  /* the same record fitted at orders n - 2 and n + 2 (NaN where
+                                 outside the orders tried) */
+    int orders_agree;         /* both give the label of order n */
     double relative_residual; /* RMS one-step residual / RMS of y */
     double condition;    /* of the column-scaled regression matrix (dgelsd's singular values) */
     double closure_gain; /* min over phase of |1 - b_0|: the closure's well-posedness */

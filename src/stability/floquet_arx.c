@@ -12,6 +12,8 @@ void rths_floquet_defaults(rths_floquet_options *opt) {
     opt->min_order = 2;
     opt->max_order = 16;
     opt->phase_harmonics = 3;
+    opt->varying_lags = 2;
+    opt->phase_bins = 0;
     opt->max_relative_residual = 0.2;
     opt->max_condition = 1e12;
 }
@@ -87,23 +89,40 @@ void rths_floquet_remove_periodic_mean(double *s, int samples_per_period, int pe
     }
 }
 
-/* One fit: order n, phase harmonics H, over periods [p0, p1) of the grid. */
+/* The periodic ARX model: order n, phase harmonics H. Regressors are ordered by lag, u_k, then
+ * y_{k-1}, u_{k-1}, y_{k-2}, u_{k-2}, ..., so the model of order n uses the first 2n + 1 of them
+ * and the models of every order are nested: one QR factorisation of the largest model's
+ * regression gives the residual of every smaller one. */
 typedef struct {
     const double *u, *y;
-    int p, n, h;
-    const double *basis; /* p x (2H+1): 1, cos q phi, sin q phi */
+    int p, n;
+    int nb;      /* phase basis functions: 2 H + 1 Fourier terms, or the bins */
+    int varying; /* regressors of lags 0..varying vary with phase, the later ones are constant */
+    const double *basis; /* p x nb: 1, cos q phi, sin q phi; or bin indicators */
 } arx_model;
 
 static int basis_count(const arx_model *m) {
-    return 2 * m->h + 1;
+    return m->nb;
+}
+/* Regressor r carries the phase basis when its lag is 1..varying: u_k's coefficient b_0 (the
+ * interface mass ratio's feedthrough, which the closure divides by) stays constant. */
+static int is_varying(const arx_model *m, int r) {
+    return r >= 1 && r <= 2 * m->varying;
+}
+/* Column of regressor r's first parameter (regressors before it take nb or 1 columns each). */
+static int column_of(const arx_model *m, int r) {
+    int v = r - 1 < 2 * m->varying ? r - 1 : 2 * m->varying;
+    if (v < 0) v = 0;
+    return r + v * (m->nb - 1);
 }
 static int parameter_count(const arx_model *m) {
-    return (2 * m->n + 1) * basis_count(m);
+    return column_of(m, 2 * m->n + 1);
 }
 
-/* Regressor r of row k: y_{k-1-r} for r < n, then u_{k-(r-n)}. */
+/* Regressor r of row k: u_k for r = 0, y_{k-i} for r = 2i - 1, u_{k-i} for r = 2i. */
 static double regressor(const arx_model *m, long k, int r) {
-    return r < m->n ? m->y[k - 1 - r] : m->u[k - (r - m->n)];
+    int lag = (r + 1) / 2;
+    return r % 2 ? m->y[k - lag] : m->u[k - lag];
 }
 
 /* Fills row (length parameters) of the regression at grid sample k. */
@@ -112,79 +131,103 @@ static void regression_row(const arx_model *m, long k, double *row) {
     const double *b = m->basis + (size_t)(k % m->p) * nb;
     for (int r = 0; r < 2 * m->n + 1; r++) {
         double x = regressor(m, k, r);
-        for (int l = 0; l < nb; l++)
-            row[r * nb + l] = x * b[l];
+        int c = column_of(m, r);
+        if (!is_varying(m, r))
+            row[c] = x;
+        else
+            for (int l = 0; l < nb; l++)
+                row[c + l] = x * b[l];
     }
 }
 
+/* The QR factorisation of the largest model's column-scaled regression over periods [p0, p1)
+ * (rows from the largest order's history on, the same rows for every order). */
 typedef struct {
-    double *theta; /* parameters (caller's buffer of parameter_count) */
-    double rss, y_square, condition;
     long rows;
-} arx_fit;
+    int np;      /* columns: the largest model's parameters */
+    double *a;   /* rows x np: R in its upper triangle after dgeqrf */
+    double *qtb; /* Q^T y (rows) */
+    double *scale;
+    double y_square;
+} arx_qr;
 
-/* Least squares over periods [p0, p1): columns scaled to unit norm, dgelsd (SVD), so the
- * condition number is read off the singular values. */
-static int fit_arx(const arx_model *m, int p0, int p1, arx_fit *f, rths_error *err) {
+static void qr_free(arx_qr *q) {
+    free(q->a), free(q->qtb), free(q->scale);
+}
+
+static int qr_build(const arx_model *m, int p0, int p1, arx_qr *q, rths_error *err) {
+    memset(q, 0, sizeof *q);
     const int np = parameter_count(m);
-    long k0 = (long)p0 * m->p + m->n, k1 = (long)p1 * m->p;
-    long rows = k1 - k0;
-    f->rows = rows;
+    long k0 = (long)p0 * m->p + m->n, k1 = (long)p1 * m->p, rows = k1 - k0;
+    q->rows = rows;
+    q->np = np;
     if (rows < 2L * np)
         return rths_error_set(err, RTHS_EINPUT,
-                              "%ld samples for %d ARX parameters: record more "
-                              "periods",
-                              rows, np);
-    double *a = malloc((size_t)rows * np * sizeof *a), *rhs = malloc((size_t)rows * sizeof *rhs);
-    double *scale = calloc((size_t)np, sizeof *scale), *sv = malloc((size_t)np * sizeof *sv);
-    double *row = malloc((size_t)np * sizeof *row);
+                              "%ld samples for %d ARX parameters: record more periods", rows, np);
+    q->a = malloc((size_t)rows * np * sizeof *q->a);
+    q->qtb = malloc((size_t)rows * sizeof *q->qtb);
+    q->scale = calloc((size_t)np, sizeof *q->scale);
+    double *row = malloc((size_t)np * sizeof *row), *tau = malloc((size_t)np * sizeof *tau);
     int rc = RTHS_OK;
-    if (!a || !rhs || !scale || !sv || !row) {
+    if (!q->a || !q->qtb || !q->scale || !row || !tau) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
     }
     for (long k = k0; k < k1; k++) {
         regression_row(m, k, row);
         for (int c = 0; c < np; c++) {
-            a[(k - k0) + c * rows] = row[c];
-            scale[c] += row[c] * row[c];
+            q->a[(k - k0) + c * rows] = row[c];
+            q->scale[c] += row[c] * row[c];
         }
-        rhs[k - k0] = m->y[k];
+        q->qtb[k - k0] = m->y[k];
+        q->y_square += m->y[k] * m->y[k];
     }
     for (int c = 0; c < np; c++) {
-        scale[c] = scale[c] > 0 ? sqrt(scale[c]) : 1.0;
+        q->scale[c] = q->scale[c] > 0 ? sqrt(q->scale[c]) : 1.0;
         for (long i = 0; i < rows; i++)
-            a[i + c * rows] /= scale[c];
+            q->a[i + c * rows] /= q->scale[c];
     }
-    lapack_int rank = 0;
-    if (LAPACKE_dgelsd(LAPACK_COL_MAJOR, (lapack_int)rows, np, 1, a, (lapack_int)rows, rhs,
-                       (lapack_int)rows, sv, -1.0, &rank)) {
-        rc = rths_error_set(err, RTHS_EFAIL, "LAPACK dgelsd failed on the ARX regression");
-        goto done;
-    }
-    f->condition = sv[np - 1] > 0 ? sv[0] / sv[np - 1] : INFINITY;
-    for (int c = 0; c < np; c++)
-        f->theta[c] = rhs[c] / scale[c];
-    f->rss = f->y_square = 0;
-    for (long k = k0; k < k1; k++) {
-        regression_row(m, k, row);
-        double e = m->y[k];
-        for (int c = 0; c < np; c++)
-            e -= f->theta[c] * row[c];
-        f->rss += e * e;
-        f->y_square += m->y[k] * m->y[k];
-    }
+    if (LAPACKE_dgeqrf(LAPACK_COL_MAJOR, (lapack_int)rows, np, q->a, (lapack_int)rows, tau) ||
+        LAPACKE_dormqr(LAPACK_COL_MAJOR, 'L', 'T', (lapack_int)rows, 1, np, q->a, (lapack_int)rows,
+                       tau, q->qtb, (lapack_int)rows))
+        rc = rths_error_set(err, RTHS_EFAIL, "LAPACK QR failed on the ARX regression");
 done:
-    free(a), free(rhs), free(scale), free(sv), free(row);
+    free(row), free(tau);
     return rc;
+}
+
+/* Residual sum of squares of the nested model with the first np columns. */
+static double qr_rss(const arx_qr *q, int np) {
+    double s = 0;
+    for (long i = np; i < q->rows; i++)
+        s += q->qtb[i] * q->qtb[i];
+    return s;
+}
+
+/* Parameters of the nested model with np columns (theta, unscaled) and the condition number of
+ * its column-scaled regression (LAPACK's 1-norm estimate of R's). RTHS_EFAIL when R is singular. */
+static int qr_solve(const arx_qr *q, int np, double *theta, double *condition) {
+    double rcond = 0;
+    if (LAPACKE_dtrcon(LAPACK_COL_MAJOR, '1', 'U', 'N', np, q->a, (lapack_int)q->rows, &rcond) ||
+        !(rcond > 1e-15))
+        return RTHS_EFAIL;
+    *condition = 1 / rcond;
+    memcpy(theta, q->qtb, sizeof(double) * (size_t)np);
+    if (LAPACKE_dtrtrs(LAPACK_COL_MAJOR, 'U', 'N', 'N', np, 1, q->a, (lapack_int)q->rows, theta,
+                       np))
+        return RTHS_EFAIL;
+    for (int c = 0; c < np; c++)
+        theta[c] /= q->scale[c];
+    return RTHS_OK;
 }
 
 /* Coefficient of regressor r at grid phase j. */
 static double coefficient(const arx_model *m, const double *theta, int r, int j) {
-    const int nb = basis_count(m);
+    const int nb = basis_count(m), col = column_of(m, r);
+    if (!is_varying(m, r)) return theta[col];
     double c = 0;
     for (int l = 0; l < nb; l++)
-        c += theta[r * nb + l] * m->basis[(size_t)j * nb + l];
+        c += theta[col + l] * m->basis[(size_t)j * nb + l];
     return c;
 }
 
@@ -205,10 +248,10 @@ static int close_and_multiply(const arx_model *m, const double *theta, double *m
         mono[i + i * n] = 1;
     *closure_gain = INFINITY;
     for (int j = 0; j < m->p; j++) {
-        double g = 1 - coefficient(m, theta, n, j); /* 1 - b_0 */
+        double g = 1 - coefficient(m, theta, 0, j); /* 1 - b_0 */
         *closure_gain = fmin(*closure_gain, fabs(g));
         for (int i = 1; i <= n; i++)
-            c[i - 1] = (coefficient(m, theta, i - 1, j) + coefficient(m, theta, n + i, j)) / g;
+            c[i - 1] = (coefficient(m, theta, 2 * i - 1, j) + coefficient(m, theta, 2 * i, j)) / g;
         /* companion times mono: the new first row combines the rows, the others shift down */
         for (int col = 0; col < n; col++) {
             double s = 0;
@@ -246,16 +289,26 @@ static int check_options(const rths_floquet_options *o, int p, int periods, rths
                               "%d phase harmonics on %d samples per period: "
                               "expected 0..%d and below half the samples",
                               o->phase_harmonics, p, RTHS_FLOQUET_MAX_PHASE_HARMONICS);
+    if (o->phase_bins < 0 || o->phase_bins > p)
+        return rths_error_set(err, RTHS_EINPUT, "%d phase bins on %d samples per period",
+                              o->phase_bins, p);
+    if (o->varying_lags < 0 || o->varying_lags > o->max_order)
+        return rths_error_set(err, RTHS_EINPUT, "%d varying lags: expected 0..%d (the order)",
+                              o->varying_lags, o->max_order);
     if (periods < 2) return rths_error_set(err, RTHS_EINPUT, "%d period(s): at least 2", periods);
     return RTHS_OK;
 }
 
+/* The largest multiplier modulus of the order-m->n model fitted to periods [p0, p1) alone. */
 static double max_abs_of(const arx_model *m, int p0, int p1, double *theta) {
-    arx_fit f = {.theta = theta};
-    double mult[2 * RTHS_FLOQUET_MAX_ORDER], gain;
+    arx_qr q;
+    double mult[2 * RTHS_FLOQUET_MAX_ORDER], gain, condition, result = NAN;
     rths_error e;
-    if (fit_arx(m, p0, p1, &f, &e) || close_and_multiply(m, theta, mult, &gain, &e)) return NAN;
-    return hypot(mult[0], mult[1]);
+    if (!qr_build(m, p0, p1, &q, &e) && !qr_solve(&q, q.np, theta, &condition) &&
+        !close_and_multiply(m, theta, mult, &gain, &e))
+        result = hypot(mult[0], mult[1]);
+    qr_free(&q);
+    return result;
 }
 
 /* The trust verdict: limits, then the halves' labels against the whole record's. */
@@ -269,6 +322,11 @@ static void judge(const rths_floquet_options *o, rths_floquet_estimate *e) {
                  o->max_condition);
     else if (!(e->closure_gain > 0.05))
         snprintf(e->note, sizeof e->note, "closure ill-posed (|1 - b0| = %.3g)", e->closure_gain);
+    else if (!e->orders_agree)
+        snprintf(e->note, sizeof e->note,
+                 "the neighbouring orders disagree (largest |mu| %.4f and %.4f at orders %d and "
+                 "%d)",
+                 e->max_abs_order[0], e->max_abs_order[1], e->order - 2, e->order + 2);
     else if (!isfinite(e->max_abs_half[0]) || !isfinite(e->max_abs_half[1]))
         snprintf(e->note, sizeof e->note, "a half of the record is too short to fit");
     else if ((e->max_abs_half[0] < 1) != e->stable || (e->max_abs_half[1] < 1) != e->stable)
@@ -287,7 +345,7 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
     const int p = samples_per_period;
     int rc = check_options(opt, p, periods, err);
     if (rc) return rc;
-    const int nb = 2 * opt->phase_harmonics + 1;
+    const int nb = opt->phase_bins > 0 ? opt->phase_bins : 2 * opt->phase_harmonics + 1;
     const int np_max = (2 * opt->max_order + 1) * nb;
     double *basis = malloc((size_t)p * nb * sizeof *basis);
     double *theta = malloc((size_t)np_max * sizeof *theta);
@@ -298,43 +356,57 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
     }
     for (int j = 0; j < p; j++) {
         double phi = 2 * M_PI * j / p;
+        if (opt->phase_bins > 0) { /* piecewise constant: a kink's switch stays sharp */
+            for (int l = 0; l < nb; l++)
+                basis[(size_t)j * nb + l] = l == j * nb / p;
+            continue;
+        }
         basis[(size_t)j * nb] = 1;
         for (int q = 1; q <= opt->phase_harmonics; q++) {
             basis[(size_t)j * nb + 2 * q - 1] = cos(q * phi);
             basis[(size_t)j * nb + 2 * q] = sin(q * phi);
         }
     }
-    arx_model m = {.u = u, .y = y, .p = p, .h = opt->phase_harmonics, .basis = basis};
+    arx_model m = {.u = u, .y = y, .p = p, .nb = nb, .varying = opt->varying_lags, .basis = basis};
+    /* the largest order the record supports (rows at least twice the parameters) */
+    int max_order = opt->max_order;
+    for (m.n = max_order;
+         max_order > opt->min_order && (long)periods * p - max_order < 2L * parameter_count(&m);
+         m.n = --max_order) {
+    }
+    arx_qr q;
+    rc = qr_build(&m, 0, periods, &q, err);
     /* the order by the Bayesian information criterion, rows ln(rss / rows) + parameters ln rows:
-     * a consistent order estimate, where a looser criterion adds noise-fitted near-cancelling
-     * pole/zero pairs that the closure turns into spurious multipliers */
+     * a consistent order estimate; a looser one adds noise-fitted near-cancelling pole/zero
+     * pairs that the closure turns into spurious multipliers */
     double best_bic = INFINITY;
-    arx_fit chosen = {0};
-    for (int n = opt->min_order; n <= opt->max_order; n++) {
+    for (int n = opt->min_order; n <= max_order && !rc; n++) {
         m.n = n;
-        arx_fit f = {.theta = theta};
-        rths_error e;
-        if (fit_arx(&m, 0, periods, &f, n == opt->min_order ? err : &e)) {
-            if (n == opt->min_order) rc = err->code;
-            break;
-        }
-        double bic = f.rows * log(fmax(f.rss, 1e-300) / f.rows) + parameter_count(&m) * log(f.rows);
+        int np = parameter_count(&m);
+        double bic = q.rows * log(fmax(qr_rss(&q, np), 1e-300) / q.rows) + np * log(q.rows);
         if (bic < best_bic) {
             best_bic = bic;
-            chosen = f;
             est->order = n;
-            memcpy(best, theta, sizeof(double) * (size_t)parameter_count(&m));
         }
     }
+    /* a singular regression at that order (a signal without excitation): the next lower one */
+    while (!rc && est->order >= opt->min_order &&
+           qr_solve(&q, (m.n = est->order, parameter_count(&m)), best, &est->condition))
+        est->order--;
+    if (!rc && est->order < opt->min_order)
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "the ARX regression is singular at every order: the record carries "
+                            "no perturbation");
     double mult[2 * RTHS_FLOQUET_MAX_ORDER];
     if (!rc) {
         m.n = est->order;
         rc = close_and_multiply(&m, best, mult, &est->closure_gain, err);
     }
     if (!rc) {
-        est->phase_harmonics = opt->phase_harmonics;
+        est->phase_harmonics = opt->phase_bins > 0 ? 0 : opt->phase_harmonics;
+        est->phase_bins = opt->phase_bins;
         est->parameters = parameter_count(&m);
-        est->rows = (int)chosen.rows;
+        est->rows = (int)q.rows;
         est->n_multipliers = m.n;
         for (int i = 0; i < m.n; i++) {
             est->multiplier_re[i] = mult[2 * i];
@@ -342,13 +414,30 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
         }
         est->max_abs = hypot(mult[0], mult[1]);
         est->stable = est->max_abs < 1;
-        est->relative_residual =
-            chosen.y_square > 0 ? sqrt(chosen.rss / chosen.y_square) : INFINITY;
-        est->condition = chosen.condition;
+        double rss = qr_rss(&q, est->parameters);
+        est->relative_residual = q.y_square > 0 ? sqrt(rss / q.y_square) : INFINITY;
+        /* the same record at orders n - 2 and n + 2 (where they exist): a multiplier that the
+         * model order makes or moves across the unit circle is the fit's, not the orbit's */
+        est->orders_agree = 1;
+        for (int side = 0; side < 2; side++) {
+            int n = est->order + (side ? 2 : -2);
+            est->max_abs_order[side] = NAN;
+            if (n < opt->min_order || n > max_order) continue;
+            arx_model mo = m;
+            mo.n = n;
+            double cond, gain, mo_mult[2 * RTHS_FLOQUET_MAX_ORDER];
+            rths_error e;
+            if (qr_solve(&q, parameter_count(&mo), theta, &cond) ||
+                close_and_multiply(&mo, theta, mo_mult, &gain, &e))
+                continue;
+            est->max_abs_order[side] = hypot(mo_mult[0], mo_mult[1]);
+            est->orders_agree &= (est->max_abs_order[side] < 1) == est->stable;
+        }
         est->max_abs_half[0] = max_abs_of(&m, 0, periods / 2, theta);
         est->max_abs_half[1] = max_abs_of(&m, periods / 2, periods, theta);
         judge(opt, est);
     }
+    qr_free(&q);
     free(basis), free(theta), free(best);
     return rc;
 }
