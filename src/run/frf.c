@@ -59,6 +59,13 @@ static int read_options(frf_state *st, rths_error *err) {
         rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
                                   "needs the virtual rig: the remote rig's protocol cannot inject "
                                   "a demand perturbation");
+    /* the series map is identified between one physical and one numerical interface signal,
+     * and the controller must integrate the numerical substructure to produce the latter */
+    if (!rc && st->floquet.enabled &&
+        (st->setup->split.n_int > 1 || st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY))
+        rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
+                                  "needs one interface DoF and the real-time numerical "
+                                  "substructure (split.numerical_solver: realtime)");
     return rc;
 }
 

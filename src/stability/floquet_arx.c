@@ -338,6 +338,80 @@ static void judge(const rths_floquet_options *o, rths_floquet_estimate *e) {
     }
 }
 
+/* The phase basis at each of the p grid phases: 1, cos q phi, sin q phi, or bin indicators. */
+static void fill_basis(const rths_floquet_options *opt, int p, int nb, double *basis) {
+    for (int j = 0; j < p; j++) {
+        double phi = 2 * M_PI * j / p, *row = basis + (size_t)j * nb;
+        if (opt->phase_bins > 0) { /* piecewise constant: a kink's switch stays sharp */
+            for (int l = 0; l < nb; l++)
+                row[l] = l == j * nb / p;
+            continue;
+        }
+        row[0] = 1;
+        for (int q = 1; q <= opt->phase_harmonics; q++) {
+            row[2 * q - 1] = cos(q * phi);
+            row[2 * q] = sin(q * phi);
+        }
+    }
+}
+
+/* The order by the Bayesian information criterion, rows ln(rss / rows) + parameters ln rows: a
+ * consistent order estimate; a looser one adds noise-fitted near-cancelling pole/zero pairs that
+ * the closure turns into spurious multipliers. */
+static int choose_order(arx_model m, const arx_qr *q, int min_order, int max_order) {
+    double best_bic = INFINITY;
+    int order = min_order;
+    for (m.n = min_order; m.n <= max_order; m.n++) {
+        int np = parameter_count(&m);
+        double bic = q->rows * log(fmax(qr_rss(q, np), 1e-300) / q->rows) + np * log(q->rows);
+        if (bic < best_bic) {
+            best_bic = bic;
+            order = m.n;
+        }
+    }
+    return order;
+}
+
+/* The same record at orders n - 2 and n + 2 (where they exist): a multiplier that the model
+ * order makes or moves across the unit circle is the fit's, not the orbit's. */
+static void neighbour_orders(arx_model m, const arx_qr *q, int min_order, int max_order,
+                             double *theta, rths_floquet_estimate *est) {
+    est->orders_agree = 1;
+    for (int side = 0; side < 2; side++) {
+        m.n = est->order + (side ? 2 : -2);
+        est->max_abs_order[side] = NAN;
+        if (m.n < min_order || m.n > max_order) continue;
+        double cond, gain, mult[2 * RTHS_FLOQUET_MAX_ORDER];
+        rths_error e;
+        if (qr_solve(q, parameter_count(&m), theta, &cond) ||
+            close_and_multiply(&m, theta, mult, &gain, &e))
+            continue;
+        est->max_abs_order[side] = hypot(mult[0], mult[1]);
+        est->orders_agree &= (est->max_abs_order[side] < 1) == est->stable;
+    }
+}
+
+/* Fills est from the chosen model's parameters (best) and the factorisation's residual. */
+static int describe(arx_model *m, const arx_qr *q, const double *best, rths_floquet_estimate *est,
+                    rths_error *err) {
+    double mult[2 * RTHS_FLOQUET_MAX_ORDER];
+    m->n = est->order;
+    int rc = close_and_multiply(m, best, mult, &est->closure_gain, err);
+    if (rc) return rc;
+    est->parameters = parameter_count(m);
+    est->rows = (int)q->rows;
+    est->n_multipliers = m->n;
+    for (int i = 0; i < m->n; i++) {
+        est->multiplier_re[i] = mult[2 * i];
+        est->multiplier_im[i] = mult[2 * i + 1];
+    }
+    est->max_abs = hypot(mult[0], mult[1]);
+    est->stable = est->max_abs < 1;
+    double rss = qr_rss(q, est->parameters);
+    est->relative_residual = q->y_square > 0 ? sqrt(rss / q->y_square) : INFINITY;
+    return RTHS_OK;
+}
+
 int rths_floquet_estimate_series(const double *u, const double *y, int samples_per_period,
                                  int periods, const rths_floquet_options *opt,
                                  rths_floquet_estimate *est, rths_error *err) {
@@ -354,19 +428,9 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
         free(basis), free(theta), free(best);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
-    for (int j = 0; j < p; j++) {
-        double phi = 2 * M_PI * j / p;
-        if (opt->phase_bins > 0) { /* piecewise constant: a kink's switch stays sharp */
-            for (int l = 0; l < nb; l++)
-                basis[(size_t)j * nb + l] = l == j * nb / p;
-            continue;
-        }
-        basis[(size_t)j * nb] = 1;
-        for (int q = 1; q <= opt->phase_harmonics; q++) {
-            basis[(size_t)j * nb + 2 * q - 1] = cos(q * phi);
-            basis[(size_t)j * nb + 2 * q] = sin(q * phi);
-        }
-    }
+    fill_basis(opt, p, nb, basis);
+    est->phase_harmonics = opt->phase_bins > 0 ? 0 : opt->phase_harmonics;
+    est->phase_bins = opt->phase_bins;
     arx_model m = {.u = u, .y = y, .p = p, .nb = nb, .varying = opt->varying_lags, .basis = basis};
     /* the largest order the record supports (rows at least twice the parameters) */
     int max_order = opt->max_order;
@@ -376,19 +440,7 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
     }
     arx_qr q;
     rc = qr_build(&m, 0, periods, &q, err);
-    /* the order by the Bayesian information criterion, rows ln(rss / rows) + parameters ln rows:
-     * a consistent order estimate; a looser one adds noise-fitted near-cancelling pole/zero
-     * pairs that the closure turns into spurious multipliers */
-    double best_bic = INFINITY;
-    for (int n = opt->min_order; n <= max_order && !rc; n++) {
-        m.n = n;
-        int np = parameter_count(&m);
-        double bic = q.rows * log(fmax(qr_rss(&q, np), 1e-300) / q.rows) + np * log(q.rows);
-        if (bic < best_bic) {
-            best_bic = bic;
-            est->order = n;
-        }
-    }
+    if (!rc) est->order = choose_order(m, &q, opt->min_order, max_order);
     /* a singular regression at that order (a signal without excitation): the next lower one */
     while (!rc && est->order >= opt->min_order &&
            qr_solve(&q, (m.n = est->order, parameter_count(&m)), best, &est->condition))
@@ -397,42 +449,9 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
         rc = rths_error_set(err, RTHS_EFAIL,
                             "the ARX regression is singular at every order: the record carries "
                             "no perturbation");
-    double mult[2 * RTHS_FLOQUET_MAX_ORDER];
+    if (!rc) rc = describe(&m, &q, best, est, err);
     if (!rc) {
-        m.n = est->order;
-        rc = close_and_multiply(&m, best, mult, &est->closure_gain, err);
-    }
-    if (!rc) {
-        est->phase_harmonics = opt->phase_bins > 0 ? 0 : opt->phase_harmonics;
-        est->phase_bins = opt->phase_bins;
-        est->parameters = parameter_count(&m);
-        est->rows = (int)q.rows;
-        est->n_multipliers = m.n;
-        for (int i = 0; i < m.n; i++) {
-            est->multiplier_re[i] = mult[2 * i];
-            est->multiplier_im[i] = mult[2 * i + 1];
-        }
-        est->max_abs = hypot(mult[0], mult[1]);
-        est->stable = est->max_abs < 1;
-        double rss = qr_rss(&q, est->parameters);
-        est->relative_residual = q.y_square > 0 ? sqrt(rss / q.y_square) : INFINITY;
-        /* the same record at orders n - 2 and n + 2 (where they exist): a multiplier that the
-         * model order makes or moves across the unit circle is the fit's, not the orbit's */
-        est->orders_agree = 1;
-        for (int side = 0; side < 2; side++) {
-            int n = est->order + (side ? 2 : -2);
-            est->max_abs_order[side] = NAN;
-            if (n < opt->min_order || n > max_order) continue;
-            arx_model mo = m;
-            mo.n = n;
-            double cond, gain, mo_mult[2 * RTHS_FLOQUET_MAX_ORDER];
-            rths_error e;
-            if (qr_solve(&q, parameter_count(&mo), theta, &cond) ||
-                close_and_multiply(&mo, theta, mo_mult, &gain, &e))
-                continue;
-            est->max_abs_order[side] = hypot(mo_mult[0], mo_mult[1]);
-            est->orders_agree &= (est->max_abs_order[side] < 1) == est->stable;
-        }
+        neighbour_orders(m, &q, opt->min_order, max_order, theta, est);
         est->max_abs_half[0] = max_abs_of(&m, 0, periods / 2, theta);
         est->max_abs_half[1] = max_abs_of(&m, periods / 2, periods, theta);
         judge(opt, est);

@@ -61,4 +61,9 @@ grep -q "stability.floquet_periods" "$work/bad.err" || fail "the refusal does no
 [ $? -eq 2 ] || fail "a remote rig with the option not refused with exit 2"
 grep -q "virtual rig" "$work/remote.err" || fail "the remote refusal does not say why"
 [ -e "$work/remote" ] && fail "a refused run wrote $work/remote"
+"$bin" frf "$bil" --out "$work/freq" --quiet --set stability.experimental_floquet=true \
+    --set split.numerical_solver=frequency 2> "$work/freq.err"
+[ $? -eq 2 ] || fail "the frequency-domain numerical substructure with the option not refused"
+grep -q "realtime" "$work/freq.err" || fail "the frequency-form refusal does not say why"
+[ -e "$work/freq" ] && fail "a refused run wrote $work/freq"
 echo "ok"
