@@ -12,14 +12,13 @@
  *
  *   y_k = sum_{i=1..n} a_i(phi_k) y_{k-i} + sum_{j=0..n} b_j(phi_k) u_{k-j} + e_k,
  *
- * the coefficients of the first lags a Fourier series of order H in the phase
- * phi_k = 2 pi (k mod P) / P (varying_lags), fitted
- * by linear least squares (LAPACK dgelsd). The true assembly is the hybrid system with the
- * interface matched, u = y: substituting gives the closed recurrence
- *   (1 - b_0) y_k = sum_i (a_i + b_i) y_{k-i},
- * whose companion matrices, multiplied over one period, give the monodromy matrix; its
- * eigenvalues (dgeev) estimate the Floquet multipliers. The grounding control drops out on
- * closure (it acts on y - u), and nothing about the numerical model or the actuator needs to be
+ * the coefficients of the first lags (varying_lags) a Fourier series of order H in the phase
+ * phi_k = 2 pi (k mod P) / P, or piecewise constant over phase bins, fitted by linear least squares
+ * (one QR factorisation, LAPACK dgeqrf, serves every order). The true assembly is the hybrid system
+ * with the interface matched, u = y: substituting gives the closed recurrence (1 - b_0) y_k = sum_i
+ * (a_i + b_i) y_{k-i}, whose companion matrices, multiplied over one period, give the monodromy
+ * matrix; its eigenvalues (dgeev) estimate the Floquet multipliers. The grounding control drops out
+ * on closure (it acts on y - u), and nothing about the numerical model or the actuator needs to be
  * known. Not for the per-sample path: it allocates and calls LAPACK. */
 #ifndef RTHS_FLOQUET_H
 #define RTHS_FLOQUET_H
@@ -31,10 +30,11 @@ enum { RTHS_FLOQUET_MAX_ORDER = 40, RTHS_FLOQUET_MAX_PHASE_HARMONICS = 12 };
 typedef struct rths_floquet_options {
     int min_order, max_order; /* ARX orders n tried (1..RTHS_FLOQUET_MAX_ORDER); BIC picks one */
     int phase_harmonics;      /* H: Fourier order of the coefficients in phase (0: LTI) */
-    /* lags 0..varying_lags (of u and y) vary with phase, the later lags are constant: the orbit's
-     * time variation sits in the physical substructure's stiffness, felt at once, while the
-     * model order that resolves the dynamics is high; a phase basis on every lag would multiply
-     * the parameters by 2 H + 1 */
+    /* the coefficients of lags 1..varying_lags (of u and y) vary with phase; b_0 (the interface
+     * mass ratio's feedthrough, which the closure divides by) and the later lags are constant:
+     * the orbit's time variation sits in the physical substructure's stiffness, felt at once,
+     * while the model order that resolves the dynamics is high; a phase basis on every lag would
+     * multiply the parameters by the basis' size */
     int varying_lags;
     /* > 0: piecewise-constant coefficients over this many equal phase bins instead of the
      * Fourier series (at most P; a bilinear kink switches the stiffness within a sample) */
@@ -53,7 +53,7 @@ typedef struct rths_floquet_estimate {
     int order;           /* n chosen by the Bayesian information criterion */
     int phase_harmonics; /* H used (0 with bins) */
     int phase_bins;      /* bins used (0: Fourier) */
-    int parameters;      /* (2 v + 1)(2 H + 1) + 2 (n - v), v = min(varying_lags, n) */
+    int parameters;      /* 2 v (basis size) + 2 (n - v) + 1, v = min(varying_lags, n) */
     int rows;            /* regression rows (grid samples with a full history) */
     int n_multipliers;   /* n */
     double multiplier_re[RTHS_FLOQUET_MAX_ORDER], multiplier_im[RTHS_FLOQUET_MAX_ORDER];
@@ -64,7 +64,8 @@ typedef struct rths_floquet_estimate {
                                  outside the orders tried) */
     int orders_agree;         /* both give the label of order n */
     double relative_residual; /* RMS one-step residual / RMS of y */
-    double condition;    /* of the column-scaled regression matrix (dgelsd's singular values) */
+    double condition; /* of the column-scaled regression matrix (1-norm estimate of its QR factor,
+                         dtrcon) */
     double closure_gain; /* min over phase of |1 - b_0|: the closure's well-posedness */
     int stable;          /* max_abs < 1 */
     int trustworthy;     /* residual, condition, closure within limits and both halves give
