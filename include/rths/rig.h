@@ -19,6 +19,23 @@
 
 typedef struct rths_rig rths_rig;
 
+/* A seeded random perturbation of the (first) actuator's demand, for the experimental Floquet
+ * estimate (floquet.h): normal numbers held per controller sample, band-limited by two cascaded
+ * first-order low-passes at cutoff_hz (0: white), RMS rms_v after the filter. */
+typedef struct rths_perturbation {
+    double rms_v;
+    double cutoff_hz;
+    uint64_t seed;
+} rths_perturbation;
+
+/* One undecimated controller sample of a perturbed record. */
+typedef struct rths_perturbed_sample {
+    double phase_rad;      /* forcing phase after the sample, [0, 2 pi) */
+    double x_phys_m;       /* measured physical interface displacement (the first DoF) */
+    double x_num_m;        /* numerical interface displacement */
+    double perturbation_v; /* the perturbation added to the demand at this sample */
+} rths_perturbed_sample;
+
 /* Backend operations; every call returns RTHS_OK or an error code with err filled. */
 typedef struct rths_rig_ops {
     int (*set_forcing)(void *self, double frequency_hz, double amplitude_n, rths_error *err);
@@ -39,6 +56,12 @@ typedef struct rths_rig_ops {
     int (*set_target_dofs)(void *self, int dofs, int harmonics, const double *a, const double *b,
                            rths_error *err);
     int (*interface_dofs)(void *self); /* NULL: 1 */
+    /* Runs with the perturbation on until `periods` whole forcing periods lie inside the record
+     * (one more period end than that), recording every controller sample (at most max_samples),
+     * then turns it off. NULL: the rig cannot (the remote rig's protocol
+     * has no such command). */
+    int (*record_perturbed)(void *self, const rths_perturbation *p, int periods, int max_samples,
+                            rths_perturbed_sample *out, int *n_out, rths_error *err);
 } rths_rig_ops;
 
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description);
@@ -63,5 +86,12 @@ double rths_rig_time_s(rths_rig *rig);
 rths_rig_fault rths_rig_get_fault(rths_rig *rig);
 int rths_rig_reset_fault(rths_rig *rig, rths_error *err);
 double rths_rig_noise_level_m(rths_rig *rig);
+/* The perturbed record above; RTHS_EINPUT naming the rig when it cannot record one. Periods that
+ * the record spans are delivered to nobody (the next evaluation waits for steady state anew). */
+int rths_rig_record_perturbed(rths_rig *rig, const rths_perturbation *p, int periods,
+                              int max_samples, rths_perturbed_sample *out, int *n_out,
+                              rths_error *err);
+/* Whether this rig object can record one (a wrapping rig answers for itself). */
+int rths_rig_can_record_perturbed(const rths_rig *rig);
 
 #endif

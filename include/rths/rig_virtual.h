@@ -25,4 +25,13 @@ int rths_virtual_rig_set_pace(rths_rig *rig, double factor, rths_error *err);
 rths_controller *rths_virtual_rig_controller(rths_rig *rig);
 rths_plant *rths_virtual_rig_plant(rths_rig *rig);
 
+/* The per-sample loop's demand perturbation (defined in src/controller/sample_loop.c beside the
+ * loop, declared here for its one user): rms_v 0 turns it off. Band-limited white noise, see
+ * rths_perturbation in rig.h. RTHS_EINPUT for a negative or non-finite level. The loop then adds
+ * it to the first actuator's demand every sample, allocation- and library-free. */
+int rths_sample_loop_set_perturbation(rths_sample_loop *loop, double rms_v, double cutoff_hz,
+                                      double sample_rate_hz, uint64_t seed);
+/* The perturbation added at the last sample, V. */
+double rths_sample_loop_perturbation_v(const rths_sample_loop *loop);
+
 #endif

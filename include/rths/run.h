@@ -15,6 +15,7 @@
 #define RTHS_RUN_H
 
 #include "rths/continuation.h"
+#include "rths/floquet.h"
 #include "rths/setup.h"
 
 #include <stdint.h>
@@ -90,6 +91,36 @@ int rths_run_frf_column_count(int interface_dofs);
 const char *rths_run_frf_column_name(int interface_dofs, int i);
 /* The point's row with rths_run_frf_column_count(interface_dofs) entries. */
 void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row);
+
+/* ---- the experimental Floquet estimate at a held orbit (docs/method.md, "Experimental Floquet
+ * multipliers"): configuration keys stability.experimental_floquet (off by default),
+ * stability.floquet_periods, stability.floquet_perturbation_v, stability.floquet_cutoff_hz,
+ * stability.floquet_samples_per_period, stability.floquet_max_order,
+ * stability.floquet_phase_harmonics, stability.floquet_phase_bins,
+ * stability.floquet_varying_lags ---- */
+typedef struct rths_floquet_measure_options {
+    int enabled;
+    int periods;              /* whole forcing periods recorded under the perturbation: 120 */
+    double perturbation_v;    /* RMS of the demand perturbation, V: 0.02 */
+    double cutoff_hz;         /* its band limit (two first-order low-passes): 5 Hz */
+    int samples_per_period;   /* phase grid P: 16 */
+    double sample_rate_hz;    /* the controller's (controller.sample_rate_hz): sizes the record */
+    uint64_t seed;            /* of the perturbation; the run adds the point index */
+    rths_floquet_options fit; /* rths_floquet_defaults with max_order 24 */
+} rths_floquet_measure_options;
+
+void rths_floquet_measure_defaults(rths_floquet_measure_options *o);
+/* Reads the keys above (located errors). The chart's own keys of the stability section are read
+ * alongside (rths_chart_config_read), so a typo anywhere in the section is still refused. */
+int rths_floquet_measure_config_read(rths_config *cfg, rths_floquet_measure_options *o,
+                                     rths_error *err);
+/* At the rig's current forcing (frequency_hz) and target, held at a converged point: records the
+ * perturbed response, grids it in phase, subtracts the periodic orbit and estimates the
+ * multipliers of the assembly (floquet.h). *rig_time_s: the rig time the record took. RTHS_EINPUT
+ * when the rig cannot inject a perturbation. */
+int rths_floquet_measure(rths_rig *rig, double frequency_hz, const rths_floquet_measure_options *o,
+                         uint64_t seed, rths_floquet_estimate *est, double *rig_time_s,
+                         rths_error *err);
 
 /* Runs the test (see above). Returns RTHS_OK when it ran (status says how it ended; also when
  * cancelled), RTHS_EINPUT on bad input (nothing written), RTHS_EFAIL on a failure during it. */

@@ -6,12 +6,61 @@
 #include <math.h>
 #include <stdlib.h>
 
+/* A seeded random perturbation added to the first actuator's demand (the experimental Floquet
+ * estimate, docs/method.md, "Experimental Floquet multipliers"): white normal numbers held per
+ * sample, through two cascaded first-order low-passes (band-limited: less content above what the
+ * host's phase grid resolves), scaled so the output has the requested RMS. Fixed-size state:
+ * the per-sample path stays allocation- and library-free. */
+typedef struct {
+    int on;
+    rths_rng rng;
+    double alpha;   /* low-pass pole per sample (0: white) */
+    double gain;    /* white input scale giving the requested output RMS */
+    double s1, s2;  /* the two filter states */
+    double value_v; /* the perturbation added at the last sample */
+} demand_perturbation;
+
 struct rths_sample_loop {
     rths_controller *ctl;
     rths_io *io;
     rths_sensor_sample sensors; /* preallocated: read into every sample */
     rths_io_demand demand;      /* preallocated: written every sample */
+    demand_perturbation perturb;
 };
+
+/* Declared in rig_virtual.h (the virtual rig is its user). */
+int rths_sample_loop_set_perturbation(rths_sample_loop *l, double rms_v, double cutoff_hz,
+                                      double sample_rate_hz, uint64_t seed);
+double rths_sample_loop_perturbation_v(const rths_sample_loop *l);
+
+int rths_sample_loop_set_perturbation(rths_sample_loop *l, double rms_v, double cutoff_hz,
+                                      double sample_rate_hz, uint64_t seed) {
+    demand_perturbation *p = &l->perturb;
+    if (!(rms_v >= 0 && rms_v < 1e3) || !(cutoff_hz >= 0) || !(sample_rate_hz > 0))
+        return RTHS_EINPUT;
+    *p = (demand_perturbation){.on = rms_v > 0};
+    if (!p->on) return RTHS_OK;
+    rths_rng_seed(&p->rng, seed);
+    /* the cascade ((1 - a) / (1 - a z^-1))^2 driven by unit white noise has the variance
+     * (1 - a)^4 sum_k (k + 1)^2 a^2k = (1 - a)^4 (1 + a^2) / (1 - a^2)^3 */
+    double a = cutoff_hz > 0 ? exp(-2 * M_PI * cutoff_hz / sample_rate_hz) : 0.0;
+    double var = pow(1 - a, 4) * (1 + a * a) / pow(1 - a * a, 3);
+    p->alpha = a;
+    p->gain = rms_v / sqrt(var);
+    return RTHS_OK;
+}
+
+double rths_sample_loop_perturbation_v(const rths_sample_loop *l) {
+    return l->perturb.value_v;
+}
+
+static double next_perturbation(demand_perturbation *p) {
+    if (!p->on) return 0.0;
+    double w = p->gain * rths_rng_normal(&p->rng);
+    p->s1 = p->alpha * p->s1 + (1 - p->alpha) * w;
+    p->s2 = p->alpha * p->s2 + (1 - p->alpha) * p->s1;
+    return p->value_v = p->s2;
+}
 
 int rths_sample_loop_config_read(rths_config *cfg, rths_controller_options *copt,
                                  rths_plant_options *popt, rths_error *err) {
@@ -102,9 +151,16 @@ double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
         rths_controller_trip(l->ctl, device <= RTHS_RIG_FAULT_WATCHDOG ? (rths_rig_fault)device
                                                                        : RTHS_RIG_FAULT_LINK);
     double demand = rths_controller_step(l->ctl, &l->sensors, out);
-    l->demand.demand_v = demand;
     l->demand.n_demands = rths_controller_interface_dofs(l->ctl);
     rths_controller_demands(l->ctl, l->demand.demand_dof_v);
+    /* the perturbation goes to the actuator only, past the controller's own limit check; never
+     * once a fault is latched (the ramp to zero must reach zero) */
+    if (l->perturb.on && rths_controller_fault(l->ctl) == RTHS_RIG_OK) {
+        double dv = next_perturbation(&l->perturb);
+        demand += dv;
+        l->demand.demand_dof_v[0] += dv;
+    }
+    l->demand.demand_v = demand;
     rths_controller_forcing(l->ctl, &l->demand.forcing_amplitude_n, &l->demand.forcing_theta_rad,
                             &l->demand.forcing_omega_rad_s);
     rths_io_write(l->io, &l->demand);

@@ -90,3 +90,25 @@ int rths_rig_reset_fault(rths_rig *rig, rths_error *err) {
 double rths_rig_noise_level_m(rths_rig *rig) {
     return rig->ops->noise_level_m ? rig->ops->noise_level_m(rig->self) : 0.0;
 }
+
+int rths_rig_can_record_perturbed(const rths_rig *rig) {
+    return rig->ops->record_perturbed != NULL;
+}
+
+int rths_rig_record_perturbed(rths_rig *rig, const rths_perturbation *p, int periods,
+                              int max_samples, rths_perturbed_sample *out, int *n_out,
+                              rths_error *err) {
+    *n_out = 0;
+    if (!rig->ops->record_perturbed)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "rig '%s' cannot inject a demand perturbation (the experimental "
+                              "Floquet estimate needs the virtual rig)",
+                              rig->description);
+    if (!(p->rms_v > 0 && p->rms_v < 1e3) || !(p->cutoff_hz >= 0) || periods < 1 || max_samples < 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "perturbation of %g V RMS, cutoff %g Hz, over %d periods into %d "
+                              "samples: expected 0 < RMS < 1000 V, cutoff >= 0, at least one "
+                              "period and one sample",
+                              p->rms_v, p->cutoff_hz, periods, max_samples);
+    return rig->ops->record_perturbed(rig->self, p, periods, max_samples, out, n_out, err);
+}

@@ -156,6 +156,49 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
     return RTHS_OK;
 }
 
+/* The rig keeps running its target; the demand carries the seeded perturbation meanwhile. */
+static int v_record_perturbed(void *self, const rths_perturbation *p, int periods, int max_samples,
+                              rths_perturbed_sample *out, int *n_out, rths_error *err) {
+    virtual_rig *v = self;
+    *n_out = 0;
+    double f = rths_controller_frequency_hz(v->ctrl);
+    if (!(f > 0)) return rths_error_set(err, RTHS_EINPUT, "set the forcing before perturbing");
+    if (rths_sample_loop_set_perturbation(v->loop, p->rms_v, p->cutoff_hz, v->sample_rate_hz,
+                                          p->seed))
+        return rths_error_set(err, RTHS_EINPUT, "perturbation of %g V RMS, cutoff %g Hz", p->rms_v,
+                              p->cutoff_hz);
+    rths_period discard;
+    while (rths_controller_pop_period(v->ctrl, &discard)) {
+    }
+    long limit = (long)(periods + 3) * (long)(2 * v->sample_rate_hz / f) + 100000;
+    int ends = 0, rc = RTHS_OK;
+    rths_controller_output o;
+    pace_begin(v);
+    for (long i = 0; ends <= periods && !rc; i++) {
+        if (i > limit) {
+            rc = rths_error_set(err, RTHS_EFAIL, "virtual rig: no period completed");
+            break;
+        }
+        sample(v, &o);
+        if (rths_controller_fault(v->ctrl)) {
+            rc = fault_error(v, err);
+            break;
+        }
+        if (*n_out < max_samples) {
+            double amplitude_n, theta, omega;
+            rths_controller_forcing(v->ctrl, &amplitude_n, &theta, &omega);
+            out[(*n_out)++] = (rths_perturbed_sample){theta, o.x_phys_m, o.x_num_m,
+                                                      rths_sample_loop_perturbation_v(v->loop)};
+        }
+        int before = ends;
+        while (rths_controller_pop_period(v->ctrl, &discard))
+            ends++;
+        if (ends > before) pace_wait(v);
+    }
+    rths_sample_loop_set_perturbation(v->loop, 0, 0, v->sample_rate_hz, 0);
+    return rc;
+}
+
 static double v_time(void *self) {
     return rths_controller_time_s(((virtual_rig *)self)->ctrl);
 }
@@ -189,6 +232,7 @@ static const rths_rig_ops virtual_ops = {
     .destroy = v_destroy,
     .set_target_dofs = v_set_target_dofs,
     .interface_dofs = v_interface_dofs,
+    .record_perturbed = v_record_perturbed,
 };
 
 int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_options *copt,

@@ -53,6 +53,19 @@ static int read_options(frf_state *st, rths_error *err) {
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
+    rths_floquet_measure_defaults(&st->floquet);
+    if (!rc) rc = rths_floquet_measure_config_read(opt->cfg, &st->floquet, err);
+    if (!rc && st->floquet.enabled && opt->rig_uri)
+        rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
+                                  "needs the virtual rig: the remote rig's protocol cannot inject "
+                                  "a demand perturbation");
+    /* the series map is identified between one physical and one numerical interface signal,
+     * and the controller must integrate the numerical substructure to produce the latter */
+    if (!rc && st->floquet.enabled &&
+        (st->setup->split.n_int > 1 || st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY))
+        rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
+                                  "needs one interface DoF and the real-time numerical "
+                                  "substructure (split.numerical_solver: realtime)");
     return rc;
 }
 
@@ -235,6 +248,47 @@ static int open_outputs(frf_state *st, rths_error *err) {
     return rc;
 }
 
+/* stability.experimental_floquet: the multipliers at the point just accepted, while the rig still
+ * holds its orbit (docs/method.md, "Experimental Floquet multipliers"). A failed estimate is
+ * logged and leaves the point unmeasured; a rig fault stops the run. */
+static int measure_floquet(frf_state *st, const rths_point *pt) {
+    if (pt->index >= st->floquet_cap) {
+        int cap = st->floquet_cap ? 2 * st->floquet_cap : 64;
+        while (cap <= pt->index)
+            cap *= 2;
+        frf_floquet_point *p = realloc(st->floquet_pts, (size_t)cap * sizeof *p);
+        if (!p)
+            return rths_error_set(&st->point_err, RTHS_EFAIL, "out of memory keeping the points");
+        for (int i = st->floquet_cap; i < cap; i++)
+            p[i] = (frf_floquet_point){0};
+        st->floquet_pts = p;
+        st->floquet_cap = cap;
+    }
+    rths_floquet_estimate e;
+    rths_error err = {0};
+    double rig_s = 0;
+    int rc = rths_floquet_measure(st->virtual_rig, pt->sol.frequency_hz, &st->floquet,
+                                  st->floquet.seed + (uint64_t)pt->index, &e, &rig_s, &err);
+    st->floquet_rig_time_s += rig_s;
+    if (rc) {
+        rths_report_log(st->rep, "point %d: no Floquet estimate: %s", pt->index, err.msg);
+        if (rths_rig_get_fault(st->virtual_rig) == RTHS_RIG_OK) return RTHS_OK;
+        st->point_err = err;
+        return RTHS_EFAIL;
+    }
+    st->floquet_pts[pt->index] = (frf_floquet_point){1, e.max_abs, e.stable, e.trustworthy};
+    char dominant[160] = "";
+    for (int i = 0, len = 0; i < e.n_multipliers && i < 4 && len < (int)sizeof dominant; i++)
+        len += snprintf(dominant + len, sizeof dominant - (size_t)len, "%s%.4f%+.4fi",
+                        i ? ", " : "", e.multiplier_re[i], e.multiplier_im[i]);
+    rths_report_log(st->rep,
+                    "point %d: Floquet |mu|max %.5f, dominant %s (order %d, residual %.3g, "
+                    "condition %.3g%s%s)",
+                    pt->index, e.max_abs, dominant, e.order, e.relative_residual, e.condition,
+                    e.trustworthy ? "" : "; not trustworthy: ", e.note);
+    return RTHS_OK;
+}
+
 static int on_point(void *user, const rths_point *pt, int is_update) {
     frf_state *st = user;
     rths_error err;
@@ -245,6 +299,7 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
     }
     if (remember(st, pt))
         return rths_error_set(&st->point_err, RTHS_EFAIL, "out of memory keeping the points");
+    if (st->floquet.enabled && !is_update && measure_floquet(st, pt)) return RTHS_EFAIL;
     const rths_run_callbacks *cb = st->cb;
     int rc = cb && cb->on_point ? cb->on_point(cb->user, pt, is_update) : RTHS_OK;
     if (rc)
@@ -378,6 +433,7 @@ static void release(frf_state *st) {
     rths_live_close(st->live);
     rths_truth_free(&st->truth);
     free(st->pts);
+    free(st->floquet_pts);
     free(st->resume_pts);
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);

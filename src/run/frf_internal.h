@@ -7,6 +7,13 @@
 #include "rths/run.h"
 #include "rths/truth.h"
 
+/* The experimental Floquet estimate of one point (stability.experimental_floquet). */
+typedef struct frf_floquet_point {
+    int measured; /* 0: not measured (option off, a resumed point, or the estimate failed) */
+    double max_abs;
+    int stable, trustworthy;
+} frf_floquet_point;
+
 typedef struct frf_state {
     const rths_run_frf_options *opt;
     const rths_run_callbacks *cb;
@@ -41,6 +48,10 @@ typedef struct frf_state {
     char seed_buf[32];
     const char *seed_text; /* --seed as text (recorded in the journal), NULL when not given */
     double wall_time_s, trace_rig_time_s, max_truth_error;
+    rths_floquet_measure_options floquet; /* stability.experimental_floquet and its keys */
+    frf_floquet_point *floquet_pts;       /* by point index, floquet_cap entries */
+    int floquet_cap;
+    double floquet_rig_time_s; /* rig time spent on the perturbed records */
 } frf_state;
 
 enum { FRF_MAX_CHANGES = 8 };

@@ -129,18 +129,37 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
     }
 }
 
+/* Columns that options add after the fixed ones (each block only when its option is on, so a
+ * run without it writes frf.csv as before, byte for byte). */
+static const char *const floquet_columns[] = {"floquet_max_abs_experimental", "stable_experimental",
+                                              "floquet_trustworthy"};
+enum { FRF_FLOQUET_COLUMNS = 3, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
+
+/* The experimental Floquet columns of point i: NaN where it was not measured. */
+static void floquet_row(const frf_state *run, int i, double *out) {
+    const frf_floquet_point *f =
+        i < run->floquet_cap && run->floquet_pts[i].measured ? &run->floquet_pts[i] : NULL;
+    out[0] = f ? f->max_abs : NAN;
+    out[1] = f ? f->stable : NAN;
+    out[2] = f ? f->trustworthy : NAN;
+}
+
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int dofs = run->setup->split.n_int, columns = rths_run_frf_column_count(dofs);
-    const char *names[RTHS_RUN_FRF_MAX_COLUMNS];
-    for (int i = 0; i < columns; i++)
+    int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs), columns = fixed;
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
+    for (int i = 0; i < fixed; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
+    if (run->floquet.enabled)
+        for (int k = 0; k < FRF_FLOQUET_COLUMNS; k++)
+            names[columns++] = floquet_columns[k];
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS];
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
+        if (run->floquet.enabled) floquet_row(run, i, row + fixed);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -341,6 +360,10 @@ typedef struct {
     int far, far_within_3se;
     /* points farther than STABLE_FOLD_HZ from a fold: labelled, and agreeing with the truth */
     int stable_compared, stable_agree;
+    /* the experimental Floquet labels: measured, trustworthy, agreeing with the fold-based label,
+     * and, farther than STABLE_FOLD_HZ from a fold, compared with and agreeing with the truth */
+    int floquet_measured, floquet_trustworthy, floquet_agree_label, floquet_compared,
+        floquet_agree_truth;
     double
         max_z_honest; /* largest |A - truth| / SE of a point whose SE is honest, far from folds */
     double rig_time, max_h[4], median;
@@ -373,6 +396,43 @@ static void compare_with_truth(const frf_state *run, const rths_point *pt, point
         ps->stable_compared++;
         ps->stable_agree += rths_point_stable(pt) == stable;
     }
+    double fq[FRF_FLOQUET_COLUMNS];
+    if (!run->floquet.enabled) return;
+    floquet_row(run, pt->index, fq);
+    if (isnan(fq[0]) || !(fold_hz > STABLE_FOLD_HZ)) return;
+    ps->floquet_compared++;
+    ps->floquet_agree_truth += (int)fq[1] == stable;
+}
+
+/* The experimental Floquet counts that need no truth. */
+static void floquet_statistics(const frf_state *run, point_stats *ps) {
+    for (int i = 0; i < run->n && run->floquet.enabled; i++) {
+        double fq[FRF_FLOQUET_COLUMNS];
+        floquet_row(run, i, fq);
+        if (isnan(fq[0])) continue;
+        ps->floquet_measured++;
+        ps->floquet_trustworthy += fq[2] == 1;
+        ps->floquet_agree_label += (int)fq[1] == rths_point_stable(&run->pts[i]);
+    }
+}
+
+static json_object *floquet_json(const frf_state *run, const point_stats *ps) {
+    json_object *o = json_object_new_object();
+    const rths_floquet_measure_options *f = &run->floquet;
+    json_object_object_add(o, "periods_per_point", json_object_new_int(f->periods));
+    json_object_object_add(o, "perturbation_v", json_object_new_double(f->perturbation_v));
+    json_object_object_add(o, "cutoff_hz", json_object_new_double(f->cutoff_hz));
+    json_object_object_add(o, "samples_per_period", json_object_new_int(f->samples_per_period));
+    json_object_object_add(o, "points_measured", json_object_new_int(ps->floquet_measured));
+    json_object_object_add(o, "points_trustworthy", json_object_new_int(ps->floquet_trustworthy));
+    json_object_object_add(o, "points_agreeing_with_stable_label",
+                           json_object_new_int(ps->floquet_agree_label));
+    json_object_object_add(o, "points_compared_with_truth",
+                           json_object_new_int(ps->floquet_compared));
+    json_object_object_add(o, "points_agreeing_with_truth",
+                           json_object_new_int(ps->floquet_agree_truth));
+    json_object_object_add(o, "rig_time_s", json_object_new_double(run->floquet_rig_time_s));
+    return o;
 }
 
 /* Totals and extremes over the accepted points; the largest error against the truth goes to
@@ -530,6 +590,10 @@ int frf_write_summary(frf_state *run, rths_error *err) {
                                    : "measured: the physical interface response at the accepted "
                                      "target"));
     add_truth_comparison(root, &ps);
+    if (run->floquet.enabled) {
+        floquet_statistics(run, &ps);
+        json_object_object_add(root, "experimental_floquet", floquet_json(run, &ps));
+    }
     json_object_object_add(
         root, "truth_error_measure",
         json_object_new_string(facts->setup->has_bilinear
