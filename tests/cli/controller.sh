@@ -244,7 +244,7 @@ bad = []
 if len(remote) != len(local) or len(remote) < 20:
     bad.append(f"{len(remote)} points over tcp, {len(local)} in-process")
 cols = [h for h in local[0] if h.startswith("dof")]
-if sorted(set(h[:4] for h in cols)) != ["dof1", "dof2"] or len(cols) != 8:
+if sorted(set(h[:4] for h in cols)) != ["dof1", "dof2"] or len(cols) != 10:
     bad.append(f"dof columns {cols}")
 worst = {h: 0.0 for h in cols}
 truth_err = {"tcp": [0.0, 0.0], "in-process": [0.0, 0.0]}  # amplitude, complex
@@ -269,6 +269,11 @@ for r, l in zip(remote, local):
             d, limit = abs(a - b), 0.04
         elif h.endswith("_interface_error_m"):
             d, limit = abs(a - b), tol
+        elif h.endswith("_amplitude_se_m"):
+            # the two runs' standard errors are estimates from different evaluations (the
+            # iterations differ, see above; measured up to a factor 2.4 apart): not compared,
+            # but each must be a finite positive number (their coverage: test_multi_interface)
+            d, limit = (0.0 if np.isfinite(a) and np.isfinite(b) and a > 0 and b > 0 else 1.0), 0.5
         else:
             d, limit = abs(a - b) / abs(b), 0.01
         worst[h] = max(worst[h], d)
