@@ -14,15 +14,20 @@
  *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
  *                displacements are relative to the ground)
  *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
+ *   rig.actuators, rig.lasers: where the actuators push and the lasers read, as offsets from the
+ *                cut of a beam or as transform matrices (docs/config/rig.md, "Actuator and
+ *                sensor transforms"); absent: one of each per interface DoF, acting on and
+ *                reading that DoF itself
  *
  * Other sections (rig, controller, iteration, continuation, stability, output) are read by their
  * own modules from the same rths_config. */
 #ifndef RTHS_SETUP_H
 #define RTHS_SETUP_H
 
+#include "rths/beam.h"
 #include "rths/config.h"
-#include <stddef.h>
 #include "rths/model.h"
+#include <stddef.h>
 
 /* Where the numerical substructure is solved (split.numerical_solver). */
 typedef enum {
@@ -49,6 +54,15 @@ typedef struct rths_setup {
     double frf_start_hz, frf_end_hz;
     int frf_points;
     rths_numerical_solver numerical_solver;
+    rths_beam *beam; /* structure.beam as assembled (NULL for storeys and matrices) */
+    /* Actuator and sensor transforms, n_int x n_int column-major over the split's interface
+     * order; NULL: the identity (one actuator and one laser per interface DoF, on the DoF).
+     * actuator_transform column a: the interface efforts (N on a displacement, N m on a
+     * rotation) of 1 N from actuator a; its transpose maps interface motion to the motion of
+     * each actuator's point (where its load cell and accelerometer sit). sensor_transform row s:
+     * laser s reads sum_d S(s, d) q_d (m). Both invertible (checked at read). */
+    double *actuator_transform;
+    double *sensor_transform;
 } rths_setup;
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
