@@ -78,6 +78,10 @@ void rths_setup_free(rths_setup *s);
 /* The forcing in words for titles and logs: "1 N on DoF 4" or "ground acceleration 1 m/s^2". */
 void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size);
 
+/* 1 when assembly DoF dof (0-based) is a rotation (a beam node's theta: its amplitudes are in
+ * rad, its efforts in N m), 0 for a displacement (m). */
+int rths_setup_dof_is_rotation(const rths_setup *s, int dof);
+
 /* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
 int *rths_setup_output_dofs(const rths_setup *s, int *count);
 

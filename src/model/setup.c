@@ -668,3 +668,7 @@ void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size) {
     else
         snprintf(buf, size, "%g N on DoF %d", s->forcing_amplitude_n, s->forcing_dof + 1);
 }
+
+int rths_setup_dof_is_rotation(const rths_setup *s, int dof) {
+    return s->beam && dof >= 0 && dof < s->beam->n && s->beam->dofs[dof].kind == RTHS_BEAM_THETA;
+}

@@ -942,7 +942,20 @@ double rths_plant_interface_displacement_m(const rths_plant *p) {
     return p->q[p->n - p->ni];
 }
 double rths_plant_noise_level_m(const rths_plant *p) {
-    return p->opt.noise ? p->opt.laser.noise_std : 0.0;
+    if (!p->opt.noise) return 0.0;
+    if (!p->sens_t) return p->opt.laser.noise_std;
+    /* through the lasers' transform the controller's interface DoFs read S^-1 y: DoF d's noise is
+     * the laser noise times the norm of row d of S^-1 (the largest is reported) */
+    int ni = p->ni;
+    double inv[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_INTERFACE_DOFS], gain = 0;
+    if (rths_mat_inverse(ni, p->sens_t, inv)) return p->opt.laser.noise_std;
+    for (int d = 0; d < ni; d++) {
+        double row = 0;
+        for (int l = 0; l < ni; l++)
+            row += inv[d + l * ni] * inv[d + l * ni];
+        gain = fmax(gain, sqrt(row));
+    }
+    return gain * p->opt.laser.noise_std;
 }
 
 /* A list of at most RTHS_ACTUATOR_MAX_ORDER + 1 coefficients into a fixed array. */
