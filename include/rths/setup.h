@@ -5,11 +5,13 @@
  *                or the path of a Matrix Market file (mtx.h), relative to the config's folder;
  *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
  *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
- *                the seed paper", erratum 1), physical / numerical (1-based lists; for a chain
+ *                the seed paper", erratum 1) or a list of one p per interface DoF, physical /
+ *                numerical (1-based lists, physical may be empty; for a chain
  *                default: below / above; with matrices the absent one takes every other DoF),
  *                numerical_solver: realtime (default: the controller integrates the numerical
  *                substructure every sample) | frequency (the host solves it per harmonic from its
- *                dynamic stiffness; docs/method.md, "Numerical substructure integration")
+ *                dynamic stiffness; docs/method.md, "Numerical substructure integration"); a
+ *                structure.beam splits element by element (beam.h)
  *   forcing:     dof (1-based), amplitude_n; or type: base, amplitude_m_s2 (a harmonic ground
  *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
  *                displacements are relative to the ground)
