@@ -833,6 +833,18 @@ static void limits_update(rths_plant *p) {
         v = fmax(v, fabs(p->v[iface + d]));
         f = fmax(f, fabs(p->fs_more[d]));
     }
+    if (p->act_t) { /* stroke and velocity of each actuator's own point, T^T q */
+        x = v = 0;
+        for (int a = 0; a < p->ni; a++) {
+            double xa = 0, va = 0;
+            for (int d = 0; d < p->ni; d++) {
+                xa += p->act_t[d + a * p->ni] * p->q[iface + d];
+                va += p->act_t[d + a * p->ni] * p->v[iface + d];
+            }
+            x = fmax(x, fabs(xa));
+            v = fmax(v, fabs(va));
+        }
+    }
     st->peak_stroke_m = fmax(st->peak_stroke_m, x);
     st->peak_velocity_m_per_s = fmax(st->peak_velocity_m_per_s, v);
     st->peak_force_n = fmax(st->peak_force_n, f);
