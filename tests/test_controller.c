@@ -136,8 +136,6 @@ static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
 #endif
 }
 
-static rths_sample_loop *loop_holder;
-
 static void cantilever_setup(rths_setup *s, rths_config **cfg) {
     rths_error err;
     const char *sets[] = {"rig.noise=false"};
@@ -162,6 +160,7 @@ static void test_transformed_loop_allocates_nothing(void **state) {
     assert_non_null(s.sensor_transform);
     rths_controller_options co;
     rths_plant_options po;
+    rths_sample_loop *loop_holder;
     rths_controller_defaults(&co);
     rths_plant_defaults(&po);
     if (rths_sample_loop_config_read(cfg, &co, &po, &err) ||
