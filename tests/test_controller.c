@@ -136,13 +136,20 @@ static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
 #endif
 }
 
-static void cantilever_setup(rths_setup *s, rths_config **cfg) {
+static void cantilever_setup_with(rths_setup *s, rths_config **cfg, const char *const *more,
+                                  int n_more) {
     rths_error err;
-    const char *sets[] = {"rig.noise=false"};
-    if (rths_config_load(rths_test_source_path("examples/cantilever_two_shakers.yaml"), sets, 1,
-                         cfg, &err) ||
+    const char *sets[4] = {"rig.noise=false"};
+    for (int i = 0; i < n_more && i < 3; i++)
+        sets[1 + i] = more[i];
+    if (rths_config_load(rths_test_source_path("examples/cantilever_two_shakers.yaml"), sets,
+                         1 + n_more, cfg, &err) ||
         rths_setup_read(*cfg, s, &err))
         fail_msg("%s", err.msg);
+}
+
+static void cantilever_setup(rths_setup *s, rths_config **cfg) {
+    cantilever_setup_with(s, cfg, NULL, 0);
 }
 
 /* With actuator and sensor transforms (two shakers and two lasers at offsets) the whole loop,
@@ -218,6 +225,40 @@ static void test_transformed_demands(void **state) {
     for (int a = 0; a < 2; a++)
         assert_close(demand[a], expect[a], 1e-12 * fabs(expect[a]));
     rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* Gain matrices given (controller.kp_matrix, kd_matrix) replace T^-1 diag(kp): the first demands
+ * are -G_p S^-1 y; a matrix of the wrong size is refused when the controller is created. */
+static void test_gain_matrices(void **state) {
+    (void)state;
+    const char *more[2] = {"controller.kp_matrix=[[10, -3], [2, 30]]",
+                           "controller.kd_matrix=[[0.1, 0], [0, 0.2]]"};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    cantilever_setup_with(&s, &cfg, more, 2);
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    if (rths_controller_config_read(cfg, &co, &err)) fail_msg("%s", err.msg);
+    rths_controller *c;
+    if (rths_controller_create(&s, &co, &c, &err)) fail_msg("%s", err.msg);
+    rths_controller_arm(c, 1);
+    rths_sensor_sample in = {.n = s.split.np, .n_interface = 2};
+    in.displacement_m[s.split.np - 2] = 2e-4;
+    in.displacement_m[s.split.np - 1] = -1e-4;
+    rths_controller_step(c, &in, NULL);
+    double demand[2];
+    rths_controller_demands(c, demand);
+    /* lasers at 0.01 and 0.04 m: theta = (y1 - y0) / 0.03, w = y0 - 0.01 theta */
+    double theta = (-1e-4 - 2e-4) / 0.03, w = 2e-4 - 0.01 * theta;
+    assert_close(demand[0], -(10 * w - 3 * theta), 1e-12);
+    assert_close(demand[1], -(2 * w + 30 * theta), 1e-12);
+    rths_controller_destroy(c);
+    co.gain_matrix_rows = 3;
+    assert_int_equal(rths_controller_create(&s, &co, &c, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "controller.kp_matrix and kd_matrix are 3 x 2"));
     rths_setup_free(&s);
     rths_config_free(cfg);
 }
@@ -722,6 +763,7 @@ int main(void) {
         cmocka_unit_test(test_step_source_is_clean),
         cmocka_unit_test(test_transformed_loop_allocates_nothing),
         cmocka_unit_test(test_transformed_demands),
+        cmocka_unit_test(test_gain_matrices),
         cmocka_unit_test(test_fourier_sums_exact),
         cmocka_unit_test(test_forcing_changes_at_boundary),
         cmocka_unit_test(test_limits_latch),

@@ -114,6 +114,9 @@ refused frf "three mass ratios for two interface DoFs" \
 refused frf "a mass ratio of 1 in the list" \
     "ratio1.yaml:[0-9]+:[0-9]+: key 'split.mass_ratio': entry 2: must be in \(0, 1\)" \
     "$(variant ratio1 's/mass_ratio: 0.5 /mass_ratio: [0.5, 1] /')"
+refused frf "a gain matrix without its derivative partner" \
+    "kponly.yaml:[0-9]+:[0-9]+: key 'controller.kp_matrix': needs controller.kd_matrix too" \
+    "$(variant kponly 's/^controller:/controller:\n  kp_matrix: [[124, -50], [0, 44]]/')"
 # the seed's grounding gains on the cut's milligrams: the loop would diverge, refused by name
 refused frf "the seed's grounding gains on the beam" \
     "grounding control destabilises the numerical substructure .*controller.grounding_kp_per_dof" \
