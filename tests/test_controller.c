@@ -4,7 +4,8 @@
  * 4096 Hz, 20 kHz): the configuration's defaults stay valid, and the virtual rig's matched
  * response equals the discrete scheme's fidelity model and the analytic FRF as at 10 kHz; base
  * excitation: the setup's inertial load against Cramer's rule, the base-excited seed's hybrid
- * response against its analytic FRF. */
+ * response against its analytic FRF; actuator and sensor transforms (the two-shaker cantilever):
+ * the loop stays allocation-free and the demands are T^-1 diag(kp) times the DoF errors S^-1 y. */
 #include "testlib.h"
 
 #include "rths/controller.h"
@@ -133,6 +134,133 @@ static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
     rths_setup_free(&s);
     rths_config_free(cfg);
 #endif
+}
+
+static void cantilever_setup_with(rths_setup *s, rths_config **cfg, const char *const *more,
+                                  int n_more) {
+    rths_error err;
+    const char *sets[4] = {"rig.noise=false"};
+    for (int i = 0; i < n_more && i < 3; i++)
+        sets[1 + i] = more[i];
+    if (rths_config_load(rths_test_source_path("examples/cantilever_two_shakers.yaml"), sets,
+                         1 + n_more, cfg, &err) ||
+        rths_setup_read(*cfg, s, &err))
+        fail_msg("%s", err.msg);
+}
+
+static void cantilever_setup(rths_setup *s, rths_config **cfg) {
+    cantilever_setup_with(s, cfg, NULL, 0);
+}
+
+/* With actuator and sensor transforms (two shakers and two lasers at offsets) the whole loop,
+ * through its transforms and gain matrices, still allocates nothing. */
+static void test_transformed_loop_allocates_nothing(void **state) {
+    (void)state;
+#ifdef __SANITIZE_ADDRESS__
+    skip();
+#else
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    cantilever_setup(&s, &cfg);
+    assert_non_null(s.actuator_transform);
+    assert_non_null(s.sensor_transform);
+    rths_controller_options co;
+    rths_plant_options po;
+    rths_sample_loop *loop_holder;
+    rths_controller_defaults(&co);
+    rths_plant_defaults(&po);
+    if (rths_sample_loop_config_read(cfg, &co, &po, &err) ||
+        rths_sample_loop_create(&s, &co, &po, &loop_holder, &err))
+        fail_msg("%s", err.msg);
+    rths_controller *c = rths_sample_loop_controller(loop_holder);
+    assert_int_equal(rths_sample_loop_arm(loop_holder), RTHS_OK);
+    const double a[2] = {1e-4, 1e-3}, b[2] = {0, 0};
+    rths_controller_set_target_dofs(c, 2, 1, a, b);
+    rths_controller_set_forcing(c, 3.0, s.forcing_amplitude_n);
+    long before = allocations;
+    for (int k = 0; k < 20000; k++)
+        rths_sample_loop_run(loop_holder, NULL);
+    long during = allocations - before;
+    assert_int_equal(during, 0);
+    assert_int_equal(rths_controller_fault(c), RTHS_RIG_OK);
+    rths_sample_loop_destroy(loop_holder);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+#endif
+}
+
+/* The first step's demands (zero target, no velocity yet, nothing latched) are -T^-1 diag(kp)
+ * S^-1 y for laser readings y: inverses by the 2 x 2 formula here, the controller's by LAPACK at
+ * create. */
+static void test_transformed_demands(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    cantilever_setup(&s, &cfg);
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    if (rths_controller_config_read(cfg, &co, &err)) fail_msg("%s", err.msg);
+    rths_controller *c;
+    if (rths_controller_create(&s, &co, &c, &err)) fail_msg("%s", err.msg);
+    rths_controller_arm(c, 1);
+    const double *t = s.actuator_transform, *sm = s.sensor_transform;
+    /* actuators at 0 and 0.05 m, lasers at 0.01 and 0.04 m (the example) */
+    assert_close(t[2], 1.0, 0), assert_close(t[3], 0.05, 1e-15);
+    assert_close(sm[0], 1.0, 0), assert_close(sm[3], 0.04, 1e-15);
+    rths_sensor_sample in = {.n = s.split.np, .n_interface = 2};
+    in.displacement_m[s.split.np - 2] = 2e-4;
+    in.displacement_m[s.split.np - 1] = -1e-4;
+    rths_controller_step(c, &in, NULL);
+    double demand[2];
+    rths_controller_demands(c, demand);
+    double ds = sm[0] * sm[3] - sm[2] * sm[1], dt = t[0] * t[3] - t[2] * t[1];
+    double y0 = in.displacement_m[s.split.np - 2], y1 = in.displacement_m[s.split.np - 1];
+    double q[2] = {(sm[3] * y0 - sm[2] * y1) / ds, (-sm[1] * y0 + sm[0] * y1) / ds};
+    double e[2] = {-co.kp_dof_v_per_m[0] * q[0], -co.kp_dof_v_per_m[1] * q[1]};
+    double expect[2] = {(t[3] * e[0] - t[2] * e[1]) / dt, (-t[1] * e[0] + t[0] * e[1]) / dt};
+    print_message("transformed demands %.9g %.9g V, expected %.9g %.9g V\n", demand[0], demand[1],
+                  expect[0], expect[1]);
+    for (int a = 0; a < 2; a++)
+        assert_close(demand[a], expect[a], 1e-12 * fabs(expect[a]));
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* Gain matrices given (controller.kp_matrix, kd_matrix) replace T^-1 diag(kp): the first demands
+ * are -G_p S^-1 y; a matrix of the wrong size is refused when the controller is created. */
+static void test_gain_matrices(void **state) {
+    (void)state;
+    const char *more[2] = {"controller.kp_matrix=[[10, -3], [2, 30]]",
+                           "controller.kd_matrix=[[0.1, 0], [0, 0.2]]"};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    cantilever_setup_with(&s, &cfg, more, 2);
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    if (rths_controller_config_read(cfg, &co, &err)) fail_msg("%s", err.msg);
+    rths_controller *c;
+    if (rths_controller_create(&s, &co, &c, &err)) fail_msg("%s", err.msg);
+    rths_controller_arm(c, 1);
+    rths_sensor_sample in = {.n = s.split.np, .n_interface = 2};
+    in.displacement_m[s.split.np - 2] = 2e-4;
+    in.displacement_m[s.split.np - 1] = -1e-4;
+    rths_controller_step(c, &in, NULL);
+    double demand[2];
+    rths_controller_demands(c, demand);
+    /* lasers at 0.01 and 0.04 m: theta = (y1 - y0) / 0.03, w = y0 - 0.01 theta */
+    double theta = (-1e-4 - 2e-4) / 0.03, w = 2e-4 - 0.01 * theta;
+    assert_close(demand[0], -(10 * w - 3 * theta), 1e-12);
+    assert_close(demand[1], -(2 * w + 30 * theta), 1e-12);
+    rths_controller_destroy(c);
+    co.gain_matrix_rows = 3;
+    assert_int_equal(rths_controller_create(&s, &co, &c, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "controller.kp_matrix and kd_matrix are 3 x 2"));
+    rths_setup_free(&s);
+    rths_config_free(cfg);
 }
 
 /* By construction: the step's source calls no allocator, lock, printing or LAPACK. */
@@ -633,6 +761,9 @@ int main(void) {
         cmocka_unit_test(test_step_allocates_nothing),
         cmocka_unit_test(test_loop_allocates_nothing_across_frequency_changes),
         cmocka_unit_test(test_step_source_is_clean),
+        cmocka_unit_test(test_transformed_loop_allocates_nothing),
+        cmocka_unit_test(test_transformed_demands),
+        cmocka_unit_test(test_gain_matrices),
         cmocka_unit_test(test_fourier_sums_exact),
         cmocka_unit_test(test_forcing_changes_at_boundary),
         cmocka_unit_test(test_limits_latch),

@@ -1,6 +1,6 @@
 /* Model library against independent truths: the seed facts (docs/method.md, "The seed structure"),
  * closed-form 1- and 2-DoF results, matrix exponentials with known closed forms, z-domain transfer
- * functions of each scheme. */
+ * functions of each scheme; the interface mass split by one p per DoF; spectral radii. */
 #include "testlib.h"
 
 #include "rths/model.h"
@@ -480,6 +480,39 @@ static void test_frf_sweep_paths(void **state) {
     rths_assembly_free(&a);
 }
 
+/* One p per interface DoF: storeys 2 and 3 of the seed at p = 0.25 and 0.75 put 0.25 and 0.75 of
+ * their 5.37 kg on the numerical side; a list of the wrong length is refused. */
+static void test_split_mass_ratio_per_dof(void **state) {
+    (void)state;
+    rths_assembly a;
+    seed_assembly(&a);
+    rths_dof_role role[4] = {RTHS_DOF_PHYSICAL, RTHS_DOF_INTERFACE, RTHS_DOF_INTERFACE,
+                             RTHS_DOF_NUMERICAL};
+    const double p[2] = {0.25, 0.75};
+    rths_split s;
+    rths_error err;
+    assert_int_equal(rths_split_create_ratios(&a, role, 2, p, NULL, NULL, &s, &err), RTHS_OK);
+    assert_close(RTHS_AT(s.mass_num, s.nn, 0, 0), 0.25 * 5.37, 1e-15);
+    assert_close(RTHS_AT(s.mass_num, s.nn, 1, 1), 0.75 * 5.37, 1e-15);
+    assert_close(RTHS_AT(s.mass_phys, s.np, 1, 1), 0.75 * 5.37, 1e-15);
+    assert_close(RTHS_AT(s.mass_phys, s.np, 2, 2), 0.25 * 5.37, 1e-15);
+    assert_close(s.mass_ratio, 0.25, 0);
+    rths_split_free(&s);
+    const double three[3] = {0.5, 0.5, 0.5};
+    assert_int_equal(rths_split_create_ratios(&a, role, 3, three, NULL, NULL, &s, &err),
+                     RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "3 mass ratios for 2 interface DoFs"));
+    rths_assembly_free(&a);
+}
+
+/* The spectral radius of [[a, -b], [b, a]] is hypot(a, b); of a Jordan block its eigenvalue. */
+static void test_spectral_radius(void **state) {
+    (void)state;
+    const double rot[4] = {0.6, 0.8, -0.8, 0.6}, jordan[4] = {0.9, 0, 1e3, 0.9};
+    assert_close(rths_spectral_radius(2, rot), 1.0, 1e-15);
+    assert_close(rths_spectral_radius(2, jordan), 0.9, 1e-12);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_modes_large_chain),
@@ -497,6 +530,8 @@ int main(void) {
         cmocka_unit_test(test_discretisation_oscillator),
         cmocka_unit_test(test_scheme_names),
         cmocka_unit_test(test_hermitian_eigen_ratio),
+        cmocka_unit_test(test_split_mass_ratio_per_dof),
+        cmocka_unit_test(test_spectral_radius),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -5,7 +5,9 @@
  * through 80 kink crossings; rig.plant_integrator selects RK4; the load cell reads the shaker force
  * minus the armature's inertia; sensors apply gain error, offset, quantisation and noise of the
  * configured size, all off with rig.noise false; a seed repeats; the bilinear leg's static slopes,
- * kink and preloaded static point. */
+ * kink and preloaded static point; actuator and sensor transforms: a plant whose actuators push
+ * through T and whose lasers read through S moves exactly as a plant with one actuator per DoF
+ * driven by T u, and its lasers read S q. */
 #include "testlib.h"
 
 #include "rths/plant.h"
@@ -614,6 +616,55 @@ static void test_integrator_config(void **state) {
     }
 }
 
+/* Two interface storeys (2, 3) of the seed, actuator 2 pushing both storeys (T = [1 1; 0 1]),
+ * laser 2 reading storey 3 relative to storey 2 (S = [1 0; -1 1]), armatures 0 (the transform
+ * places them, the reference plant cannot): 3000 samples of demands u with the shaker's delay and
+ * lag give the same motion as the plain plant driven by T u, to rounding; the lasers read S q,
+ * the load cells each actuator's own force. */
+static void test_transforms(void **state) {
+    (void)state;
+    const char *plain_ov[] = {"split.interface=[2, 3]"};
+    const char *ov[] = {"split.interface=[2, 3]", "rig.actuators.transform=[[1, 1], [0, 1]]",
+                        "rig.lasers.transform=[[1, 0], [-1, 1]]"};
+    rths_config *cfg_a, *cfg_b;
+    rths_setup a, b;
+    load(ov, 3, &cfg_a, &a);
+    load(plain_ov, 1, &cfg_b, &b);
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    po.noise = 0;
+    po.armature_mass_kg = 0;
+    rths_plant *pa = make(&a, &po), *pb = make(&b, &po);
+    double worst = 0, scale = 0;
+    rths_sensor_sample ra, rb;
+    for (int k = 0; k < 3000; k++) {
+        double u[2] = {0.3 * sin(2 * M_PI * 13.0 * k * H), 0.2 * cos(2 * M_PI * 7.0 * k * H)};
+        double tu[2] = {u[0] + u[1], u[1]};
+        rths_plant_advance_dofs(pa, u);
+        rths_plant_advance_dofs(pb, tu);
+        rths_plant_read(pa, &ra);
+        rths_plant_read(pb, &rb);
+        int n = ra.n;
+        double q2 = rb.displacement_m[n - 2], q3 = rb.displacement_m[n - 1];
+        worst = fmax(worst, fabs(ra.displacement_m[n - 2] - q2));
+        worst = fmax(worst, fabs(ra.displacement_m[n - 1] - (q3 - q2)));
+        worst = fmax(worst, fabs(ra.displacement_m[0] - rb.displacement_m[0]));
+        scale = fmax(scale, fabs(q3));
+    }
+    print_message("transformed plant against the plain one driven by T u: %.3g m of %.3g m\n",
+                  worst, scale);
+    assert_true(scale > 1e-4);
+    assert_true(worst < 1e-12 * scale);
+    /* efforts: T times the load cells equals the plain plant's per-DoF load cells */
+    double f0 = ra.interface_force_dof_n[0] + ra.interface_force_dof_n[1];
+    assert_close(f0, rb.interface_force_dof_n[0], 1e-12 * fabs(f0) + 1e-15);
+    assert_close(ra.interface_force_dof_n[1], rb.interface_force_dof_n[1],
+                 1e-12 + 1e-12 * fabs(f0));
+    rths_plant_destroy(pa), rths_plant_destroy(pb);
+    rths_setup_free(&a), rths_setup_free(&b);
+    rths_config_free(cfg_a), rths_config_free(cfg_b);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_forced_response_ideal),
@@ -625,6 +676,7 @@ int main(void) {
         cmocka_unit_test(test_bilinear_leg),
         cmocka_unit_test(test_kink_crossing),
         cmocka_unit_test(test_integrator_config),
+        cmocka_unit_test(test_transforms),
         cmocka_unit_test(test_transfer_function_actuator),
         cmocka_unit_test(test_displacement_output_actuator),
     };

@@ -1,7 +1,9 @@
 /* Reading the structural part of a configuration: the seed example gives the seed's matrices and
  * split (interface mass divided by p, leg below the interface physical, leg above numerical),
  * defaults follow the chain rule, the bilinear preload points toward the stiff side, and
- * the FRF grid resolves every peak. */
+ * the FRF grid resolves every peak; a beam splits element by element (the follow-up's cantilever:
+ * both substructures' stiffness positive definite, the cut's blocks the two elements' own), with
+ * one p per interface DoF. */
 #include "testlib.h"
 
 #include "rths/setup.h"
@@ -215,6 +217,67 @@ static void test_physical_sense(void **state) {
     rths_config_free(cfg);
 }
 
+/* examples/cantilever_two_shakers.yaml with p = [0.3, 0.6]: the physical share of the cut's
+ * (w, theta) stiffness block is the first tip element's start-node block EI/l^3 [12, 6l; 6l,
+ * 4l^2] (l = 0.06 m), the numerical share the last root element's end-node block (l = 0.17/3 m,
+ * [12, -6l; -6l, 4l^2]); damping is Rayleigh element by element; the interface mass splits by
+ * each DoF's p; both substructures' stiffness is positive definite (the coupling rule of a chain
+ * left the numerical one indefinite: eigenvalue -2.9e4 N/m). */
+static void test_beam_element_split(void **state) {
+    (void)state;
+    const char *ov[] = {"split.mass_ratio=[0.3, 0.6]"};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    if (load_file("examples/cantilever_two_shakers.yaml", ov, 1, &cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    const rths_split *sp = &s.split;
+    assert_int_equal(sp->n_int, 2);
+    assert_int_equal(sp->int_dofs[0], 4);
+    assert_int_equal(sp->int_dofs[1], 5);
+    const double ei = 0.459317, lp = 0.06, ln = 0.17 / 3;
+    const double kp[4] = {12, 6 * lp, 6 * lp, 4 * lp * lp},
+                 kn[4] = {12, -6 * ln, -6 * ln, 4 * ln * ln};
+    int np = sp->np, nn = sp->nn, o = sp->n_phys;
+    for (int i = 0; i < 2; i++)
+        for (int j = 0; j < 2; j++) {
+            double phys = RTHS_AT(sp->stiffness_phys, np, o + i, o + j);
+            double num = RTHS_AT(sp->stiffness_num, nn, i, j);
+            assert_close(phys, ei / (lp * lp * lp) * kp[i + 2 * j], 1e-9 * fabs(phys));
+            assert_close(num, ei / (ln * ln * ln) * kn[i + 2 * j], 1e-9 * fabs(num));
+            /* Rayleigh element by element: alpha M_e + beta K_e of the first tip element */
+            const double me[4] = {156, 22 * lp, 22 * lp, 4 * lp * lp};
+            double c_phys = s.beam->rayleigh_alpha_per_s * 0.19939 * lp / 420 * me[i + 2 * j] +
+                            s.beam->rayleigh_beta_s * ei / (lp * lp * lp) * kp[i + 2 * j];
+            assert_close(RTHS_AT(sp->damping_phys, np, o + i, o + j), c_phys, 1e-9 * fabs(c_phys));
+            double full_m = RTHS_AT(s.assembly.mass, s.assembly.n, 4 + i, 4 + j);
+            double p_ij = i == j ? (i ? 0.6 : 0.3) : sqrt(0.3 * 0.6);
+            assert_close(RTHS_AT(sp->mass_num, nn, i, j), p_ij * full_m, 1e-15);
+        }
+    /* the recombined halves are the assembly */
+    double *m = rths_mat_new(s.assembly.n, s.assembly.n),
+           *c = rths_mat_new(s.assembly.n, s.assembly.n),
+           *k = rths_mat_new(s.assembly.n, s.assembly.n);
+    rths_split_recombine(sp, m, c, k);
+    for (int e = 0; e < s.assembly.n * s.assembly.n; e++) {
+        assert_close(c[e], s.assembly.damping[e],
+                     1e-12 * rths_mat_max_abs(c, s.assembly.n, s.assembly.n));
+        assert_close(k[e], s.assembly.stiffness[e],
+                     1e-9 * rths_mat_max_abs(k, s.assembly.n, s.assembly.n));
+    }
+    assert_true(rths_mat_is_spd(sp->stiffness_num, nn));
+    /* the physical tip is held by its actuators only: free-free, two rigid-body modes, so its
+     * stiffness is positive semi-definite (positive definite once shifted slightly) */
+    assert_false(rths_mat_is_spd(sp->stiffness_phys, np));
+    double *shifted = rths_mat_dup(sp->stiffness_phys, np, np);
+    for (int i = 0; i < np; i++)
+        RTHS_AT(shifted, np, i, i) += 1e-9 * rths_mat_max_abs(shifted, np, np);
+    assert_true(rths_mat_is_spd(shifted, np));
+    rths_mat_free(shifted), rths_mat_free(m), rths_mat_free(c), rths_mat_free(k);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_seed_example),
@@ -224,6 +287,7 @@ int main(void) {
         cmocka_unit_test(test_matrix_market_seed),
         cmocka_unit_test(test_matrix_market_bad_file),
         cmocka_unit_test(test_physical_sense),
+        cmocka_unit_test(test_beam_element_split),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -78,6 +78,11 @@ typedef struct rths_beam {
     double length_m;
     /* the Rayleigh coefficients in use (0 unless the damping is Rayleigh) */
     double rayleigh_alpha_per_s, rayleigh_beta_s;
+    rths_beam_damping_model damping_model;
+    /* element e joins nodes e and e + 1: its stiffness and consistent mass, 4 x 4 row-major over
+       (w_e, theta_e, w_e+1, theta_e+1), 16 doubles each (point masses not included) */
+    int n_elements;
+    double *element_stiffness, *element_mass;
 } rths_beam;
 
 /* Assembles spec; every problem (non-positive length, EI or mass per length, a clamp, pin or
@@ -95,6 +100,16 @@ int rths_beam_rayleigh_from_pairs(double f1_hz, double zeta1, double f2_hz, doub
 /* Index of the free DoF of `kind` at the node at position_m (within 1e-6 of the shortest
  * element), -1 when there is no node there or that DoF is fixed. */
 int rths_beam_find_dof(const rths_beam *b, double position_m, rths_beam_dof_kind kind);
+
+/* The element-wise split of a beam (docs/config/beam.md, "Splitting a beam"): every element
+ * belongs to one substructure, the numerical one when one of its free DoFs has role
+ * RTHS_DOF_NUMERICAL, else the physical one (an element joining physical to numerical DoFs is
+ * refused by rths_split_create anyway). Fills the physical shares of the interface blocks of K
+ * and, for Rayleigh damping or none, of C (n_int x n_int, column-major, in the order int_dofs;
+ * int_dofs are free-DoF indices): what the physical elements contribute. Returns 1 when the
+ * damping share was filled, 0 for modal damping (its C is full: no element owns it). */
+int rths_beam_interface_shares(const rths_beam *b, const rths_dof_role *roles, int n_int,
+                               const int *int_dofs, double *damping_phys, double *stiffness_phys);
 
 /* A copy of the matrices as an rths_assembly (rths_assembly_free releases it). */
 int rths_beam_to_assembly(const rths_beam *b, rths_assembly *out, rths_error *err);

@@ -51,6 +51,13 @@ typedef struct rths_controller_options {
     /* grounding gains per interface DoF (N/m or N m/rad; N s/m or N m s/rad); 0: the scalars */
     double grounding_kp_dof[RTHS_MAX_INTERFACE_DOFS];
     double grounding_kd_dof[RTHS_MAX_INTERFACE_DOFS];
+    /* PD gain matrices (controller.kp_matrix, kd_matrix), gain_matrix_rows actuators x
+       gain_matrix_cols interface DoFs, element (a, d) at [a + d * RTHS_MAX_INTERFACE_DOFS]:
+       demand of actuator a per unit error of DoF d (V per m or rad; V s per m or rad); rows 0:
+       none, the per-DoF gains through the inverse actuator transform (setup.h) */
+    int gain_matrix_rows, gain_matrix_cols;
+    double kp_matrix[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_INTERFACE_DOFS];
+    double kd_matrix[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_INTERFACE_DOFS];
     double grounding_kp_n_per_m;   /* numerical grounding PD, 50000 N/m (seed) */
     double grounding_kd_n_s_per_m; /* 200 N s/m (seed) */
     double velocity_cutoff_hz;     /* filtered differentiator of the laser signal */

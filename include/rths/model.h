@@ -43,9 +43,10 @@ typedef struct rths_split {
     int *int_dofs;            /* assembly indices of the interface DoFs */
     int *num_dofs;            /* assembly indices of the internal numerical DoFs */
     double mass_ratio; /* p = numerical share of the interface mass (docs/method.md, "Errata of the
-                          seed paper") */
-    int np;            /* n_phys + n_int: physical substructure size, order (phys, int) */
-    int nn;            /* n_int + n_num: numerical substructure size, order (int, num) */
+                          seed paper"); with one p per interface DoF, the first DoF's */
+    double *mass_ratios; /* n_int: p of each interface DoF (all mass_ratio unless a list given) */
+    int np;              /* n_phys + n_int: physical substructure size, order (phys, int) */
+    int nn;              /* n_int + n_num: numerical substructure size, order (int, num) */
     double *mass_phys, *damping_phys, *stiffness_phys; /* np x np */
     double *mass_num, *damping_num, *stiffness_num;    /* nn x nn */
 } rths_split;
@@ -61,6 +62,12 @@ typedef struct rths_split {
 int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double mass_ratio,
                       const double *damping_int_phys, const double *stiffness_int_phys,
                       rths_split *out, rths_error *err);
+/* The same with one p per interface DoF (n_ratios == n_int; n_ratios 1: the same p for all):
+ * M_II_num(i, j) = sqrt(p_i p_j) M_II(i, j), so a diagonal interface mass splits by each DoF's p
+ * and the numerical block stays positive definite. */
+int rths_split_create_ratios(const rths_assembly *a, const rths_dof_role *role, int n_ratios,
+                             const double *mass_ratios, const double *damping_int_phys,
+                             const double *stiffness_int_phys, rths_split *out, rths_error *err);
 void rths_split_free(rths_split *s);
 /* Scatter-adds both substructures back into n x n matrices (must equal the assembly). */
 void rths_split_recombine(const rths_split *s, double *mass, double *damping, double *stiffness);
@@ -155,6 +162,9 @@ typedef struct rths_discrete {
 int rths_discretise(int nx, int nu, const double *a, const double *b, double h, rths_scheme scheme,
                     rths_discrete *out, rths_error *err);
 void rths_discrete_free(rths_discrete *d);
+/* Largest |eigenvalue| of a real n x n matrix (LAPACK dgeev): a discrete map x_{k+1} = A x_k is
+ * stable below 1. -1 on failure. */
+double rths_spectral_radius(int n, const double *a);
 
 /* ---- periodic response of the true assembly with a bilinear leg (shooting) ---- */
 

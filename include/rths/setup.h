@@ -5,24 +5,31 @@
  *                or the path of a Matrix Market file (mtx.h), relative to the config's folder;
  *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
  *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
- *                the seed paper", erratum 1), physical / numerical (1-based lists; for a chain
+ *                the seed paper", erratum 1) or a list of one p per interface DoF, physical /
+ *                numerical (1-based lists, physical may be empty; for a chain
  *                default: below / above; with matrices the absent one takes every other DoF),
  *                numerical_solver: realtime (default: the controller integrates the numerical
  *                substructure every sample) | frequency (the host solves it per harmonic from its
- *                dynamic stiffness; docs/method.md, "Numerical substructure integration")
+ *                dynamic stiffness; docs/method.md, "Numerical substructure integration"); a
+ *                structure.beam splits element by element (beam.h)
  *   forcing:     dof (1-based), amplitude_n; or type: base, amplitude_m_s2 (a harmonic ground
  *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
  *                displacements are relative to the ground)
  *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
+ *   rig.actuators, rig.lasers: where the actuators push and the lasers read, as offsets from the
+ *                cut of a beam or as transform matrices (docs/config/rig.md, "Actuator and
+ *                sensor transforms"); absent: one of each per interface DoF, acting on and
+ *                reading that DoF itself
  *
  * Other sections (rig, controller, iteration, continuation, stability, output) are read by their
  * own modules from the same rths_config. */
 #ifndef RTHS_SETUP_H
 #define RTHS_SETUP_H
 
+#include "rths/beam.h"
 #include "rths/config.h"
-#include <stddef.h>
 #include "rths/model.h"
+#include <stddef.h>
 
 /* Where the numerical substructure is solved (split.numerical_solver). */
 typedef enum {
@@ -49,6 +56,15 @@ typedef struct rths_setup {
     double frf_start_hz, frf_end_hz;
     int frf_points;
     rths_numerical_solver numerical_solver;
+    rths_beam *beam; /* structure.beam as assembled (NULL for storeys and matrices) */
+    /* Actuator and sensor transforms, n_int x n_int column-major over the split's interface
+     * order; NULL: the identity (one actuator and one laser per interface DoF, on the DoF).
+     * actuator_transform column a: the interface efforts (N on a displacement, N m on a
+     * rotation) of 1 N from actuator a; its transpose maps interface motion to the motion of
+     * each actuator's point (where its load cell and accelerometer sit). sensor_transform row s:
+     * laser s reads sum_d S(s, d) q_d (m). Both invertible (checked at read). */
+    double *actuator_transform;
+    double *sensor_transform;
 } rths_setup;
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
@@ -63,6 +79,10 @@ void rths_setup_free(rths_setup *s);
 #define RTHS_SETUP_ALL_DOFS_UP_TO 64
 /* The forcing in words for titles and logs: "1 N on DoF 4" or "ground acceleration 1 m/s^2". */
 void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size);
+
+/* 1 when assembly DoF dof (0-based) is a rotation (a beam node's theta: its amplitudes are in
+ * rad, its efforts in N m), 0 for a displacement (m). */
+int rths_setup_dof_is_rotation(const rths_setup *s, int dof);
 
 /* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
 int *rths_setup_output_dofs(const rths_setup *s, int *count);

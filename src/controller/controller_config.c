@@ -23,6 +23,47 @@ static int gains_per_dof(rths_config *cfg, const char *key, double *gains, rths_
     return rc;
 }
 
+/* controller.kp_matrix and kd_matrix: both or neither, the same size, at most 4 x 4, finite
+ * (signs free: an actuator behind the cut pushes against a DoF's error). */
+static int gain_matrices(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
+    static const char *const keys[2] = {"controller.kp_matrix", "controller.kd_matrix"};
+    double *m[2] = {NULL, NULL}, *dst[2] = {opt->kp_matrix, opt->kd_matrix};
+    int rows[2] = {0, 0}, cols[2] = {0, 0}, rc = RTHS_OK;
+    int has[2] = {rths_config_has(cfg, keys[0]), rths_config_has(cfg, keys[1])};
+    if (!has[0] && !has[1]) return RTHS_OK;
+    for (int k = 0; k < 2 && !rc; k++) {
+        if (!has[k]) {
+            rc = rths_config_error_at(cfg, keys[!k], err,
+                                      "needs %s too (both gain matrices, or "
+                                      "neither)",
+                                      keys[k]);
+            break;
+        }
+        rc = rths_config_get_matrix(cfg, keys[k], 1, &m[k], &rows[k], &cols[k], err);
+        if (!rc && (rows[k] > RTHS_MAX_INTERFACE_DOFS || cols[k] > RTHS_MAX_INTERFACE_DOFS))
+            rc = rths_config_error_at(cfg, keys[k], err,
+                                      "is %d x %d; at most %d x %d (a row per "
+                                      "actuator, a column per interface DoF)",
+                                      rows[k], cols[k], RTHS_MAX_INTERFACE_DOFS,
+                                      RTHS_MAX_INTERFACE_DOFS);
+        if (!rc && k == 1 && (rows[1] != rows[0] || cols[1] != cols[0]))
+            rc = rths_config_error_at(cfg, keys[1], err, "is %d x %d but %s is %d x %d", rows[1],
+                                      cols[1], keys[0], rows[0], cols[0]);
+        for (int i = 0; !rc && i < rows[k] * cols[k]; i++)
+            if (!(fabs(m[k][i]) <= 1e9))
+                rc = rths_config_error_at(cfg, keys[k], err,
+                                          "entry (%d, %d) = %g; must be "
+                                          "finite, |gain| <= 1e9",
+                                          i % rows[k] + 1, i / rows[k] + 1, m[k][i]);
+        for (int i = 0; !rc && i < rows[k]; i++)
+            for (int j = 0; j < cols[k]; j++)
+                dst[k][i + j * RTHS_MAX_INTERFACE_DOFS] = RTHS_AT(m[k], rows[k], i, j);
+    }
+    if (!rc) opt->gain_matrix_rows = rows[0], opt->gain_matrix_cols = cols[0];
+    free(m[0]), free(m[1]);
+    return rc;
+}
+
 int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
     static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh", "exact_foh",
                                           NULL};
@@ -62,6 +103,7 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = gains_per_dof(cfg, "controller.kd_per_dof", opt->kd_dof_v_s_per_m, err)) ||
         (rc = gains_per_dof(cfg, "controller.grounding_kp_per_dof", opt->grounding_kp_dof, err)) ||
         (rc = gains_per_dof(cfg, "controller.grounding_kd_per_dof", opt->grounding_kd_dof, err)) ||
+        (rc = gain_matrices(cfg, opt, err)) ||
         (rc = rths_reduction_config_read(cfg, &opt->reduction, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;

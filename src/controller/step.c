@@ -30,6 +30,13 @@ struct rths_controller {
     double m_comp[MAX_IFACE * MAX_IFACE];
     double kp[MAX_IFACE], kd[MAX_IFACE];   /* PD gains per interface DoF */
     double gkp[MAX_IFACE], gkd[MAX_IFACE]; /* grounding gains per interface DoF */
+    /* Actuator and sensor transforms (setup.h) or gain matrices: transformed is 1 when any
+     * applies. ni x ni, leading dimension MAX_IFACE, inverses formed at create. */
+    int transformed;
+    double t_eff[MAX_IFACE * MAX_IFACE]; /* T: interface efforts of the actuators' forces */
+    double t_acc[MAX_IFACE * MAX_IFACE]; /* T^-T: interface accelerations from the actuators' */
+    double s_inv[MAX_IFACE * MAX_IFACE]; /* S^-1: interface displacements from the lasers' */
+    double gp[MAX_IFACE * MAX_IFACE], gd[MAX_IFACE * MAX_IFACE]; /* (actuator, DoF) PD gains */
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * MAX_INPUTS],
         b_curr[MAX_STATE * MAX_INPUTS];
     double z[MAX_STATE], u_prev[MAX_INPUTS];
@@ -89,6 +96,9 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->min_frequency_hz = 0.1;
     opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
+    opt->gain_matrix_rows = opt->gain_matrix_cols = 0;
+    memset(opt->kp_matrix, 0, sizeof opt->kp_matrix);
+    memset(opt->kd_matrix, 0, sizeof opt->kd_matrix);
     rths_reduction_defaults(&opt->reduction);
 }
 
@@ -186,6 +196,97 @@ static int numerical_stiffness_definite(const rths_split *s, rths_error *err) {
     return RTHS_OK;
 }
 
+/* The transforms' inverses and the gain matrices, formed here so that the step only multiplies:
+ * interface displacements S^-1 y from the lasers y, accelerations T^-T a from the actuators'
+ * accelerometers, efforts T f from their load cells; the demands G_p e + G_d e' of the errors e
+ * per interface DoF, with G = T^-1 diag(gains per DoF) unless a gain matrix is given (the
+ * actuators then produce the efforts g diag(gains) e, g the actuator's N/V). */
+static int build_transforms(rths_controller *c, const rths_setup *setup, rths_error *err) {
+    const rths_controller_options *opt = &c->opt;
+    int ni = c->ni;
+    c->transformed =
+        setup->actuator_transform || setup->sensor_transform || opt->gain_matrix_rows > 0;
+    if (!c->transformed) return RTHS_OK;
+    if (opt->gain_matrix_rows > 0 && (opt->gain_matrix_rows != ni || opt->gain_matrix_cols != ni))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "controller.kp_matrix and kd_matrix are %d x %d; with %d interface "
+                              "DoFs and %d actuators they must be %d x %d",
+                              opt->gain_matrix_rows, opt->gain_matrix_cols, ni, ni, ni, ni);
+    double t[MAX_IFACE * MAX_IFACE], inv[MAX_IFACE * MAX_IFACE];
+    double sm[MAX_IFACE * MAX_IFACE], sinv[MAX_IFACE * MAX_IFACE];
+    for (int i = 0; i < ni; i++)
+        for (int j = 0; j < ni; j++) {
+            RTHS_AT(t, ni, i, j) = setup->actuator_transform
+                                       ? RTHS_AT(setup->actuator_transform, ni, i, j)
+                                       : (double)(i == j);
+            RTHS_AT(sm, ni, i, j) = setup->sensor_transform
+                                        ? RTHS_AT(setup->sensor_transform, ni, i, j)
+                                        : (double)(i == j);
+        }
+    if (rths_mat_inverse(ni, t, inv) || rths_mat_inverse(ni, sm, sinv))
+        return rths_error_set(err, RTHS_EINPUT, "singular actuator or sensor transform");
+    for (int i = 0; i < ni; i++)
+        for (int j = 0; j < ni; j++) {
+            c->t_eff[i + j * MAX_IFACE] = RTHS_AT(t, ni, i, j);
+            c->t_acc[i + j * MAX_IFACE] = RTHS_AT(inv, ni, j, i);
+            c->s_inv[i + j * MAX_IFACE] = RTHS_AT(sinv, ni, i, j);
+            int given = opt->gain_matrix_rows > 0;
+            c->gp[i + j * MAX_IFACE] =
+                given ? opt->kp_matrix[i + j * MAX_IFACE] : RTHS_AT(inv, ni, i, j) * c->kp[j];
+            c->gd[i + j * MAX_IFACE] =
+                given ? opt->kd_matrix[i + j * MAX_IFACE] : RTHS_AT(inv, ni, i, j) * c->kd[j];
+        }
+    return RTHS_OK;
+}
+
+/* The grounding control acts one sample late (it compares the last measured x with xi before the
+ * step), so on a light interface DoF it destabilises the numerical model on its own: the seed's
+ * 50000 N/m and 1000 N s/m on a beam's cut (milligrams on w, 1e-7 kg m^2 on theta) gave a
+ * spectral radius far above 1 and non-finite values within 70 samples. The loop with the
+ * physical side held still (x = 0), over w_k = (z_k, z_k-1, u_k-1):
+ *   z_k+1 = (Ad + Bc G1) z_k + Bc G0 z_k-1 + Bp u_k-1,  u_k = G1 z_k + G0 z_k-1,
+ * G1 = -(kp^ + kd^/h) and G0 = kd^/h on each interface DoF. Refused at create when unstable. */
+static int grounding_stable(const rths_controller *c, const rths_split *s, rths_error *err) {
+    const int nx = c->nx, ni = c->ni, n_in = c->n_inputs, N = 2 * nx + n_in;
+    double *w = rths_mat_new(N, N);
+    if (!w) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int j = 0; j < nx; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(w, N, i, j) = c->ad[i + j * nx];
+    for (int j = 0; j < n_in; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(w, N, i, 2 * nx + j) = c->b_prev[i + j * nx];
+    for (int i = 0; i < nx; i++)
+        RTHS_AT(w, N, nx + i, i) = 1.0;
+    for (int d = 0; d < ni; d++) {
+        double g1 = -(c->gkp[d] + c->gkd[d] / c->h), g0 = c->gkd[d] / c->h;
+        for (int i = 0; i < nx; i++) {
+            RTHS_AT(w, N, i, d) += c->b_curr[i + d * nx] * g1;
+            RTHS_AT(w, N, i, nx + d) += c->b_curr[i + d * nx] * g0;
+        }
+        RTHS_AT(w, N, 2 * nx + d, d) = g1;
+        RTHS_AT(w, N, 2 * nx + d, nx + d) = g0;
+    }
+    double radius = rths_spectral_radius(N, w);
+    rths_mat_free(w);
+    if (radius >= 0 && radius <= 1 + 1e-9) return RTHS_OK;
+    int worst = 0;
+    for (int d = 1; d < ni; d++)
+        if (c->gkd[d] / RTHS_AT(s->mass_num, s->nn, d, d) >
+            c->gkd[worst] / RTHS_AT(s->mass_num, s->nn, worst, worst))
+            worst = d;
+    double m = RTHS_AT(s->mass_num, s->nn, worst, worst);
+    return rths_error_set(err, RTHS_EINPUT,
+                          "the grounding control destabilises the numerical substructure "
+                          "(spectral radius %.6g per sample): it acts one sample late, and "
+                          "interface DoF %d (DoF %d) carries a numerical mass of only %.3g (kg, or "
+                          "kg m^2 for a rotation) against grounding gains %g and %g; set "
+                          "controller.grounding_kp_per_dof and grounding_kd_per_dof, e.g. kp below "
+                          "%.3g and kd below %.3g for that DoF (m/h^2 / 10, m/h / 4)",
+                          radius, worst + 1, s->int_dofs[worst] + 1, m, c->gkp[worst],
+                          c->gkd[worst], 0.1 * m / (c->h * c->h), 0.25 * m / c->h);
+}
+
 int rths_controller_numerical_dofs(const rths_controller *c) {
     return c->host_numerical ? 0 : c->nn;
 }
@@ -250,17 +351,22 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         c->gkd[d] =
             opt->grounding_kd_dof[d] > 0 ? opt->grounding_kd_dof[d] : opt->grounding_kd_n_s_per_m;
     }
+    int rc = build_transforms(c, setup, err);
+    if (rc) {
+        free(c);
+        return rc;
+    }
     c->forcing_index = forcing_interface > 0 ? forcing_interface : 0;
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
     c->host_numerical = setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY;
-    int rc = RTHS_OK;
     if (c->host_numerical && base)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "forcing.type: base with split.numerical_solver: frequency is not "
                             "supported (the host's receptance takes a force on one DoF)");
     if (!rc && !c->host_numerical) rc = numerical_stiffness_definite(s, err);
     if (!rc && !c->host_numerical) rc = build_numerical(c, setup, forcing_physical, base, err);
+    if (!rc && !c->host_numerical) rc = grounding_stable(c, s, err);
     if (rc) {
         free(c);
         return rc;
@@ -476,6 +582,20 @@ typedef struct {
 /* The sensors against the limits. A non-finite reading latches a fault and is replaced by zero,
  * so the numerical model stays finite. A device that fills only the scalar interface readings
  * (n_interface 0) serves the first interface DoF. */
+/* Through the transforms: raw holds the lasers' displacements, the actuators' accelerations and
+ * load-cell forces; m gets the interface DoFs' displacements, accelerations and efforts. */
+static void untransform(const rths_controller *c, const measured *raw, measured *m) {
+    for (int d = 0; d < c->ni; d++) {
+        double x = 0, acc = 0, f = 0;
+        for (int e = 0; e < c->ni; e++) {
+            x += c->s_inv[d + e * MAX_IFACE] * raw->x[e];
+            acc += c->t_acc[d + e * MAX_IFACE] * raw->acc[e];
+            f += c->t_eff[d + e * MAX_IFACE] * raw->f_lc[e];
+        }
+        m->x[d] = x, m->acc[d] = acc, m->f_lc[d] = f;
+    }
+}
+
 static void read_sensors(rths_controller *c, const rths_sensor_sample *in, measured *m) {
     int finite = 1;
     for (int d = 0; d < c->ni; d++) {
@@ -497,8 +617,14 @@ static void read_sensors(rths_controller *c, const rths_sensor_sample *in, measu
         memset(m, 0, sizeof *m);
         c->ramp = 0;
     }
-    for (int d = 0; d < c->ni; d++) {
+    /* the force limit is each load cell's */
+    for (int d = 0; d < c->ni; d++)
         if (fabs(m->f_lc[d]) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
+    if (c->transformed) {
+        measured raw = *m;
+        untransform(c, &raw, m);
+    }
+    for (int d = 0; d < c->ni; d++) {
         /* velocity of the physical interface: filtered backward difference */
         double v_raw = c->have_prev ? (m->x[d] - c->x_prev[d]) / c->h : 0.0;
         c->v_est[d] = c->velocity_alpha * c->v_est[d] + (1 - c->velocity_alpha) * v_raw;
@@ -590,8 +716,9 @@ static void control_target(const rths_controller *c, int d, double cos1, double 
     *target_dot = t_dot;
 }
 
-static double pd_demand(rths_controller *c, int d, double target, double target_dot, double x) {
-    double demand = c->kp[d] * (target - x) + c->kd[d] * (target_dot - c->v_est[d]);
+/* A demand against the limits: non-finite or beyond demand_v latches; after a trip it ramps to
+ * zero. */
+static double limited_demand(rths_controller *c, double demand) {
     if (!isfinite(demand)) {
         latch(c, RTHS_RIG_FAULT_NONFINITE);
         demand = 0;
@@ -599,6 +726,26 @@ static double pd_demand(rths_controller *c, int d, double target, double target_
     if (fabs(demand) > c->opt.demand_limit_v) latch(c, RTHS_RIG_FAULT_DEMAND);
     if (c->fault) demand *= c->ramp; /* ramps to zero after a trip, then holds zero */
     return demand;
+}
+
+static double pd_demand(rths_controller *c, int d, double target, double target_dot, double x) {
+    return limited_demand(c, c->kp[d] * (target - x) + c->kd[d] * (target_dot - c->v_est[d]));
+}
+
+/* The actuators' demands from every interface DoF's error through the gain matrices. */
+static void transformed_demands(rths_controller *c, const double *target, const double *target_dot,
+                                const double *x) {
+    double e[MAX_IFACE], e_dot[MAX_IFACE];
+    for (int d = 0; d < c->ni; d++) {
+        e[d] = target[d] - x[d];
+        e_dot[d] = target_dot[d] - c->v_est[d];
+    }
+    for (int a = 0; a < c->ni; a++) {
+        double demand = 0;
+        for (int d = 0; d < c->ni; d++)
+            demand += c->gp[a + d * MAX_IFACE] * e[d] + c->gd[a + d * MAX_IFACE] * e_dot[d];
+        c->demand[a] = limited_demand(c, demand);
+    }
 }
 
 /* The trapezoid of the three signals (physical, numerical, force) of every interface DoF from
@@ -684,12 +831,14 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     c->forcing_now = c->ramp * c->amplitude_n;
     double u[MAX_INPUTS], f_interface[MAX_IFACE];
     numerical_forces(c, &m, cos1, u, f_interface);
-    double xi[MAX_IFACE] = {0}, xi_dot[MAX_IFACE] = {0}, target[MAX_IFACE], target_dot;
+    double xi[MAX_IFACE] = {0}, xi_dot[MAX_IFACE] = {0}, target[MAX_IFACE], target_dot[MAX_IFACE];
     if (!c->host_numerical) advance_numerical(c, u, xi, xi_dot);
     double y[3 * MAX_IFACE];
+    for (int d = 0; d < c->ni; d++)
+        control_target(c, d, cos1, sin1, xi[d], xi_dot[d], &target[d], &target_dot[d]);
+    if (c->transformed) transformed_demands(c, target, target_dot, m.x);
     for (int d = 0; d < c->ni; d++) {
-        control_target(c, d, cos1, sin1, xi[d], xi_dot[d], &target[d], &target_dot);
-        c->demand[d] = pd_demand(c, d, target[d], target_dot, m.x[d]);
+        if (!c->transformed) c->demand[d] = pd_demand(c, d, target[d], target_dot[d], m.x[d]);
         /* numerical substructure on the host: its interface force goes where xi would */
         y[3 * d] = m.x[d];
         y[3 * d + 1] = c->host_numerical ? f_interface[d] : xi[d];

@@ -1276,6 +1276,24 @@ int rths_config_write(const rths_config *cfg, const char *path, rths_error *err)
     return RTHS_OK;
 }
 
+/* Sub-sections every command's setup reads (rths_setup_read: the actuator and sensor transforms,
+ * docs/config/rig.md): reading them does not make a command the owner of their section, so
+ * `rths model` still ignores the rest of `rig`. */
+static const char *const setup_subsections[] = {"rig.actuators.", "rig.lasers.", NULL};
+
+/* Whether a key of section was asked for, not counting the setup's sub-sections. */
+static int section_read_by_command(const rths_config *cfg, const char *section) {
+    size_t len = strlen(section);
+    for (int i = 0; i < cfg->n_asked; i++) {
+        if (strncmp(cfg->asked[i], section, len) || cfg->asked[i][len] != '.') continue;
+        int shared = 0;
+        for (int j = 0; setup_subsections[j] && !shared; j++)
+            shared = !strncmp(cfg->asked[i], setup_subsections[j], strlen(setup_subsections[j]));
+        if (!shared) return 1;
+    }
+    return 0;
+}
+
 int rths_config_check_sections(rths_config *cfg, const char *const *own, rths_error *err) {
     /* io: a plug-in's own keys, read by the controller process that loads it */
     static const char *const sections[] = {"rig",          "controller", "iteration",
@@ -1284,7 +1302,7 @@ int rths_config_check_sections(rths_config *cfg, const char *const *own, rths_er
     enum { N_SECTIONS = sizeof sections / sizeof sections[0] };
     int read[N_SECTIONS];
     for (int k = 0; k < N_SECTIONS; k++) /* before any marking: marks count as reads */
-        read[k] = rths_config_section_read(cfg, sections[k]);
+        read[k] = section_read_by_command(cfg, sections[k]);
     for (int k = 0; k < N_SECTIONS; k++) {
         int mine = read[k];
         for (int j = 0; own && own[j] && !mine; j++)

@@ -25,6 +25,8 @@ void rths_beam_free(rths_beam *b) {
     rths_mat_free(b->stiffness);
     free(b->dofs);
     free(b->node_position_m);
+    free(b->element_stiffness);
+    free(b->element_mass);
     memset(b, 0, sizeof *b);
 }
 
@@ -212,9 +214,10 @@ static void element_matrices(double l, double ei, double mu, double ke[16], doub
     }
 }
 
-/* Global (2 n_nodes)^2 matrices of the unconstrained beam with its point masses. */
+/* Global (2 n_nodes)^2 matrices of the unconstrained beam with its point masses; each element's
+ * own matrices into ke_all, me_all (16 doubles per element). */
 static void assemble_full(const rths_beam_spec *spec, const double *nodes, int n_nodes, double tol,
-                          double *kg, double *mg) {
+                          double *kg, double *mg, double *ke_all, double *me_all) {
     int nd = 2 * n_nodes, node = 0;
     for (int s = 0; s < spec->n_segments; s++) {
         const rths_beam_segment *g = &spec->segments[s];
@@ -222,6 +225,8 @@ static void assemble_full(const rths_beam_spec *spec, const double *nodes, int n
             double ke[16], me[16];
             element_matrices(nodes[node + 1] - nodes[node], g->ei_n_m2, g->mass_per_length_kg_per_m,
                              ke, me);
+            memcpy(ke_all + 16 * node, ke, sizeof ke);
+            memcpy(me_all + 16 * node, me, sizeof me);
             for (int i = 0; i < 4; i++)
                 for (int j = 0; j < 4; j++) {
                     RTHS_AT(kg, nd, 2 * node + i, 2 * node + j) += ke[4 * i + j];
@@ -318,6 +323,7 @@ static int reduce(rths_beam *b, const double *kg, const double *mg, const int *f
 }
 
 static int apply_damping(rths_beam *b, const rths_beam_damping *d, beam_fault *f, rths_error *err) {
+    b->damping_model = d->model;
     if (d->model == RTHS_BEAM_DAMPING_MODAL) return modal_damping(b, d, f, err);
     if (d->model == RTHS_BEAM_DAMPING_RAYLEIGH) {
         b->rayleigh_alpha_per_s = d->alpha_per_s;
@@ -347,10 +353,14 @@ static int assemble(const rths_beam_spec *spec, rths_beam *out, beam_fault *f, r
     int nd = 2 * out->n_nodes;
     double *kg = rths_mat_new(nd, nd), *mg = rths_mat_new(nd, nd);
     int *fixed = calloc((size_t)nd, sizeof *fixed);
-    if (!kg || !mg || !fixed) {
+    out->n_elements = out->n_nodes - 1;
+    out->element_stiffness = calloc(16 * (size_t)out->n_elements, sizeof(double));
+    out->element_mass = calloc(16 * (size_t)out->n_elements, sizeof(double));
+    if (!kg || !mg || !fixed || !out->element_stiffness || !out->element_mass) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory (beam)");
     } else {
-        assemble_full(spec, out->node_position_m, out->n_nodes, tol, kg, mg);
+        assemble_full(spec, out->node_position_m, out->n_nodes, tol, kg, mg, out->element_stiffness,
+                      out->element_mass);
         mark_fixed(spec, out->node_position_m, out->n_nodes, tol, fixed);
         rc = reduce(out, kg, mg, fixed, f, err);
     }
@@ -409,6 +419,43 @@ int rths_beam_find_dof(const rths_beam *b, double position_m, rths_beam_dof_kind
     for (int i = 0; node >= 0 && i < b->n; i++)
         if (b->dofs[i].node == node && b->dofs[i].kind == kind) return i;
     return -1;
+}
+
+/* Free-DoF index of each of element e's four DoFs (-1: fixed). */
+static void element_dofs(const rths_beam *b, int e, int idx[4]) {
+    for (int k = 0; k < 4; k++)
+        idx[k] = -1;
+    for (int i = 0; i < b->n; i++) {
+        int local = 2 * (b->dofs[i].node - e) + (b->dofs[i].kind == RTHS_BEAM_THETA);
+        if (local >= 0 && local < 4) idx[local] = i;
+    }
+}
+
+int rths_beam_interface_shares(const rths_beam *b, const rths_dof_role *roles, int n_int,
+                               const int *int_dofs, double *damping_phys, double *stiffness_phys) {
+    int damping = b->damping_model != RTHS_BEAM_DAMPING_MODAL;
+    memset(stiffness_phys, 0, sizeof(double) * (size_t)n_int * (size_t)n_int);
+    memset(damping_phys, 0, sizeof(double) * (size_t)n_int * (size_t)n_int);
+    for (int e = 0; e < b->n_elements; e++) {
+        int idx[4], numerical = 0;
+        element_dofs(b, e, idx);
+        for (int k = 0; k < 4; k++)
+            numerical |= idx[k] >= 0 && roles[idx[k]] == RTHS_DOF_NUMERICAL;
+        if (numerical) continue;
+        const double *ke = b->element_stiffness + 16 * e, *me = b->element_mass + 16 * e;
+        for (int i = 0; i < n_int; i++)
+            for (int j = 0; j < n_int; j++)
+                for (int r = 0; r < 4; r++)
+                    for (int c = 0; c < 4; c++) {
+                        if (idx[r] != int_dofs[i] || idx[c] != int_dofs[j]) continue;
+                        double k = ke[4 * r + c];
+                        RTHS_AT(stiffness_phys, n_int, i, j) += k;
+                        if (damping)
+                            RTHS_AT(damping_phys, n_int, i, j) +=
+                                b->rayleigh_alpha_per_s * me[4 * r + c] + b->rayleigh_beta_s * k;
+                    }
+    }
+    return damping;
 }
 
 int rths_beam_to_assembly(const rths_beam *b, rths_assembly *out, rths_error *err) {

@@ -2,6 +2,7 @@
  * substructure integration"). */
 #include "rths/model.h"
 
+#include <lapacke.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -163,4 +164,17 @@ int rths_discretise(int nx, int nu, const double *a, const double *b, double h, 
 oom:
     rths_discrete_free(out);
     return rths_error_set(err, RTHS_EFAIL, "out of memory discretising a %d-state model", nx);
+}
+
+double rths_spectral_radius(int n, const double *a) {
+    double *work = rths_mat_dup(a, n, n), *wr = malloc(sizeof(double) * (size_t)(n > 0 ? n : 1)),
+           *wi = malloc(sizeof(double) * (size_t)(n > 0 ? n : 1)), dummy = 0, radius = -1;
+    if (work && wr && wi &&
+        !LAPACKE_dgeev(LAPACK_COL_MAJOR, 'N', 'N', n, work, n, wr, wi, &dummy, 1, &dummy, 1)) {
+        radius = 0;
+        for (int i = 0; i < n; i++)
+            radius = fmax(radius, hypot(wr[i], wi[i]));
+    }
+    free(work), free(wr), free(wi);
+    return radius;
 }

@@ -97,6 +97,7 @@ void rths_split_free(rths_split *s) {
     free(s->phys_dofs);
     free(s->int_dofs);
     free(s->num_dofs);
+    free(s->mass_ratios);
     rths_mat_free(s->mass_phys);
     rths_mat_free(s->damping_phys);
     rths_mat_free(s->stiffness_phys);
@@ -150,14 +151,23 @@ static void fill_substructure(const rths_split *s, const double *a, const double
 int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double mass_ratio,
                       const double *damping_int_phys, const double *stiffness_int_phys,
                       rths_split *out, rths_error *err) {
+    return rths_split_create_ratios(a, role, 1, &mass_ratio, damping_int_phys, stiffness_int_phys,
+                                    out, err);
+}
+
+int rths_split_create_ratios(const rths_assembly *a, const rths_dof_role *role, int n_ratios,
+                             const double *mass_ratios, const double *damping_int_phys,
+                             const double *stiffness_int_phys, rths_split *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int n = a->n;
-    if (!(isfinite(mass_ratio) && mass_ratio > 0.0 && mass_ratio < 1.0))
-        return rths_error_set(err, RTHS_EINPUT,
-                              "mass ratio p must lie in the open interval (0, 1), got %g",
-                              mass_ratio);
+    for (int r = 0; r < n_ratios; r++)
+        if (!(isfinite(mass_ratios[r]) && mass_ratios[r] > 0.0 && mass_ratios[r] < 1.0))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "mass ratio p must lie in the open interval (0, 1), got %g",
+                                  mass_ratios[r]);
+    if (n_ratios < 1) return rths_error_set(err, RTHS_EINPUT, "no mass ratio given");
     out->n = n;
-    out->mass_ratio = mass_ratio;
+    out->mass_ratio = mass_ratios[0];
     out->phys_dofs = calloc((size_t)n, sizeof(int));
     out->int_dofs = calloc((size_t)n, sizeof(int));
     out->num_dofs = calloc((size_t)n, sizeof(int));
@@ -182,6 +192,18 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
         rths_split_free(out);
         return rths_error_set(err, RTHS_EINPUT, "the split needs at least one interface DoF");
     }
+    if (n_ratios != 1 && n_ratios != out->n_int) {
+        int ni = out->n_int;
+        rths_split_free(out);
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%d mass ratios for %d interface DoFs: give one p, or one per "
+                              "interface DoF",
+                              n_ratios, ni);
+    }
+    out->mass_ratios = malloc(sizeof(double) * (size_t)out->n_int);
+    if (!out->mass_ratios) goto oom;
+    for (int d = 0; d < out->n_int; d++)
+        out->mass_ratios[d] = mass_ratios[n_ratios == 1 ? 0 : d];
     /* Separability: internal physical and internal numerical DoFs may meet only through the
      * interface, otherwise no force exchange at the interface can represent the assembly. */
     const double *mats[3] = {a->mass, a->damping, a->stiffness};
@@ -221,10 +243,13 @@ int rths_split_create(const rths_assembly *a, const rths_dof_role *role, double 
             for (int j = 0; j < ni; j++)
                 RTHS_AT(full, ni, i, j) = RTHS_AT(mats[m], n, out->int_dofs[i], out->int_dofs[j]);
         if (m == 0) {
-            for (int k = 0; k < ni * ni; k++) {
-                num[k] = mass_ratio * full[k];
-                phys[k] = full[k] - num[k];
-            }
+            for (int i = 0; i < ni; i++)
+                for (int j = 0; j < ni; j++) {
+                    double pi = out->mass_ratios[i], pj = out->mass_ratios[j];
+                    double pij = pi == pj ? pi : sqrt(pi * pj);
+                    RTHS_AT(num, ni, i, j) = pij * RTHS_AT(full, ni, i, j);
+                    RTHS_AT(phys, ni, i, j) = RTHS_AT(full, ni, i, j) - RTHS_AT(num, ni, i, j);
+                }
         } else if (explicit_phys[m]) {
             for (int k = 0; k < ni * ni; k++) {
                 phys[k] = explicit_phys[m][k];

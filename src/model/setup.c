@@ -187,6 +187,64 @@ static int default_sides(rths_setup *s, const int *iface, int n_iface, int n_phy
     return RTHS_OK;
 }
 
+static void sort_ints(int *v, int n) {
+    for (int i = 1; i < n; i++)
+        for (int j = i; j > 0 && v[j - 1] > v[j]; j--) {
+            int t = v[j];
+            v[j] = v[j - 1];
+            v[j - 1] = t;
+        }
+}
+
+/* split.mass_ratio: one p in (0, 1) for every interface DoF, or a list of one p per interface
+ * DoF (in the order of split.interface; *ratios then holds them in the split's ascending DoF
+ * order). p is the numerical share of the interface mass: both sides must keep some of it. */
+static int read_mass_ratios(rths_config *cfg, int n_iface, const int *iface, double *p,
+                            double **ratios, int *n_ratios, rths_error *err) {
+    static const char *const key = "split.mass_ratio";
+    double *list = NULL;
+    int count = 0;
+    rths_error local;
+    if (rths_config_get_double_list(cfg, key, 0, &list, &count, &local) != RTHS_OK || count == 0) {
+        free(list);
+        *n_ratios = 1;
+        return rths_config_get_double_ex(cfg, key, 1, 0.5, 0, 1,
+                                         RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, p, err);
+    }
+    if (count != n_iface) {
+        free(list);
+        return rths_config_error_at(cfg, key, err,
+                                    "lists %d mass ratios for %d interface DoFs: give one p, or "
+                                    "one per interface DoF",
+                                    count, n_iface);
+    }
+    for (int i = 0; i < count; i++)
+        if (!(list[i] > 0 && list[i] < 1)) {
+            double bad = list[i];
+            free(list);
+            return rths_config_error_at(cfg, key, err,
+                                        "entry %d: must be in (0, 1), the numerical share of the "
+                                        "interface DoF's mass (got %g)",
+                                        i + 1, bad);
+        }
+    /* into the split's order: ascending DoF number */
+    *ratios = malloc(sizeof(double) * (size_t)(count > 0 ? count : 1));
+    if (!*ratios) {
+        free(list);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    for (int i = 0; i < count; i++) {
+        int rank = 0;
+        for (int j = 0; j < count; j++)
+            rank += iface[j] < iface[i];
+        (*ratios)[rank] = list[i];
+    }
+    *p = (*ratios)[0];
+    *n_ratios = count;
+    free(list);
+    return RTHS_OK;
+}
+
 static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
     int n = s->assembly.n;
     int *iface = NULL, *phys = NULL, *num = NULL, n_iface = 0, n_phys = 0, n_num = 0;
@@ -200,10 +258,9 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
     if (!rc)
         rc = assign_roles(cfg, "split.interface", iface, n_iface, RTHS_DOF_INTERFACE, assigned, s,
                           err);
-    /* p is the numerical share of the interface mass: both sides must keep some of it */
-    if (!rc)
-        rc = rths_config_get_double_ex(cfg, "split.mass_ratio", 1, 0.5, 0, 1,
-                                       RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, &p, err);
+    double *ratios = NULL;
+    int n_ratios = 1;
+    if (!rc) rc = read_mass_ratios(cfg, n_iface, iface, &p, &ratios, &n_ratios, err);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.physical", 0, &phys, &n_phys, err);
     if (!rc) rc = rths_config_get_int_list(cfg, "split.numerical", 0, &num, &n_num, err);
     if (!rc)
@@ -235,11 +292,31 @@ static int read_split(rths_config *cfg, rths_setup *s, rths_error *err) {
                                       "must be %d x %d (one row per interface DoF)", n_iface,
                                       n_iface);
     }
+    /* a beam splits element by element unless the interface blocks are given */
+    if (!rc && s->beam && !k_int && !c_int) {
+        size_t ni = (size_t)(n_iface > 0 ? n_iface : 1);
+        k_int = malloc(sizeof(double) * ni * ni);
+        c_int = malloc(sizeof(double) * ni * ni);
+        if (!k_int || !c_int) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        int *iface0 = rc ? NULL : malloc(sizeof(int) * ni);
+        if (!rc && !iface0) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        for (int i = 0; !rc && i < n_iface; i++)
+            iface0[i] = iface[i] - 1;
+        /* the split orders the interface by DoF number: so do the shares */
+        if (!rc) sort_ints(iface0, n_iface);
+        if (!rc && !rths_beam_interface_shares(s->beam, s->roles, n_iface, iface0, c_int, k_int)) {
+            free(c_int); /* modal damping: no element owns C (the split refuses its coupling) */
+            c_int = NULL;
+        }
+        free(iface0);
+    }
     if (!rc) {
         rths_error local;
-        rc = rths_split_create(&s->assembly, s->roles, p, c_int, k_int, &s->split, &local);
+        rc = rths_split_create_ratios(&s->assembly, s->roles, n_ratios, ratios ? ratios : &p, c_int,
+                                      k_int, &s->split, &local);
         if (rc) rc = rths_config_error_at(cfg, "split", err, "%s", local.msg);
     }
+    free(ratios);
     free(assigned);
     free(iface);
     free(phys);
@@ -369,15 +446,17 @@ static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
-/* structure.beam: Euler-Bernoulli beam elements assembled into matrices (beam.h). */
+/* structure.beam: Euler-Bernoulli beam elements assembled into matrices (beam.h). The beam is
+ * kept: its elements decide the split (rths_beam_interface_shares) and its nodes place the
+ * actuators and lasers (rig.actuators.offset_m). */
 static int read_beam(rths_config *cfg, rths_setup *s, rths_error *err) {
-    rths_beam beam;
-    int rc = rths_beam_config_read(cfg, "structure.beam", &beam, err);
+    s->beam = calloc(1, sizeof *s->beam);
+    if (!s->beam) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int rc = rths_beam_config_read(cfg, "structure.beam", s->beam, err);
     if (rc) return rc;
     rths_error local;
-    rc = rths_beam_to_assembly(&beam, &s->assembly, &local);
+    rc = rths_beam_to_assembly(s->beam, &s->assembly, &local);
     if (rc) rc = rths_config_error_at(cfg, "structure.beam", err, "%s", local.msg);
-    rths_beam_free(&beam);
     s->chain = 0;
     return rc;
 }
@@ -417,6 +496,132 @@ static int read_numerical_solver(rths_config *cfg, rths_setup *s, rths_error *er
     return rc;
 }
 
+/* ---- rig.actuators, rig.lasers: actuator and sensor transforms ---- */
+
+/* Direction from the cut into the physical part of a beam cut at one node whose interface is its
+ * (w, theta): +1 when the physical elements lie at larger x, -1 at smaller x; 0 when the
+ * interface is not one node's w and theta (offsets do not apply). */
+static int beam_cut_direction(const rths_setup *s) {
+    const rths_split *sp = &s->split;
+    if (!s->beam || sp->n_int != 2) return 0;
+    const rths_beam_dof *a = &s->beam->dofs[sp->int_dofs[0]], *b = &s->beam->dofs[sp->int_dofs[1]];
+    if (a->node != b->node || a->kind != RTHS_BEAM_W || b->kind != RTHS_BEAM_THETA) return 0;
+    for (int i = 0; i < s->assembly.n; i++)
+        if (s->roles[i] == RTHS_DOF_PHYSICAL) return s->beam->dofs[i].node > a->node ? 1 : -1;
+    return 1; /* no internal physical DoF: the fixture alone, x grows into it */
+}
+
+/* offset_m -> the n_int x n_int transform: actuators (column a = (1, dir d_a), the force and
+ * moment at the cut of 1 N at offset d_a) or lasers (row s = (1, dir d_s), the displacement at
+ * offset d_s of the rigid fixture). A negative offset lies on the numerical side. */
+static int offsets_transform(rths_config *cfg, const rths_setup *s, const char *key, int actuators,
+                             double *t, rths_error *err) {
+    double *d = NULL;
+    int count = 0, dir = beam_cut_direction(s);
+    int rc = rths_config_get_double_list(cfg, key, 1, &d, &count, err);
+    if (!rc && dir == 0)
+        rc =
+            rths_config_error_at(cfg, key, err,
+                                 "offsets need a structure.beam cut at one node with the interface "
+                                 "(w, theta) of that node; give %s.transform instead",
+                                 actuators ? "rig.actuators" : "rig.lasers");
+    if (!rc && count != s->split.n_int)
+        rc = rths_config_error_at(cfg, key, err,
+                                  "lists %d offsets for %d interface DoFs: one %s per interface "
+                                  "DoF",
+                                  count, s->split.n_int, actuators ? "actuator" : "laser");
+    for (int i = 0; !rc && i < count; i++) {
+        if (!(fabs(d[i]) <= 10))
+            rc = rths_config_error_at(cfg, key, err,
+                                      "entry %d: must be a finite offset within "
+                                      "10 m of the cut (got %g)",
+                                      i + 1, d[i]);
+        else if (d[i] < 0)
+            rc =
+                rths_config_error_at(cfg, key, err,
+                                     "entry %d: offset %g m lies on the numerical side of the cut: "
+                                     "%s acts on the physical substructure only (offsets count "
+                                     "from the cut into the physical part)",
+                                     i + 1, d[i], actuators ? "an actuator" : "a laser");
+    }
+    for (int i = 0; !rc && i < count; i++) {
+        /* actuators: column i; lasers: row i */
+        int r0 = actuators ? 0 : i, c0 = actuators ? i : 0, r1 = actuators ? 1 : i,
+            c1 = actuators ? i : 1;
+        RTHS_AT(t, 2, r0, c0) = 1.0;
+        RTHS_AT(t, 2, r1, c1) = dir * d[i];
+    }
+    free(d);
+    return rc;
+}
+
+/* One transform (rig.actuators or rig.lasers): offsets or a matrix, n_int x n_int, invertible. */
+static int read_transform(rths_config *cfg, rths_setup *s, const char *section, int actuators,
+                          double **out, rths_error *err) {
+    char k_off[64], k_mat[64];
+    snprintf(k_off, sizeof k_off, "%s.offset_m", section);
+    snprintf(k_mat, sizeof k_mat, "%s.transform", section);
+    int has_off = rths_config_has(cfg, k_off), has_mat = rths_config_has(cfg, k_mat);
+    if (!has_off && !has_mat) {
+        if (rths_config_has(cfg, section))
+            return rths_config_error_at(cfg, section, err, "give offset_m or transform");
+        return RTHS_OK;
+    }
+    if (has_off && has_mat)
+        return rths_config_error_at(cfg, k_mat, err, "give %s or %s, not both", k_off, k_mat);
+    int ni = s->split.n_int, rows = 0, cols = 0;
+    const char *key = has_off ? k_off : k_mat;
+    double *t = NULL;
+    int rc = RTHS_OK;
+    if (has_off) {
+        t = rths_mat_new(ni, ni);
+        rc = t ? offsets_transform(cfg, s, k_off, actuators, t, err)
+               : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    } else {
+        rc = rths_config_get_matrix(cfg, k_mat, 1, &t, &rows, &cols, err);
+        if (!rc && (rows != ni || cols != ni))
+            rc = rths_config_error_at(cfg, k_mat, err,
+                                      "is %d x %d; the split has %d interface DoFs, so it must be "
+                                      "%d x %d (%s)",
+                                      rows, cols, ni, ni, ni,
+                                      actuators ? "a row per interface DoF, a column per actuator"
+                                                : "a row per laser, a column per interface DoF");
+        for (int i = 0; !rc && i < ni * ni; i++)
+            if (!(fabs(t[i]) <= 1e6))
+                rc = rths_config_error_at(cfg, k_mat, err,
+                                          "entry (%d, %d) = %g is not a finite "
+                                          "number of magnitude <= 1e6",
+                                          i % ni + 1, i / ni + 1, t[i]);
+    }
+    /* singular: the actuators cannot drive (or the lasers cannot tell apart) every interface DoF */
+    double *inv = rc ? NULL : rths_mat_new(ni, ni);
+    if (!rc && !inv) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        int info = rths_mat_inverse(ni, t, inv);
+        double cond = info ? INFINITY : rths_mat_norm1(t, ni) * rths_mat_norm1(inv, ni);
+        if (!(cond < 1e10))
+            rc = rths_config_error_at(cfg, key, err,
+                                      "the transform is singular (condition number %.3g): %s", cond,
+                                      actuators ? "these actuators cannot drive every interface "
+                                                  "DoF independently (two at the same offset?)"
+                                                : "these lasers cannot tell every interface DoF "
+                                                  "apart (two at the same offset?)");
+    }
+    rths_mat_free(inv);
+    if (rc) {
+        rths_mat_free(t);
+        return rc;
+    }
+    *out = t;
+    return RTHS_OK;
+}
+
+static int read_transforms(rths_config *cfg, rths_setup *s, rths_error *err) {
+    int rc = read_transform(cfg, s, "rig.actuators", 1, &s->actuator_transform, err);
+    if (!rc) rc = read_transform(cfg, s, "rig.lasers", 0, &s->sensor_transform, err);
+    return rc;
+}
+
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
@@ -425,6 +630,7 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     if (!rc) rc = read_bilinear(cfg, out, err);
     if (!rc) rc = read_frf_range(cfg, out, err);
     if (!rc) rc = read_numerical_solver(cfg, out, err);
+    if (!rc) rc = read_transforms(cfg, out, err);
     if (rc) rths_setup_free(out);
     return rc;
 }
@@ -437,6 +643,10 @@ void rths_setup_free(rths_setup *s) {
     free(s->force);
     free(s->forcing_shape);
     free(s->static_force);
+    if (s->beam) rths_beam_free(s->beam);
+    free(s->beam);
+    rths_mat_free(s->actuator_transform);
+    rths_mat_free(s->sensor_transform);
     memset(s, 0, sizeof *s);
 }
 
@@ -457,4 +667,8 @@ void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size) {
         snprintf(buf, size, "ground acceleration %g m/s^2", s->forcing_amplitude_n);
     else
         snprintf(buf, size, "%g N on DoF %d", s->forcing_amplitude_n, s->forcing_dof + 1);
+}
+
+int rths_setup_dof_is_rotation(const rths_setup *s, int dof) {
+    return s->beam && dof >= 0 && dof < s->beam->n && s->beam->dofs[dof].kind == RTHS_BEAM_THETA;
 }

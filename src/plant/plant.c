@@ -60,6 +60,8 @@ struct rths_plant {
     double armature_kg;
     /* actuators 1..ni-1 (index 0 unused: actuator 0 is fs, last_force_target, delay_line) */
     double fs_more[RTHS_MAX_INTERFACE_DOFS], last_force_target_more[RTHS_MAX_INTERFACE_DOFS];
+    /* actuator and sensor transforms (setup.h), ni x ni column-major; NULL: the identity */
+    double *act_t, *sens_t;
     int forcing_index;     /* internal physical forcing DoF, -1: none */
     double *forcing_shape; /* n: base excitation's -M 1 on the internal physical DoFs; NULL:
                               the forcing acts on forcing_index alone */
@@ -110,6 +112,7 @@ void rths_plant_destroy(rths_plant *p) {
     free(p->minv), free(p->c), free(p->k), free(p->static_force);
     free(p->z), free(p->z_next), free(p->rk), free(p->delay_line);
     free(p->act_a), free(p->act_bu), free(p->act_bv), free(p->forcing_shape);
+    rths_mat_free(p->act_t), rths_mat_free(p->sens_t);
     for (int s = 0; s < 2; s++) {
         exact_side *e = &p->side[s];
         free(e->phi), free(e->g_target_start), free(e->g_target_slope), free(e->g_static);
@@ -134,9 +137,20 @@ static void side_stiffness(const rths_plant *p, int compressed, double *kk) {
     }
 }
 
+/* Row i of M^-1 times actuator a's force direction: the interface DoF a itself, or through the
+ * actuator transform, column a of T. */
+static double actuator_input(const rths_plant *p, int i, int a) {
+    int n = p->n, iface = n - p->ni;
+    if (!p->act_t) return p->minv[i + (iface + a) * n];
+    double s = 0;
+    for (int d = 0; d < p->ni; d++)
+        s += p->minv[i + (iface + d) * n] * p->act_t[d + a * p->ni];
+    return s;
+}
+
 /* Continuous state matrix of one side into a (ld x ld, top-left nz x nz block). */
 static void side_state_matrix(const rths_plant *p, int compressed, double *kk, double *a, int ld) {
-    int n = p->n, iface = n - p->ni;
+    int n = p->n;
     side_stiffness(p, compressed, kk);
     for (int i = 0; i < n; i++) {
         a[i + (size_t)(n + i) * ld] = 1.0;
@@ -151,7 +165,7 @@ static void side_state_matrix(const rths_plant *p, int compressed, double *kk, d
         }
         /* actuator d's lagged force acts on interface DoF d */
         for (int d = 0; p->lag_rate > 0 && d < p->ni; d++)
-            a[n + i + (size_t)(2 * n + d) * ld] = p->minv[i + (iface + d) * n];
+            a[n + i + (size_t)(2 * n + d) * ld] = actuator_input(p, i, d);
         /* the transfer function's output is its last observer state (plus the feedthrough):
          * the force, or the piston's displacement pushing the storey through the connection
          * spring, F = k_c (y - x_interface) */
@@ -185,7 +199,7 @@ static double forcing_input(const rths_plant *p, int i) {
 static int build_side(rths_plant *p, int compressed, double *kk) {
     /* augmented: [state | target, static | their ramps | the forcing's chain of 4 integrators |
      * the further actuators' target and slope pairs] */
-    int n = p->n, nz = p->nz, more = 2 * (p->ni - 1), N = nz + 8 + more, iface = n - p->ni;
+    int n = p->n, nz = p->nz, more = 2 * (p->ni - 1), N = nz + 8 + more;
     double *aug = rths_mat_new(N, N), *e = rths_mat_new(N, N);
     exact_side *sd = &p->side[compressed];
     sd->g_more = more > 0 ? calloc((size_t)(nz * more), sizeof(double)) : NULL;
@@ -202,7 +216,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
     if (!rc) {
         side_state_matrix(p, compressed, kk, aug, N);
         for (int i = 0; i < n; i++) {
-            double target_col = p->lag_rate > 0 ? 0.0 : p->minv[i + iface * n];
+            double target_col = p->lag_rate > 0 ? 0.0 : actuator_input(p, i, 0);
             if (p->tf) target_col = p->minv[i + (n - 1) * n] * p->act_out * p->act_d;
             double static_col = 0;
             for (int l = 0; l < n; l++)
@@ -224,7 +238,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
         for (int d = 1; d < p->ni; d++) {
             int col = nz + 8 + 2 * (d - 1);
             for (int i = 0; i < n && p->lag_rate <= 0; i++)
-                aug[n + i + (size_t)col * N] = p->minv[i + (iface + d) * n];
+                aug[n + i + (size_t)col * N] = actuator_input(p, i, d);
             if (p->lag_rate > 0) aug[2 * n + d + (size_t)col * N] = p->lag_rate;
             aug[col + (size_t)(col + 1) * N] = 1.0;
         }
@@ -382,12 +396,20 @@ static int plant_matrices(rths_plant *p, const rths_setup *setup) {
             p->c[i + j * n] = RTHS_AT(s->damping_phys, n, i, j);
             p->k[i + j * n] = RTHS_AT(s->stiffness_phys, n, i, j);
         }
-    /* the interface block carries the assembly's full mass, each storey its armature */
+    /* the interface block carries the assembly's full mass, each actuator its armature: on its
+     * DoF, or at its point through the transform, T diag(armature) T^T */
     for (int d = 0; d < ni; d++)
-        for (int e = 0; e < ni; e++)
+        for (int e = 0; e < ni; e++) {
+            double arm = d == e ? p->opt.armature_mass_kg : 0.0;
+            if (p->act_t) {
+                arm = 0;
+                for (int a = 0; a < ni; a++)
+                    arm += p->act_t[d + a * ni] * p->act_t[e + a * ni] * p->opt.armature_mass_kg;
+            }
             m[(n - ni + d) + (n - ni + e) * n] =
                 RTHS_AT(setup->assembly.mass, setup->assembly.n, s->int_dofs[d], s->int_dofs[e]) +
-                (d == e ? p->opt.armature_mass_kg : 0.0);
+                arm;
+        }
     int rc = rths_mat_inverse(n, m, p->minv);
     rths_mat_free(m);
     return rc;
@@ -461,6 +483,14 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
                               "integrator of a linear structure (rig.actuator: transfer_function, "
                               "rig.plant_integrator: rk4 and the bilinear leg drive one actuator)",
                               s->n_int);
+    if ((setup->actuator_transform || setup->sensor_transform) &&
+        (opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION || opt->substeps_per_sample > 0 ||
+         setup->has_bilinear))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "actuator and sensor transforms (rig.actuators, rig.lasers) run "
+                              "shakers on the exact integrator of a linear structure (not with "
+                              "rig.actuator: transfer_function, rig.plant_integrator: rk4 or the "
+                              "bilinear leg)");
     if (!(sample_rate_hz > 0 && isfinite(sample_rate_hz)) || !(opt->gain_n_per_v > 0) ||
         !(opt->delay_s >= 0 && opt->delay_s * sample_rate_hz < 1e7) || opt->lag_cutoff_hz < 0 ||
         opt->armature_mass_kg < 0 || opt->substeps_per_sample < 0)
@@ -487,6 +517,14 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
     int rc = actuator_realise(p, &opt->actuator, err);
     if (!rc && (plant_alloc(p, n, delay) || !(to_phys = physical_index(setup))))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+
+    if (!rc && setup->actuator_transform &&
+        !(p->act_t = rths_mat_dup(setup->actuator_transform, s->n_int, s->n_int)))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc && setup->sensor_transform &&
+        !(p->sens_t = rths_mat_dup(setup->sensor_transform, s->n_int, s->n_int)))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+
     if (!rc && plant_matrices(p, setup))
         rc = rths_error_set(err, RTHS_EFAIL, "singular physical mass matrix");
     if (!rc) rc = plant_leg_and_loads(p, setup, to_phys, err);
@@ -573,8 +611,14 @@ static double interface_acceleration(const rths_plant *p, int row) {
         double f = p->static_force[i];
         for (int j = 0; j < n; j++)
             f -= p->c[i + j * n] * p->v[j] + p->k[i + j * n] * p->q[j];
-        if (i == iface) f += p->fs;
-        if (i > iface) f += p->fs_more[i - iface];
+        if (p->act_t && i >= iface) {
+            f += p->act_t[i - iface] * p->fs; /* every actuator's force through the transform */
+            for (int a = 1; a < p->ni; a++)
+                f += p->act_t[i - iface + a * p->ni] * p->fs_more[a];
+        } else {
+            if (i == iface) f += p->fs;
+            if (i > iface) f += p->fs_more[i - iface];
+        }
         if (p->forcing_shape)
             f += p->forcing_now * p->forcing_shape[i];
         else if (i == p->forcing_index)
@@ -609,7 +653,42 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_ad
     return convert(adc->bits, adc->range_v, v) * adc->units_per_v;
 }
 
+/* With transforms: each laser reads its point (S q), each actuator's accelerometer and load cell
+ * sit at the actuator's point, whose acceleration is T^T q''. */
+static void read_transformed(rths_plant *p, rths_sensor_sample *out) {
+    int n = p->n, ni = p->ni, iface = n - ni;
+    double acc[RTHS_MAX_INTERFACE_DOFS];
+    for (int d = 0; d < ni; d++)
+        acc[d] = interface_acceleration(p, iface + d);
+    out->n = n;
+    for (int i = 0; i < iface; i++)
+        out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
+    for (int l = 0; l < ni; l++) {
+        double y = 0;
+        for (int d = 0; d < ni; d++)
+            y += (p->sens_t ? p->sens_t[l + d * ni] : (double)(l == d)) * p->q[iface + d];
+        out->displacement_m[iface + l] = measure(p, &p->opt.laser, &p->opt.laser_adc, y);
+    }
+    out->n_interface = ni;
+    for (int a = 0; a < ni; a++) {
+        double acc_a = 0;
+        for (int d = 0; d < ni; d++)
+            acc_a += (p->act_t ? p->act_t[d + a * ni] : (double)(a == d)) * acc[d];
+        double force = a == 0 ? p->fs : p->fs_more[a];
+        out->interface_acceleration_dof_m_s2[a] =
+            measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc_a);
+        out->interface_force_dof_n[a] =
+            measure(p, &p->opt.load_cell, &p->opt.load_cell_adc, force - p->armature_kg * acc_a);
+    }
+    out->interface_acceleration_m_s2 = out->interface_acceleration_dof_m_s2[0];
+    out->interface_force_n = out->interface_force_dof_n[0];
+}
+
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
+    if (p->act_t || p->sens_t) {
+        read_transformed(p, out);
+        return;
+    }
     double acc = interface_acceleration(p, p->n - p->ni);
     out->n = p->n;
     for (int i = 0; i < p->n; i++)
@@ -754,6 +833,18 @@ static void limits_update(rths_plant *p) {
         v = fmax(v, fabs(p->v[iface + d]));
         f = fmax(f, fabs(p->fs_more[d]));
     }
+    if (p->act_t) { /* stroke and velocity of each actuator's own point, T^T q */
+        x = v = 0;
+        for (int a = 0; a < p->ni; a++) {
+            double xa = 0, va = 0;
+            for (int d = 0; d < p->ni; d++) {
+                xa += p->act_t[d + a * p->ni] * p->q[iface + d];
+                va += p->act_t[d + a * p->ni] * p->v[iface + d];
+            }
+            x = fmax(x, fabs(xa));
+            v = fmax(v, fabs(va));
+        }
+    }
     st->peak_stroke_m = fmax(st->peak_stroke_m, x);
     st->peak_velocity_m_per_s = fmax(st->peak_velocity_m_per_s, v);
     st->peak_force_n = fmax(st->peak_force_n, f);
@@ -863,7 +954,20 @@ double rths_plant_interface_displacement_m(const rths_plant *p) {
     return p->q[p->n - p->ni];
 }
 double rths_plant_noise_level_m(const rths_plant *p) {
-    return p->opt.noise ? p->opt.laser.noise_std : 0.0;
+    if (!p->opt.noise) return 0.0;
+    if (!p->sens_t) return p->opt.laser.noise_std;
+    /* through the lasers' transform the controller's interface DoFs read S^-1 y: DoF d's noise is
+     * the laser noise times the norm of row d of S^-1 (the largest is reported) */
+    int ni = p->ni;
+    double inv[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_INTERFACE_DOFS], gain = 0;
+    if (rths_mat_inverse(ni, p->sens_t, inv)) return p->opt.laser.noise_std;
+    for (int d = 0; d < ni; d++) {
+        double row = 0;
+        for (int l = 0; l < ni; l++)
+            row += inv[d + l * ni] * inv[d + l * ni];
+        gain = fmax(gain, sqrt(row));
+    }
+    return gain * p->opt.laser.noise_std;
 }
 
 /* A list of at most RTHS_ACTUATOR_MAX_ORDER + 1 coefficients into a fixed array. */
