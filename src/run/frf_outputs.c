@@ -201,14 +201,17 @@ static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t
     int dofs = t->dofs, used = 0;
     for (int d = 1; d < dofs && d < RTHS_MAX_INTERFACE_DOFS && used < (int)size; d++) {
         int dof = run->setup->split.int_dofs[d] + 1;
+        /* a rotation (a beam's theta) in rad on the right-hand axis */
+        int rot = rths_setup_dof_is_rotation(run->setup, dof - 1);
+        const char *axes = rot ? " axes x1y2" : "", *unit = rot ? ", rad, right axis" : "";
         used += snprintf(out + used, size - (size_t)used,
-                         ", \\\n     'truth.csv' using 1:%d skip 1 with lines lw 2 lc rgb '%s' "
-                         "title 'true assembly, interface DoF %d (DoF %d)', \\\n"
-                         "     'frf.csv' using 2:%d skip 1 with points pt 7 ps 0.8 lc rgb '%s' "
-                         "title 'hybrid test, interface DoF %d (DoF %d)'",
-                         6 + d, colour[d], d + 1, dof,
-                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, colour[d], d + 1,
-                         dof);
+                         ", \\\n     'truth.csv' using 1:%d skip 1%s with lines lw 2 lc rgb '%s' "
+                         "title 'true assembly, interface DoF %d (DoF %d%s)', \\\n"
+                         "     'frf.csv' using 2:%d skip 1%s with points pt 7 ps 0.8 lc rgb '%s' "
+                         "title 'hybrid test, interface DoF %d (DoF %d%s)'",
+                         6 + d, axes, colour[d], d + 1, dof, unit,
+                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes, colour[d],
+                         d + 1, dof, unit);
     }
 }
 
@@ -234,8 +237,13 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
         any_fold |= run->pts[i].fold;
         any_unstable_pt |= !rths_point_stable(&run->pts[i]);
     }
-    char body[8192], more[2048] = "", first[64] = "";
+    char body[8192], more[2048] = "", first[64] = "", y2[160] = "";
     interface_dof_curves(run, t, more, sizeof more);
+    for (int d = 1; d < run->setup->split.n_int; d++)
+        if (rths_setup_dof_is_rotation(run->setup, run->setup->split.int_dofs[d]))
+            snprintf(y2, sizeof y2,
+                     "set y2label 'Interface rotation amplitude, fundamental (rad)'\nset y2tics\n"
+                     "set ytics nomirror\nset format y2 '%%.1e'\n");
     if (run->setup->split.n_int > 1) /* several interface DoFs: name the first as the others */
         snprintf(first, sizeof first, ", interface DoF 1 (DoF %d)",
                  run->setup->split.int_dofs[0] + 1);
@@ -245,6 +253,7 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
              "set xlabel 'Forcing frequency (Hz)'\n"
              "set ylabel 'Interface displacement amplitude, fundamental (m)'\n"
              "set format y '%%.1e'\n"
+             "%s"
              "set grid\n"
              "set key below\n"
              "set bmargin 8\n"
@@ -252,7 +261,7 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
              "'black' title 'true assembly%s%s'%s, \\\n"
              "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
              "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s%s (bars: interface error x %g)'%s%s%s\n",
-             title, first, any_unstable ? ", stable" : "",
+             title, y2, first, any_unstable ? ", stable" : "",
              any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
                             "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
                           : "",
