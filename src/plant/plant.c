@@ -631,10 +631,22 @@ static double interface_acceleration(const rths_plant *p, int row) {
 }
 
 /* value clipped to +-range and rounded to the step 2 range / 2^bits (bits 0: unchanged) */
+/* nearbyint in the default rounding mode (to nearest, ties to even), inline: adding 1.5 x 2^52
+ * leaves no fraction bits for |x| < 2^51, so the sum rounds x to an integer (a zero comes out
+ * +0). Per-sample sensors called the libm function several times a sample. */
+static double round_to_integer(double x) {
+    const double shift = 6755399441055744.0;                       /* 1.5 x 2^52 */
+    return fabs(x) < 2251799813685248.0 ? (x + shift) - shift : x; /* |x| < 2^51 */
+}
+
+/* value clipped to +-range (NaN to -range, as fmin(fmax(...)) does) and rounded to the step
+ * 2 range / 2^bits (bits 0: unchanged) */
 static double convert(int bits, double range, double value) {
     if (bits <= 0) return value;
-    double q = 2 * range / ldexp(1.0, bits);
-    return q * nearbyint(fmin(fmax(value, -range), range) / q);
+    double q = 2 * range / (double)(1ULL << (bits < 63 ? bits : 63)); /* exact power of two */
+    double clipped = value > -range ? value : -range;
+    clipped = clipped < range ? clipped : range;
+    return q * round_to_integer(clipped / q);
 }
 
 static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_adc_spec *adc,
@@ -643,7 +655,7 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_ad
     if (p->opt.noise) {
         r = (1 + spec->gain_error) * value + spec->offset +
             spec->noise_std * rths_rng_normal(&p->rng);
-        if (spec->quantum > 0) r = spec->quantum * nearbyint(r / spec->quantum);
+        if (spec->quantum > 0) r = spec->quantum * round_to_integer(r / spec->quantum);
     }
     int volts_noise = p->opt.noise && adc->noise_v > 0;
     if (adc->bits <= 0 && !volts_noise) return r;
@@ -931,7 +943,8 @@ void rths_plant_advance_dofs(rths_plant *p, const double *demand_v) {
         if (side_end != side) {
             crossing_step(p, side, target_start, target_end);
         } else {
-            memcpy(p->z, p->z_next, sizeof(double) * (size_t)p->nz);
+            for (int i = 0; i < p->nz; i++) /* a handful of doubles: cheaper than a libc call */
+                p->z[i] = p->z_next[i];
             if (p->tf)
                 p->fs = p->act_out * ((p->na > 0 ? p->z[2 * p->n + p->na - 1] : 0.0) +
                                       p->act_d * target_end) -
