@@ -3,6 +3,7 @@
 #   1. the true assembly (modes, analytic FRF)                      -> OUT/model
 #   2. the linear hybrid test for p = 0.33, 0.5, 0.67 (12-14 Hz)     -> OUT/linear_p*, one figure
 #   3. the bilinear (nonlinear) hybrid test through both folds       -> OUT/bilinear
+#   4. the two-shaker cantilever (interface displacement and rotation) -> OUT/cantilever
 # Usage: tools/demo.sh RTHS_BINARY OUT_DIR
 set -euo pipefail
 bin=${1:?usage: tools/demo.sh RTHS_BINARY OUT_DIR}
@@ -78,5 +79,24 @@ printf '   folds (Hz): hybrid %s; shooting %s\n' \
     "$(awk -F, 'NR > 2 && $5 != prev { printf "%s%.4f", n++ ? ", " : "", $1 } NR > 1 { prev = $5 }' "$out/bilinear/truth.csv")"
 
 echo
+echo "== 4. two interface DoFs: the follow-up's steel cantilever, numerical clamped root, physical tip,"
+echo "      two shakers and two lasers through transforms (examples/cantilever_two_shakers.yaml)"
+rm -rf "$out/cantilever"
+"$bin" frf "$here/examples/cantilever_two_shakers.yaml" --out "$out/cantilever" --quiet
+python3 - "$out/cantilever/summary.json" <<'PY'
+import json, sys
+s = json.load(open(sys.argv[1]))
+print("   %d points, %d converged, %d evaluations (median %.1f per point), %.0f s rig time"
+      % (s["points"], s["converged_points"], s["evaluations_total"],
+         s["evaluations_per_point_median"], s["rig_time_s"]))
+for d in s["interface_dofs"]:
+    print("   interface DoF %d (%s): max deviation from the true FRF %.3f %%; %d of %d points within "
+          "3 standard errors" % (d["interface_dof"], "rotation, rad" if d["unit"] == "rad" else
+          "displacement, m", 100 * d["max_relative_error_vs_truth"],
+          d["points_within_3_standard_errors"], d["points_compared_with_truth"]))
+PY
+
+echo
 echo "Figures: $out/model/true_frf.png, $out/frf_mass_ratios.png, $out/bilinear/frf.png,"
-echo "         $out/bilinear/iterations.png, $out/linear_p0.5/lissajous.png (CSV and .gp beside each)"
+echo "         $out/bilinear/iterations.png, $out/linear_p0.5/lissajous.png,"
+echo "         $out/cantilever/frf.png (CSV and .gp beside each)"

@@ -26,6 +26,9 @@ void rths_truth_free(rths_truth_curve *t);
 /* Linear structure: the analytic interface amplitude at f_hz, m (NAN with a bilinear leg or when
  * the FRF cannot be evaluated). */
 double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz);
+/* Linear structure: the analytic fundamental amplitude of every interface DoF at f_hz (m, or rad
+ * for a rotation) into amp_m[0..split.n_int-1]; NAN and -1 with a bilinear leg or on failure. */
+int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double *amp_m);
 
 /* Distance of (f_hz, amp_m) from the curve in the plane (10 ln f, ln A), so a 1 % amplitude error
  * and a 0.1 % frequency offset count alike: the vertical relative error where the curve is flat,

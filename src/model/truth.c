@@ -1,5 +1,6 @@
 /* The true assembly's interface response and the error of a hybrid point against it. */
 #include "rths/truth.h"
+#include "rths/signals.h"
 
 #include <complex.h>
 #include <math.h>
@@ -132,17 +133,30 @@ double rths_truth_curve_distance(const rths_truth_curve *t, double f_hz, double 
     return best;
 }
 
-double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz) {
-    if (s->has_bilinear) return NAN;
+int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double *amp_m) {
+    int dofs = s->split.n_int;
+    for (int d = 0; d < dofs; d++)
+        amp_m[d] = NAN;
+    if (s->has_bilinear) return -1;
     int n = s->assembly.n;
     double complex *x = calloc((size_t)n, sizeof *x);
     rths_error err;
-    double amp = NAN;
+    int rc = -1;
     if (x && !rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
-                       2 * M_PI * f_hz, x, &err))
-        amp = cabs(x[s->split.int_dofs[0]]);
+                       2 * M_PI * f_hz, x, &err)) {
+        for (int d = 0; d < dofs; d++)
+            amp_m[d] = cabs(x[s->split.int_dofs[d]]);
+        rc = 0;
+    }
     free(x);
-    return amp;
+    return rc;
+}
+
+double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz) {
+    double amp[RTHS_MAX_INTERFACE_DOFS];
+    if (s->split.n_int > RTHS_MAX_INTERFACE_DOFS) return NAN;
+    rths_truth_linear_dof_amplitudes_m(s, f_hz, amp);
+    return amp[0];
 }
 
 double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t, double f_hz,

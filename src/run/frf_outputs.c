@@ -444,6 +444,52 @@ static json_object *floquet_json(const frf_state *run, const point_stats *ps) {
     return o;
 }
 
+/* With several interface DoFs on a linear structure: every DoF's reported amplitude against the
+ * analytic FRF at its frequency (largest relative error; share within 1/2/3 standard errors), in
+ * summary.json's "interface_dofs" (the top-level counts are the first DoF's). */
+static json_object *interface_dofs_json(const frf_state *run) {
+    const rths_setup *s = run->setup;
+    int dofs = s->split.n_int;
+    if (dofs < 2 || dofs > RTHS_MAX_INTERFACE_DOFS || s->has_bilinear) return NULL;
+    double max_err[RTHS_MAX_INTERFACE_DOFS] = {0};
+    int compared[RTHS_MAX_INTERFACE_DOFS] = {0}, within[RTHS_MAX_INTERFACE_DOFS][4] = {{0}};
+    for (int i = 0; i < run->n; i++) {
+        const rths_solution *sol = &run->pts[i].sol;
+        double truth[RTHS_MAX_INTERFACE_DOFS];
+        if (sol->interface_dofs != dofs ||
+            rths_truth_linear_dof_amplitudes_m(s, sol->frequency_hz, truth))
+            continue;
+        for (int d = 0; d < dofs; d++) {
+            double a = sol->dof_amplitude_m[d], se = sol->dof_amplitude_se_m[d];
+            if (!isfinite(truth[d]) || !isfinite(a)) continue;
+            max_err[d] = fmax(max_err[d], fabs(a - truth[d]) / truth[d]);
+            compared[d]++;
+            for (int k = 1; k <= 3; k++)
+                within[d][k] += se > 0 && fabs(a - truth[d]) <= k * se;
+        }
+    }
+    json_object *arr = json_object_new_array();
+    for (int d = 0; d < dofs; d++) {
+        json_object *o = json_object_new_object();
+        int dof = s->split.int_dofs[d];
+        json_object_object_add(o, "interface_dof", json_object_new_int(d + 1));
+        json_object_object_add(o, "dof", json_object_new_int(dof + 1));
+        json_object_object_add(
+            o, "unit", json_object_new_string(rths_setup_dof_is_rotation(s, dof) ? "rad" : "m"));
+        json_object_object_add(o, "max_relative_error_vs_truth",
+                               json_object_new_double(max_err[d]));
+        json_object_object_add(o, "points_compared_with_truth", json_object_new_int(compared[d]));
+        json_object_object_add(o, "points_within_1_standard_error",
+                               json_object_new_int(within[d][1]));
+        json_object_object_add(o, "points_within_2_standard_errors",
+                               json_object_new_int(within[d][2]));
+        json_object_object_add(o, "points_within_3_standard_errors",
+                               json_object_new_int(within[d][3]));
+        json_object_array_add(arr, o);
+    }
+    return arr;
+}
+
 /* Totals and extremes over the accepted points; the largest error against the truth goes to
  * run->max_truth_error. */
 static void point_statistics(frf_state *run, point_stats *ps) {
@@ -599,6 +645,8 @@ int frf_write_summary(frf_state *run, rths_error *err) {
                                    : "measured: the physical interface response at the accepted "
                                      "target"));
     add_truth_comparison(root, &ps);
+    json_object *per_dof = interface_dofs_json(run);
+    if (per_dof) json_object_object_add(root, "interface_dofs", per_dof);
     if (run->floquet.enabled) {
         floquet_statistics(run, &ps);
         json_object_object_add(root, "experimental_floquet", floquet_json(run, &ps));
