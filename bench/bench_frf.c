@@ -145,6 +145,10 @@ void rths_bench_frf(void) {
          "two interface DoFs (storeys 2 and 3), 12-14 Hz, default sensor noise (first DoF's "
          "errors)",
          0},
+        {"cantilever_two_shakers.yaml",
+         "two-shaker cantilever (displacement and rotation through transforms), 2.8-3.2 Hz, "
+         "default sensor noise (first DoF's errors)",
+         0},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
         outcome o[2];
