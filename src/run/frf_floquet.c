@@ -40,7 +40,11 @@ int rths_floquet_measure_config_read(rths_config *cfg, rths_floquet_measure_opti
         (rc = rths_config_get_int(cfg, "stability.floquet_phase_bins", 0, bins, 0, 400, &bins,
                                   err)) ||
         (rc = rths_config_get_int(cfg, "stability.floquet_varying_lags", 0, varying, 0,
-                                  RTHS_FLOQUET_MAX_ORDER, &varying, err)) ||
+                                  RTHS_FLOQUET_MAX_ORDER, &varying, err)))
+        return rc;
+    /* only when on (virtual rig only): with --rig the controller section is the process's, and
+     * reading one of its keys here would make the host judge the rest of it */
+    if (o->enabled &&
         (rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, o->sample_rate_hz, 100,
                                      1e6, &o->sample_rate_hz, err)))
         return rc;

@@ -122,4 +122,13 @@ refused frf "the seed's grounding gains on the beam" \
     "grounding control destabilises the numerical substructure .*controller.grounding_kp_per_dof" \
     "$(variant grounding '/grounding_k[pd]_per_dof/d')"
 
+# With --rig the controller section is the controller process's: the host must not judge its
+# per-DoF gains and matrices as unknown keys (it did, when an unrelated reader asked for one
+# controller key): against a port nobody listens on, the refusal is the connection's
+"$bin" frf "$cfg" --rig tcp://127.0.0.1:9 --out "$work/remote" --quiet 2>"$work/remote.err"
+rc=$?
+grep -q "cannot connect" "$work/remote.err" && ! grep -q "unknown key" "$work/remote.err" &&
+    [ "$rc" -ne 0 ] && echo "ok   --rig leaves the controller section to the process" ||
+    fail "--rig with controller keys: exit $rc, $(cat "$work/remote.err")"
+
 [ "$failures" -eq 0 ] && echo "frf_cantilever: all checks passed" || { echo "frf_cantilever: $failures failure(s)"; exit 1; }
