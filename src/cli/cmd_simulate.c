@@ -48,8 +48,8 @@ static const char usage[] =
     "Writes DIR/coefficients.csv (one row per period: Fourier coefficients of "
     "the physical and\n"
     "numerical interface displacements, m; with several interface DoFs the first DoF's, then\n"
-    "dof<d>_phys_* and dof<d>_num_* for every interface DoF d, 1-based in split.interface's\n"
-    "order), trace.csv (the first interface DoF) (time_s, x_phys_m, "
+    "dof<d>_phys_* and dof<d>_num_* for every interface DoF d, 1-based in ascending DoF\n"
+    "number), trace.csv (the first interface DoF) (time_s, x_phys_m, "
     "x_num_m, target_m,\n"
     "force_n, demand), summary.json, config.yaml, simulate.gp/.png/.svg (time "
     "traces and the\n"
@@ -61,7 +61,7 @@ static const char usage[] =
     "  --target LIST        target coefficients A1,B1[,A2,B2,...], m "
     "(iterative mode; an even\n"
     "                       count, at most 2 x 5 harmonics); with several interface DoFs one\n"
-    "                       list per DoF in the split's order, separated by ';' (the same\n"
+    "                       list per DoF in ascending DoF number, separated by ';' (the same\n"
     "                       harmonics in each), e.g. '1e-5,0;2e-5,0'\n"
     "  --periods N          forcing periods to run (>= 1)\n"
     "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
@@ -117,8 +117,15 @@ static int parse_target(const char *text, sim_args *a, rths_error *err) {
                               sizeof buf - 1);
     strcpy(buf, text);
     a->target_dofs = 0;
-    char *save = NULL;
-    for (char *list = strtok_r(buf, ";", &save); list; list = strtok_r(NULL, ";", &save)) {
+    for (char *list = buf, *next; list; list = next) {
+        /* split by hand: strtok would merge ';;' and hand an empty list to the next DoF */
+        next = strchr(list, ';');
+        if (next) *next++ = '\0';
+        if (!*list)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "option --target: list %d is empty; give A1,B1[,...] for every "
+                                  "interface DoF",
+                                  a->target_dofs + 1);
         int d = a->target_dofs, count, rc;
         if (d == RTHS_MAX_INTERFACE_DOFS)
             return rths_error_set(err, RTHS_EINPUT,

@@ -269,7 +269,10 @@ static int grounding_stable(const rths_controller *c, const rths_split *s, rths_
     }
     double radius = rths_spectral_radius(N, w);
     rths_mat_free(w);
-    if (radius >= 0 && radius <= 1 + 1e-9) return RTHS_OK;
+    if (radius < 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the eigenvalues of the grounding loop could not be computed");
+    if (radius <= 1 + 1e-9) return RTHS_OK;
     int worst = 0;
     for (int d = 1; d < ni; d++)
         if (c->gkd[d] / RTHS_AT(s->mass_num, s->nn, d, d) >

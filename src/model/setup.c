@@ -205,9 +205,15 @@ static int read_mass_ratios(rths_config *cfg, int n_iface, const int *iface, dou
     double *list = NULL;
     int count = 0;
     rths_error local;
-    if (rths_config_get_double_list(cfg, key, 0, &list, &count, &local) != RTHS_OK || count == 0) {
+    int lrc = rths_config_get_double_list(cfg, key, 0, &list, &count, &local);
+    if (lrc != RTHS_OK || count == 0) {
         free(list);
         *n_ratios = 1;
+        /* a list with a bad entry: its own message, not the scalar reader's "got a list" */
+        if (lrc != RTHS_OK && !strstr(local.msg, "expected a list")) {
+            *err = local;
+            return lrc;
+        }
         return rths_config_get_double_ex(cfg, key, 1, 0.5, 0, 1,
                                          RTHS_CONFIG_LO_OPEN | RTHS_CONFIG_HI_OPEN, p, err);
     }

@@ -461,7 +461,7 @@ static json_object *interface_dofs_json(const frf_state *run) {
             continue;
         for (int d = 0; d < dofs; d++) {
             double a = sol->dof_amplitude_m[d], se = sol->dof_amplitude_se_m[d];
-            if (!isfinite(truth[d]) || !isfinite(a)) continue;
+            if (!isfinite(truth[d]) || !(truth[d] > 0) || !isfinite(a)) continue;
             max_err[d] = fmax(max_err[d], fabs(a - truth[d]) / truth[d]);
             compared[d]++;
             for (int k = 1; k <= 3; k++)

@@ -210,6 +210,8 @@ off=$(echo "$targets" | awk -F'[;,]' '{ printf "%s,%s;%.17g,%.17g", $1, $2, 1.1 
 check_two "two DoFs, interface DoF 2's target 10 % off" "$off" 0
 bad "two DoFs, one list" "--target: 1 ';'-separated list for 2 interface DoFs" "$two" \
     --frequency 13 --target 1e-5,0 --periods 3
+bad "two DoFs, an empty list" "--target: list 2 is empty" "$two" \
+    --frequency 13 --target "1e-5,0;;2e-5,0" --periods 3
 bad "two DoFs, unequal harmonics" "--target: list 2 has 2 harmonics, list 1 has 1" "$two" \
     --frequency 13 --target "1e-5,0;1e-5,0,0,0" --periods 3
 # feedback through the rig with two interface DoFs at p = 0.5: the delay chart of this split
