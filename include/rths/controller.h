@@ -38,6 +38,11 @@ typedef struct rths_controller_output {
     double x_phys_m; /* measured physical interface displacement */
     double x_num_m;  /* numerical interface displacement */
     double force_n;  /* measured interface force */
+    /* every interface DoF's (the fields above are DoF 0's), dofs of them */
+    int dofs;
+    double x_phys_dof_m[RTHS_MAX_INTERFACE_DOFS], x_num_dof_m[RTHS_MAX_INTERFACE_DOFS];
+    double target_dof_m[RTHS_MAX_INTERFACE_DOFS], force_dof_n[RTHS_MAX_INTERFACE_DOFS];
+    double demand_dof_v[RTHS_MAX_INTERFACE_DOFS];
 } rths_controller_output;
 
 typedef struct rths_controller_options {

@@ -76,6 +76,12 @@ typedef struct rths_trace_sample {
     double target_m; /* control target x*(t) */
     double force_n;  /* load cell */
     double demand;   /* actuator demand (V) */
+    /* with several interface DoFs (dofs > 1; 0 from a one-DoF producer): every DoF's signals,
+     * DoF 0 repeating the fields above; m or rad as the DoF */
+    int dofs;
+    double x_phys_dof_m[RTHS_MAX_INTERFACE_DOFS], x_num_dof_m[RTHS_MAX_INTERFACE_DOFS];
+    double target_dof_m[RTHS_MAX_INTERFACE_DOFS], force_dof_n[RTHS_MAX_INTERFACE_DOFS];
+    double demand_dof_v[RTHS_MAX_INTERFACE_DOFS];
 } rths_trace_sample;
 
 #endif

@@ -475,8 +475,12 @@ static int run_feedback_delay(const rths_setup *setup, const sim_args *a, sim_re
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     for (int i = 0; i < res.n; i++)
-        r->trace[i] = (rths_trace_sample){
-            res.t_s[i], res.x_phys_m[i], res.x_num_m[i], res.x_num_m[i], NAN, NAN};
+        r->trace[i] = (rths_trace_sample){.time_s = res.t_s[i],
+                                          .x_phys_m = res.x_phys_m[i],
+                                          .x_num_m = res.x_num_m[i],
+                                          .target_m = res.x_num_m[i],
+                                          .force_n = NAN,
+                                          .demand = NAN};
     r->n_trace = res.n;
     r->beyond_bounds = res.diverged;
     r->steady_amplitude_m = res.steady_amplitude_m;

@@ -795,7 +795,7 @@ static void pump_streams(rths_server *s) {
         if (c->batch_n == RTHS_PROTO_MAX_TRACE_BATCH) {
             rths_msg_init(&m, RTHS_MSG_TRACE, 0);
             m.u.trace.count = c->batch_n;
-            m.u.trace.dofs = 1; /* the loop's trace samples carry the first interface DoF */
+            m.u.trace.dofs = s->info.interface_dofs; /* every interface DoF's signals */
             memcpy(m.u.trace.s, c->batch, sizeof c->batch);
             queue_frame(s, &m, 0);
             c->batch_n = 0;
@@ -805,7 +805,7 @@ static void pump_streams(rths_server *s) {
     if (c->fd >= 0 && c->batch_n) {
         rths_msg_init(&m, RTHS_MSG_TRACE, 0);
         m.u.trace.count = c->batch_n;
-        m.u.trace.dofs = 1;
+        m.u.trace.dofs = s->info.interface_dofs;
         memcpy(m.u.trace.s, c->batch, sizeof c->batch[0] * (size_t)c->batch_n);
         queue_frame(s, &m, 0);
         c->batch_n = 0;

@@ -82,14 +82,20 @@ void rths_engine_destroy(rths_engine *e) {
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig) {
     rths_controller_output o;
     rths_sample_loop_run(e->loop, &o);
-    /* the first interface DoF's signals (what the step reports per sample); the other DoFs'
-     * entries stay zero, and traces carry one DoF */
+    /* the first interface DoF's signals, then every DoF's (traces carry them all) */
     *sig = (rths_proto_trace_sample){.time_s = o.time_s,
                                      .x_phys_m = o.x_phys_m,
                                      .x_num_m = o.x_num_m,
                                      .target_m = o.target_m,
                                      .force_n = o.force_n,
                                      .demand = o.demand_v};
+    for (int d = 0; d < o.dofs && d < RTHS_PROTO_MAX_DOFS; d++) {
+        sig->x_phys_dof_m[d] = o.x_phys_dof_m[d];
+        sig->x_num_dof_m[d] = o.x_num_dof_m[d];
+        sig->target_dof_m[d] = o.target_dof_m[d];
+        sig->force_dof_n[d] = o.force_dof_n[d];
+        sig->demand_dof[d] = o.demand_dof_v[d];
+    }
 }
 
 int rths_engine_arm(rths_engine *e) {

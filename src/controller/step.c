@@ -859,6 +859,14 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         out->x_phys_m = m.x[0];
         out->x_num_m = xi[0];
         out->force_n = m.f_lc[0];
+        out->dofs = c->ni;
+        for (int d = 0; d < c->ni; d++) {
+            out->x_phys_dof_m[d] = m.x[d];
+            out->x_num_dof_m[d] = xi[d];
+            out->target_dof_m[d] = target[d];
+            out->force_dof_n[d] = m.f_lc[d];
+            out->demand_dof_v[d] = c->demand[d];
+        }
     }
     return c->demand[0];
 }

@@ -176,8 +176,23 @@ static void absorb(remote *r, const rths_msg *m) {
             if (!r->tracing || s->time_s < r->trace_t0 - 0.5 * r->h || r->trace_n >= r->trace_max ||
                 s->time_s > r->trace_t1 + 0.5 * r->h)
                 continue;
-            r->trace_out[r->trace_n++] = (rths_trace_sample){s->time_s,   s->x_phys_m, s->x_num_m,
-                                                             s->target_m, s->force_n,  s->demand};
+            rths_trace_sample t = {.time_s = s->time_s,
+                                   .x_phys_m = s->x_phys_m,
+                                   .x_num_m = s->x_num_m,
+                                   .target_m = s->target_m,
+                                   .force_n = s->force_n,
+                                   .demand = s->demand};
+            if (m->u.trace.dofs > 1) { /* every interface DoF's signals */
+                t.dofs = m->u.trace.dofs;
+                for (int d = 0; d < t.dofs; d++) {
+                    t.x_phys_dof_m[d] = s->x_phys_dof_m[d];
+                    t.x_num_dof_m[d] = s->x_num_dof_m[d];
+                    t.target_dof_m[d] = s->target_dof_m[d];
+                    t.force_dof_n[d] = s->force_dof_n[d];
+                    t.demand_dof_v[d] = s->demand_dof[d];
+                }
+            }
+            r->trace_out[r->trace_n++] = t;
         }
         break;
     case RTHS_MSG_STATUS:

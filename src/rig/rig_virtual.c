@@ -128,6 +128,27 @@ static int v_run_periods(void *self, int count, rths_period *out, rths_error *er
     return RTHS_OK;
 }
 
+/* A trace sample from what the step reported: every interface DoF's signals with several. */
+static rths_trace_sample trace_sample(const rths_controller_output *o) {
+    rths_trace_sample t = {.time_s = o->time_s,
+                           .x_phys_m = o->x_phys_m,
+                           .x_num_m = o->x_num_m,
+                           .target_m = o->target_m,
+                           .force_n = o->force_n,
+                           .demand = o->demand_v};
+    if (o->dofs > 1) {
+        t.dofs = o->dofs;
+        for (int d = 0; d < o->dofs; d++) {
+            t.x_phys_dof_m[d] = o->x_phys_dof_m[d];
+            t.x_num_dof_m[d] = o->x_num_dof_m[d];
+            t.target_dof_m[d] = o->target_dof_m[d];
+            t.force_dof_n[d] = o->force_dof_n[d];
+            t.demand_dof_v[d] = o->demand_dof_v[d];
+        }
+    }
+    return t;
+}
+
 static int v_record_trace(void *self, double duration_s, int max_samples, rths_trace_sample *out,
                           int *n_out, rths_error *err) {
     virtual_rig *v = self;
@@ -145,9 +166,7 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
     for (long i = 0; i < total; i++) {
         sample(v, &o);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
-        if (i % every == 0 && *n_out < max_samples)
-            out[(*n_out)++] = (rths_trace_sample){o.time_s,   o.x_phys_m, o.x_num_m,
-                                                  o.target_m, o.force_n,  o.demand_v};
+        if (i % every == 0 && *n_out < max_samples) out[(*n_out)++] = trace_sample(&o);
         if ((i + 1) % slice == 0 || i + 1 == total) pace_wait(v);
     }
     rths_period discard;

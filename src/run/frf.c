@@ -393,7 +393,7 @@ static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
     int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
     if (!rc && pick >= 0) {
         rths_error trace_err;
-        if (frf_trace_point(st->rep, st->rig, &st->settle, st->harmonics,
+        if (frf_trace_point(st->rep, st->rig, st->setup, &st->settle, st->harmonics,
                             st->setup->forcing_amplitude_n, &st->pts[pick], &st->trace_rig_time_s,
                             &trace_err))
             rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);

@@ -80,9 +80,9 @@ int frf_write_absolute_csv(rths_report *rep, const frf_state *run, rths_error *e
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err);
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                  const char *title, rths_error *err);
-int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_settle_options *settle,
-                    int harmonics, double amplitude_n, const rths_point *pt,
-                    double *trace_rig_time_s, rths_error *err);
+int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
+                    const rths_settle_options *settle, int harmonics, double amplitude_n,
+                    const rths_point *pt, double *trace_rig_time_s, rths_error *err);
 int frf_choose_trace_point(const frf_state *run, double trace_hz);
 int frf_write_summary(frf_state *run, rths_error *err);
 
