@@ -575,9 +575,8 @@ static int arm_rig(rths_rig *rig, rths_config *cfg, const rths_setup *setup, con
                               "give one list A1,B1[,...] per interface DoF",
                               a->target_dofs, a->target_dofs == 1 ? "" : "s", dofs,
                               dofs == 1 ? "" : "s");
-    return dofs == 1
-               ? rths_rig_set_target(rig, a->harmonics, a->target_a, a->target_b, err)
-               : rths_rig_set_target_dofs(rig, dofs, a->harmonics, a->target_a, a->target_b, err);
+    /* one DoF included: it passes that on to rths_rig_set_target */
+    return rths_rig_set_target_dofs(rig, dofs, a->harmonics, a->target_a, a->target_b, err);
 }
 
 /* {"dof": 1-based DoF number, "a_m": [...], "b_m": [...]} of list d of --target */
