@@ -172,7 +172,7 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err) {
     const char *header[5 + RTHS_MAX_INTERFACE_DOFS] = {
         "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
-    int dofs = t->dofs > 1 && t->dofs <= RTHS_MAX_INTERFACE_DOFS ? t->dofs : 0;
+    int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
         header[5 + d] =
             rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d);
@@ -433,6 +433,9 @@ typedef struct {
     double
         max_z_honest; /* largest |A - truth| / SE of a point whose SE is honest, far from folds */
     double rig_time, max_h[4], median;
+    /* with several interface DoFs on a linear structure, each DoF against the analytic FRF */
+    double dof_max_err[RTHS_MAX_INTERFACE_DOFS];
+    int dof_compared[RTHS_MAX_INTERFACE_DOFS], dof_within[RTHS_MAX_INTERFACE_DOFS][4];
 } point_stats;
 
 /* Near a fold the branch is vertical: a frequency error of a few mHz there is a large amplitude
@@ -442,11 +445,15 @@ typedef struct {
 static const double FAR_FROM_FOLD_HZ = 5e-3, STABLE_FOLD_HZ = 2e-3;
 
 /* One point against the truth at its frequency on its branch: how many standard errors off
- * (counted in ps->within_se[1..3]) and whether its stability label agrees. */
-static void compare_with_truth(const frf_state *run, const rths_point *pt, point_stats *ps) {
+ * (counted in ps->within_se[1..3]) and whether its stability label agrees. linear_truth: the
+ * analytic amplitude of a linear structure, solved once per point by the caller. */
+static void compare_with_truth(const frf_state *run, const rths_point *pt, double linear_truth,
+                               point_stats *ps) {
     int stable = 1;
     double f = pt->sol.frequency_hz, a = pt->sol.amplitude_m;
-    double truth = rths_truth_branch_amplitude_m(run->setup, &run->truth, f, a, &stable);
+    double truth = run->setup->has_bilinear
+                       ? rths_truth_branch_amplitude_m(run->setup, &run->truth, f, a, &stable)
+                       : linear_truth;
     if (!isfinite(truth)) return;
     double z = fabs(a - truth) / pt->sol.amplitude_se_m;
     double fold_hz = rths_truth_fold_distance_hz(&run->truth, f);
@@ -502,29 +509,26 @@ static json_object *floquet_json(const frf_state *run, const point_stats *ps) {
 }
 
 /* With several interface DoFs on a linear structure: every DoF's reported amplitude against the
- * analytic FRF at its frequency (largest relative error; share within 1/2/3 standard errors), in
- * summary.json's "interface_dofs" (the top-level counts are the first DoF's). */
-static json_object *interface_dofs_json(const frf_state *run) {
+ * analytic FRF at its frequency, truth[d] (largest relative error; share within 1/2/3 standard
+ * errors). */
+static void compare_dofs_with_truth(const rths_solution *sol, int dofs, const double *truth,
+                                    point_stats *ps) {
+    for (int d = 0; d < dofs && sol->interface_dofs == dofs; d++) {
+        double a = sol->dof_amplitude_m[d], se = sol->dof_amplitude_se_m[d];
+        if (!isfinite(truth[d]) || !(truth[d] > 0) || !isfinite(a)) continue;
+        ps->dof_max_err[d] = fmax(ps->dof_max_err[d], fabs(a - truth[d]) / truth[d]);
+        ps->dof_compared[d]++;
+        for (int k = 1; k <= 3; k++)
+            ps->dof_within[d][k] += se > 0 && fabs(a - truth[d]) <= k * se;
+    }
+}
+
+/* summary.json's "interface_dofs" (the top-level counts are the first DoF's); NULL with one
+ * interface DoF or a bilinear leg. */
+static json_object *interface_dofs_json(const frf_state *run, const point_stats *ps) {
     const rths_setup *s = run->setup;
     int dofs = s->split.n_int;
     if (dofs < 2 || dofs > RTHS_MAX_INTERFACE_DOFS || s->has_bilinear) return NULL;
-    double max_err[RTHS_MAX_INTERFACE_DOFS] = {0};
-    int compared[RTHS_MAX_INTERFACE_DOFS] = {0}, within[RTHS_MAX_INTERFACE_DOFS][4] = {{0}};
-    for (int i = 0; i < run->n; i++) {
-        const rths_solution *sol = &run->pts[i].sol;
-        double truth[RTHS_MAX_INTERFACE_DOFS];
-        if (sol->interface_dofs != dofs ||
-            rths_truth_linear_dof_amplitudes_m(s, sol->frequency_hz, truth))
-            continue;
-        for (int d = 0; d < dofs; d++) {
-            double a = sol->dof_amplitude_m[d], se = sol->dof_amplitude_se_m[d];
-            if (!isfinite(truth[d]) || !(truth[d] > 0) || !isfinite(a)) continue;
-            max_err[d] = fmax(max_err[d], fabs(a - truth[d]) / truth[d]);
-            compared[d]++;
-            for (int k = 1; k <= 3; k++)
-                within[d][k] += se > 0 && fabs(a - truth[d]) <= k * se;
-        }
-    }
     json_object *arr = json_object_new_array();
     for (int d = 0; d < dofs; d++) {
         json_object *o = json_object_new_object();
@@ -534,14 +538,15 @@ static json_object *interface_dofs_json(const frf_state *run) {
         json_object_object_add(
             o, "unit", json_object_new_string(rths_setup_dof_is_rotation(s, dof) ? "rad" : "m"));
         json_object_object_add(o, "max_relative_error_vs_truth",
-                               json_object_new_double(max_err[d]));
-        json_object_object_add(o, "points_compared_with_truth", json_object_new_int(compared[d]));
+                               json_object_new_double(ps->dof_max_err[d]));
+        json_object_object_add(o, "points_compared_with_truth",
+                               json_object_new_int(ps->dof_compared[d]));
         json_object_object_add(o, "points_within_1_standard_error",
-                               json_object_new_int(within[d][1]));
+                               json_object_new_int(ps->dof_within[d][1]));
         json_object_object_add(o, "points_within_2_standard_errors",
-                               json_object_new_int(within[d][2]));
+                               json_object_new_int(ps->dof_within[d][2]));
         json_object_object_add(o, "points_within_3_standard_errors",
-                               json_object_new_int(within[d][3]));
+                               json_object_new_int(ps->dof_within[d][3]));
         json_object_array_add(arr, o);
     }
     return arr;
@@ -551,6 +556,7 @@ static json_object *interface_dofs_json(const frf_state *run) {
  * run->max_truth_error. */
 static void point_statistics(frf_state *run, point_stats *ps) {
     const rths_truth_curve *t = &run->truth;
+    const rths_setup *s = run->setup;
     memset(ps, 0, sizeof *ps);
     int *evals = calloc((size_t)(run->n ? run->n : 1), sizeof *evals);
     run->max_truth_error = 0;
@@ -562,11 +568,18 @@ static void point_statistics(frf_state *run, point_stats *ps) {
         if (evals) evals[i] = pt->evaluations;
         for (int k = 1; k <= 3; k++)
             ps->max_h[k] = fmax(ps->max_h[k], frf_harmonic_error(pt, k));
+        /* a linear structure's analytic FRF, solved once for every use below (every interface
+         * DoF's amplitude; NAN where it cannot be evaluated) */
+        double f = pt->sol.frequency_hz, a = pt->sol.amplitude_m,
+               truth[RTHS_MAX_INTERFACE_DOFS] = {NAN};
+        int dofs = s->split.n_int, solved = !s->has_bilinear && dofs <= RTHS_MAX_INTERFACE_DOFS &&
+                                            !rths_truth_linear_dof_amplitudes_m(s, f, truth);
         double e =
-            rths_truth_relative_error(run->setup, t, pt->sol.frequency_hz, pt->sol.amplitude_m);
+            s->has_bilinear ? rths_truth_curve_distance(t, f, a) : fabs(a - truth[0]) / truth[0];
         if (isfinite(e)) run->max_truth_error = fmax(run->max_truth_error, e);
         ps->honest += pt->sol.amplitude_se_honest;
-        compare_with_truth(run, pt, ps);
+        compare_with_truth(run, pt, truth[0], ps);
+        if (solved && dofs > 1) compare_dofs_with_truth(&pt->sol, dofs, truth, ps);
     }
     if (evals && run->n) {
         qsort(evals, (size_t)run->n, sizeof *evals, compare_int);
@@ -702,7 +715,7 @@ int frf_write_summary(frf_state *run, rths_error *err) {
                                    : "measured: the physical interface response at the accepted "
                                      "target"));
     add_truth_comparison(root, &ps);
-    json_object *per_dof = interface_dofs_json(run);
+    json_object *per_dof = interface_dofs_json(run, &ps);
     if (per_dof) json_object_object_add(root, "interface_dofs", per_dof);
     if (run->floquet.enabled) {
         floquet_statistics(run, &ps);
