@@ -693,20 +693,18 @@ static void advance_numerical(rths_controller *c, const double *u, double *xi, d
 
 /* x*(theta1) of interface DoF d and its rate: the periodic target (ramped, plus the tracked
  * static term, clamped to the stroke) or, in feedback mode, the numerical interface itself. */
-static void control_target(const rths_controller *c, int d, double cos1, double sin1, double xi,
+static void control_target(const rths_controller *c, int d, const harmonic_ends *he, double xi,
                            double xi_dot, double *target, double *target_dot) {
     if (c->feedback) {
         *target = xi;
         *target_dot = xi_dot;
         return;
     }
-    double t = 0, t_dot = 0, ck = cos1, sk = sin1;
+    double t = 0, t_dot = 0; /* at theta1: cos/sin of k theta1 from the sample's ends */
     for (int k = 1; k <= c->harmonics; k++) {
+        const double ck = he->c1[k], sk = he->s1[k];
         t += c->target_a[d][k - 1] * ck + c->target_b[d][k - 1] * sk;
         t_dot += k * c->omega * (-c->target_a[d][k - 1] * sk + c->target_b[d][k - 1] * ck);
-        double next = ck * cos1 - sk * sin1;
-        sk = sk * cos1 + ck * sin1;
-        ck = next;
     }
     t *= c->ramp;
     t_dot *= c->ramp;
@@ -753,35 +751,37 @@ static void transformed_demands(rths_controller *c, const double *target, const 
 
 /* The trapezoid of the three signals (physical, numerical, force) of every interface DoF from
  * ya at (c0, s0) to yb at (c1, s1) over dtheta. */
-static void accumulate_signals(rths_controller *c, double dtheta, double c0, double s0,
-                               const double *ya, double c1, double s1, const double *yb) {
-    harmonic_ends h;
-    harmonic_ends_init(&h, dtheta, c0, s0, c1, s1);
+static void accumulate_signals(rths_controller *c, const harmonic_ends *h, const double *ya,
+                               const double *yb) {
     for (int d = 0; d < c->ni; d++) {
         const double *a = ya + 3 * d, *b = yb + 3 * d;
-        accumulate(&c->acc_phys[d], &h, a[0], b[0]);
-        accumulate(&c->acc_num[d], &h, a[1], b[1]);
-        accumulate(&c->acc_force[d], &h, a[2], b[2]);
+        accumulate(&c->acc_phys[d], h, a[0], b[0]);
+        accumulate(&c->acc_num[d], h, a[1], b[1]);
+        accumulate(&c->acc_force[d], h, a[2], b[2]);
     }
 }
 
 /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
- * theta = 2 pi the period is published and a pending forcing change takes over. */
-static void update_fourier(rths_controller *c, double theta0, double theta1, double cos0,
-                           double sin0, double cos1, double sin1, const double *y) {
+ * theta = 2 pi the period is published and a pending forcing change takes over. he: the sample's
+ * own interval [theta0, theta1]. */
+static void update_fourier(rths_controller *c, double theta0, double theta1,
+                           const harmonic_ends *he, const double *y) {
     if (!(c->omega > 0)) return;
+    const double cos0 = he->c0[1], sin0 = he->s0[1], cos1 = he->c1[1], sin1 = he->s1[1];
     if (theta1 < 2 * M_PI) {
-        accumulate_signals(c, theta1 - theta0, cos0, sin0, c->y_prev, cos1, sin1, y);
+        accumulate_signals(c, he, c->y_prev, y);
         c->period_samples++;
         c->theta = theta1, c->cos_theta = cos1, c->sin_theta = sin1;
         return;
     }
+    harmonic_ends h;
     double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
     double yb[3 * MAX_IFACE] = {0};
     for (int i = 0; i < 3 * c->ni; i++)
         yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
     /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
-    accumulate_signals(c, 2 * M_PI - theta0, cos0, sin0, c->y_prev, 1.0, 0.0, yb);
+    harmonic_ends_init(&h, 2 * M_PI - theta0, cos0, sin0, 1.0, 0.0);
+    accumulate_signals(c, &h, c->y_prev, yb);
     c->period_samples++;
     for (int d = 0; d < c->ni; d++)
         c->static_offset[d] = c->acc_phys[d].a[0];
@@ -793,7 +793,8 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, dou
     }
     /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
     double rest = theta1 - 2 * M_PI;
-    accumulate_signals(c, rest, 1.0, 0.0, yb, cos1, sin1, y);
+    harmonic_ends_init(&h, rest, 1.0, 0.0, cos1, sin1);
+    accumulate_signals(c, &h, yb, y);
     set_phase(c, rest);
     c->at_boundary = 1;
 }
@@ -837,8 +838,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     double xi[MAX_IFACE] = {0}, xi_dot[MAX_IFACE] = {0}, target[MAX_IFACE], target_dot[MAX_IFACE];
     if (!c->host_numerical) advance_numerical(c, u, xi, xi_dot);
     double y[3 * MAX_IFACE];
+    /* cos/sin of k theta at both ends of the sample, for the targets and the Fourier sums */
+    harmonic_ends he;
+    harmonic_ends_init(&he, theta1 - theta0, cos0, sin0, cos1, sin1);
     for (int d = 0; d < c->ni; d++)
-        control_target(c, d, cos1, sin1, xi[d], xi_dot[d], &target[d], &target_dot[d]);
+        control_target(c, d, &he, xi[d], xi_dot[d], &target[d], &target_dot[d]);
     if (c->transformed) transformed_demands(c, target, target_dot, m.x);
     for (int d = 0; d < c->ni; d++) {
         if (!c->transformed) c->demand[d] = pd_demand(c, d, target[d], target_dot[d], m.x[d]);
@@ -849,7 +853,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     }
     c->at_boundary = 0;
     c->time_s += c->h;
-    update_fourier(c, theta0, theta1, cos0, sin0, cos1, sin1, y);
+    update_fourier(c, theta0, theta1, &he, y);
     for (int i = 0; i < 3 * c->ni; i++)
         c->y_prev[i] = y[i];
     if (out) {
