@@ -5,6 +5,7 @@
 #include "rths/iterate.h"
 
 #include <complex.h>
+#include <math.h>
 
 enum {
     LD = RTHS_MAX_UNKNOWNS,
@@ -127,5 +128,10 @@ int solve_small(int m, double *a, int lda, double *b);
 /* matched.c: the converged point's report; on a natural sweep of an LTI rig it may evaluate
  * once more (the fundamental's local gain), so it can return a rig error */
 int corrector_finish(rths_corrector *c, rths_error *err);
+
+/* both parts finite */
+static inline int finite_complex(double complex z) {
+    return isfinite(creal(z)) && isfinite(cimag(z));
+}
 
 #endif

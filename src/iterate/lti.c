@@ -164,10 +164,6 @@ static double lti_ratio_variance(const corrector_memory *mem, int N, int k, cons
     return var_r / (ag * ag) + cabs(r0) * cabs(r0) * var_g / (ag * ag * ag * ag);
 }
 
-static int finite_complex(double complex z) {
-    return isfinite(creal(z)) && isfinite(cimag(z));
-}
-
 int lti_fit(const corrector_memory *mem, int N, double omega, double complex *g, double complex *r,
             double complex *z_pred, double *var_ratio, double *var_matched) {
     enum { U = LTI_UNKNOWNS };

@@ -153,10 +153,6 @@ static int dofs_variances(const corrector_memory *mem, int P, int n, const dofs_
     return 0;
 }
 
-static int finite_complex(double complex z) {
-    return isfinite(creal(z)) && isfinite(cimag(z));
-}
-
 /* Harmonic k's gains, prediction and (k = 0, phi given) variances. */
 static int dofs_fit_harmonic(const corrector_memory *mem, int P, int n, int k, double omega,
                              double spread, const double *phi, lti_model *out) {

@@ -196,7 +196,7 @@ static int secant_gain(const rths_corrector *c, const double *phi_p, const doubl
     double complex t_p = -phi_c / d_phi, t_c = 1.0 - t_p;
     lg->gain = (fundamental(x_p, N) - fundamental(r->response, N)) / d_phi;
     lg->weight_variance = creal(t_c * conj(t_c) + t_p * conj(t_p));
-    lg->have = isfinite(creal(lg->gain)) && isfinite(cimag(lg->gain));
+    lg->have = finite_complex(lg->gain);
     return lg->have;
 }
 
