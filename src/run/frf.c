@@ -109,6 +109,13 @@ static int remember(frf_state *st, const rths_point *pt) {
         rths_point *p = realloc(st->pts, (size_t)cap * sizeof *p);
         if (!p) return RTHS_EFAIL;
         st->pts = p;
+        if (st->floquet.enabled) { /* the experimental Floquet estimates, by the same index */
+            frf_floquet_point *f = realloc(st->floquet_pts, (size_t)cap * sizeof *f);
+            if (!f) return RTHS_EFAIL;
+            for (int i = st->cap; i < cap; i++)
+                f[i] = (frf_floquet_point){0};
+            st->floquet_pts = f;
+        }
         st->cap = cap;
     }
     st->pts[pt->index] = *pt;
@@ -252,18 +259,6 @@ static int open_outputs(frf_state *st, rths_error *err) {
  * holds its orbit (docs/method.md, "Experimental Floquet multipliers"). A failed estimate is
  * logged and leaves the point unmeasured; a rig fault stops the run. */
 static int measure_floquet(frf_state *st, const rths_point *pt) {
-    if (pt->index >= st->floquet_cap) {
-        int cap = st->floquet_cap ? 2 * st->floquet_cap : 64;
-        while (cap <= pt->index)
-            cap *= 2;
-        frf_floquet_point *p = realloc(st->floquet_pts, (size_t)cap * sizeof *p);
-        if (!p)
-            return rths_error_set(&st->point_err, RTHS_EFAIL, "out of memory keeping the points");
-        for (int i = st->floquet_cap; i < cap; i++)
-            p[i] = (frf_floquet_point){0};
-        st->floquet_pts = p;
-        st->floquet_cap = cap;
-    }
     rths_floquet_estimate e;
     rths_error err = {0};
     double rig_s = 0;

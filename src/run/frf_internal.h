@@ -49,9 +49,8 @@ typedef struct frf_state {
     const char *seed_text; /* --seed as text (recorded in the journal), NULL when not given */
     double wall_time_s, trace_rig_time_s, max_truth_error;
     rths_floquet_measure_options floquet; /* stability.experimental_floquet and its keys */
-    frf_floquet_point *floquet_pts;       /* by point index, floquet_cap entries */
-    int floquet_cap;
-    double floquet_rig_time_s; /* rig time spent on the perturbed records */
+    frf_floquet_point *floquet_pts; /* by point index, cap entries (the option on; else NULL) */
+    double floquet_rig_time_s;      /* rig time spent on the perturbed records */
 } frf_state;
 
 enum { FRF_MAX_CHANGES = 8 };

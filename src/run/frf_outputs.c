@@ -137,8 +137,9 @@ enum { FRF_FLOQUET_COLUMNS = 3, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
 
 /* The experimental Floquet columns of point i: NaN where it was not measured. */
 static void floquet_row(const frf_state *run, int i, double *out) {
-    const frf_floquet_point *f =
-        i < run->floquet_cap && run->floquet_pts[i].measured ? &run->floquet_pts[i] : NULL;
+    const frf_floquet_point *f = run->floquet_pts && i < run->cap && run->floquet_pts[i].measured
+                                     ? &run->floquet_pts[i]
+                                     : NULL;
     out[0] = f ? f->max_abs : NAN;
     out[1] = f ? f->stable : NAN;
     out[2] = f ? f->trustworthy : NAN;
