@@ -332,15 +332,12 @@ static void remember_evaluation(corrector_memory *mem, const double *target, dou
     if (mem->history_count < RTHS_LTI_HISTORY) mem->history_count++;
 }
 
-/* The solution view of an iterate: unknowns as targets, the norm of Phi and the tolerance
- * max(rel * ||reference||, abs, noise_factor * ||standard error of Phi||). Returns ||Phi||^2. */
-static double describe(const rths_corrector *c, const double *target, corrector_point *p) {
+/* The solution view of an iterate (its targets were set by corrector_evaluate): the norm of Phi and
+ * the tolerance max(rel * ||reference||, abs, noise_factor * ||standard error of Phi||). Returns
+ * ||Phi||^2. */
+static double describe(const rths_corrector *c, corrector_point *p) {
     const rths_residual *r = &p->rec;
     int N = c->harmonics, n = c->n;
-    for (int k = 0; k < N; k++) {
-        p->sol.target_a[k] = target[k];
-        p->sol.target_b[k] = target[N + k];
-    }
     p->sol.eval = r->eval;
     double sq = 0, ref_sq = 0, se_sq = 0;
     for (int i = 0; i < n; i++) {
@@ -378,7 +375,7 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
     pool_noise(&c->mem, &p->rec, n);
     if ((c->m == n || c->opt.rig_lti) && c->harmonics > 0)
         remember_evaluation(&c->mem, target, p->sol.omega_rad_s, &p->rec, n);
-    double ext = describe(c, target, p) / (c->scale[0] * c->scale[0]);
+    double ext = describe(c, p) / (c->scale[0] * c->scale[0]);
     for (int i = 0; i < n; i++) {
         p->phi[i] = p->rec.phi[i] / c->scale[0];
         p->resp[i] = p->rec.response[i] / c->scale[0];
