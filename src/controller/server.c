@@ -317,7 +317,10 @@ static void publish_scope(rths_server *s, const rths_proto_trace_sample *sig, ui
     }
     if (++*count < d) return;
     *count = 0;
-    if (!rths_spsc_push(&s->scope, sig)) add64(&s->scope_dropped, 1);
+    /* the ring holds what the viewer shows (the first DoF's six numbers), not the whole record */
+    rths_server_scope_sample x = {sig->time_s,   sig->x_phys_m, sig->x_num_m,
+                                  sig->target_m, sig->force_n,  sig->demand};
+    if (!rths_spsc_push(&s->scope, &x)) add64(&s->scope_dropped, 1);
 }
 
 /* The state other threads read, after every sample. */
@@ -941,13 +944,13 @@ int rths_server_create(rths_config *cfg, const rths_server_options *opt, rths_se
     if (!s->c.tx || !s->lat_hist || !s->step_hist ||
         !(s->cmd_storage = calloc(CMD_RING, sizeof(loop_cmd))) ||
         !(s->trace_storage = calloc(TRACE_RING, sizeof(rths_proto_trace_sample))) ||
-        !(s->scope_storage = calloc(SCOPE_RING, sizeof(rths_proto_trace_sample)))) {
+        !(s->scope_storage = calloc(SCOPE_RING, sizeof(rths_server_scope_sample)))) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     rths_spsc_init(&s->cmds, s->cmd_storage, CMD_RING, sizeof(loop_cmd));
     rths_spsc_init(&s->traces, s->trace_storage, TRACE_RING, sizeof(rths_proto_trace_sample));
-    rths_spsc_init(&s->scope, s->scope_storage, SCOPE_RING, sizeof(rths_proto_trace_sample));
+    rths_spsc_init(&s->scope, s->scope_storage, SCOPE_RING, sizeof(rths_server_scope_sample));
     if (s->period_ns < 1000) {
         rths_server_destroy(s);
         return rths_error_set(err, RTHS_EINPUT, "sample period %g s is below 1 us",
@@ -1097,10 +1100,8 @@ void rths_server_scope_enable(rths_server *s, int decimation) {
 
 int rths_server_scope_pop(rths_server *s, rths_server_scope_sample *out, int max) {
     int n = 0;
-    rths_proto_trace_sample t;
-    while (n < max && rths_spsc_pop(&s->scope, &t))
-        out[n++] = (rths_server_scope_sample){t.time_s,   t.x_phys_m, t.x_num_m,
-                                              t.target_m, t.force_n,  t.demand};
+    while (n < max && rths_spsc_pop(&s->scope, &out[n]))
+        n++;
     return n;
 }
 
