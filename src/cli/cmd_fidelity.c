@@ -54,8 +54,7 @@ static const char usage[] =
 
 typedef struct {
     rths_fidelity_options sweep;
-    double start_hz, end_hz, sample_rate_hz; /* the sweep's range, for the plot */
-    int points;
+    double sample_rate_hz;
     int dof; /* 0-based: the (first) interface DoF */
     rths_reduction_options reduction;
 } fidelity_options;
@@ -64,7 +63,6 @@ static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_opti
                         rths_error *err) {
     int rc = rths_fidelity_config_read(cfg, &setup->assembly, &o->sweep, err);
     if (rc) return rc;
-    o->start_hz = o->sweep.start_hz, o->end_hz = o->sweep.end_hz, o->points = o->sweep.points;
     /* the controller's own reader: one default and range for the sample rate, and the rest of
      * the controller section is checked too */
     rths_controller_options copt;
@@ -112,8 +110,8 @@ static int plot(rths_report *rep, const fidelity_options *o, double mass_ratio, 
                 double true_peak_m, double half_width_hz, rths_error *err) {
     /* Left: a linear zoom on the peak, where the schemes differ and a log axis would hide it.
      * Right: each scheme's amplitude error against the true FRF over the whole sweep. */
-    double lo = fmax(o->start_hz, true_peak_hz - half_width_hz);
-    double hi = fmin(o->end_hz, true_peak_hz + half_width_hz);
+    double lo = fmax(o->sweep.start_hz, true_peak_hz - half_width_hz);
+    double hi = fmin(o->sweep.end_hz, true_peak_hz + half_width_hz);
     char body[4096];
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
@@ -160,7 +158,7 @@ static int plot(rths_report *rep, const fidelity_options *o, double mass_ratio, 
              "title 'exact FOH'\n"
              "unset multiplot\n",
              1.0 / o->sample_rate_hz, mass_ratio, o->dof + 1, lo, hi, 1.08 * true_peak_m,
-             o->start_hz, o->end_hz);
+             o->sweep.start_hz, o->sweep.end_hz);
     return rths_plot(rep, rths_report_dir(rep), "fidelity", 1400, 600, body, err);
 }
 
@@ -184,8 +182,8 @@ static int report_reduction(const rths_cli *cli, rths_report *rep, const rths_fi
                             int count, const double *true_peak, json_object *summary,
                             rths_error *err) {
     double peak_hz, peak_m, worst = 0, worst_hz = 0;
-    int rc = rths_fidelity_peak(f, RTHS_FIDELITY_REDUCED, o->dof, o->start_hz, o->end_hz, o->points,
-                                &peak_hz, &peak_m, err);
+    int rc = rths_fidelity_peak(f, RTHS_FIDELITY_REDUCED, o->dof, o->sweep.start_hz,
+                                o->sweep.end_hz, o->sweep.points, &peak_hz, &peak_m, err);
     double complex *x = malloc(sizeof *x * (size_t)rths_fidelity_dofs(f));
     double complex *t = malloc(sizeof *t * (size_t)rths_fidelity_dofs(f));
     if (!rc && (!x || !t)) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -249,8 +247,8 @@ int rths_cmd_fidelity(int argc, char **argv) {
      * CSV contains each exact peak */
     double peak_hz[N_CURVES], peak_m[N_CURVES];
     for (int c = RTHS_FIDELITY_TRUE; c < RTHS_SCHEME_COUNT && !rc; c++)
-        rc = rths_fidelity_peak(f, c, o.dof, o.start_hz, o.end_hz, o.points, &peak_hz[c + 1],
-                                &peak_m[c + 1], &err);
+        rc = rths_fidelity_peak(f, c, o.dof, o.sweep.start_hz, o.sweep.end_hz, o.sweep.points,
+                                &peak_hz[c + 1], &peak_m[c + 1], &err);
     if (rc) goto done;
     int unique;
     if ((rc = rths_fidelity_frequencies(&o.sweep, peak_hz, N_CURVES, &freqs, &unique, &err)))
@@ -265,15 +263,16 @@ int rths_cmd_fidelity(int argc, char **argv) {
     json_object_object_add(summary, "time_step_s", json_object_new_double(h));
     json_object_object_add(summary, "mass_ratio", json_object_new_double(setup.split.mass_ratio));
     json_object_object_add(summary, "interface_dof", json_object_new_int(o.dof + 1));
-    json_object_object_add(summary, "start_hz", json_object_new_double(o.start_hz));
-    json_object_object_add(summary, "end_hz", json_object_new_double(o.end_hz));
+    json_object_object_add(summary, "start_hz", json_object_new_double(o.sweep.start_hz));
+    json_object_object_add(summary, "end_hz", json_object_new_double(o.sweep.end_hz));
     json_object_object_add(summary, "points", json_object_new_int(unique));
     json_object_object_add(summary, "default_scheme",
                            json_object_new_string(rths_scheme_name(RTHS_SCHEME_DEFAULT)));
     rths_cli_print(&cli,
                    "Integration fidelity: interface DoF %d, p = %g, h = %g s (%g Hz), "
                    "%g..%g Hz\n",
-                   o.dof + 1, setup.split.mass_ratio, h, o.sample_rate_hz, o.start_hz, o.end_hz);
+                   o.dof + 1, setup.split.mass_ratio, h, o.sample_rate_hz, o.sweep.start_hz,
+                   o.sweep.end_hz);
     rths_cli_print(&cli, "%-16s %14s %18s %16s\n", "scheme", "peak_hz", "peak_amplitude_m",
                    "peak_error_%");
     double widest = 0;
@@ -306,11 +305,11 @@ int rths_cmd_fidelity(int argc, char **argv) {
     if ((rc = rths_cli_write_summary(rep, "summary.json", summary, &err))) goto done;
     /* zoom: a few half-power bandwidths of the true peak (found on the analytic curve), wide enough
      * for every scheme's shifted peak */
-    double half_power_hz =
-        rths_fidelity_half_power_hz(f, RTHS_FIDELITY_TRUE, o.dof, peak_hz[0], peak_m[0], o.end_hz,
-                                    0.1 * ((o.end_hz - o.start_hz) / (o.points - 1)));
+    double half_power_hz = rths_fidelity_half_power_hz(
+        f, RTHS_FIDELITY_TRUE, o.dof, peak_hz[0], peak_m[0], o.sweep.end_hz,
+        0.1 * ((o.sweep.end_hz - o.sweep.start_hz) / (o.sweep.points - 1)));
     double half_width = fmax(6 * half_power_hz, 3 * widest);
-    if (!(half_width > 0)) half_width = 0.5 * (o.end_hz - o.start_hz);
+    if (!(half_width > 0)) half_width = 0.5 * (o.sweep.end_hz - o.sweep.start_hz);
     rc = plot(rep, &o, setup.split.mass_ratio, peak_hz[0], peak_m[0], half_width, &err);
 done:
     if (summary) json_object_put(summary);
