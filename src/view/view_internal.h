@@ -9,18 +9,7 @@
 
 struct json_object;
 
-enum { VIEW_FRF_COLUMNS = RTHS_RUN_FRF_COLUMNS, VIEW_CSV_MAX_COLUMNS = 64 };
-
-/* A numeric CSV with a header line (the run's files: C locale, "nan" for NaN). */
-typedef struct view_csv {
-    char *columns[VIEW_CSV_MAX_COLUMNS];
-    int n_columns;
-    double *values; /* row-major, n_rows x n_columns */
-    int n_rows, cap;
-} view_csv;
-
-int view_csv_read(const char *path, view_csv *out, rths_error *err);
-void view_csv_free(view_csv *csv);
+enum { VIEW_FRF_COLUMNS = RTHS_RUN_FRF_COLUMNS };
 
 /* rths_view_parse_listen with the option's name in its messages (--listen, --view). */
 int view_parse_listen_as(const char *option, const char *text, char *host, size_t host_cap,

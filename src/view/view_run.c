@@ -3,6 +3,7 @@
 #include "view/view_internal.h"
 
 #include "rths/continuation.h"
+#include "rths/report.h"
 #include "rths/run.h"
 
 #include <errno.h>
@@ -122,66 +123,35 @@ static int points_from_journal(const char *dir, json_object *root, rths_error *e
     return RTHS_OK;
 }
 
-int view_csv_read(const char *path, view_csv *out, rths_error *err) {
-    memset(out, 0, sizeof *out);
-    char *text = view_read_file(path, (size_t)64 << 20, NULL);
-    if (!text) return rths_error_set(err, RTHS_EFAIL, "cannot read %s: %s", path, strerror(errno));
-    char *save = NULL, *line = strtok_r(text, "\n", &save);
-    for (char *h = line ? line : ""; h && out->n_columns < VIEW_CSV_MAX_COLUMNS;) {
-        char *comma = strchr(h, ',');
-        if (comma) *comma = 0;
-        out->columns[out->n_columns++] = strdup(h);
-        h = comma ? comma + 1 : NULL;
-    }
-    int rc = RTHS_OK;
-    while (!rc && (line = strtok_r(NULL, "\n", &save))) {
-        if (out->n_rows == out->cap) {
-            int cap = out->cap ? 2 * out->cap : 256;
-            double *v = realloc(out->values, (size_t)cap * (size_t)out->n_columns * sizeof *v);
-            if (!v)
-                rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-            else
-                out->values = v, out->cap = cap;
-        }
-        double *row = rc ? NULL : out->values + (size_t)out->n_rows * (size_t)out->n_columns;
-        char *p = line;
-        for (int c = 0; !rc && c < out->n_columns; c++) {
-            char *end;
-            row[c] = strtod(p, &end); /* "nan" parses to NaN */
-            if (end == p || (*end != ',' && *end != 0 && *end != '\r'))
-                rc = rths_error_set(err, RTHS_EFAIL, "%s: row %d, column %d is not a number", path,
-                                    out->n_rows + 1, c + 1);
-            p = *end == ',' ? end + 1 : end;
-        }
-        if (!rc) out->n_rows++;
-    }
-    free(text);
-    if (rc) view_csv_free(out);
+/* DIR/NAME read by the report module's CSV reader (the run's files: C locale, "nan" for NaN) */
+static int read_run_csv(const char *dir, const char *name, rths_table *t, rths_error *err) {
+    char *path = view_join(dir, name);
+    int rc = path ? rths_csv_read(path, t, err) : rths_error_set(err, RTHS_EFAIL, "no memory");
+    free(path);
     return rc;
 }
 
-void view_csv_free(view_csv *csv) {
-    for (int c = 0; c < csv->n_columns; c++)
-        free(csv->columns[c]);
-    free(csv->values);
-    memset(csv, 0, sizeof *csv);
-}
-
 static int points_from_csv(const char *dir, json_object *root, rths_error *err) {
-    char *path = view_join(dir, "frf.csv");
-    view_csv csv;
-    int rc = path ? view_csv_read(path, &csv, err) : rths_error_set(err, RTHS_EFAIL, "no memory");
-    free(path);
+    rths_table t;
+    int rc = read_run_csv(dir, "frf.csv", &t, err);
     if (rc) return rc;
+    double *row = malloc((size_t)(t.columns > 0 ? t.columns : 1) * sizeof *row);
+    if (!row) {
+        rths_table_free(&t);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    const char *const *names = (const char *const *)t.column_names;
     json_object *arr = json_object_new_array();
-    for (int r = 0; r < csv.n_rows; r++)
-        json_object_array_add(arr, row_object((const char *const *)csv.columns, csv.n_columns,
-                                              csv.values + (size_t)r * (size_t)csv.n_columns));
+    for (int r = 0; r < t.rows; r++) { /* the table is by column, a point is a row */
+        for (int c = 0; c < t.columns; c++)
+            row[c] = t.data[c][r];
+        json_object_array_add(arr, row_object(names, t.columns, row));
+    }
     json_object_object_add(root, "source", json_object_new_string("frf.csv"));
-    json_object_object_add(root, "columns",
-                           columns_array((const char *const *)csv.columns, csv.n_columns));
+    json_object_object_add(root, "columns", columns_array(names, t.columns));
     json_object_object_add(root, "points", arr);
-    view_csv_free(&csv);
+    free(row);
+    rths_table_free(&t);
     return RTHS_OK;
 }
 
@@ -217,19 +187,17 @@ int rths_view_points_json(const char *dir, char **json, rths_error *err) {
 
 int view_truth_json(const char *dir, char **json, rths_error *err) {
     *json = NULL;
-    char *path = view_join(dir, "truth.csv");
-    view_csv csv;
-    int rc = path ? view_csv_read(path, &csv, err) : rths_error_set(err, RTHS_EFAIL, "no memory");
-    free(path);
+    rths_table t;
+    int rc = read_run_csv(dir, "truth.csv", &t, err);
     if (rc) return rc;
     json_object *root = json_object_new_object();
-    for (int c = 0; c < csv.n_columns; c++) {
-        json_object *col = json_object_new_array_ext(csv.n_rows);
-        for (int r = 0; r < csv.n_rows; r++)
-            json_object_array_add(col, number(csv.values[(size_t)r * (size_t)csv.n_columns + c]));
-        json_object_object_add(root, csv.columns[c], col);
+    for (int c = 0; c < t.columns; c++) {
+        json_object *col = json_object_new_array_ext(t.rows);
+        for (int r = 0; r < t.rows; r++)
+            json_object_array_add(col, number(t.data[c][r]));
+        json_object_object_add(root, t.column_names[c], col);
     }
-    view_csv_free(&csv);
+    rths_table_free(&t);
     if (!(*json = view_json_text(root))) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     json_object_put(root);
     return rc;
