@@ -141,6 +141,10 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
  * sum_k hypot(a[k], b[k]) (exact for one harmonic). The rigs refuse a target whose bound is beyond
  * the displacement limit; the step also clamps x* to the limit, so a ramp never overshoots it. */
 double rths_target_peak_bound_m(int harmonics, const double *a, const double *b);
+/* Refuses a physical substructure with more DoFs than a sensor sample carries
+ * (RTHS_MAX_SENSED_DOFS): the controller's and the per-sample loop's check before anything
+ * opens. */
+int rths_controller_check_sensed_dofs(const rths_split *s, rths_error *err);
 
 /* Any thread (single consumer): the oldest unread whole period; 1 if one was available. Periods
  * that do not fit in the ring (capacity 256) are dropped and counted. */

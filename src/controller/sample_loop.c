@@ -114,14 +114,10 @@ int rths_sample_loop_create_configured(rths_config *cfg, const rths_setup *setup
                                        rths_error *err) {
     *out = NULL;
     /* before any device opens: a sensor sample carries at most RTHS_MAX_SENSED_DOFS */
-    if (setup->split.np > RTHS_MAX_SENSED_DOFS)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "the physical substructure has %d DoFs; the real-time controller "
-                              "(fixed per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) "
-                              "senses at most %d",
-                              setup->split.np, RTHS_MAX_SENSED_DOFS);
+    int rc = rths_controller_check_sensed_dofs(&setup->split, err);
+    if (rc) return rc;
     const char *path = NULL;
-    int rc = rths_config_get_string(cfg, "io.plugin", 0, NULL, &path, err);
+    rc = rths_config_get_string(cfg, "io.plugin", 0, NULL, &path, err);
     if (rc) return rc;
     rths_io_open_args args = {.abi_version = RTHS_IO_ABI_VERSION,
                               .sample_rate_hz = copt->sample_rate_hz,

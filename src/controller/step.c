@@ -294,6 +294,16 @@ int rths_controller_numerical_dofs(const rths_controller *c) {
     return c->host_numerical ? 0 : c->nn;
 }
 
+int rths_controller_check_sensed_dofs(const rths_split *s, rths_error *err) {
+    if (s->np > RTHS_MAX_SENSED_DOFS)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the physical substructure has %d DoFs; the real-time controller "
+                              "(fixed per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) "
+                              "senses at most %d",
+                              s->np, RTHS_MAX_SENSED_DOFS);
+    return RTHS_OK;
+}
+
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
                            rths_controller **out, rths_error *err) {
     *out = NULL;
@@ -303,12 +313,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                               "the controller drives 1 to %d interface DoFs (one actuator each, "
                               "RTHS_MAX_INTERFACE_DOFS in signals.h); this split has %d",
                               RTHS_MAX_INTERFACE_DOFS, s->n_int);
-    if (s->np > RTHS_MAX_SENSED_DOFS)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "the physical substructure has %d DoFs; the real-time controller "
-                              "(fixed per-sample buffers, RTHS_MAX_SENSED_DOFS in signals.h) "
-                              "senses at most %d",
-                              s->np, RTHS_MAX_SENSED_DOFS);
+    int rc_sensed = rths_controller_check_sensed_dofs(s, err);
+    if (rc_sensed) return rc_sensed;
     int forcing_physical = 0;
     /* base excitation: the numerical model takes -M 1 a_g on its DoFs and the interface's whole
      * share (an interface force acts through the numerical side), the plant its internal DoFs' */
