@@ -602,11 +602,12 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
 }
 
 /* Interface row `row` of accelerations() at the current state: the only ones a sensor reads. */
-static double interface_acceleration(const rths_plant *p, int row) {
+/* The force on every physical DoF in the current state (static, damping, stiffness, the
+ * actuators, the forcing, the bilinear leg), N: M^-1 of it is the accelerations. */
+static void physical_forces(const rths_plant *p, double *force) {
     int n = p->n, iface = n - p->ni;
     double delta = leg_extension(p, p->q);
     double extra = p->leg_upper >= 0 && delta < 0 ? p->leg_extra_k * delta : 0.0;
-    double acc = 0;
     for (int i = 0; i < n; i++) {
         double f = p->static_force[i];
         for (int j = 0; j < n; j++)
@@ -625,8 +626,15 @@ static double interface_acceleration(const rths_plant *p, int row) {
             f += p->forcing_now;
         if (i == p->leg_upper) f -= extra;
         if (i == p->leg_lower) f += extra;
-        acc += p->minv[row + i * n] * f;
+        force[i] = f;
     }
+}
+
+/* Row row of M^-1 f: a DoF's acceleration from the forces, m/s^2 */
+static double acceleration(const rths_plant *p, const double *force, int row) {
+    double acc = 0;
+    for (int i = 0; i < p->n; i++)
+        acc += p->minv[row + i * p->n] * force[i];
     return acc;
 }
 
@@ -665,61 +673,46 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_ad
     return convert(adc->bits, adc->range_v, v) * adc->units_per_v;
 }
 
-/* With transforms: each laser reads its point (S q), each actuator's accelerometer and load cell
- * sit at the actuator's point, whose acceleration is T^T q''. */
-static void read_transformed(rths_plant *p, rths_sensor_sample *out) {
+/* Each laser reads its point (S q, or the DoF itself without a laser transform), each
+ * actuator's accelerometer and load cell sit at the actuator's point, whose acceleration is
+ * T^T q'' (the DoF's own without an actuator transform). Draws the noise in the same order
+ * with and without transforms: the DoFs below the interface, the interface lasers, then per
+ * actuator its accelerometer and load cell. */
+void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     int n = p->n, ni = p->ni, iface = n - ni;
-    double acc[RTHS_MAX_INTERFACE_DOFS];
+    double force[RTHS_MAX_SENSED_DOFS], acc[RTHS_MAX_INTERFACE_DOFS];
+    physical_forces(p, force); /* once for every interface DoF's acceleration */
     for (int d = 0; d < ni; d++)
-        acc[d] = interface_acceleration(p, iface + d);
+        acc[d] = acceleration(p, force, iface + d);
     out->n = n;
     for (int i = 0; i < iface; i++)
         out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
     for (int l = 0; l < ni; l++) {
-        double y = 0;
-        for (int d = 0; d < ni; d++)
-            y += (p->sens_t ? p->sens_t[l + d * ni] : (double)(l == d)) * p->q[iface + d];
+        double y = p->q[iface + l];
+        if (p->sens_t) {
+            y = 0;
+            for (int d = 0; d < ni; d++)
+                y += p->sens_t[l + d * ni] * p->q[iface + d];
+        }
         out->displacement_m[iface + l] = measure(p, &p->opt.laser, &p->opt.laser_adc, y);
     }
     out->n_interface = ni;
     for (int a = 0; a < ni; a++) {
-        double acc_a = 0;
-        for (int d = 0; d < ni; d++)
-            acc_a += (p->act_t ? p->act_t[d + a * ni] : (double)(a == d)) * acc[d];
-        double force = a == 0 ? p->fs : p->fs_more[a];
+        double acc_a = acc[a];
+        if (p->act_t) {
+            acc_a = 0;
+            for (int d = 0; d < ni; d++)
+                acc_a += p->act_t[d + a * ni] * acc[d];
+        }
+        double actuator_force = a == 0 ? p->fs : p->fs_more[a];
         out->interface_acceleration_dof_m_s2[a] =
             measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc_a);
-        out->interface_force_dof_n[a] =
-            measure(p, &p->opt.load_cell, &p->opt.load_cell_adc, force - p->armature_kg * acc_a);
+        /* the load cell sits between the armature and the structure */
+        out->interface_force_dof_n[a] = measure(p, &p->opt.load_cell, &p->opt.load_cell_adc,
+                                                actuator_force - p->armature_kg * acc_a);
     }
     out->interface_acceleration_m_s2 = out->interface_acceleration_dof_m_s2[0];
     out->interface_force_n = out->interface_force_dof_n[0];
-}
-
-void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
-    if (p->act_t || p->sens_t) {
-        read_transformed(p, out);
-        return;
-    }
-    double acc = interface_acceleration(p, p->n - p->ni);
-    out->n = p->n;
-    for (int i = 0; i < p->n; i++)
-        out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
-    out->interface_acceleration_m_s2 =
-        measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc);
-    /* the load cell sits between the armature and the storey */
-    out->interface_force_n =
-        measure(p, &p->opt.load_cell, &p->opt.load_cell_adc, p->fs - p->armature_kg * acc);
-    out->n_interface = p->ni;
-    out->interface_acceleration_dof_m_s2[0] = out->interface_acceleration_m_s2;
-    out->interface_force_dof_n[0] = out->interface_force_n;
-    for (int d = 1; d < p->ni; d++) {
-        double acc_d = interface_acceleration(p, p->n - p->ni + d);
-        out->interface_acceleration_dof_m_s2[d] =
-            measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc_d);
-        out->interface_force_dof_n[d] = measure(p, &p->opt.load_cell, &p->opt.load_cell_adc,
-                                                p->fs_more[d] - p->armature_kg * acc_d);
-    }
 }
 
 /* Classical RK4 on (q, v, fs) from tau0 to tau1 inside the sample in m substeps, the force
