@@ -35,6 +35,12 @@ void rths_report_close(rths_report *rep);
 const char *rths_report_dir(const rths_report *rep);
 /* dir/name, malloc'ed (caller frees). The name is remembered as one of this run's files (for
  * results.mat and .rths-files). */
+/* DIR/NAME, malloc'ed (NULL: out of memory). */
+char *rths_path_join(const char *dir, const char *name);
+/* The whole file, NUL-terminated, malloc'ed, its length in *len (may be NULL); growing by
+ * doubling from 64 KiB it stops once the buffer reaches max_bytes. NULL if it cannot be opened
+ * or read. */
+char *rths_read_file(const char *path, size_t max_bytes, size_t *len);
 char *rths_report_path(const rths_report *rep, const char *name);
 /* One timestamped line in run.log, flushed. */
 void rths_report_log(rths_report *rep, const char *fmt, ...) __attribute__((format(printf, 2, 3)));

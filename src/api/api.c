@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <json-c/json.h>
 #include <stdio.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -207,23 +208,11 @@ const char *rths_result_dir(const rths_result *r) {
 /* ---- run folders ---- */
 
 static char *read_text(const char *dir, const char *name) {
-    size_t len = strlen(dir) + strlen(name) + 2;
-    char *path = malloc(len);
+    char *path = rths_path_join(dir, name);
     if (!path) return NULL;
-    snprintf(path, len, "%s/%s", dir, name);
-    FILE *f = fopen(path, "rb");
+    char *text = rths_read_file(path, SIZE_MAX, NULL);
     free(path);
-    if (!f) return strdup("");
-    char *buf = NULL;
-    size_t size = 0;
-    FILE *mem = open_memstream(&buf, &size);
-    char chunk[4096];
-    size_t got;
-    while (mem && (got = fread(chunk, 1, sizeof chunk, f)) > 0)
-        fwrite(chunk, 1, got, mem);
-    fclose(f);
-    if (mem) fclose(mem);
-    return buf;
+    return text ? text : strdup(""); /* no such file: empty */
 }
 
 static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *err) {
@@ -326,14 +315,12 @@ int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
     int rc = list_csv(dir, &names, &n, err);
     if (!rc) rc = rths_result_new(&r, err);
     for (int i = 0; i < n && !rc; i++) {
-        size_t len = strlen(dir) + strlen(names[i]) + 2;
-        char *path = malloc(len);
+        char *path = rths_path_join(dir, names[i]);
         rths_table t;
         if (!path) {
             rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
             break;
         }
-        snprintf(path, len, "%s/%s", dir, names[i]);
         rc = rths_csv_read(path, &t, err);
         free(path);
         if (!rc) rc = rths_result_take_table(r, &t, err);

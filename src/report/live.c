@@ -1,5 +1,6 @@
 /* live.json: the state of a run in progress, replaced after every evaluation (see live.h). */
 #include "rths/live.h"
+#include "rths/report.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -191,19 +192,12 @@ static int write_text(rths_live *l, rths_error *err) {
     return RTHS_OK;
 }
 
-static char *join_path(const char *dir, const char *name) {
-    size_t len = strlen(dir) + strlen(name) + 2;
-    char *p = malloc(len);
-    if (p) snprintf(p, len, "%s/%s", dir, name);
-    return p;
-}
-
 int rths_live_open(const char *dir, rths_live **out, rths_error *err) {
     *out = NULL;
     rths_live *l = calloc(1, sizeof *l);
     if (!l) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    l->path = join_path(dir, "live.json");
-    l->tmp = join_path(dir, "live.json.tmp");
+    l->path = rths_path_join(dir, "live.json");
+    l->tmp = rths_path_join(dir, "live.json.tmp");
     l->buf = malloc(LIVE_BUFFER_BYTES);
     l->c_locale = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
     if (!l->path || !l->tmp || !l->buf || !l->c_locale) {

@@ -13,6 +13,7 @@
 #include <math.h>
 #include <matio.h>
 #include <stdio.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 #include <unistd.h>
@@ -159,30 +160,6 @@ static matvar_t *json_var(const char *name, json_object *o) {
     return double_var(name, 1, 1, &v);
 }
 
-static char *slurp(const char *path) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    char *buf = NULL;
-    size_t len = 0, cap = 0, got;
-    do {
-        if (len + 4096 + 1 > cap) {
-            cap = 2 * cap + 4096 + 1;
-            char *p = realloc(buf, cap);
-            if (!p) {
-                free(buf);
-                fclose(f);
-                return NULL;
-            }
-            buf = p;
-        }
-        got = fread(buf + len, 1, cap - len - 1, f);
-        len += got;
-    } while (got > 0);
-    fclose(f);
-    buf[len] = 0;
-    return buf;
-}
-
 static int write_var(mat_t *mat, matvar_t *v, const char *what, rths_error *err) {
     if (!v) return rths_error_set(err, RTHS_EFAIL, "results.mat: cannot build %s", what);
     int bad = Mat_VarWrite(mat, v, MAT_COMPRESSION_NONE);
@@ -194,7 +171,7 @@ static int write_var(mat_t *mat, matvar_t *v, const char *what, rths_error *err)
 static int write_texts(mat_t *mat, const char *dir, rths_error *err) {
     char path[4096];
     snprintf(path, sizeof path, "%s/summary.json", dir);
-    char *json = slurp(path);
+    char *json = rths_read_file(path, SIZE_MAX, NULL);
     int rc = RTHS_OK;
     if (json) {
         json_object *o = json_tokener_parse(json);
@@ -204,7 +181,7 @@ static int write_texts(mat_t *mat, const char *dir, rths_error *err) {
         free(json);
     }
     snprintf(path, sizeof path, "%s/config.yaml", dir);
-    char *yaml = rc ? NULL : slurp(path);
+    char *yaml = rc ? NULL : rths_read_file(path, SIZE_MAX, NULL);
     if (yaml) rc = write_var(mat, text_var("config_yaml", yaml), "config_yaml", err);
     free(yaml);
     return rc;

@@ -214,10 +214,45 @@ const char *rths_report_dir(const rths_report *rep) {
     return rep->dir;
 }
 
-char *rths_report_path(const rths_report *rep, const char *name) {
-    size_t len = strlen(rep->dir) + strlen(name) + 2;
+char *rths_path_join(const char *dir, const char *name) {
+    size_t len = strlen(dir) + strlen(name) + 2;
     char *p = malloc(len);
-    if (p) snprintf(p, len, "%s/%s", rep->dir, name);
+    if (p) snprintf(p, len, "%s/%s", dir, name);
+    return p;
+}
+
+char *rths_read_file(const char *path, size_t max_bytes, size_t *len) {
+    FILE *f = fopen(path, "rb");
+    if (!f) return NULL;
+    size_t cap = 65536, n = 0;
+    char *buf = malloc(cap + 1);
+    while (buf) {
+        size_t got = fread(buf + n, 1, cap - n, f);
+        n += got;
+        if (n < cap || got == 0) break;
+        if (cap >= max_bytes) break;
+        char *bigger = realloc(buf, 2 * cap + 1);
+        if (!bigger) {
+            free(buf);
+            buf = NULL;
+            break;
+        }
+        buf = bigger;
+        cap *= 2;
+    }
+    int bad = ferror(f);
+    fclose(f);
+    if (!buf || bad) {
+        free(buf);
+        return NULL;
+    }
+    buf[n] = 0;
+    if (len) *len = n;
+    return buf;
+}
+
+char *rths_report_path(const rths_report *rep, const char *name) {
+    char *p = rths_path_join(rep->dir, name);
     if (rep->files && strcmp(name, ".rths-files") && strcmp(name, "results.mat"))
         names_add(rep->files, name);
     return p;

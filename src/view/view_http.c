@@ -182,7 +182,7 @@ static const char *mime_of(const char *name) {
 static int serve_run_file(rths_view *v, struct mg_connection *c, const char *name) {
     if (!*name || name[0] == '.' || strchr(name, '/'))
         return send_html_error(c, 403, "Refused: only files directly inside the run folder.");
-    char *path = view_join(v->run_dir, name);
+    char *path = rths_path_join(v->run_dir, name);
     char *real = path ? realpath(path, NULL) : NULL;
     size_t dlen = strlen(v->run_dir);
     struct stat st;
@@ -195,7 +195,7 @@ static int serve_run_file(rths_view *v, struct mg_connection *c, const char *nam
         status = send_html_error(c, 404, "The run folder holds no such file.");
     else {
         size_t len = 0;
-        char *data = view_read_file(real, (size_t)256 << 20, &len);
+        char *data = rths_read_file(real, (size_t)256 << 20, &len);
         status = data ? send_body(c, 200, mime_of(name), data, len)
                       : send_html_error(c, 500, "Cannot read that file.");
         free(data);
@@ -207,9 +207,9 @@ static int serve_run_file(rths_view *v, struct mg_connection *c, const char *nam
 
 static int serve_file_json(rths_view *v, struct mg_connection *c, const char *name,
                            const char *missing) {
-    char *path = view_join(v->run_dir, name);
+    char *path = rths_path_join(v->run_dir, name);
     size_t len = 0;
-    char *data = path ? view_read_file(path, (size_t)16 << 20, &len) : NULL;
+    char *data = path ? rths_read_file(path, (size_t)16 << 20, &len) : NULL;
     free(path);
     int status =
         data ? send_body(c, 200, "application/json", data, len) : send_json_error(c, 404, missing);
@@ -220,7 +220,7 @@ static int serve_file_json(rths_view *v, struct mg_connection *c, const char *na
 static json_object *files_object(const rths_view *v) {
     json_object *files = json_object_new_object();
     for (int i = 0; i < N_WATCHED; i++) {
-        char *path = view_join(v->run_dir, watched[i][0]);
+        char *path = rths_path_join(v->run_dir, watched[i][0]);
         struct stat st;
         if (path && stat(path, &st) == 0) {
             json_object *f = json_object_new_object();
@@ -266,7 +266,7 @@ static int serve_status(rths_view *v, struct mg_connection *c) {
 /* A signature of the watched files: any change of size, time or inode (rename) shows. */
 static void signature(const rths_view *v, long long sig[N_WATCHED][3]) {
     for (int i = 0; i < N_WATCHED; i++) {
-        char *path = view_join(v->run_dir, watched[i][0]);
+        char *path = rths_path_join(v->run_dir, watched[i][0]);
         struct stat st;
         if (path && stat(path, &st) == 0) {
             sig[i][0] = (long long)st.st_size;

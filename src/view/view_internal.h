@@ -2,6 +2,7 @@
 #ifndef RTHS_VIEW_INTERNAL_H
 #define RTHS_VIEW_INTERNAL_H
 
+#include "rths/report.h"
 #include "rths/run.h"
 #include "rths/view.h"
 
@@ -15,10 +16,8 @@ enum { VIEW_FRF_COLUMNS = RTHS_RUN_FRF_COLUMNS };
 int view_parse_listen_as(const char *option, const char *text, char *host, size_t host_cap,
                          int *port, rths_error *err);
 
-char *view_join(const char *dir, const char *name);                    /* dir/name, malloc'ed */
-int view_file_exists(const char *dir, const char *name);               /* a regular file */
-char *view_read_file(const char *path, size_t max_bytes, size_t *len); /* NUL-terminated */
-char *view_json_text(struct json_object *obj); /* %.17g numbers, malloc'ed */
+int view_file_exists(const char *dir, const char *name); /* a regular file */
+char *view_json_text(struct json_object *obj);           /* %.17g numbers, malloc'ed */
 /* truth.csv as {"column": [values...], ...} */
 int view_truth_json(const char *dir, char **json, rths_error *err);
 

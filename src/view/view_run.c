@@ -18,49 +18,12 @@
  * file never drift apart. */
 #define frf_columns rths_run_frf_columns
 
-char *view_join(const char *dir, const char *name) {
-    size_t len = strlen(dir) + strlen(name) + 2;
-    char *p = malloc(len);
-    if (p) snprintf(p, len, "%s/%s", dir, name);
-    return p;
-}
-
 int view_file_exists(const char *dir, const char *name) {
-    char *p = view_join(dir, name);
+    char *p = rths_path_join(dir, name);
     struct stat st;
     int ok = p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
     free(p);
     return ok;
-}
-
-char *view_read_file(const char *path, size_t max_bytes, size_t *len) {
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    size_t cap = 65536, n = 0;
-    char *buf = malloc(cap + 1);
-    while (buf) {
-        size_t got = fread(buf + n, 1, cap - n, f);
-        n += got;
-        if (n < cap || got == 0) break;
-        if (cap >= max_bytes) break;
-        char *bigger = realloc(buf, 2 * cap + 1);
-        if (!bigger) {
-            free(buf);
-            buf = NULL;
-            break;
-        }
-        buf = bigger;
-        cap *= 2;
-    }
-    int bad = ferror(f);
-    fclose(f);
-    if (!buf || bad) {
-        free(buf);
-        return NULL;
-    }
-    buf[n] = 0;
-    if (len) *len = n;
-    return buf;
 }
 
 int rths_view_check_run_dir(const char *dir, rths_error *err) {
@@ -100,7 +63,7 @@ static json_object *columns_array(const char *const *columns, int n) {
 }
 
 static int points_from_journal(const char *dir, json_object *root, rths_error *err) {
-    char *path = view_join(dir, "journal.jsonl");
+    char *path = rths_path_join(dir, "journal.jsonl");
     rths_point *pts = NULL;
     char *strategy = NULL;
     int n = 0;
@@ -125,7 +88,7 @@ static int points_from_journal(const char *dir, json_object *root, rths_error *e
 
 /* DIR/NAME read by the report module's CSV reader (the run's files: C locale, "nan" for NaN) */
 static int read_run_csv(const char *dir, const char *name, rths_table *t, rths_error *err) {
-    char *path = view_join(dir, name);
+    char *path = rths_path_join(dir, name);
     int rc = path ? rths_csv_read(path, t, err) : rths_error_set(err, RTHS_EFAIL, "no memory");
     free(path);
     return rc;
@@ -204,7 +167,7 @@ int view_truth_json(const char *dir, char **json, rths_error *err) {
 }
 
 json_object *view_plan_object(const char *dir) {
-    char *path = view_join(dir, "config.yaml");
+    char *path = rths_path_join(dir, "config.yaml");
     rths_config *cfg = NULL;
     rths_error err;
     rths_continuation_options cont;
