@@ -69,6 +69,9 @@ void rths_rng_seed(rths_rng *rng, uint64_t seed);
 uint64_t rths_rng_next(rths_rng *rng);
 double rths_rng_uniform(rths_rng *rng); /* [0, 1) */
 double rths_rng_normal(rths_rng *rng);  /* standard normal, ziggurat (rng.c) */
+/* n draws of rths_rng_normal into out, the same numbers in the same order: one call for a block
+ * (the per-sample sensors draw from a pool refilled this way) */
+void rths_rng_normals(rths_rng *rng, double *out, int n);
 
 /* ---- small numeric helpers ---- */
 int rths_is_finite(double x);

@@ -15,13 +15,34 @@
 #define MAX_INPUTS (RTHS_MAX_INTERFACE_DOFS + 1)
 #define MAX_IFACE RTHS_MAX_INTERFACE_DOFS
 
+/* A signal's running Fourier sums: the mean's, then (a_k, b_k) interleaved for k = 1..K, so the
+ * per-sample update is one loop of 2K products over contiguous pairs (vectorised) */
 typedef struct {
-    double a[RTHS_MAX_HARMONICS + 1], b[RTHS_MAX_HARMONICS + 1];
+    double mean;
+    double ab[2 * RTHS_MAX_HARMONICS];
 } sums;
+
+/* cos and sin of k theta, k = 1..RTHS_MAX_HARMONICS, at one phase: computed once per sample for
+ * the targets and every signal's Fourier sums */
+typedef struct {
+    double cs[2 * RTHS_MAX_HARMONICS]; /* cos k theta, sin k theta for k = 1..K, as in sums */
+} harmonic_table;
+
+/* by the angle-addition recurrence from cos theta and sin theta */
+static void harmonic_table_init(harmonic_table *t, double cos_theta, double sin_theta) {
+    double ck = cos_theta, sk = sin_theta;
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
+        t->cs[2 * k - 2] = ck, t->cs[2 * k - 1] = sk;
+        double next = ck * cos_theta - sk * sin_theta;
+        sk = sk * cos_theta + ck * sin_theta;
+        ck = next;
+    }
+}
 
 struct rths_controller {
     rths_controller_options opt;
-    double h;
+    double h, rate;     /* the sample period, s, and its reciprocal, Hz (differences per sample
+                           multiply by it: no division per sample) */
     int nn, nx, np;     /* numerical DoFs, its state size, physical DoFs (sensors) */
     int ni, n_inputs;   /* interface DoFs (one actuator each), numerical model inputs ni + 1 */
     int forcing_index;  /* forcing DoF in the numerical substructure's order */
@@ -66,7 +87,15 @@ struct rths_controller {
     /* running Fourier sums of the open period, and the previous sample for the trapezoid:
        y_prev[3 d + (0 physical, 1 numerical, 2 force)] */
     sums acc_phys[MAX_IFACE], acc_num[MAX_IFACE], acc_force[MAX_IFACE];
-    double y_prev[3 * MAX_IFACE], theta_prev;
+    double y_prev[3 * MAX_IFACE];
+    /* The trapezoid summed point by point: a sample point enters the sums once, when both its
+     * intervals are known, with their two weights together. left_weight: the weight the point
+     * at theta (y_prev) has from the interval that ends there (0 at a period's start);
+     * tables[at_theta]: cos/sin of k theta for it; the other table takes the next sample's
+     * end, and the two swap roles (no copy per sample). */
+    double left_weight;
+    harmonic_table tables[2];
+    int at_theta;
     int period_samples, at_boundary;
     /* published periods: single producer (step), single consumer (pop) */
     rths_period ring_storage[RING_CAPACITY];
@@ -344,7 +373,9 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     if (!c) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     c->opt = *opt;
     c->h = 1.0 / opt->sample_rate_hz;
+    c->rate = opt->sample_rate_hz;
     c->cos_theta = 1.0, c->cos_step = 1.0; /* theta 0, no frequency yet: rotation by zero */
+    harmonic_table_init(&c->tables[0], 1.0, 0.0);
     c->nn = s->nn;
     c->nx = 2 * s->nn;
     c->np = s->np;
@@ -473,38 +504,22 @@ long rths_controller_dropped_periods(const rths_controller *c) {
     return atomic_load(&c->dropped);
 }
 
-/* cos and sin of k theta, k = 1..RTHS_MAX_HARMONICS, at both ends of a sample's phase interval:
- * computed once per sample for every signal of every interface DoF */
-typedef struct {
-    double c0[RTHS_MAX_HARMONICS + 1], s0[RTHS_MAX_HARMONICS + 1];
-    double c1[RTHS_MAX_HARMONICS + 1], s1[RTHS_MAX_HARMONICS + 1];
-    double w; /* trapezoid weight dtheta / (2 pi) */
-} harmonic_ends;
-
-static void harmonic_ends_init(harmonic_ends *h, double dtheta, double c0, double s0, double c1,
-                               double s1) {
-    h->w = 0.5 * dtheta / M_PI;
-    /* cos/sin of k theta by the angle-addition recurrence */
-    double ck0 = c0, sk0 = s0, ck1 = c1, sk1 = s1;
-    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
-        h->c0[k] = ck0, h->s0[k] = sk0, h->c1[k] = ck1, h->s1[k] = sk1;
-        double n0 = ck0 * c0 - sk0 * s0, n1 = ck1 * c1 - sk1 * s1;
-        sk0 = sk0 * c0 + ck0 * s0;
-        sk1 = sk1 * c1 + ck1 * s1;
-        ck0 = n0;
-        ck1 = n1;
-    }
+/* Adds a sample point y at the phase of table t with trapezoid weight w (the sum of its two
+ * intervals' dtheta / (2 pi)) to the sums: per sample one product per harmonic and signal, half
+ * the work of summing each interval's two ends. */
+__attribute__((noinline)) static void
+accumulate_point(sums *restrict s, const harmonic_table *restrict t, double w, double y) {
+    const double wy = w * y;
+    s->mean += 0.5 * wy;
+    for (int i = 0; i < 2 * RTHS_MAX_HARMONICS; i++)
+        s->ab[i] += wy * t->cs[i];
 }
 
-/* Adds the trapezoid of y(theta) cos/sin(k theta) over the interval to the sums, from y0 at its
- * start to y1 at its end. */
-static void accumulate(sums *s, const harmonic_ends *h, double y0, double y1) {
-    const double w = h->w;
-    s->a[0] += 0.5 * w * (y0 + y1);
-    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
-        s->a[k] += w * (y0 * h->c0[k] + y1 * h->c1[k]);
-        s->b[k] += w * (y0 * h->s0[k] + y1 * h->s1[k]);
-    }
+/* a period's sums as its record's coefficients */
+static void sums_to_fourier(const sums *s, rths_fourier *f) {
+    f->a[0] = s->mean, f->b[0] = 0;
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
+        f->a[k] = s->ab[2 * k - 2], f->b[k] = s->ab[2 * k - 1];
 }
 
 static void clear_sums(rths_controller *c) {
@@ -512,6 +527,7 @@ static void clear_sums(rths_controller *c) {
     memset(c->acc_num, 0, sizeof c->acc_num);
     memset(c->acc_force, 0, sizeof c->acc_force);
     c->period_samples = 0;
+    c->left_weight = 0; /* the point at theta opens the period */
 }
 
 static void publish(rths_controller *c, double end_time) {
@@ -522,13 +538,9 @@ static void publish(rths_controller *c, double end_time) {
     p.samples = c->period_samples;
     p.interface_dofs = c->ni;
     for (int d = 0; d < c->ni; d++) {
-        memcpy(p.phys_dof[d].a, c->acc_phys[d].a, sizeof p.phys.a);
-        memcpy(p.phys_dof[d].b, c->acc_phys[d].b, sizeof p.phys.b);
-        memcpy(p.num_dof[d].a, c->acc_num[d].a, sizeof p.num.a);
-        memcpy(p.num_dof[d].b, c->acc_num[d].b, sizeof p.num.b);
-        memcpy(p.force_dof[d].a, c->acc_force[d].a, sizeof p.force.a);
-        memcpy(p.force_dof[d].b, c->acc_force[d].b, sizeof p.force.b);
-        p.phys_dof[d].b[0] = p.num_dof[d].b[0] = p.force_dof[d].b[0] = 0;
+        sums_to_fourier(&c->acc_phys[d], &p.phys_dof[d]);
+        sums_to_fourier(&c->acc_num[d], &p.num_dof[d]);
+        sums_to_fourier(&c->acc_force[d], &p.force_dof[d]);
     }
     p.phys = p.phys_dof[0];
     p.num = p.num_dof[0];
@@ -545,6 +557,7 @@ int rths_controller_pop_period(rths_controller *c, rths_period *out) {
 static void set_phase(rths_controller *c, double theta) {
     c->theta = theta;
     c->cos_theta = cos(theta), c->sin_theta = sin(theta);
+    harmonic_table_init(&c->tables[c->at_theta], c->cos_theta, c->sin_theta);
 }
 
 /* A forcing change waits for the period boundary, so every published period has one forcing;
@@ -577,10 +590,11 @@ static void latch(rths_controller *c, rths_rig_fault f) {
 /* ramp: up to 1 while armed and healthy, down to 0 otherwise */
 static void update_ramp(rths_controller *c) {
     double dr = c->opt.ramp_time_s > 0 ? c->h / c->opt.ramp_time_s : 1.0;
+    /* clamped inline, not by fmin/fmax: ramp and dr are finite, and libm calls every sample */
     if (c->armed && !c->fault)
-        c->ramp = fmin(1.0, c->ramp + dr);
+        c->ramp = c->ramp + dr < 1.0 ? c->ramp + dr : 1.0;
     else
-        c->ramp = fmax(0.0, c->ramp - dr);
+        c->ramp = c->ramp - dr > 0.0 ? c->ramp - dr : 0.0;
 }
 
 typedef struct {
@@ -635,7 +649,7 @@ static void read_sensors(rths_controller *c, const rths_sensor_sample *in, measu
     }
     for (int d = 0; d < c->ni; d++) {
         /* velocity of the physical interface: filtered backward difference */
-        double v_raw = c->have_prev ? (m->x[d] - c->x_prev[d]) / c->h : 0.0;
+        double v_raw = c->have_prev ? (m->x[d] - c->x_prev[d]) * c->rate : 0.0;
         c->v_est[d] = c->velocity_alpha * c->v_est[d] + (1 - c->velocity_alpha) * v_raw;
         c->x_prev[d] = m->x[d];
     }
@@ -652,7 +666,7 @@ static double grounding_force(rths_controller *c, int d, double x) {
     double xi_last_prev = c->grounding_have ? c->xi_last_prev[d] : xi;
     double x_last_prev = c->grounding_have ? c->x_last_prev[d] : x_last;
     double f_ctrl = c->gkp[d] * (x_last - xi) +
-                    c->gkd[d] * ((x_last - x_last_prev) - (xi - xi_last_prev)) / c->h;
+                    c->gkd[d] * ((x_last - x_last_prev) - (xi - xi_last_prev)) * c->rate;
     c->x_last_prev[d] = x_last;
     c->x_last[d] = x;
     c->xi_last_prev[d] = xi;
@@ -699,7 +713,7 @@ static void advance_numerical(rths_controller *c, const double *u, double *xi, d
 
 /* x*(theta1) of interface DoF d and its rate: the periodic target (ramped, plus the tracked
  * static term, clamped to the stroke) or, in feedback mode, the numerical interface itself. */
-static void control_target(const rths_controller *c, int d, const harmonic_ends *he, double xi,
+static void control_target(const rths_controller *c, int d, const harmonic_table *he, double xi,
                            double xi_dot, double *target, double *target_dot) {
     if (c->feedback) {
         *target = xi;
@@ -708,7 +722,7 @@ static void control_target(const rths_controller *c, int d, const harmonic_ends 
     }
     double t = 0, t_dot = 0; /* at theta1: cos/sin of k theta1 from the sample's ends */
     for (int k = 1; k <= c->harmonics; k++) {
-        const double ck = he->c1[k], sk = he->s1[k];
+        const double ck = he->cs[2 * k - 2], sk = he->cs[2 * k - 1];
         t += c->target_a[d][k - 1] * ck + c->target_b[d][k - 1] * sk;
         t_dot += k * c->omega * (-c->target_a[d][k - 1] * sk + c->target_b[d][k - 1] * ck);
     }
@@ -755,53 +769,57 @@ static void transformed_demands(rths_controller *c, const double *target, const 
     }
 }
 
-/* The trapezoid of the three signals (physical, numerical, force) of every interface DoF from
- * ya at (c0, s0) to yb at (c1, s1) over dtheta. */
-static void accumulate_signals(rths_controller *c, const harmonic_ends *h, const double *ya,
-                               const double *yb) {
+/* The three signals (physical, numerical, force) of every interface DoF at the phase of table t
+ * into the sums with weight w. */
+static void accumulate_signals(rths_controller *c, const harmonic_table *t, double w,
+                               const double *y) {
     for (int d = 0; d < c->ni; d++) {
-        const double *a = ya + 3 * d, *b = yb + 3 * d;
-        accumulate(&c->acc_phys[d], h, a[0], b[0]);
-        accumulate(&c->acc_num[d], h, a[1], b[1]);
-        accumulate(&c->acc_force[d], h, a[2], b[2]);
+        accumulate_point(&c->acc_phys[d], t, w, y[3 * d]);
+        accumulate_point(&c->acc_num[d], t, w, y[3 * d + 1]);
+        accumulate_point(&c->acc_force[d], t, w, y[3 * d + 2]);
     }
 }
 
 /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
- * theta = 2 pi the period is published and a pending forcing change takes over. he: the sample's
- * own interval [theta0, theta1]. */
+ * theta = 2 pi the period is published and a pending forcing change takes over. The sample spans
+ * [theta0, theta1]; at_end: cos/sin of k theta1. The point at theta0 (y_prev) enters the sums
+ * now, with the weight of both its intervals; the point at theta1 waits for its next one. */
 static void update_fourier(rths_controller *c, double theta0, double theta1,
-                           const harmonic_ends *he, const double *y) {
+                           const harmonic_table *at_end, const double *y) {
     if (!(c->omega > 0)) return;
-    const double cos0 = he->c0[1], sin0 = he->s0[1], cos1 = he->c1[1], sin1 = he->s1[1];
-    if (theta1 < 2 * M_PI) {
-        accumulate_signals(c, he, c->y_prev, y);
+    const double two_pi = 2 * M_PI;
+    if (theta1 < two_pi) {
+        const double w = (theta1 - theta0) / two_pi;
+        accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w, c->y_prev);
+        c->left_weight = w;
         c->period_samples++;
-        c->theta = theta1, c->cos_theta = cos1, c->sin_theta = sin1;
+        c->theta = theta1, c->cos_theta = at_end->cs[0], c->sin_theta = at_end->cs[1];
+        c->at_theta = !c->at_theta; /* at_end is the other table */
         return;
     }
-    harmonic_ends h;
-    double alpha = (2 * M_PI - theta0) / (theta1 - theta0);
+    /* the period ends at theta = 2 pi exactly (cos 1, sin 0), at yb by interpolation */
+    harmonic_table at_zero;
+    harmonic_table_init(&at_zero, 1.0, 0.0);
+    const double alpha = (two_pi - theta0) / (theta1 - theta0), w_end = (two_pi - theta0) / two_pi;
     double yb[3 * MAX_IFACE] = {0};
     for (int i = 0; i < 3 * c->ni; i++)
         yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
-    /* the period ends at theta = 2 pi exactly: cos 1, sin 0 */
-    harmonic_ends_init(&h, 2 * M_PI - theta0, cos0, sin0, 1.0, 0.0);
-    accumulate_signals(c, &h, c->y_prev, yb);
+    accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w_end, c->y_prev);
+    accumulate_signals(c, &at_zero, w_end, yb);
     c->period_samples++;
     for (int d = 0; d < c->ni; d++)
-        c->static_offset[d] = c->acc_phys[d].a[0];
+        c->static_offset[d] = c->acc_phys[d].mean;
     publish(c, c->time_s - (1 - alpha) * c->h);
     if (c->pending_forcing) {
         c->omega = c->pending_omega;
         c->amplitude_n = c->pending_amplitude;
         c->pending_forcing = 0;
     }
-    /* the next period opens at theta = 0; cos/sin of rest = theta1 - 2 pi are theta1's */
-    double rest = theta1 - 2 * M_PI;
-    harmonic_ends_init(&h, rest, 1.0, 0.0, cos1, sin1);
-    accumulate_signals(c, &h, yb, y);
+    /* the next period opens at theta = 0 with yb; the point at rest = theta1 - 2 pi waits */
+    const double rest = theta1 - two_pi;
+    accumulate_signals(c, &at_zero, rest / two_pi, yb);
     set_phase(c, rest);
+    c->left_weight = rest / two_pi;
     c->at_boundary = 1;
 }
 
@@ -844,11 +862,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     double xi[MAX_IFACE] = {0}, xi_dot[MAX_IFACE] = {0}, target[MAX_IFACE], target_dot[MAX_IFACE];
     if (!c->host_numerical) advance_numerical(c, u, xi, xi_dot);
     double y[3 * MAX_IFACE];
-    /* cos/sin of k theta at both ends of the sample, for the targets and the Fourier sums */
-    harmonic_ends he;
-    harmonic_ends_init(&he, theta1 - theta0, cos0, sin0, cos1, sin1);
+    /* cos/sin of k theta1, for the targets and the Fourier sums */
+    harmonic_table *at_end = &c->tables[!c->at_theta];
+    harmonic_table_init(at_end, cos1, sin1);
     for (int d = 0; d < c->ni; d++)
-        control_target(c, d, &he, xi[d], xi_dot[d], &target[d], &target_dot[d]);
+        control_target(c, d, at_end, xi[d], xi_dot[d], &target[d], &target_dot[d]);
     if (c->transformed) transformed_demands(c, target, target_dot, m.x);
     for (int d = 0; d < c->ni; d++) {
         if (!c->transformed) c->demand[d] = pd_demand(c, d, target[d], target_dot[d], m.x[d]);
@@ -859,7 +877,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     }
     c->at_boundary = 0;
     c->time_s += c->h;
-    update_fourier(c, theta0, theta1, &he, y);
+    update_fourier(c, theta0, theta1, at_end, y);
     for (int i = 0; i < 3 * c->ni; i++)
         c->y_prev[i] = y[i];
     if (out) {

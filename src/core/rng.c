@@ -47,6 +47,7 @@ enum { ZIGGURAT_LAYERS = 128 };
 static const double ZIGGURAT_R = 3.442619855899;      /* start of the tail */
 static const double ZIGGURAT_V = 9.91256303526217e-3; /* area of every layer */
 static double zig_x[ZIGGURAT_LAYERS + 1], zig_ratio[ZIGGURAT_LAYERS];
+static double zig_f[ZIGGURAT_LAYERS + 1]; /* the density exp(-x^2 / 2) at each zig_x */
 /* at load time, so every generator (seeded or not) finds the tables and no draw ever waits */
 __attribute__((constructor)) static void ziggurat_tables(void) {
     double f = exp(-0.5 * ZIGGURAT_R * ZIGGURAT_R);
@@ -59,6 +60,8 @@ __attribute__((constructor)) static void ziggurat_tables(void) {
     }
     for (int i = 0; i < ZIGGURAT_LAYERS; i++)
         zig_ratio[i] = zig_x[i + 1] / zig_x[i];
+    for (int i = 0; i <= ZIGGURAT_LAYERS; i++)
+        zig_f[i] = exp(-0.5 * zig_x[i] * zig_x[i]);
 }
 
 /* (0, 1]: safe under log */
@@ -85,8 +88,12 @@ double rths_rng_normal(rths_rng *rng) {
         if (layer == 0) return normal_tail(rng, u < 0);
         /* the wedge between this layer's rectangle and the density */
         double x = u * zig_x[layer];
-        double f_lo = exp(-0.5 * (zig_x[layer] * zig_x[layer] - x * x));
-        double f_hi = exp(-0.5 * (zig_x[layer + 1] * zig_x[layer + 1] - x * x));
-        if (f_hi + rths_rng_uniform(rng) * (f_lo - f_hi) < 1.0) return x;
+        double f_lo = zig_f[layer], f_hi = zig_f[layer + 1]; /* the layer's edges, tabulated */
+        if (f_hi + rths_rng_uniform(rng) * (f_lo - f_hi) < exp(-0.5 * x * x)) return x;
     }
+}
+
+void rths_rng_normals(rths_rng *rng, double *out, int n) {
+    for (int i = 0; i < n; i++)
+        out[i] = rths_rng_normal(rng);
 }

@@ -27,12 +27,34 @@ typedef struct {
     double *g_more;
 } exact_side;
 
+/* A sensor's options as one reading uses them, the noise switch applied and the reciprocals of
+ * its step and scale formed once (a division per reading sat on the read's critical path; the
+ * product differs from the quotient by an ulp at most, which moves a rounding to the step only
+ * within an ulp of a half step). */
+typedef struct {
+    int noisy;                      /* rig.noise on: gain error, offset, noise, step apply */
+    double gain, offset, noise_std; /* 1 + gain_error, offset, noise, in the sensor's unit */
+    double quantum, per_quantum;    /* the step and its reciprocal (0: none) */
+    int converter;                  /* an ADC's resolution or its volts noise applies */
+    int adc_bits;
+    double adc_range_v, units_per_v, per_unit_v, adc_noise_v; /* adc_noise_v 0 without noise */
+} sensor_channel;
+enum { SENSOR_LASER, SENSOR_ACCELEROMETER, SENSOR_LOAD_CELL, SENSOR_KINDS };
+
+enum { NORMAL_POOL = 64 };
+
 struct rths_plant {
     rths_plant_options opt;
+    sensor_channel sensor[SENSOR_KINDS];
     int n;  /* physical DoFs, the interface DoFs last */
     int ni; /* interface DoFs, one actuator each: actuator d acts on physical DoF n - ni + d */
     double h;
-    double *minv, *c, *k;     /* n x n */
+    double *minv, *c, *k; /* n x n */
+    /* the interface DoFs' accelerations as rows of M^-1 applied to the forces, per DoF d at
+     * d * accel_row_len: 2n state coefficients (-M^-1 K, -M^-1 C), ni actuator forces, then the
+     * static force's, the forcing's and the leg's compression force's (see accel_rows_init) */
+    double *accel_rows;
+    int accel_row_len;
     double *static_force;     /* n */
     int leg_lower, leg_upper; /* physical indices (-1: ground), leg_upper < 0: no bilinear leg */
     double leg_extra_k;       /* (ratio - 1) k added in compression */
@@ -67,6 +89,10 @@ struct rths_plant {
                               the forcing acts on forcing_index alone */
     double forcing_amplitude, forcing_theta, forcing_omega, forcing_now;
     rths_rng rng;
+    /* normal draws of rng, taken in order: refilled a block at a time, where a call per draw
+     * cost as much as the draw (the sequence is the same as drawing one by one) */
+    double normal_pool[NORMAL_POOL];
+    int normal_next; /* next unused entry; NORMAL_POOL: empty */
 };
 
 void rths_plant_defaults(rths_plant_options *opt) {
@@ -110,7 +136,7 @@ void rths_plant_ideal(rths_plant_options *opt) {
 void rths_plant_destroy(rths_plant *p) {
     if (!p) return;
     free(p->minv), free(p->c), free(p->k), free(p->static_force);
-    free(p->z), free(p->z_next), free(p->rk), free(p->delay_line);
+    free(p->z), free(p->z_next), free(p->rk), free(p->delay_line), free(p->accel_rows);
     free(p->act_a), free(p->act_bu), free(p->act_bv), free(p->forcing_shape);
     rths_mat_free(p->act_t), rths_mat_free(p->sens_t);
     for (int s = 0; s < 2; s++) {
@@ -460,6 +486,60 @@ static int plant_leg_and_loads(rths_plant *p, const rths_setup *setup, const int
     return RTHS_OK;
 }
 
+/* The rows of accel_rows: a sensor reads only the interface DoFs' accelerations, so the plant
+ * applies M^-1's interface rows to its matrices once here instead of forming every DoF's force
+ * each sample (the extension stiffness K; the leg's extra compression force enters by its own
+ * coefficient). -1: out of memory. */
+static int accel_rows_init(rths_plant *p) {
+    int n = p->n, ni = p->ni, len = 2 * n + ni + 3;
+    p->accel_row_len = len;
+    p->accel_rows = calloc((size_t)(ni * len), sizeof(double));
+    if (!p->accel_rows) return -1;
+    for (int d = 0; d < ni; d++) {
+        int row = n - ni + d;
+        double *r = p->accel_rows + (size_t)(d * len);
+        for (int j = 0; j < n; j++)
+            for (int l = 0; l < n; l++) {
+                r[j] -= p->minv[row + l * n] * p->k[l + j * n];
+                r[n + j] -= p->minv[row + l * n] * p->c[l + j * n];
+            }
+        for (int a = 0; a < ni; a++)
+            r[2 * n + a] = actuator_input(p, row, a);
+        for (int l = 0; l < n; l++)
+            r[2 * n + ni] += p->minv[row + l * n] * p->static_force[l];
+        if (p->forcing_shape || p->forcing_index >= 0) r[2 * n + ni + 1] = forcing_input(p, row);
+        if (p->leg_upper >= 0)
+            r[2 * n + ni + 2] = -p->minv[row + p->leg_upper * n] +
+                                (p->leg_lower >= 0 ? p->minv[row + p->leg_lower * n] : 0.0);
+    }
+    return 0;
+}
+
+static sensor_channel sensor_channel_of(int noise, const rths_sensor_spec *spec,
+                                        const rths_adc_spec *adc) {
+    int volts_noise = noise && adc->noise_v > 0;
+    return (sensor_channel){.noisy = noise != 0,
+                            .gain = 1 + spec->gain_error,
+                            .offset = spec->offset,
+                            .noise_std = spec->noise_std,
+                            .quantum = spec->quantum,
+                            .per_quantum = spec->quantum > 0 ? 1.0 / spec->quantum : 0.0,
+                            .converter = adc->bits > 0 || volts_noise,
+                            .adc_bits = adc->bits,
+                            .adc_range_v = adc->range_v,
+                            .units_per_v = adc->units_per_v,
+                            .per_unit_v = adc->units_per_v != 0 ? 1.0 / adc->units_per_v : 0.0,
+                            .adc_noise_v = volts_noise ? adc->noise_v : 0.0};
+}
+
+static void sensors_init(rths_plant *p) {
+    const rths_plant_options *o = &p->opt;
+    p->sensor[SENSOR_LASER] = sensor_channel_of(o->noise, &o->laser, &o->laser_adc);
+    p->sensor[SENSOR_ACCELEROMETER] =
+        sensor_channel_of(o->noise, &o->accelerometer, &o->accelerometer_adc);
+    p->sensor[SENSOR_LOAD_CELL] = sensor_channel_of(o->noise, &o->load_cell, &o->load_cell_adc);
+}
+
 int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, double sample_rate_hz,
                       rths_plant **out, rths_error *err) {
     *out = NULL;
@@ -534,12 +614,15 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
         if (!kk || build_side(p, side, kk))
             rc = rths_error_set(err, RTHS_EFAIL, "could not discretise the plant");
     rths_mat_free(kk);
-    if (!rc && static_start(p)) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc && (static_start(p) || accel_rows_init(p)))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (rc) {
         rths_plant_destroy(p);
         return rc;
     }
     rths_rng_seed(&p->rng, opt->seed);
+    p->normal_next = NORMAL_POOL;
+    sensors_init(p);
     *out = p;
     return RTHS_OK;
 }
@@ -601,41 +684,21 @@ static void accelerations(const rths_plant *p, const double *q, const double *v,
     }
 }
 
-/* Interface row `row` of accelerations() at the current state: the only ones a sensor reads. */
-/* The force on every physical DoF in the current state (static, damping, stiffness, the
- * actuators, the forcing, the bilinear leg), N: M^-1 of it is the accelerations. */
-static void physical_forces(const rths_plant *p, double *force) {
-    int n = p->n, iface = n - p->ni;
+/* Every interface DoF's acceleration in the current state, m/s^2 (rad/s^2 for a rotation). */
+static void interface_accelerations(const rths_plant *p, double *acc) {
+    int n = p->n, ni = p->ni, len = p->accel_row_len;
     double delta = leg_extension(p, p->q);
     double extra = p->leg_upper >= 0 && delta < 0 ? p->leg_extra_k * delta : 0.0;
-    for (int i = 0; i < n; i++) {
-        double f = p->static_force[i];
-        for (int j = 0; j < n; j++)
-            f -= p->c[i + j * n] * p->v[j] + p->k[i + j * n] * p->q[j];
-        if (p->act_t && i >= iface) {
-            f += p->act_t[i - iface] * p->fs; /* every actuator's force through the transform */
-            for (int a = 1; a < p->ni; a++)
-                f += p->act_t[i - iface + a * p->ni] * p->fs_more[a];
-        } else {
-            if (i == iface) f += p->fs;
-            if (i > iface) f += p->fs_more[i - iface];
-        }
-        if (p->forcing_shape)
-            f += p->forcing_now * p->forcing_shape[i];
-        else if (i == p->forcing_index)
-            f += p->forcing_now;
-        if (i == p->leg_upper) f -= extra;
-        if (i == p->leg_lower) f += extra;
-        force[i] = f;
+    for (int d = 0; d < ni; d++) {
+        const double *r = p->accel_rows + (size_t)(d * len);
+        double a = r[2 * n + ni] + r[2 * n + ni + 1] * p->forcing_now + r[2 * n + ni + 2] * extra +
+                   r[2 * n] * p->fs;
+        for (int e = 1; e < ni; e++)
+            a += r[2 * n + e] * p->fs_more[e];
+        for (int j = 0; j < 2 * n; j++) /* q, then v: z's first 2n */
+            a += r[j] * p->z[j];
+        acc[d] = a;
     }
-}
-
-/* Row row of M^-1 f: a DoF's acceleration from the forces, m/s^2 */
-static double acceleration(const rths_plant *p, const double *force, int row) {
-    double acc = 0;
-    for (int i = 0; i < p->n; i++)
-        acc += p->minv[row + i * p->n] * force[i];
-    return acc;
 }
 
 /* value clipped to +-range and rounded to the step 2 range / 2^bits (bits 0: unchanged) */
@@ -657,20 +720,26 @@ static double convert(int bits, double range, double value) {
     return q * round_to_integer(clipped / q);
 }
 
-static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_adc_spec *adc,
-                      double value) {
-    double r = value;
-    if (p->opt.noise) {
-        r = (1 + spec->gain_error) * value + spec->offset +
-            spec->noise_std * rths_rng_normal(&p->rng);
-        if (spec->quantum > 0) r = spec->quantum * round_to_integer(r / spec->quantum);
+/* the plant's next standard normal draw */
+static double normal_draw(rths_plant *p) {
+    if (p->normal_next == NORMAL_POOL) {
+        rths_rng_normals(&p->rng, p->normal_pool, NORMAL_POOL);
+        p->normal_next = 0;
     }
-    int volts_noise = p->opt.noise && adc->noise_v > 0;
-    if (adc->bits <= 0 && !volts_noise) return r;
+    return p->normal_pool[p->normal_next++];
+}
+
+static double measure(rths_plant *p, const sensor_channel *ch, double value) {
+    double r = value;
+    if (ch->noisy) {
+        r = ch->gain * value + ch->offset + ch->noise_std * normal_draw(p);
+        if (ch->quantum > 0) r = ch->quantum * round_to_integer(r * ch->per_quantum);
+    }
+    if (!ch->converter) return r;
     /* through the converter, in volts */
-    double v = r / adc->units_per_v;
-    if (volts_noise) v += adc->noise_v * rths_rng_normal(&p->rng);
-    return convert(adc->bits, adc->range_v, v) * adc->units_per_v;
+    double v = r * ch->per_unit_v;
+    if (ch->adc_noise_v > 0) v += ch->adc_noise_v * normal_draw(p);
+    return convert(ch->adc_bits, ch->adc_range_v, v) * ch->units_per_v;
 }
 
 /* Each laser reads its point (S q, or the DoF itself without a laser transform), each
@@ -680,13 +749,11 @@ static double measure(rths_plant *p, const rths_sensor_spec *spec, const rths_ad
  * actuator its accelerometer and load cell. */
 void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
     int n = p->n, ni = p->ni, iface = n - ni;
-    double force[RTHS_MAX_SENSED_DOFS], acc[RTHS_MAX_INTERFACE_DOFS];
-    physical_forces(p, force); /* once for every interface DoF's acceleration */
-    for (int d = 0; d < ni; d++)
-        acc[d] = acceleration(p, force, iface + d);
+    double acc[RTHS_MAX_INTERFACE_DOFS];
+    interface_accelerations(p, acc);
     out->n = n;
     for (int i = 0; i < iface; i++)
-        out->displacement_m[i] = measure(p, &p->opt.laser, &p->opt.laser_adc, p->q[i]);
+        out->displacement_m[i] = measure(p, &p->sensor[SENSOR_LASER], p->q[i]);
     for (int l = 0; l < ni; l++) {
         double y = p->q[iface + l];
         if (p->sens_t) {
@@ -694,7 +761,7 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
             for (int d = 0; d < ni; d++)
                 y += p->sens_t[l + d * ni] * p->q[iface + d];
         }
-        out->displacement_m[iface + l] = measure(p, &p->opt.laser, &p->opt.laser_adc, y);
+        out->displacement_m[iface + l] = measure(p, &p->sensor[SENSOR_LASER], y);
     }
     out->n_interface = ni;
     for (int a = 0; a < ni; a++) {
@@ -706,10 +773,10 @@ void rths_plant_read(rths_plant *p, rths_sensor_sample *out) {
         }
         double actuator_force = a == 0 ? p->fs : p->fs_more[a];
         out->interface_acceleration_dof_m_s2[a] =
-            measure(p, &p->opt.accelerometer, &p->opt.accelerometer_adc, acc_a);
+            measure(p, &p->sensor[SENSOR_ACCELEROMETER], acc_a);
         /* the load cell sits between the armature and the structure */
-        out->interface_force_dof_n[a] = measure(p, &p->opt.load_cell, &p->opt.load_cell_adc,
-                                                actuator_force - p->armature_kg * acc_a);
+        out->interface_force_dof_n[a] =
+            measure(p, &p->sensor[SENSOR_LOAD_CELL], actuator_force - p->armature_kg * acc_a);
     }
     out->interface_acceleration_m_s2 = out->interface_acceleration_dof_m_s2[0];
     out->interface_force_n = out->interface_force_dof_n[0];
@@ -827,6 +894,12 @@ static void crossing_step(rths_plant *p, int side, double target_start, double t
     if (tau < p->h) rk4_span(p, tau, p->h, CROSSING_SUBSTEPS, target_start, target_end, !side);
 }
 
+/* fmax for the per-sample limits, inline (a NaN gives the other operand; signed zeros do not
+ * matter here): the libm call cost three or more calls per sample */
+static double larger(double a, double b) {
+    return b > a || a != a ? b : a;
+}
+
 /* After each sample: peaks, flagged samples, and the limit (action fault) the state is beyond. */
 static void limits_update(rths_plant *p) {
     const rths_actuator_options *a = &p->opt.actuator;
@@ -834,9 +907,9 @@ static void limits_update(rths_plant *p) {
     int iface = p->n - p->ni;
     double x = fabs(p->q[iface]), v = fabs(p->v[iface]), f = fabs(p->fs);
     for (int d = 1; d < p->ni; d++) {
-        x = fmax(x, fabs(p->q[iface + d]));
-        v = fmax(v, fabs(p->v[iface + d]));
-        f = fmax(f, fabs(p->fs_more[d]));
+        x = larger(x, fabs(p->q[iface + d]));
+        v = larger(v, fabs(p->v[iface + d]));
+        f = larger(f, fabs(p->fs_more[d]));
     }
     if (p->act_t) { /* stroke and velocity of each actuator's own point, T^T q */
         x = v = 0;
@@ -846,13 +919,13 @@ static void limits_update(rths_plant *p) {
                 xa += p->act_t[d + a * p->ni] * p->q[iface + d];
                 va += p->act_t[d + a * p->ni] * p->v[iface + d];
             }
-            x = fmax(x, fabs(xa));
-            v = fmax(v, fabs(va));
+            x = larger(x, fabs(xa));
+            v = larger(v, fabs(va));
         }
     }
-    st->peak_stroke_m = fmax(st->peak_stroke_m, x);
-    st->peak_velocity_m_per_s = fmax(st->peak_velocity_m_per_s, v);
-    st->peak_force_n = fmax(st->peak_force_n, f);
+    st->peak_stroke_m = larger(st->peak_stroke_m, x);
+    st->peak_velocity_m_per_s = larger(st->peak_velocity_m_per_s, v);
+    st->peak_force_n = larger(st->peak_force_n, f);
     st->beyond = RTHS_RIG_OK;
     if (a->stroke_limit_m > 0 && x > a->stroke_limit_m) {
         if (a->stroke_flag)
@@ -886,8 +959,7 @@ enum { PLANT_NOISE_LAB = 2 };
 static const double LAB_PROCESS_FORCE_STD_N = 0.05;
 
 static double process_force_n(rths_plant *p) {
-    return p->opt.noise == PLANT_NOISE_LAB ? LAB_PROCESS_FORCE_STD_N * rths_rng_normal(&p->rng)
-                                           : 0.0;
+    return p->opt.noise == PLANT_NOISE_LAB ? LAB_PROCESS_FORCE_STD_N * normal_draw(p) : 0.0;
 }
 
 /* Actuator d's force command at the end of this sample from its demand: the DAC, the transport
@@ -924,7 +996,7 @@ void rths_plant_advance_dofs(rths_plant *p, const double *demand_v) {
         more_start[d] = p->opt.linear_hold ? p->last_force_target_more[d] : more_end[d];
         p->last_force_target_more[d] = more_end[d];
     }
-    if (p->delay_samples > 0) p->delay_pos = (p->delay_pos + 1) % p->delay_samples;
+    if (p->delay_samples > 0 && ++p->delay_pos == p->delay_samples) p->delay_pos = 0;
     double target_start = p->opt.linear_hold ? p->last_force_target : target_end;
     p->last_force_target = target_end;
     if (p->opt.substeps_per_sample > 0) {
