@@ -69,8 +69,9 @@ struct rths_controller {
     double target_a[MAX_IFACE][RTHS_MAX_HARMONICS], target_b[MAX_IFACE][RTHS_MAX_HARMONICS];
     int feedback, armed;
     rths_rig_fault fault;
-    double ramp;                     /* 0..1: scales demand, forcing and target */
-    double forcing_now;              /* forcing amplitude of the last step (ramp included), N */
+    double ramp;        /* 0..1: scales demand, forcing and target */
+    double ramp_step;   /* the ramp's change per sample, h / ramp_time_s (1 without a ramp) */
+    double forcing_now; /* forcing amplitude of the last step (ramp included), N */
     double static_offset[MAX_IFACE]; /* mean physical interface displacement, last period, m */
     double demand[MAX_IFACE];        /* the last step's demand per actuator, V */
     /* signal state, per interface DoF */
@@ -374,6 +375,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->opt = *opt;
     c->h = 1.0 / opt->sample_rate_hz;
     c->rate = opt->sample_rate_hz;
+    c->ramp_step = opt->ramp_time_s > 0 ? c->h / opt->ramp_time_s : 1.0;
     c->cos_theta = 1.0, c->cos_step = 1.0; /* theta 0, no frequency yet: rotation by zero */
     harmonic_table_init(&c->tables[0], 1.0, 0.0);
     c->nn = s->nn;
@@ -507,8 +509,8 @@ long rths_controller_dropped_periods(const rths_controller *c) {
 /* Adds a sample point y at the phase of table t with trapezoid weight w (the sum of its two
  * intervals' dtheta / (2 pi)) to the sums: per sample one product per harmonic and signal, half
  * the work of summing each interval's two ends. */
-__attribute__((noinline)) static void
-accumulate_point(sums *restrict s, const harmonic_table *restrict t, double w, double y) {
+static void accumulate_point(sums *restrict s, const harmonic_table *restrict t, double w,
+                             double y) {
     const double wy = w * y;
     s->mean += 0.5 * wy;
     for (int i = 0; i < 2 * RTHS_MAX_HARMONICS; i++)
@@ -589,7 +591,7 @@ static void latch(rths_controller *c, rths_rig_fault f) {
 
 /* ramp: up to 1 while armed and healthy, down to 0 otherwise */
 static void update_ramp(rths_controller *c) {
-    double dr = c->opt.ramp_time_s > 0 ? c->h / c->opt.ramp_time_s : 1.0;
+    const double dr = c->ramp_step;
     /* clamped inline, not by fmin/fmax: ramp and dr are finite, and libm calls every sample */
     if (c->armed && !c->fault)
         c->ramp = c->ramp + dr < 1.0 ? c->ramp + dr : 1.0;
