@@ -721,7 +721,7 @@ static double convert(int bits, double range, double value) {
 }
 
 /* the plant's next standard normal draw */
-static double normal_draw(rths_plant *p) {
+static inline double normal_draw(rths_plant *p) {
     if (p->normal_next == NORMAL_POOL) {
         rths_rng_normals(&p->rng, p->normal_pool, NORMAL_POOL);
         p->normal_next = 0;
@@ -729,7 +729,7 @@ static double normal_draw(rths_plant *p) {
     return p->normal_pool[p->normal_next++];
 }
 
-static double measure(rths_plant *p, const sensor_channel *ch, double value) {
+static inline double measure(rths_plant *p, const sensor_channel *ch, double value) {
     double r = value;
     if (ch->noisy) {
         r = ch->gain * value + ch->offset + ch->noise_std * normal_draw(p);
