@@ -19,7 +19,7 @@
  * create for every frequency, so a frequency change costs the per-sample loop nothing (no
  * matrix exponential, no allocation, no LAPACK). */
 typedef struct {
-    double *phi; /* nz x nz, row-major */
+    double *phi; /* nz rows of nz_padded, row-major; the padding columns are zero */
     double *g_target_start, *g_target_slope, *g_static;
     double *g_forcing[4];
     /* actuators 1..ni-1 (several interface DoFs): their force targets' start and slope columns,
@@ -64,6 +64,8 @@ struct rths_plant {
     double *z_next;    /* nz */
     double *rk;        /* scratch: Runge-Kutta stages 10 n, forces n */
     int nz;            /* 2n + na */
+    int nz_padded;     /* nz rounded up to a multiple of 4: phi's rows and z, padded with zeros,
+                          are summed four terms per loop pass */
     int na;            /* actuator states: 1 for the shaker's lag, the order of a transfer
                           function (observer canonical form, after q and v in z) */
     int tf;            /* transfer-function actuator: the input is the demand itself */
@@ -229,7 +231,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
     double *aug = rths_mat_new(N, N), *e = rths_mat_new(N, N);
     exact_side *sd = &p->side[compressed];
     sd->g_more = more > 0 ? calloc((size_t)(nz * more), sizeof(double)) : NULL;
-    sd->phi = rths_mat_new(nz, nz);
+    sd->phi = calloc((size_t)nz * (size_t)p->nz_padded, sizeof(double));
     sd->g_target_start = calloc((size_t)nz, sizeof(double));
     sd->g_target_slope = calloc((size_t)nz, sizeof(double));
     sd->g_static = calloc((size_t)nz, sizeof(double));
@@ -275,7 +277,7 @@ static int build_side(rths_plant *p, int compressed, double *kk) {
     if (!rc) {
         for (int j = 0; j < nz; j++)
             for (int i = 0; i < nz; i++)
-                sd->phi[j + i * nz] = e[i + (size_t)j * N]; /* row-major: read by rows */
+                sd->phi[j + i * p->nz_padded] = e[i + (size_t)j * N]; /* read by rows */
         for (int i = 0; i < nz; i++) {
             sd->g_target_start[i] = e[i + (size_t)nz * N];
             sd->g_static[i] = e[i + (size_t)(nz + 1) * N];
@@ -373,7 +375,8 @@ static int plant_alloc(rths_plant *p, int n, int delay) {
     p->c = calloc(nn, sizeof(double));
     p->k = calloc(nn, sizeof(double));
     p->static_force = calloc((size_t)n, sizeof(double));
-    p->z = calloc((size_t)p->nz, sizeof(double));
+    p->nz_padded = (p->nz + 3) / 4 * 4;
+    p->z = calloc((size_t)p->nz_padded, sizeof(double));
     p->z_next = calloc((size_t)p->nz, sizeof(double));
     p->rk = calloc(11 * (size_t)n, sizeof(double)); /* RK4 stages and the force scratch */
     /* one delay line per actuator, delay + 1 long each, sharing the write position */
@@ -864,9 +867,15 @@ static void exact_step(rths_plant *p, int side, double target_start, double targ
             const double *g = sd->g_more + (size_t)(2 * (d - 1)) * nz;
             acc += g[i] * more_start[d] + g[i + nz] * (more_end[d] - more_start[d]);
         }
-        const double *row = sd->phi + (size_t)i * nz;
-        for (int j = 0; j < nz; j++)
-            acc += row[j] * p->z[j];
+        /* four terms a pass over the padded row: the same sum in the same order (the padding
+         * adds zeros), without a loop's overhead per term at the seed's size (nz = 7) */
+        const double *row = sd->phi + (size_t)i * (size_t)p->nz_padded, *z = p->z;
+        for (int j = 0; j < p->nz_padded; j += 4) {
+            acc += row[j] * z[j];
+            acc += row[j + 1] * z[j + 1];
+            acc += row[j + 2] * z[j + 2];
+            acc += row[j + 3] * z[j + 3];
+        }
         p->z_next[i] = acc;
     }
 }
