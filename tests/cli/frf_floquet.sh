@@ -26,7 +26,7 @@ grep -q experimental_floquet "$work/off/summary.json" && fail "floquet summary w
 # 2. on: from 13.8 Hz over the upper fold (14.006 Hz) into the unstable branch
 "$bin" frf "$bil" --out "$work/on" --quiet --set stability.experimental_floquet=true \
     --set continuation.start_hz=13.8 --set continuation.max_points=22 || fail "run with the option"
-head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,stable_experimental,floquet_trustworthy$' \
+head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,floquet_max_abs_se,stable_experimental,floquet_trustworthy$' \
     || fail "frf.csv lacks the floquet columns"
 for k in points_measured points_trustworthy points_agreeing_with_stable_label \
     points_compared_with_truth points_agreeing_with_truth periods_per_point; do
