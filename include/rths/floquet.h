@@ -71,10 +71,14 @@ typedef struct rths_floquet_estimate {
     int n_multipliers;   /* n */
     double multiplier_re[RTHS_FLOQUET_MAX_ORDER], multiplier_im[RTHS_FLOQUET_MAX_ORDER];
     double max_abs; /* largest multiplier modulus (sorted: multiplier 0) */
-    /* its standard error (dimensionless): the standard deviation of the largest modulus over
-     * the bootstrap replicates (NaN without a bootstrap, INFINITY when more than a tenth of the
-     * replicates could not be refitted or closed) */
+    /* its standard error (dimensionless), two parts added in quadrature: the noise's, the
+     * standard deviation of the largest modulus over the bootstrap replicates (NaN without a
+     * bootstrap, INFINITY when more than a tenth of the replicates could not be refitted or
+     * closed), and the finite order's, the change of the largest modulus from order n - 2 to
+     * the chosen n (0 where n - 2 is below the orders tried): a sampled ARX model only
+     * approximates the continuous-time map, and the bootstrap does not see that bias */
     double max_abs_se;
+    double max_abs_se_bootstrap, max_abs_se_order;
     double max_abs_half[2];   /* the same order fitted to the first and the second half of the
                                  periods: they differ by more than 3 times their difference's
                                  standard error, 2 max_abs_se, only when the bootstrap

@@ -279,10 +279,10 @@ static int measure_floquet(frf_state *st, const rths_point *pt) {
                         i ? ", " : "", e.multiplier_re[i], e.multiplier_im[i]);
     static const char *const label[] = {"undetermined", "unstable", "stable"};
     rths_report_log(st->rep,
-                    "point %d: Floquet |mu|max %.5f +- %.2g (standard error): %s; dominant %s "
-                    "(order %d, residual %.3g, condition %.3g%s%s)",
-                    pt->index, e.max_abs, e.max_abs_se, label[e.label + 1], dominant, e.order,
-                    e.relative_residual, e.condition,
+                    "point %d: Floquet |mu|max %.5f +- %.2g (standard error: bootstrap %.2g, "
+                    "order %.2g): %s; dominant %s (order %d, residual %.3g, condition %.3g%s%s)",
+                    pt->index, e.max_abs, e.max_abs_se, e.max_abs_se_bootstrap, e.max_abs_se_order,
+                    label[e.label + 1], dominant, e.order, e.relative_residual, e.condition,
                     e.trustworthy ? "" : "; not trustworthy: ", e.note);
     return RTHS_OK;
 }

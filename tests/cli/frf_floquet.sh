@@ -48,14 +48,14 @@ agree=$(json "$s" points_agreeing_with_truth)
 undetermined=$(json "$s" points_undetermined)
 echo "experimental Floquet label: $agree of $compared determined labels agree with the truth" \
     "(farther than 2 mHz from a fold); $undetermined of $measured undetermined"
-# Every determined label agrees with the shooting truth (measured 4 of 4 on this sweep: the first
-# mode's multiplier, 0.9976, is 1.2 to 3.3 standard errors from 1 before the fold; after it
-# the fits of an orbit crossing the bilinear kink return spurious multipliers with standard
-# errors of 0.2 to 3, all undetermined). A label that ignored its standard error (as before:
-# 10 of 13 before the fold and 7 of 9 after it right) or a standard error too small fails.
-[ "$compared" -ge 2 ] || fail "only $compared determined labels away from the folds"
+# Every determined label agrees with the shooting truth (measured 2 of 2 on this sweep: the first
+# mode's multiplier, 0.9976, lies within 2 to 3 standard errors of 1 before the fold, so most
+# points there are undetermined; after it the fits of an orbit crossing the bilinear kink return
+# spurious multipliers with standard errors of 0.2 to 6, all undetermined). A label that ignored
+# its standard error (15 of 18 right) or a standard error too small fails.
+[ "$compared" -ge 1 ] || fail "no determined label away from the folds"
 [ "$agree" = "$compared" ] || fail "$agree of $compared determined labels agree with the truth"
-# The standard error against the truth's largest modulus: measured 22 of 22 within 3 SE (20
+# The standard error against the truth's largest modulus: measured 22 of 22 within 3 SE (21
 # within 2); at least 90 % within 3 SE.
 se_compared=$(json "$s" points_with_standard_error_compared)
 within3=$(json "$s" points_within_3_standard_errors_of_truth)
@@ -82,7 +82,7 @@ awk -F, 'function median(a, n,   i, j, t) { for (i = 1; i <= n; i++) for (j = i 
                printf "largest |mu|, median: %.4f before the fold (%d points), %.4f after it (%d)\n", ms, n, mu, m
                exit !(n >= 10 && m >= 5 && ms < 1 && mu > 1) }' "$work/on/frf.csv" \
     || fail "the experimental multipliers do not follow the branches"
-grep -q 'Floquet |mu|max [0-9.]* +- [0-9.e+-]* (standard error): \(stable\|unstable\|undetermined\)' \
+grep -q 'Floquet |mu|max [0-9.]* +- [0-9.e+-]* (standard error: bootstrap [0-9.e+-]*, order [0-9.e+-]*): \(stable\|unstable\|undetermined\)' \
     "$work/on/run.log" || fail "run.log lacks the estimates with their standard errors"
 
 # 3. refused before anything is written: a value out of range, a remote rig
