@@ -56,10 +56,15 @@ typedef struct rths_floquet_options {
     uint64_t bootstrap_seed;
     /* the label is determined only when |max_abs - 1| exceeds this many standard errors */
     double determined_se;
+    /* trust limit on the standard error relative to the modulus: beyond it the record does not
+     * resolve the closure, whose replicates then scatter far from normal and "beyond 2 SE" no
+     * longer means 97.7 % */
+    double max_relative_se;
 } rths_floquet_options;
 
 /* min_order 2, max_order 16, phase_harmonics 3, varying_lags 2, max_relative_residual 0.2,
- * max_condition 1e12, bootstrap_replicates 200, bootstrap_seed 1, determined_se 2. */
+ * max_condition 1e12, bootstrap_replicates 200, bootstrap_seed 1, determined_se 2,
+ * max_relative_se 0.05. */
 void rths_floquet_defaults(rths_floquet_options *opt);
 
 typedef struct rths_floquet_estimate {
@@ -91,7 +96,8 @@ typedef struct rths_floquet_estimate {
                          dtrcon) */
     double closure_gain; /* min over phase of |1 - b_0|: the closure's well-posedness */
     int stable;          /* max_abs < 1 (whatever the standard error) */
-    int trustworthy;     /* residual, condition, closure within limits, the neighbouring orders
+    int trustworthy;     /* residual, condition, closure and relative standard error within
+                            limits, the neighbouring orders on the same side of the unit circle
                             and the halves consistent with the standard error */
     int label;           /* RTHS_FLOQUET_STABLE / _UNSTABLE when trustworthy and |max_abs - 1|
                             > determined_se max_abs_se, else RTHS_FLOQUET_UNDETERMINED */
