@@ -19,7 +19,10 @@
  * (a_i + b_i) y_{k-i}, whose companion matrices, multiplied over one period, give the monodromy
  * matrix; its eigenvalues (dgeev) estimate the Floquet multipliers. The grounding control drops out
  * on closure (it acts on y - u), and nothing about the numerical model or the actuator needs to be
- * known. Not for the per-sample path: it allocates and calls LAPACK. */
+ * known. The largest modulus gets a standard error (a bootstrap over whole periods plus the
+ * change from order n - 2), and the stability label is three-way: stable, unstable, or
+ * undetermined where the fit is not trustworthy or the circle lies within 2 standard errors.
+ * Not for the per-sample path: it allocates and calls LAPACK. */
 #ifndef RTHS_FLOQUET_H
 #define RTHS_FLOQUET_H
 
@@ -29,7 +32,7 @@ enum { RTHS_FLOQUET_MAX_ORDER = 40, RTHS_FLOQUET_MAX_PHASE_HARMONICS = 12 };
 
 /* The three-way experimental stability label (rths_floquet_estimate.label; frf.csv's
  * stable_experimental): undetermined when the fit is not trustworthy or the largest modulus lies
- * within determined_se standard errors of 1. */
+ * within determined_se standard errors of 1 at the chosen order or a neighbouring one. */
 enum { RTHS_FLOQUET_UNDETERMINED = -1, RTHS_FLOQUET_UNSTABLE = 0, RTHS_FLOQUET_STABLE = 1 };
 
 typedef struct rths_floquet_options {
