@@ -486,7 +486,8 @@ static void judge(const rths_floquet_options *o, rths_floquet_estimate *e) {
     if (!e->trustworthy || !isfinite(se)) return;
     /* beyond determined_se standard errors of the circle at the chosen order and at both
      * neighbouring ones: a spurious multiplier that only one order fits (it did on the bilinear
-     * demo, 1.12 +- 0.05 at order 24 where order 22 found the true 0.998) leaves it undetermined */
+     * demo, 1.12, bootstrap SE 0.05, at order 24 where order 22 found the true 0.998) leaves it
+     * undetermined */
     const double margin = o->determined_se * se;
     int side = e->max_abs < 1 - margin ? 1 : e->max_abs > 1 + margin ? 0 : -1;
     for (int k = 0; k < 2 && side >= 0; k++) {
