@@ -19,13 +19,21 @@
  * (a_i + b_i) y_{k-i}, whose companion matrices, multiplied over one period, give the monodromy
  * matrix; its eigenvalues (dgeev) estimate the Floquet multipliers. The grounding control drops out
  * on closure (it acts on y - u), and nothing about the numerical model or the actuator needs to be
- * known. Not for the per-sample path: it allocates and calls LAPACK. */
+ * known. The largest modulus gets a standard error (a bootstrap over whole periods plus the
+ * change from order n - 2), and the stability label is three-way: stable, unstable, or
+ * undetermined where the fit is not trustworthy or the circle lies within 2 standard errors.
+ * Not for the per-sample path: it allocates and calls LAPACK. */
 #ifndef RTHS_FLOQUET_H
 #define RTHS_FLOQUET_H
 
 #include "rths/core.h"
 
 enum { RTHS_FLOQUET_MAX_ORDER = 40, RTHS_FLOQUET_MAX_PHASE_HARMONICS = 12 };
+
+/* The three-way experimental stability label (rths_floquet_estimate.label; frf.csv's
+ * stable_experimental): undetermined when the fit is not trustworthy or the largest modulus lies
+ * within determined_se standard errors of 1 at the chosen order or a neighbouring one. */
+enum { RTHS_FLOQUET_UNDETERMINED = -1, RTHS_FLOQUET_UNSTABLE = 0, RTHS_FLOQUET_STABLE = 1 };
 
 typedef struct rths_floquet_options {
     int min_order, max_order; /* ARX orders n tried (1..RTHS_FLOQUET_MAX_ORDER); BIC picks one */
@@ -43,10 +51,23 @@ typedef struct rths_floquet_options {
      * number of the column-scaled regression matrix */
     double max_relative_residual;
     double max_condition;
+    /* the standard error of the largest modulus: a bootstrap over whole periods (the regression
+     * rows of periods drawn with replacement, refitted at the chosen order) with this many
+     * replicates (0: no standard error, the label stays undetermined), seeded by
+     * bootstrap_seed so an estimate repeats bit for bit */
+    int bootstrap_replicates;
+    uint64_t bootstrap_seed;
+    /* the label is determined only when |max_abs - 1| exceeds this many standard errors */
+    double determined_se;
+    /* trust limit on the standard error relative to the modulus: beyond it the record does not
+     * resolve the closure, whose replicates then scatter far from normal and "beyond 2 SE" no
+     * longer means 97.7 % */
+    double max_relative_se;
 } rths_floquet_options;
 
 /* min_order 2, max_order 16, phase_harmonics 3, varying_lags 2, max_relative_residual 0.2,
- * max_condition 1e12. */
+ * max_condition 1e12, bootstrap_replicates 200, bootstrap_seed 1, determined_se 2,
+ * max_relative_se 0.05. */
 void rths_floquet_defaults(rths_floquet_options *opt);
 
 typedef struct rths_floquet_estimate {
@@ -57,19 +78,32 @@ typedef struct rths_floquet_estimate {
     int rows;            /* regression rows (grid samples with a full history) */
     int n_multipliers;   /* n */
     double multiplier_re[RTHS_FLOQUET_MAX_ORDER], multiplier_im[RTHS_FLOQUET_MAX_ORDER];
-    double max_abs;           /* largest multiplier modulus (sorted: multiplier 0) */
+    double max_abs; /* largest multiplier modulus (sorted: multiplier 0) */
+    /* its standard error (dimensionless), two parts added in quadrature: the noise's, the
+     * standard deviation of the largest modulus over the bootstrap replicates (NaN without a
+     * bootstrap, INFINITY when more than a tenth of the replicates could not be refitted or
+     * closed), and the finite order's, the change of the largest modulus from order n - 2 to
+     * the chosen n (0 where n - 2 is below the orders tried): a sampled ARX model only
+     * approximates the continuous-time map, and the bootstrap does not see that bias */
+    double max_abs_se;
+    double max_abs_se_bootstrap, max_abs_se_order;
     double max_abs_half[2];   /* the same order fitted to the first and the second half of the
-                                 periods: their spread is a look at the estimate's variance */
+                                 periods: they differ by more than 3 times their difference's
+                                 standard error, 2 max_abs_se, only when the bootstrap
+                                 understates the scatter (a record that drifts) */
     double max_abs_order[2];  /* the same record fitted at orders n - 2 and n + 2 (NaN where
                                  outside the orders tried) */
-    int orders_agree;         /* both give the label of order n */
+    int orders_agree;         /* both within 3 max_abs_se of order n's largest modulus */
     double relative_residual; /* RMS one-step residual / RMS of y */
     double condition; /* of the column-scaled regression matrix (1-norm estimate of its QR factor,
                          dtrcon) */
     double closure_gain; /* min over phase of |1 - b_0|: the closure's well-posedness */
-    int stable;          /* max_abs < 1 */
-    int trustworthy;     /* residual, condition, closure within limits and both halves give
-                            the same label as the whole record */
+    int stable;          /* max_abs < 1 (whatever the standard error) */
+    int trustworthy;     /* residual, condition, closure and relative standard error within
+                            limits, the neighbouring orders on the same side of the unit circle
+                            and the halves consistent with the standard error */
+    int label;           /* RTHS_FLOQUET_STABLE / _UNSTABLE when trustworthy and |max_abs - 1|
+                            > determined_se max_abs_se, else RTHS_FLOQUET_UNDETERMINED */
     char note[200];      /* why not trustworthy ("" when it is) */
 } rths_floquet_estimate;
 

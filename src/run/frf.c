@@ -271,15 +271,18 @@ static int measure_floquet(frf_state *st, const rths_point *pt) {
         st->point_err = err;
         return RTHS_EFAIL;
     }
-    st->floquet_pts[pt->index] = (frf_floquet_point){1, e.max_abs, e.stable, e.trustworthy};
+    st->floquet_pts[pt->index] =
+        (frf_floquet_point){1, e.max_abs, e.max_abs_se, e.label, e.trustworthy};
     char dominant[160] = "";
     for (int i = 0, len = 0; i < e.n_multipliers && i < 4 && len < (int)sizeof dominant; i++)
         len += snprintf(dominant + len, sizeof dominant - (size_t)len, "%s%.4f%+.4fi",
                         i ? ", " : "", e.multiplier_re[i], e.multiplier_im[i]);
+    static const char *const label[] = {"undetermined", "unstable", "stable"};
     rths_report_log(st->rep,
-                    "point %d: Floquet |mu|max %.5f, dominant %s (order %d, residual %.3g, "
-                    "condition %.3g%s%s)",
-                    pt->index, e.max_abs, dominant, e.order, e.relative_residual, e.condition,
+                    "point %d: Floquet |mu|max %.5f +- %.2g (standard error: bootstrap %.2g, "
+                    "order %.2g): %s; dominant %s (order %d, residual %.3g, condition %.3g%s%s)",
+                    pt->index, e.max_abs, e.max_abs_se, e.max_abs_se_bootstrap, e.max_abs_se_order,
+                    label[e.label + 1], dominant, e.order, e.relative_residual, e.condition,
                     e.trustworthy ? "" : "; not trustworthy: ", e.note);
     return RTHS_OK;
 }
@@ -429,6 +432,7 @@ static void release(frf_state *st) {
     rths_truth_free(&st->truth);
     free(st->pts);
     free(st->floquet_pts);
+    frf_floquet_truth_free(&st->floquet_truth);
     free(st->resume_pts);
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
@@ -447,6 +451,8 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     int rc = read_options(&st, err);
     if (!rc) rc = create_rig(&st, err);
     if (!rc) rc = frf_plan_within_limits(&st, err);
+    if (!rc && st.floquet.enabled) /* to judge the experimental multipliers in summary.json */
+        rc = frf_floquet_truth_compute(st.setup, &st.truth, &st.floquet_truth, err);
     if (!rc) rc = lock_folder(&st, 0, err);
     if (!rc) rc = check_journal(&st, err);
     if (!rc) rc = lock_folder(&st, 1, err);

@@ -10,9 +10,19 @@
 /* The experimental Floquet estimate of one point (stability.experimental_floquet). */
 typedef struct frf_floquet_point {
     int measured; /* 0: not measured (option off, a resumed point, or the estimate failed) */
-    double max_abs;
-    int stable, trustworthy;
+    double max_abs, max_abs_se;
+    int label; /* RTHS_FLOQUET_STABLE, _UNSTABLE or _UNDETERMINED (floquet.h) */
+    int trustworthy;
 } frf_floquet_point;
+
+/* The true assembly's largest Floquet multiplier modulus, to judge the experimental estimate:
+ * with a bilinear leg the shooting solution's along its curve (as truth.csv's), else
+ * e^{sigma T} of the least damped eigenvalue's real part sigma. */
+typedef struct frf_floquet_truth {
+    int n;
+    double *freq_hz, *amp_m, *max_abs; /* the shooting curve (n 0: linear) */
+    double decay_rate_per_s;           /* linear: sigma, 1/s (negative when stable) */
+} frf_floquet_truth;
 
 typedef struct frf_state {
     const rths_run_frf_options *opt;
@@ -49,8 +59,9 @@ typedef struct frf_state {
     const char *seed_text; /* --seed as text (recorded in the journal), NULL when not given */
     double wall_time_s, trace_rig_time_s, max_truth_error;
     rths_floquet_measure_options floquet; /* stability.experimental_floquet and its keys */
-    frf_floquet_point *floquet_pts; /* by point index, cap entries (the option on; else NULL) */
-    double floquet_rig_time_s;      /* rig time spent on the perturbed records */
+    frf_floquet_point *floquet_pts;  /* by point index, cap entries (the option on; else NULL) */
+    double floquet_rig_time_s;       /* rig time spent on the perturbed records */
+    frf_floquet_truth floquet_truth; /* computed when the option is on */
 } frf_state;
 
 enum { FRF_MAX_CHANGES = 8 };
@@ -69,6 +80,14 @@ int frf_plan_within_limits(frf_state *st, rths_error *err);
 /* resume_check.c: refuses a resumed configuration that changes more than end_hz, max_points or
  * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */
 int frf_check_resume_config(frf_state *st, rths_error *err);
+
+/* frf_floquet.c: the truth's largest multiplier modulus over the run's truth curve's range, and
+ * at a point (f_hz, amp_m) on its branch (the piece of the curve spanning f_hz nearest in log
+ * amplitude, interpolated linearly; NaN when none spans f_hz). */
+int frf_floquet_truth_compute(const rths_setup *s, const rths_truth_curve *range,
+                              frf_floquet_truth *t, rths_error *err);
+double frf_floquet_truth_at(const frf_floquet_truth *t, double f_hz, double amp_m);
+void frf_floquet_truth_free(frf_floquet_truth *t);
 
 /* frf_outputs.c */
 double frf_harmonic_error(const rths_point *pt, int k);

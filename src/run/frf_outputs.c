@@ -131,18 +131,24 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
 
 /* Columns that options add after the fixed ones (each block only when its option is on, so a
  * run without it writes frf.csv as before, byte for byte). */
-static const char *const floquet_columns[] = {"floquet_max_abs_experimental", "stable_experimental",
-                                              "floquet_trustworthy"};
-enum { FRF_FLOQUET_COLUMNS = 3, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
+static const char *const floquet_columns[] = {"floquet_max_abs_experimental", "floquet_max_abs_se",
+                                              "stable_experimental", "floquet_trustworthy"};
+enum { FRF_FLOQUET_COLUMNS = 4, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
 
-/* The experimental Floquet columns of point i: NaN where it was not measured. */
+/* The experimental Floquet estimate of point i, NULL where it was not measured. */
+static const frf_floquet_point *floquet_point(const frf_state *run, int i) {
+    return run->floquet_pts && i < run->cap && run->floquet_pts[i].measured ? &run->floquet_pts[i]
+                                                                            : NULL;
+}
+
+/* The experimental Floquet columns of point i: NaN where it was not measured; the label 1
+ * stable, 0 unstable, -1 undetermined (floquet.h). */
 static void floquet_row(const frf_state *run, int i, double *out) {
-    const frf_floquet_point *f = run->floquet_pts && i < run->cap && run->floquet_pts[i].measured
-                                     ? &run->floquet_pts[i]
-                                     : NULL;
+    const frf_floquet_point *f = floquet_point(run, i);
     out[0] = f ? f->max_abs : NAN;
-    out[1] = f ? f->stable : NAN;
-    out[2] = f ? f->trustworthy : NAN;
+    out[1] = f ? f->max_abs_se : NAN;
+    out[2] = f ? f->label : NAN;
+    out[3] = f ? f->trustworthy : NAN;
 }
 
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
@@ -427,10 +433,13 @@ typedef struct {
     int far, far_within_3se;
     /* points farther than STABLE_FOLD_HZ from a fold: labelled, and agreeing with the truth */
     int stable_compared, stable_agree;
-    /* the experimental Floquet labels: measured, trustworthy, agreeing with the fold-based label,
-     * and, farther than STABLE_FOLD_HZ from a fold, compared with and agreeing with the truth */
-    int floquet_measured, floquet_trustworthy, floquet_agree_label, floquet_compared,
-        floquet_agree_truth;
+    /* the experimental Floquet labels: measured, trustworthy, labelled stable / unstable /
+     * undetermined, determined and agreeing with the fold-based label; farther than
+     * STABLE_FOLD_HZ from a fold, determined and compared with the truth, agreeing with it, and
+     * undetermined; the largest modulus within 1/2/3 standard errors of the truth's */
+    int floquet_measured, floquet_trustworthy, floquet_labels[3], floquet_agree_label,
+        floquet_compared, floquet_agree_truth, floquet_undetermined_far, floquet_se_compared,
+        floquet_within_se[4];
     double
         max_z_honest; /* largest |A - truth| / SE of a point whose SE is honest, far from folds */
     double rig_time, max_h[4], median;
@@ -444,6 +453,29 @@ typedef struct {
  * separately (5 mHz, a few times the hybrid test's fold location error), and the stability label
  * is compared from 2 mHz on (the fold's location error). */
 static const double FAR_FROM_FOLD_HZ = 5e-3, STABLE_FOLD_HZ = 2e-3;
+
+/* The experimental Floquet estimate of a point against the truth: its determined label against
+ * the truth's stability (stable) away from folds, its largest modulus against the truth's. */
+static void floquet_with_truth(const frf_state *run, const rths_point *pt, int stable,
+                               double fold_hz, point_stats *ps) {
+    const frf_floquet_point *f = floquet_point(run, pt->index);
+    if (!f) return;
+    double truth =
+        frf_floquet_truth_at(&run->floquet_truth, pt->sol.frequency_hz, pt->sol.amplitude_m);
+    if (isfinite(truth) && isfinite(f->max_abs_se)) {
+        double z = fabs(f->max_abs - truth) / f->max_abs_se;
+        ps->floquet_se_compared++;
+        for (int k = 1; k <= 3; k++)
+            ps->floquet_within_se[k] += z <= k;
+    }
+    if (!(fold_hz > STABLE_FOLD_HZ)) return;
+    if (f->label == RTHS_FLOQUET_UNDETERMINED) {
+        ps->floquet_undetermined_far++;
+        return;
+    }
+    ps->floquet_compared++;
+    ps->floquet_agree_truth += f->label == stable;
+}
 
 /* One point against the truth at its frequency on its branch: how many standard errors off
  * (counted in ps->within_se[1..3]) and whether its stability label agrees. linear_truth: the
@@ -470,23 +502,18 @@ static void compare_with_truth(const frf_state *run, const rths_point *pt, doubl
         ps->stable_compared++;
         ps->stable_agree += rths_point_stable(pt) == stable;
     }
-    double fq[FRF_FLOQUET_COLUMNS];
-    if (!run->floquet.enabled) return;
-    floquet_row(run, pt->index, fq);
-    if (isnan(fq[0]) || !(fold_hz > STABLE_FOLD_HZ)) return;
-    ps->floquet_compared++;
-    ps->floquet_agree_truth += (int)fq[1] == stable;
+    if (run->floquet.enabled) floquet_with_truth(run, pt, stable, fold_hz, ps);
 }
 
 /* The experimental Floquet counts that need no truth. */
 static void floquet_statistics(const frf_state *run, point_stats *ps) {
     for (int i = 0; i < run->n && run->floquet.enabled; i++) {
-        double fq[FRF_FLOQUET_COLUMNS];
-        floquet_row(run, i, fq);
-        if (isnan(fq[0])) continue;
+        const frf_floquet_point *f = floquet_point(run, i);
+        if (!f) continue;
         ps->floquet_measured++;
-        ps->floquet_trustworthy += fq[2] == 1;
-        ps->floquet_agree_label += (int)fq[1] == rths_point_stable(&run->pts[i]);
+        ps->floquet_trustworthy += f->trustworthy;
+        ps->floquet_labels[f->label + 1]++;
+        ps->floquet_agree_label += f->label == rths_point_stable(&run->pts[i]);
     }
 }
 
@@ -497,14 +524,32 @@ static json_object *floquet_json(const frf_state *run, const point_stats *ps) {
     json_object_object_add(o, "perturbation_v", json_object_new_double(f->perturbation_v));
     json_object_object_add(o, "cutoff_hz", json_object_new_double(f->cutoff_hz));
     json_object_object_add(o, "samples_per_period", json_object_new_int(f->samples_per_period));
+    json_object_object_add(o, "bootstrap_replicates",
+                           json_object_new_int(f->fit.bootstrap_replicates));
+    json_object_object_add(o, "determined_beyond_standard_errors",
+                           json_object_new_double(f->fit.determined_se));
     json_object_object_add(o, "points_measured", json_object_new_int(ps->floquet_measured));
     json_object_object_add(o, "points_trustworthy", json_object_new_int(ps->floquet_trustworthy));
+    json_object_object_add(o, "points_labelled_stable", json_object_new_int(ps->floquet_labels[2]));
+    json_object_object_add(o, "points_labelled_unstable",
+                           json_object_new_int(ps->floquet_labels[1]));
+    json_object_object_add(o, "points_undetermined", json_object_new_int(ps->floquet_labels[0]));
     json_object_object_add(o, "points_agreeing_with_stable_label",
                            json_object_new_int(ps->floquet_agree_label));
+    /* farther than STABLE_FOLD_HZ from a fold of the truth: the determined labels compared */
     json_object_object_add(o, "points_compared_with_truth",
                            json_object_new_int(ps->floquet_compared));
     json_object_object_add(o, "points_agreeing_with_truth",
                            json_object_new_int(ps->floquet_agree_truth));
+    json_object_object_add(o, "points_undetermined_away_from_folds",
+                           json_object_new_int(ps->floquet_undetermined_far));
+    json_object_object_add(o, "points_with_standard_error_compared",
+                           json_object_new_int(ps->floquet_se_compared));
+    static const char *const within[] = {NULL, "points_within_1_standard_error_of_truth",
+                                         "points_within_2_standard_errors_of_truth",
+                                         "points_within_3_standard_errors_of_truth"};
+    for (int k = 1; k <= 3; k++)
+        json_object_object_add(o, within[k], json_object_new_int(ps->floquet_within_se[k]));
     json_object_object_add(o, "rig_time_s", json_object_new_double(run->floquet_rig_time_s));
     return o;
 }

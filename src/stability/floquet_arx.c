@@ -16,6 +16,10 @@ void rths_floquet_defaults(rths_floquet_options *opt) {
     opt->phase_bins = 0;
     opt->max_relative_residual = 0.2;
     opt->max_condition = 1e12;
+    opt->bootstrap_replicates = 200;
+    opt->bootstrap_seed = 1;
+    opt->determined_se = 2.0;
+    opt->max_relative_se = 0.05;
 }
 
 int rths_floquet_phase_grid(const double *phase_rad, const double *u, const double *y, long n,
@@ -148,11 +152,13 @@ typedef struct {
     double *a;   /* rows x np: R in its upper triangle after dgeqrf */
     double *qtb; /* Q^T y (rows) */
     double *scale;
+    double *tau; /* the Householder reflectors' factors (the bootstrap forms Q from them) */
     double y_square;
+    long k0; /* grid sample of the first row */
 } arx_qr;
 
 static void qr_free(arx_qr *q) {
-    free(q->a), free(q->qtb), free(q->scale);
+    free(q->a), free(q->qtb), free(q->scale), free(q->tau);
 }
 
 static int qr_build(const arx_model *m, int p0, int p1, arx_qr *q, rths_error *err) {
@@ -161,6 +167,7 @@ static int qr_build(const arx_model *m, int p0, int p1, arx_qr *q, rths_error *e
     long k0 = (long)p0 * m->p + m->n, k1 = (long)p1 * m->p, rows = k1 - k0;
     q->rows = rows;
     q->np = np;
+    q->k0 = k0;
     if (rows < 2L * np)
         return rths_error_set(err, RTHS_EINPUT,
                               "%ld samples for %d ARX parameters: record more periods", rows, np);
@@ -168,6 +175,7 @@ static int qr_build(const arx_model *m, int p0, int p1, arx_qr *q, rths_error *e
     q->qtb = malloc((size_t)rows * sizeof *q->qtb);
     q->scale = calloc((size_t)np, sizeof *q->scale);
     double *row = malloc((size_t)np * sizeof *row), *tau = malloc((size_t)np * sizeof *tau);
+    q->tau = tau;
     int rc = RTHS_OK;
     if (!q->a || !q->qtb || !q->scale || !row || !tau) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -192,7 +200,7 @@ static int qr_build(const arx_model *m, int p0, int p1, arx_qr *q, rths_error *e
                        tau, q->qtb, (lapack_int)rows))
         rc = rths_error_set(err, RTHS_EFAIL, "LAPACK QR failed on the ARX regression");
 done:
-    free(row), free(tau);
+    free(row);
     return rc;
 }
 
@@ -279,6 +287,119 @@ static int close_and_multiply(const arx_model *m, const double *theta, double *m
     return RTHS_OK;
 }
 
+/* ---- the bootstrap over whole periods (rths_floquet_estimate.max_abs_se) ----
+ * With the chosen model's column-scaled regression X = Q R, the fit to the rows weighted by w_i
+ * is R theta = (sum_i w_i Q_i^T Q_i)^{-1} sum_i w_i Q_i^T y_i. The sums over each block of rows,
+ * formed once, make a replicate one small Cholesky solve whose matrix is near the identity, not
+ * the regression's condition squared as the normal equations would be. A block is one period, or
+ * several consecutive ones when there are more than BOOTSTRAP_MAX_BLOCKS (the sums' memory). */
+enum { BOOTSTRAP_MAX_BLOCKS = 240 };
+
+typedef struct {
+    int np, blocks;
+    double *gram; /* blocks x np x np (lower triangle): sum over the block's rows of Q_i^T Q_i */
+    double *qty;  /* blocks x np: sum of Q_i^T y_i */
+} block_sums;
+
+static void block_sums_free(block_sums *b) {
+    free(b->gram), free(b->qty);
+}
+
+static int block_sums_build(const arx_model *m, const arx_qr *q, int np, int periods,
+                            block_sums *b) {
+    const long rows = q->rows;
+    b->np = np;
+    b->blocks = periods < BOOTSTRAP_MAX_BLOCKS ? periods : BOOTSTRAP_MAX_BLOCKS;
+    const int per_block = (periods + b->blocks - 1) / b->blocks;
+    b->blocks = (periods + per_block - 1) / per_block;
+    b->gram = calloc((size_t)b->blocks * np * np, sizeof *b->gram);
+    b->qty = calloc((size_t)b->blocks * np, sizeof *b->qty);
+    double *qm = malloc((size_t)rows * np * sizeof *qm);
+    int rc = b->gram && b->qty && qm ? RTHS_OK : RTHS_EFAIL;
+    if (!rc) { /* Q's first np columns: the first np reflectors (the models are nested) */
+        memcpy(qm, q->a, (size_t)rows * np * sizeof *qm);
+        if (LAPACKE_dorgqr(LAPACK_COL_MAJOR, (lapack_int)rows, np, np, qm, (lapack_int)rows,
+                           q->tau))
+            rc = RTHS_EFAIL;
+    }
+    for (long i = 0; i < rows && !rc; i++) {
+        int blk = (int)((q->k0 + i) / m->p) / per_block;
+        double *g = b->gram + (size_t)blk * np * np, *h = b->qty + (size_t)blk * np;
+        for (int c = 0; c < np; c++) {
+            double qc = qm[i + c * rows];
+            h[c] += qc * m->y[q->k0 + i];
+            for (int r = c; r < np; r++)
+                g[r + c * np] += qm[i + r * rows] * qc;
+        }
+    }
+    free(qm);
+    return rc;
+}
+
+/* The largest modulus of the model refitted with block j's rows counted count[j] times; NaN when
+ * the weighted fit or its closure fails. work: np (np + 2) doubles. */
+static double replicate_max_abs(const arx_model *m, const arx_qr *q, const block_sums *b,
+                                const int *count, double *work) {
+    const int np = b->np;
+    double *g = work, *theta = work + np * np, mult[2 * RTHS_FLOQUET_MAX_ORDER], gain;
+    memset(g, 0, sizeof(double) * (size_t)(np * np + np));
+    for (int j = 0; j < b->blocks; j++) {
+        if (!count[j]) continue;
+        const double *gj = b->gram + (size_t)j * np * np, *hj = b->qty + (size_t)j * np;
+        for (int c = 0; c < np; c++) {
+            theta[c] += count[j] * hj[c];
+            for (int r = c; r < np; r++)
+                g[r + c * np] += count[j] * gj[r + c * np];
+        }
+    }
+    rths_error e;
+    if (LAPACKE_dposv(LAPACK_COL_MAJOR, 'L', np, 1, g, np, theta, np) ||
+        LAPACKE_dtrtrs(LAPACK_COL_MAJOR, 'U', 'N', 'N', np, 1, q->a, (lapack_int)q->rows, theta,
+                       np))
+        return NAN;
+    for (int c = 0; c < np; c++)
+        theta[c] /= q->scale[c];
+    if (close_and_multiply(m, theta, mult, &gain, &e)) return NAN;
+    return hypot(mult[0], mult[1]);
+}
+
+/* est->max_abs_se_bootstrap from opt->bootstrap_replicates replicates at the chosen order
+ * (m->n). */
+static int bootstrap_se(const arx_model *m, const arx_qr *q, int periods,
+                        const rths_floquet_options *opt, rths_floquet_estimate *est,
+                        rths_error *err) {
+    est->max_abs_se_bootstrap = NAN;
+    if (opt->bootstrap_replicates < 2) return RTHS_OK;
+    const int np = parameter_count(m);
+    block_sums b = {0};
+    int rc = block_sums_build(m, q, np, periods, &b);
+    int *count = malloc((size_t)b.blocks * sizeof *count);
+    double *work = malloc((size_t)np * (np + 2) * sizeof *work);
+    if (rc || !count || !work)
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "the bootstrap of the ARX fit failed (out of memory or LAPACK dorgqr)");
+    rths_rng rng;
+    rths_rng_seed(&rng, opt->bootstrap_seed);
+    double mean = 0, m2 = 0; /* Welford's running mean and sum of squared deviations */
+    int valid = 0;
+    for (int r = 0; r < opt->bootstrap_replicates && !rc; r++) {
+        memset(count, 0, (size_t)b.blocks * sizeof *count);
+        for (int j = 0; j < b.blocks; j++)
+            count[(int)(rths_rng_uniform(&rng) * b.blocks)]++;
+        double v = replicate_max_abs(m, q, &b, count, work);
+        if (!isfinite(v)) continue;
+        double d = v - mean;
+        mean += d / ++valid;
+        m2 += d * (v - mean);
+    }
+    if (!rc)
+        est->max_abs_se_bootstrap =
+            10 * valid >= 9 * opt->bootstrap_replicates ? sqrt(m2 / (valid - 1)) : INFINITY;
+    block_sums_free(&b);
+    free(count), free(work);
+    return rc;
+}
+
 static int check_options(const rths_floquet_options *o, int p, int periods, rths_error *err) {
     if (o->min_order < 1 || o->max_order < o->min_order || o->max_order > RTHS_FLOQUET_MAX_ORDER)
         return rths_error_set(err, RTHS_EINPUT, "ARX orders %d..%d: expected 1 <= min <= max <= %d",
@@ -295,6 +416,11 @@ static int check_options(const rths_floquet_options *o, int p, int periods, rths
     if (o->varying_lags < 0 || o->varying_lags > o->max_order)
         return rths_error_set(err, RTHS_EINPUT, "%d varying lags: expected 0..%d (the order)",
                               o->varying_lags, o->max_order);
+    if (o->bootstrap_replicates < 0 || !(o->determined_se > 0) || !(o->max_relative_se > 0))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%d bootstrap replicates, labels determined beyond %g standard "
+                              "errors, relative standard error up to %g: expected >= 0, > 0, > 0",
+                              o->bootstrap_replicates, o->determined_se, o->max_relative_se);
     if (periods < 2) return rths_error_set(err, RTHS_EINPUT, "%d period(s): at least 2", periods);
     return RTHS_OK;
 }
@@ -311,9 +437,20 @@ static double max_abs_of(const arx_model *m, int p0, int p1, double *theta) {
     return result;
 }
 
-/* The trust verdict: limits, then the halves' labels against the whole record's. */
+/* The two halves' largest moduli are consistent when they differ by at most 3 standard errors
+ * of their difference (se_difference); without a standard error, when they give the same label. */
+static int consistent(double a, double b, double se_difference) {
+    if (isnan(se_difference)) return (a < 1) == (b < 1);
+    return fabs(a - b) <= 3 * se_difference;
+}
+
+/* The trust verdict: limits, then the neighbouring orders and the halves against the whole
+ * record's estimate and its standard error; then the three-way label. */
 static void judge(const rths_floquet_options *o, rths_floquet_estimate *e) {
     e->trustworthy = 0;
+    /* two independent halves each have about twice the variance of the whole record: their
+     * difference's standard error is 2 max_abs_se */
+    const double se = e->max_abs_se, halves_se = 2 * se;
     if (!(e->relative_residual <= o->max_relative_residual))
         snprintf(e->note, sizeof e->note, "one-step residual %.3g of the output above %.3g",
                  e->relative_residual, o->max_relative_residual);
@@ -322,20 +459,44 @@ static void judge(const rths_floquet_options *o, rths_floquet_estimate *e) {
                  o->max_condition);
     else if (!(e->closure_gain > 0.05))
         snprintf(e->note, sizeof e->note, "closure ill-posed (|1 - b0| = %.3g)", e->closure_gain);
+    else if (!isnan(se) && !(se <= o->max_relative_se * e->max_abs))
+        /* on the bilinear demo the spurious fits of orbits crossing the kink (largest moduli
+         * 1.6 to 3.6 where the truth's is 0.997) had 15 to 30 %; the correct ones below 1 % */
+        snprintf(e->note, sizeof e->note,
+                 "standard error %.2g above %.2g of the largest modulus %.4f: the record does not "
+                 "resolve the closure",
+                 se, o->max_relative_se, e->max_abs);
     else if (!e->orders_agree)
         snprintf(e->note, sizeof e->note,
                  "the neighbouring orders disagree (largest |mu| %.4f and %.4f at orders %d and "
-                 "%d)",
-                 e->max_abs_order[0], e->max_abs_order[1], e->order - 2, e->order + 2);
+                 "%d, against %.4f +- %.2g)",
+                 e->max_abs_order[0], e->max_abs_order[1], e->order - 2, e->order + 2, e->max_abs,
+                 se);
     else if (!isfinite(e->max_abs_half[0]) || !isfinite(e->max_abs_half[1]))
         snprintf(e->note, sizeof e->note, "a half of the record is too short to fit");
-    else if ((e->max_abs_half[0] < 1) != e->stable || (e->max_abs_half[1] < 1) != e->stable)
+    else if (!consistent(e->max_abs_half[0], e->max_abs_half[1], halves_se) ||
+             (isnan(se) && (e->max_abs_half[0] < 1) != e->stable))
         snprintf(e->note, sizeof e->note, "the halves disagree (largest |mu| %.4f and %.4f)",
                  e->max_abs_half[0], e->max_abs_half[1]);
     else {
         e->trustworthy = 1;
         e->note[0] = 0;
     }
+    e->label = RTHS_FLOQUET_UNDETERMINED;
+    if (!e->trustworthy || !isfinite(se)) return;
+    /* beyond determined_se standard errors of the circle at the chosen order and at both
+     * neighbouring ones: a spurious multiplier that only one order fits (it did on the bilinear
+     * demo, 1.12, bootstrap SE 0.05, at order 24 where order 22 found the true 0.998) leaves it
+     * undetermined */
+    const double margin = o->determined_se * se;
+    int side = e->max_abs < 1 - margin ? 1 : e->max_abs > 1 + margin ? 0 : -1;
+    for (int k = 0; k < 2 && side >= 0; k++) {
+        double v = e->max_abs_order[k];
+        if (isfinite(v) && !(side ? v < 1 - margin : v > 1 + margin)) side = -1;
+    }
+    e->label = side < 0 ? RTHS_FLOQUET_UNDETERMINED
+               : side   ? RTHS_FLOQUET_STABLE
+                        : RTHS_FLOQUET_UNSTABLE;
 }
 
 /* The phase basis at each of the p grid phases: 1, cos q phi, sin q phi, or bin indicators. */
@@ -450,8 +611,15 @@ int rths_floquet_estimate_series(const double *u, const double *y, int samples_p
                             "the ARX regression is singular at every order: the record carries "
                             "no perturbation");
     if (!rc) rc = describe(&m, &q, best, est, err);
+    if (!rc) rc = bootstrap_se(&m, &q, periods, opt, est, err);
     if (!rc) {
         neighbour_orders(m, &q, opt->min_order, max_order, theta, est);
+        /* the finite order's part: measured on the demo's runs, the bootstrap alone covered the
+         * shooting truth at 0.51 / 0.81 / 0.95 (linear example) within 1 / 2 / 3 SE, both parts
+         * at 0.79 / 0.98 / 1.00 */
+        est->max_abs_se_order =
+            isfinite(est->max_abs_order[0]) ? fabs(est->max_abs_order[0] - est->max_abs) : 0;
+        est->max_abs_se = hypot(est->max_abs_se_bootstrap, est->max_abs_se_order);
         est->max_abs_half[0] = max_abs_of(&m, 0, periods / 2, theta);
         est->max_abs_half[1] = max_abs_of(&m, periods / 2, periods, theta);
         judge(opt, est);

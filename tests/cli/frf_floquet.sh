@@ -2,8 +2,9 @@
 # rths frf with the experimental Floquet estimate (docs/method.md, "Experimental Floquet
 # multipliers") on the virtual rig: off by default (frf.csv unchanged byte for byte by the key
 # set to false); on, a short bilinear sweep from the lower stable branch over the upper fold into
-# the unstable branch gets the three columns and the summary's counts, and its experimental
-# label follows the branches' stability; bad values and a remote rig are
+# the unstable branch gets the four columns and the summary's counts, its determined labels
+# agree with the shooting truth, its standard errors cover the truth's largest modulus and the
+# spurious fits on the unstable branch are left undetermined; bad values and a remote rig are
 # refused before anything is written.
 set -u
 bin=$1
@@ -26,25 +27,52 @@ grep -q experimental_floquet "$work/off/summary.json" && fail "floquet summary w
 # 2. on: from 13.8 Hz over the upper fold (14.006 Hz) into the unstable branch
 "$bin" frf "$bil" --out "$work/on" --quiet --set stability.experimental_floquet=true \
     --set continuation.start_hz=13.8 --set continuation.max_points=22 || fail "run with the option"
-head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,stable_experimental,floquet_trustworthy$' \
+head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,floquet_max_abs_se,stable_experimental,floquet_trustworthy$' \
     || fail "frf.csv lacks the floquet columns"
-for k in points_measured points_trustworthy points_agreeing_with_stable_label \
-    points_compared_with_truth points_agreeing_with_truth periods_per_point; do
-    [ -n "$(json "$work/on/summary.json" $k)" ] || fail "summary.json lacks $k"
+# the experimental_floquet block alone (summary.json has keys of the same names above it)
+sed -n '/"experimental_floquet"/,/}/p' "$work/on/summary.json" > "$work/floquet.json"
+s="$work/floquet.json"
+for k in points_measured points_trustworthy points_labelled_stable points_labelled_unstable \
+    points_undetermined points_agreeing_with_stable_label points_compared_with_truth \
+    points_agreeing_with_truth points_undetermined_away_from_folds \
+    points_with_standard_error_compared points_within_3_standard_errors_of_truth \
+    bootstrap_replicates periods_per_point; do
+    [ -n "$(json "$s" $k)" ] || fail "summary.json lacks $k"
 done
-measured=$(json "$work/on/summary.json" points_measured)
+measured=$(json "$s" points_measured)
 [ "$measured" = "$(json "$work/on/summary.json" points)" ] || fail "$measured points measured"
-compared=$(json "$work/on/summary.json" points_compared_with_truth)
-agree=$(json "$work/on/summary.json" points_agreeing_with_truth)
-echo "experimental Floquet label: $agree of $compared points agree with the truth"
-# Per branch, against the fold-based label (which agrees with the truth's Floquet stability at
-# every point farther than 2 mHz from a fold, docs/method.md). Single points are not reliable
-# (docs/method.md: the first mode's multiplier, 0.998, lies within the estimate's scatter of
-# 2e-3 of the circle, and some fits return spurious multipliers of 1.1-5 that neither the
-# neighbouring orders nor the record's halves reject: on seed 1 of this sweep 10 of 13 points
-# before the fold measured stable, 7 of 9 after it unstable), so the test asserts each branch's
-# median largest modulus: below 1 before the fold (measured 0.9967), above 1 after it (1.65). A
-# closure without the first mode's damping, or one blind to the fold, fails.
+[ $(($(json "$s" points_labelled_stable) + $(json "$s" points_labelled_unstable) + \
+    $(json "$s" points_undetermined))) -eq "$measured" ] || fail "the three labels do not add up"
+compared=$(json "$s" points_compared_with_truth)
+agree=$(json "$s" points_agreeing_with_truth)
+undetermined=$(json "$s" points_undetermined)
+echo "experimental Floquet label: $agree of $compared determined labels agree with the truth" \
+    "(farther than 2 mHz from a fold); $undetermined of $measured undetermined"
+# Every determined label agrees with the shooting truth (measured 2 of 2 on this sweep: the first
+# mode's multiplier, 0.9976, lies within 2 to 3 standard errors of 1 before the fold, so most
+# points there are undetermined; after it the fits of an orbit crossing the bilinear kink return
+# spurious multipliers with standard errors of 0.2 to 6, all undetermined). A label that ignored
+# its standard error (15 of 18 right) or a standard error too small fails.
+[ "$compared" -ge 1 ] || fail "no determined label away from the folds"
+[ "$agree" = "$compared" ] || fail "$agree of $compared determined labels agree with the truth"
+# The standard error against the truth's largest modulus: measured 22 of 22 within 3 SE (21
+# within 2); at least 90 % within 3 SE.
+se_compared=$(json "$s" points_with_standard_error_compared)
+within3=$(json "$s" points_within_3_standard_errors_of_truth)
+[ "$se_compared" -eq "$measured" ] && [ $((10 * within3)) -ge $((9 * se_compared)) ] \
+    || fail "$within3 of $se_compared estimates within 3 SE of the truth"
+# The label rule, point by point: determined only when trustworthy and beyond 2 SE of 1; no
+# stable label after the fold (the unstable branch), and undetermined labels where the estimate
+# lies within 2 SE of 1 or the fit is not trusted.
+awk -F, 'NR > 1 { m = $25; se = $26; lab = $27; tr = $28; d = m > 1 ? m - 1 : 1 - m
+                  if (lab != -1 && (tr != 1 || d <= 2 * se)) { print "point " $1 ": label " lab " at " m " +- " se; bad++ }
+                  if (lab == 1 && m >= 1 || lab == 0 && m <= 1) { print "point " $1 ": label " lab " on the wrong side"; bad++ }
+                  if ($20 == 1 && lab == 1) { print "point " $1 ": stable on the unstable branch"; bad++ }
+                  if (lab == -1) und++ }
+         END { exit bad > 0 || und < 1 }' "$work/on/frf.csv" || fail "a label breaks its rule"
+# Per branch, against the fold-based label: the median largest modulus is below 1 before the
+# fold (measured 0.9967) and above 1 after it (1.65): a closure without the first mode's damping,
+# or one blind to the fold, fails.
 awk -F, 'function median(a, n,   i, j, t) { for (i = 1; i <= n; i++) for (j = i + 1; j <= n; j++)
                                                if (a[j] < a[i]) { t = a[i]; a[i] = a[j]; a[j] = t }
                                            return n % 2 ? a[(n + 1) / 2] : 0.5 * (a[n / 2] + a[n / 2 + 1]) }
@@ -54,7 +82,8 @@ awk -F, 'function median(a, n,   i, j, t) { for (i = 1; i <= n; i++) for (j = i 
                printf "largest |mu|, median: %.4f before the fold (%d points), %.4f after it (%d)\n", ms, n, mu, m
                exit !(n >= 10 && m >= 5 && ms < 1 && mu > 1) }' "$work/on/frf.csv" \
     || fail "the experimental multipliers do not follow the branches"
-grep -q 'Floquet |mu|max' "$work/on/run.log" || fail "run.log lacks the estimates"
+grep -q 'Floquet |mu|max [0-9.]* +- [0-9.e+-]* (standard error: bootstrap [0-9.e+-]*, order [0-9.e+-]*): \(stable\|unstable\|undetermined\)' \
+    "$work/on/run.log" || fail "run.log lacks the estimates with their standard errors"
 
 # 3. refused before anything is written: a value out of range, a remote rig
 "$bin" frf "$bil" --out "$work/bad" --quiet --set stability.experimental_floquet=true \
