@@ -83,8 +83,8 @@ typedef struct rths_newton_options {
      * the reference (the numerical response) in scaled units; 0: no limit */
     double step_limit;
     /* Trust region of the targets along a branch (docs/method.md, "Iteration and continuation"):
-     * once the continuation has set an anchor (the size of the last accepted point's target and
-     * response, rths_corrector_set_trust_anchor), no target sent to the rig exceeds trust_growth
+     * once the continuation has set an anchor (the last accepted point's size times its last
+     * growth, rths_corrector_set_trust_anchor), no target sent to the rig exceeds trust_growth
      * times it; a corrector step that would is shortened onto the boundary, and the radius
      * doubles only after such a step reduced the residual as its model said. 0: no trust region */
     double trust_growth;
@@ -318,9 +318,10 @@ int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s
 /* Drops the carried Jacobians: the next set() measures fresh ones. */
 void rths_corrector_forget_jacobian(rths_corrector *c);
 
-/* The trust region's anchor for the next corrections: the Euclidean size (metres) of the last
- * accepted point's target coefficients, or of its measured physical response if larger; 0 (the
- * default) lifts the trust region (the first point of a branch has nothing to anchor it). */
+/* The trust region's anchor for the next corrections, metres: on a continuation run the Euclidean
+ * size of the last accepted point's target coefficients (or of its measured physical response if
+ * larger), times its growth from the point before when it grew; 0 (the default) lifts the trust
+ * region (the first point of a branch has nothing to anchor it). */
 void rths_corrector_set_trust_anchor(rths_corrector *c, double anchor_m);
 /* 1 when targets u (metres, n unknowns) lie inside the trust region a new correction starts with
  * (trust_growth times the anchor), else 0. */

@@ -120,10 +120,9 @@ static int predict_residual_model(cont_run *run, double omega, double *u) {
     return run->opt->model_predictor ? model_predict(run, omega, u) : -1;
 }
 
-/* The trust region's anchor (docs/method.md, "Iteration and continuation"): the size of the last
- * accepted point's targets, or of its measured physical response if larger, in metres. */
-static double trust_anchor(const cont_run *run) {
-    const rths_point *p = &run->pts[run->n - 1];
+/* Size of point q's targets, or of its measured physical response if larger, in metres. */
+static double point_size(const cont_run *run, int q) {
+    const rths_point *p = &run->pts[q];
     int n = 2 * run->harmonics;
     double u[CONT_LD], target = 0, response = 0;
     targets_of(&p->sol, u);
@@ -132,6 +131,16 @@ static double trust_anchor(const cont_run *run) {
         response += p->residual.response[i] * p->residual.response[i];
     }
     return sqrt(fmax(target, response));
+}
+
+/* The trust region's anchor (docs/method.md, "Iteration and continuation"): the last accepted
+ * point's size, times its growth from the point before when it grew (on the flank of a resonance
+ * the size may keep growing at the rate it just did). */
+static double trust_anchor(const cont_run *run) {
+    double last = point_size(run, run->n - 1);
+    if (run->n < 2) return last;
+    double before = point_size(run, run->n - 2);
+    return before > 0 && last > before ? last * last / before : last;
 }
 
 /* The seed's secant: the targets extrapolated linearly in frequency from the last two points. */
