@@ -51,6 +51,9 @@ typedef struct rths_point {
     double secant_omega;            /* frequency component of the secant that arrived here */
     rths_residual residual;         /* the residual record at the solution */
     rths_corrector_saved corrector; /* what the corrector carried on from this point (--resume) */
+    /* how often the targets' trust region acted on the way to this point (failed attempts
+     * included): a model's prediction set aside, a prediction or corrector step shortened */
+    int trust_actions;
 } rths_point;
 
 typedef struct rths_fold {

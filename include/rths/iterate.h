@@ -82,6 +82,12 @@ typedef struct rths_newton_options {
     /* rig safety: a step never exceeds step_limit times the larger of the current unknowns and
      * the reference (the numerical response) in scaled units; 0: no limit */
     double step_limit;
+    /* Trust region of the targets along a branch (docs/method.md, "Iteration and continuation"):
+     * once the continuation has set an anchor (the last accepted point's size times its last
+     * growth, rths_corrector_set_trust_anchor), no target sent to the rig exceeds trust_growth
+     * times it; a corrector step that would is shortened onto the boundary, and the radius
+     * doubles only after such a step reduced the residual as its model said. 0: no trust region */
+    double trust_growth;
     /* 1: the caller knows the rig to be linear time-invariant (a linear structure on the virtual
      * rig), so the LTI form and its fitted model (see the corrector) also serve pseudo-arclength
      * runs, whose frequency unknown otherwise keeps the corrector from looking for it; 0: only
@@ -312,6 +318,18 @@ int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s
 /* Drops the carried Jacobians: the next set() measures fresh ones. */
 void rths_corrector_forget_jacobian(rths_corrector *c);
 
+/* The trust region's anchor for the next corrections, metres: on a continuation run the Euclidean
+ * size of the last accepted point's target coefficients (or of its measured physical response if
+ * larger), times its growth from the point before when it grew; 0 (the default) lifts the trust
+ * region (the first point of a branch has nothing to anchor it). */
+void rths_corrector_set_trust_anchor(rths_corrector *c, double anchor_m);
+/* 1 when targets u (metres, n unknowns) lie inside the trust region a new correction starts with
+ * (trust_growth times the anchor), else 0. */
+int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m);
+/* How often the trust region acted during the last correction: a starting target shrunk onto it,
+ * or a corrector step shortened onto it. */
+int rths_corrector_trust_actions(const rths_corrector *c);
+
 void rths_corrector_save(const rths_corrector *c, rths_corrector_saved *out);
 /* Restores what save() gave (same problem size); RTHS_EINPUT naming the formats otherwise. */
 int rths_corrector_load(rths_corrector *c, const rths_corrector_saved *in, rths_error *err);
@@ -324,7 +342,9 @@ int rths_corrector_saved_jacobians(const rths_corrector_saved *in, double *jacob
  * model fitted to the recorded evaluations, z_k = f_k / g_k (with n interface DoFs z_k = G_k^-1
  * f_k, G_k the complex n x n gain of harmonic k), with the model's Jacobians seeding the corrector.
  * Returns 0, or -1 when the evaluations do not determine the model (fewer than two frequencies or
- * 2 n + 4 evaluations, or an ill-conditioned fit) or the rig is not LTI-like. */
+ * 2 n + 4 evaluations, or an ill-conditioned fit) or the rig is not LTI-like; -2 when the
+ * predicted target lies outside the trust region (rths_corrector_trust_allows). u and the
+ * Jacobians are left as they were unless it returns 0. */
 int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u);
 
 /* Replaces the target columns of the carried Jacobians (n x n, leading dimension

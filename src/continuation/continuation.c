@@ -281,6 +281,7 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
     int evals;
     double rig_time;
     rths_corrector_counters(run->corr, &evals, NULL, &rig_time);
+    run->pts[run->n].trust_actions += pr.trust_declined + rths_corrector_trust_actions(run->corr);
     run->res->evaluations += evals;
     run->res->rig_time_s += rig_time;
     const rths_solution *sol = rths_corrector_solution(run->corr);

@@ -33,6 +33,7 @@ typedef struct cont_prediction {
     rths_arclength arc;
     double step_used;
     int natural_fallback; /* an arclength run's natural step (see cont_run.natural_next) */
+    int trust_declined;   /* model predictions set aside for the targets' trust region */
 } cont_prediction;
 
 typedef struct cont_run {

@@ -29,8 +29,8 @@ static void targets_of(const rths_solution *s, double *u) {
  * changes by its own size between points 0.05 Hz apart, while J itself is nearly linear in w). J,
  * the response Jacobian R, and f = J u - Phi of the last few points (up to MODEL_POINTS), fitted
  * by a least-squares line in w (which averages the secant updates' noise) and evaluated at the new
- * w, predict the targets; J and R seed the corrector. Returns 0 with u filled, or -1 (the caller
- * keeps the secant). */
+ * w, predict the targets; J and R seed the corrector. Returns 0 with u filled, -2 when the
+ * prediction lies outside the targets' trust region, or -1 (the caller keeps the secant). */
 enum { MODEL_POINTS = 4 };
 
 /* Weights of the fitted line's value at omega, w_q = 1/K + (x - xbar)(x_q - xbar) / Sxx; 0, or
@@ -99,14 +99,15 @@ static int model_predict(cont_run *run, double omega, double *u_out) {
         size += u1[i] * u1[i];
     }
     if (move > 4 * size) return -1;
+    if (!rths_corrector_trust_allows(run->corr, x)) return -2;
     memcpy(u_out, x, sizeof(double) * (size_t)n);
     rths_corrector_seed_jacobians(run->corr, jp, rp);
     return 0;
 }
 
 /* The target predictors of a natural step, tried in order: each returns 0 with u (holding the last
- * point's targets on entry) filled, or -1 to pass to the next. The residual-model ones also seed
- * the corrector's Jacobians. */
+ * point's targets on entry) filled, or -1 to pass to the next (-2: its prediction lay outside the
+ * targets' trust region). The residual-model ones also seed the corrector's Jacobians. */
 typedef int (*cont_target_predictor)(cont_run *run, double omega, double *u);
 
 /* The LTI rig's per-harmonic gains fitted to the corrector's evaluation history. */
@@ -117,6 +118,29 @@ static int predict_lti(cont_run *run, double omega, double *u) {
 /* Lines in w through the last points' Jacobians and f = J u - Phi (model_predict). */
 static int predict_residual_model(cont_run *run, double omega, double *u) {
     return run->opt->model_predictor ? model_predict(run, omega, u) : -1;
+}
+
+/* Size of point q's targets, or of its measured physical response if larger, in metres. */
+static double point_size(const cont_run *run, int q) {
+    const rths_point *p = &run->pts[q];
+    int n = 2 * run->harmonics;
+    double u[CONT_LD], target = 0, response = 0;
+    targets_of(&p->sol, u);
+    for (int i = 0; i < n; i++) {
+        target += u[i] * u[i];
+        response += p->residual.response[i] * p->residual.response[i];
+    }
+    return sqrt(fmax(target, response));
+}
+
+/* The trust region's anchor (docs/method.md, "Iteration and continuation"): the last accepted
+ * point's size, times its growth from the point before when it grew (on the flank of a resonance
+ * the size may keep growing at the rate it just did). */
+static double trust_anchor(const cont_run *run) {
+    double last = point_size(run, run->n - 1);
+    if (run->n < 2) return last;
+    double before = point_size(run, run->n - 2);
+    return before > 0 && last > before ? last * last / before : last;
 }
 
 /* The seed's secant: the targets extrapolated linearly in frequency from the last two points. */
@@ -145,8 +169,11 @@ static void predict_natural(cont_run *run, cont_prediction *pr) {
     pr->omega_rad_s = 2 * M_PI * f;
     targets_of(p1, pr->u);
     int count = (int)(sizeof natural_predictors / sizeof natural_predictors[0]);
-    for (int i = 0; run->n >= 2 && i < count; i++)
-        if (natural_predictors[i](run, pr->omega_rad_s, pr->u) == 0) break;
+    for (int i = 0; run->n >= 2 && i < count; i++) {
+        int rc = natural_predictors[i](run, pr->omega_rad_s, pr->u);
+        if (rc == 0) break;
+        pr->trust_declined += rc == -2;
+    }
     pr->step_used = fabs(f - p1->omega_rad_s / (2 * M_PI));
 }
 
@@ -181,6 +208,7 @@ static void predict_arclength(cont_run *run, cont_prediction *pr) {
 
 void cont_predict(cont_run *run, cont_prediction *pr) {
     memset(pr, 0, sizeof *pr);
+    rths_corrector_set_trust_anchor(run->corr, run->n > 0 ? trust_anchor(run) : 0);
     pr->arc.amplitude_scale_m = run->sc.amp_scale > 0 ? run->sc.amp_scale : 1e-4;
     pr->arc.omega_scale_rad_s = run->sc.omega_scale;
     if (run->n == 0) { /* the first point: zero target (or the failed attempt's last iterate) */

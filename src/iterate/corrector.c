@@ -36,6 +36,10 @@ void rths_newton_defaults(rths_newton_options *opt, int paper) {
     opt->fresh_jacobian = paper ? 1 : 0;
     opt->report_matched = paper ? 0 : 1;
     opt->step_limit = 2.0;
+    /* docs/method.md, "Iteration and continuation": 1.8 times the anchor (the last point's size
+     * times its last growth) lets through every prediction of the demo and the examples (at most
+     * 1.35 times less than it) and kept the cantilever's wild one out */
+    opt->trust_growth = 1.8;
 }
 
 int rths_corrector_create(const rths_zero_problem *problem, const rths_newton_options *opt,
@@ -64,6 +68,7 @@ int rths_corrector_create(const rths_zero_problem *problem, const rths_newton_op
     c->m = c->n;
     c->default_amp_scale = 1e-4;
     c->default_omega_scale = 1.0;
+    c->trust_radius = INFINITY;
     *out = c;
     return RTHS_OK;
 }
@@ -122,6 +127,10 @@ static void begin(rths_corrector *c, const rths_arclength *arc) {
     c->jacobian_here = 0;
     c->fresh = 0;
     c->status = RTHS_CORRECTOR_CONTINUE;
+    c->trust_actions = 0;
+    c->trust_radius = c->trust_anchor_m > 0 && c->opt.trust_growth > 0
+                          ? c->opt.trust_growth * c->trust_anchor_m / amp_scale
+                          : INFINITY;
     /* earlier corrections' noise counts half per correction: close in frequency, similar noise */
     for (int i = 0; i < n; i++) {
         c->mem.noise_ss[0][i] *= 0.5;
@@ -130,6 +139,30 @@ static void begin(rths_corrector *c, const rths_arclength *arc) {
     c->mem.noise_dof *= 0.5;
     memset(&c->cur, 0, sizeof c->cur);
     c->cur.sol.harmonics = c->harmonics;
+}
+
+/* Euclidean size of the target part of scaled unknowns u. */
+static double target_norm(const rths_corrector *c, const double *u) {
+    double size = 0;
+    for (int i = 0; i < c->n; i++)
+        size += u[i] * u[i];
+    return sqrt(size);
+}
+
+void rths_corrector_set_trust_anchor(rths_corrector *c, double anchor_m) {
+    c->trust_anchor_m = anchor_m > 0 && isfinite(anchor_m) ? anchor_m : 0;
+}
+
+int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m) {
+    if (!(c->trust_anchor_m > 0 && c->opt.trust_growth > 0)) return 1;
+    double size = 0;
+    for (int i = 0; i < c->n; i++)
+        size += u_m[i] * u_m[i];
+    return sqrt(size) <= c->opt.trust_growth * c->trust_anchor_m;
+}
+
+int rths_corrector_trust_actions(const rths_corrector *c) {
+    return c->trust_actions;
 }
 
 int rths_corrector_set(rths_corrector *c, const double *u0, double omega_rad_s,
@@ -141,6 +174,13 @@ int rths_corrector_set(rths_corrector *c, const double *u0, double omega_rad_s,
         u[i] = u0[i] / c->scale[i];
     u[n] = omega_rad_s / c->scale[n];
     c->cur.sol.omega_rad_s = omega_rad_s;
+    /* a prediction beyond the trust region is shrunk onto it before the rig sees it */
+    double size = target_norm(c, u);
+    if (size > c->trust_radius) {
+        for (int i = 0; i < n; i++)
+            u[i] *= c->trust_radius / size;
+        c->trust_actions++;
+    }
     int rc = corrector_evaluate(c, u, &c->cur, err);
     if (rc) return rc;
     if (converged(c, &c->cur)) return accept_converged(c, err);
@@ -152,24 +192,13 @@ int rths_corrector_set(rths_corrector *c, const double *u0, double omega_rad_s,
     return RTHS_OK;
 }
 
-/* The Newton step du of the extended system (J over the unknowns in use, plus the arclength row),
- * limited for rig safety. Returns -1 if the system is singular. */
-static int newton_step(const rths_corrector *c, double *du) {
-    int n = c->n, m = c->m;
-    double a[LD * LD];
-    for (int j = 0; j < m; j++) {
-        for (int i = 0; i < n; i++)
-            a[i + j * LD] = c->mem.jacobian[i + j * LD];
-        if (m > n) a[n + j * LD] = c->arc.tangent[j];
-    }
-    for (int i = 0; i < m; i++)
-        du[i] = -c->cur.phi[i];
-    if (solve_small(m, a, LD, du) != 0) return -1;
-    if (!(c->opt.step_limit > 0)) return 0;
-    /* Rig safety: never step by more than twice the larger of the current target and the measured
-     * numerical response. A step from a stale (Broyden) or noisy Jacobian can be huge, and on a
-     * real rig the trial evaluation itself would trip a limit before the line search could
-     * reject it. */
+/* Rig safety, with or without a trust region: shortens du to at most step_limit times the larger
+ * of the current target and the measured numerical response, scaling *fraction alike. */
+static void limit_step(const rths_corrector *c, double *du, double *fraction) {
+    /* A step from a stale (Broyden) or noisy Jacobian can be huge, and on a real rig the trial
+     * evaluation itself would trip a limit before the line search could reject it. */
+    if (!(c->opt.step_limit > 0)) return;
+    int n = c->n;
     double tnorm = 0, dnorm = 0, rnorm = 0;
     for (int i = 0; i < n; i++) {
         tnorm += c->cur.u[i] * c->cur.u[i];
@@ -185,19 +214,64 @@ static int newton_step(const rths_corrector *c, double *du) {
         rnorm += ref[i] * ref[i];
     rnorm = sqrt(rnorm) / c->scale[0];
     double limit = c->opt.step_limit * fmax(tnorm, rnorm);
-    if (dnorm > limit)
-        for (int i = 0; i < m; i++)
+    if (dnorm > limit) {
+        for (int i = 0; i < c->m; i++)
             du[i] *= limit / dnorm;
+        *fraction *= limit / dnorm;
+    }
+}
+
+/* Largest fraction t in [0, 1] of the step du that keeps the targets of u + t du inside the trust
+ * region (|u + t du| <= radius, a quadratic in t). */
+static double trust_fraction(const rths_corrector *c, const double *u, const double *du) {
+    if (!isfinite(c->trust_radius)) return 1.0;
+    double a = 0, b = 0, size = 0;
+    for (int i = 0; i < c->n; i++) {
+        a += du[i] * du[i];
+        b += u[i] * du[i];
+        size += u[i] * u[i];
+    }
+    double r2 = c->trust_radius * c->trust_radius, end = size + 2 * b + a;
+    if (end <= r2 || !(a > 0)) return 1.0;
+    double disc = b * b - a * (size - r2);
+    if (disc < 0) return 0.0;
+    return fmax(0.0, (-b + sqrt(disc)) / a);
+}
+
+/* The Newton step du of the extended system (J over the unknowns in use, plus the arclength row),
+ * limited for rig safety and to the trust region; *fraction is what remains of the full Newton
+ * step (1: all of it). Returns -1 if the system is singular. */
+static int newton_step(rths_corrector *c, double *du, double *fraction, double *trust_t) {
+    int n = c->n, m = c->m;
+    double a[LD * LD];
+    for (int j = 0; j < m; j++) {
+        for (int i = 0; i < n; i++)
+            a[i + j * LD] = c->mem.jacobian[i + j * LD];
+        if (m > n) a[n + j * LD] = c->arc.tangent[j];
+    }
+    for (int i = 0; i < m; i++)
+        du[i] = -c->cur.phi[i];
+    if (solve_small(m, a, LD, du) != 0) return -1;
+    *fraction = 1.0;
+    limit_step(c, du, fraction);
+    double t = *trust_t = trust_fraction(c, c->cur.u, du);
+    if (t < 1.0) {
+        for (int i = 0; i < m; i++)
+            du[i] *= t;
+        *fraction *= t;
+        c->trust_actions++;
+    }
     return 0;
 }
 
 /* Backtracking line search on the extended residual norm (erratum 5): halves the step down to
  * min_damping. Returns 1 with *trial when the residual fell, else 0; a problem error comes back
  * in *rc. */
-static int line_search(rths_corrector *c, const double *du, corrector_point *trial, int *rc,
-                       rths_error *err) {
+static int line_search(rths_corrector *c, const double *du, corrector_point *trial,
+                       double *lambda_out, int *rc, rths_error *err) {
     *trial = c->cur;
     for (double lambda = 1.0; lambda >= c->opt.min_damping; lambda *= 0.5) {
+        *lambda_out = lambda;
         double ut[LD];
         for (int i = 0; i < c->m; i++)
             ut[i] = c->cur.u[i] + lambda * du[i];
@@ -209,6 +283,17 @@ static int line_search(rths_corrector *c, const double *du, corrector_point *tri
     return 0;
 }
 
+/* The Newton step points out of the trust region from its boundary. A carried or updated model
+ * is not trusted that far: measure a fresh Jacobian here. A fresh one is the best model the rig
+ * gives: its step counts as the cause to widen the region (twice; the line search still judges
+ * the step). */
+static int trust_blocked(rths_corrector *c, rths_error *err) {
+    if (!c->fresh) return corrector_fd_jacobian(c, err);
+    c->trust_radius *= 2;
+    c->trust_actions++;
+    return RTHS_OK;
+}
+
 int rths_corrector_iterate(rths_corrector *c, rths_error *err) {
     if (c->status != RTHS_CORRECTOR_CONTINUE) return RTHS_OK;
     if (c->iterations >= c->opt.max_iterations) {
@@ -216,17 +301,24 @@ int rths_corrector_iterate(rths_corrector *c, rths_error *err) {
         return RTHS_OK;
     }
     c->iterations++;
-    double du[LD];
-    if (newton_step(c, du) != 0) {
+    double du[LD], fraction = 1.0, trust_t = 1.0, lambda = 1.0;
+    if (newton_step(c, du, &fraction, &trust_t) != 0) {
         if (c->fresh) {
             c->status = RTHS_CORRECTOR_SINGULAR;
             return RTHS_OK;
         }
         return corrector_fd_jacobian(c, err);
     }
+    if (trust_t < c->opt.min_damping) return trust_blocked(c, err);
+    double promised = fraction * c->cur.ext; /* the linear model's fall of the residual norm */
     corrector_point *trial = malloc(sizeof *trial);
     if (!trial) return rths_error_set(err, RTHS_EFAIL, "out of memory in the corrector");
-    int rc = RTHS_OK, accepted = line_search(c, du, trial, &rc, err);
+    int rc = RTHS_OK, accepted = line_search(c, du, trial, &lambda, &rc, err);
+    /* a step the trust region cut short, taken whole, that reduced the residual as its model
+     * promised: the model is borne out up to the boundary, so the solution may lie beyond it */
+    if (!rc && accepted && trust_t < 1.0 && lambda == 1.0 &&
+        c->cur.ext - trial->ext >= 0.75 * promised)
+        c->trust_radius *= 2;
     if (!rc && accepted) {
         corrector_secant_update(c, trial);
         c->fresh = 0;
@@ -294,12 +386,16 @@ int rths_corrector_lti_predict(rths_corrector *c, double omega_rad_s, double *u)
     lti_model model;
     if (!c->mem.lti || P == 0 || lti_model_fit(&c->mem, P, c->dofs, omega_rad_s, NULL, &model) != 0)
         return -1;
+    double z[LD];
     for (int k = 0; k < model.harmonics; k++)
         for (int d = 0; d < model.dofs; d++) {
             int p = d * model.harmonics + k;
-            u[p] = creal(model.z[k][d]);
-            u[P + p] = cimag(model.z[k][d]);
+            z[p] = creal(model.z[k][d]);
+            z[P + p] = cimag(model.z[k][d]);
         }
+    /* a model that puts the solution beyond the trust region is not believed (nor its gains) */
+    if (!rths_corrector_trust_allows(c, z)) return -2;
+    memcpy(u, z, sizeof(double) * (size_t)(2 * P));
     lti_model_apply(&model, c->mem.jacobian, c->mem.response_jacobian);
     return 0;
 }

@@ -72,6 +72,10 @@ struct rths_corrector {
     int fresh;         /* the Jacobians were just measured */
     rths_corrector_outcome status;
     corrector_point cur;
+    /* trust region of the targets: the anchor (m), this correction's radius (scaled units,
+     * INFINITY without an anchor) and how often it acted */
+    double trust_anchor_m, trust_radius;
+    int trust_actions;
 };
 
 /* evaluate.c */

@@ -3,6 +3,18 @@
 
 #include <math.h>
 
+/* iteration.trust_growth: 0 lifts the trust region; otherwise at least 1 (a region smaller than
+ * the last accepted point would refuse the point itself) */
+static int trust_growth_read(rths_config *cfg, rths_newton_options *newton, rths_error *err) {
+    int rc = rths_config_get_double(cfg, "iteration.trust_growth", 0, newton->trust_growth, 0.0,
+                                    1e6, &newton->trust_growth, err);
+    if (!rc && newton->trust_growth > 0 && newton->trust_growth < 1)
+        return rths_config_error_at(cfg, "iteration.trust_growth", err,
+                                    "must be 0 (no trust region) or at least 1, not %g",
+                                    newton->trust_growth);
+    return rc;
+}
+
 int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                              rths_newton_options *newton, int *harmonics, rths_error *err) {
     long v;
@@ -26,7 +38,8 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
         (rc = rths_config_get_double(cfg, "iteration.fd_step_min_m", 0, newton->fd_step_min_m, 0.0,
                                      1.0, &newton->fd_step_min_m, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.line_search_min", 0, newton->min_damping, 1e-6,
-                                     1.0, &newton->min_damping, err)))
+                                     1.0, &newton->min_damping, err)) ||
+        (rc = trust_growth_read(cfg, newton, err)))
         return rc;
     if ((rc = rths_config_get_bool(cfg, "iteration.fresh_jacobian", 0, newton->fresh_jacobian,
                                    &newton->fresh_jacobian, err)) ||
