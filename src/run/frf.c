@@ -295,6 +295,11 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
         st->point_err = err;
         return RTHS_EFAIL;
     }
+    if (!is_update && pt->trust_actions > 0)
+        rths_report_log(st->rep,
+                        "point %d at %.6g Hz: the targets' trust region acted %d time(s) "
+                        "(iteration.trust_growth; docs/method.md, \"Iteration and continuation\")",
+                        pt->index, pt->sol.frequency_hz, pt->trust_actions);
     if (remember(st, pt))
         return rths_error_set(&st->point_err, RTHS_EFAIL, "out of memory keeping the points");
     if (st->floquet.enabled && !is_update && measure_floquet(st, pt)) return RTHS_EFAIL;
