@@ -15,8 +15,8 @@
 #define MAX_INPUTS (RTHS_MAX_INTERFACE_DOFS + 1)
 #define MAX_IFACE RTHS_MAX_INTERFACE_DOFS
 
-/* A signal's running Fourier sums: the mean's, then (a_k, b_k) interleaved for k = 1..K, so the
- * per-sample update is one loop of 2K products over contiguous pairs (vectorised) */
+/* A signal's running Fourier sums: the mean's, then (a_k, b_k) interleaved for k = 1..K, as in
+ * harmonic_table, so the per-sample update is one loop of 2K products over both arrays */
 typedef struct {
     double mean;
     double ab[2 * RTHS_MAX_HARMONICS];
@@ -76,10 +76,10 @@ struct rths_controller {
     double demand[MAX_IFACE];        /* the last step's demand per actuator, V */
     /* signal state, per interface DoF */
     double time_s, theta;
-    /* cos and sin of theta, advanced by rotation through omega h (cos/sin of rotor_omega h) so
-     * a sample costs no trigonometry; set exactly at every period start, which bounds the
-     * rounding drift to one period's worth of rotations (~1e-13) */
-    double cos_theta, sin_theta, rotor_omega, cos_step, sin_step;
+    /* cos and sin of theta (tables[at_theta].cs[0], cs[1]) are advanced by rotation through
+     * omega h (cos/sin of rotor_omega h) so a sample costs no trigonometry; set exactly at every
+     * period start, which bounds the rounding drift to one period's worth of rotations (~1e-13) */
+    double rotor_omega, cos_step, sin_step;
     double x_prev[MAX_IFACE], v_est[MAX_IFACE], velocity_alpha;
     /* grounding control's consistent samples */
     double x_last[MAX_IFACE], x_last_prev[MAX_IFACE], xi_last_prev[MAX_IFACE];
@@ -92,8 +92,8 @@ struct rths_controller {
     /* The trapezoid summed point by point: a sample point enters the sums once, when both its
      * intervals are known, with their two weights together. left_weight: the weight the point
      * at theta (y_prev) has from the interval that ends there (0 at a period's start);
-     * tables[at_theta]: cos/sin of k theta for it; the other table takes the next sample's
-     * end, and the two swap roles (no copy per sample). */
+     * tables[at_theta]: cos/sin of k theta for it (and the phase's rotation); the other table
+     * takes the next sample's end, and the two swap roles (no copy per sample). */
     double left_weight;
     harmonic_table tables[2];
     int at_theta;
@@ -376,8 +376,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->h = 1.0 / opt->sample_rate_hz;
     c->rate = opt->sample_rate_hz;
     c->ramp_step = opt->ramp_time_s > 0 ? c->h / opt->ramp_time_s : 1.0;
-    c->cos_theta = 1.0, c->cos_step = 1.0; /* theta 0, no frequency yet: rotation by zero */
-    harmonic_table_init(&c->tables[0], 1.0, 0.0);
+    c->cos_step = 1.0;                            /* no frequency yet: rotation by zero */
+    harmonic_table_init(&c->tables[0], 1.0, 0.0); /* theta 0 */
     c->nn = s->nn;
     c->nx = 2 * s->nn;
     c->np = s->np;
@@ -558,8 +558,7 @@ int rths_controller_pop_period(rths_controller *c, rths_period *out) {
 /* theta and its exact cos and sin (the rotation in the step restarts from these) */
 static void set_phase(rths_controller *c, double theta) {
     c->theta = theta;
-    c->cos_theta = cos(theta), c->sin_theta = sin(theta);
-    harmonic_table_init(&c->tables[c->at_theta], c->cos_theta, c->sin_theta);
+    harmonic_table_init(&c->tables[c->at_theta], cos(theta), sin(theta));
 }
 
 /* A forcing change waits for the period boundary, so every published period has one forcing;
@@ -784,10 +783,10 @@ static void accumulate_signals(rths_controller *c, const harmonic_table *t, doub
 
 /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
  * theta = 2 pi the period is published and a pending forcing change takes over. The sample spans
- * [theta0, theta1]; at_end: cos/sin of k theta1. The point at theta0 (y_prev) enters the sums
- * now, with the weight of both its intervals; the point at theta1 waits for its next one. */
-static void update_fourier(rths_controller *c, double theta0, double theta1,
-                           const harmonic_table *at_end, const double *y) {
+ * [theta0, theta1], cos/sin of k theta1 in the table other than tables[at_theta]. The point at
+ * theta0 (y_prev) enters the sums now, with the weight of both its intervals; the point at theta1
+ * waits for its next one. */
+static void update_fourier(rths_controller *c, double theta0, double theta1, const double *y) {
     if (!(c->omega > 0)) return;
     const double two_pi = 2 * M_PI;
     if (theta1 < two_pi) {
@@ -795,8 +794,8 @@ static void update_fourier(rths_controller *c, double theta0, double theta1,
         accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w, c->y_prev);
         c->left_weight = w;
         c->period_samples++;
-        c->theta = theta1, c->cos_theta = at_end->cs[0], c->sin_theta = at_end->cs[1];
-        c->at_theta = !c->at_theta; /* at_end is the other table */
+        c->theta = theta1;
+        c->at_theta = !c->at_theta; /* theta1's table becomes theta's */
         return;
     }
     /* the period ends at theta = 2 pi exactly (cos 1, sin 0), at yb by interpolation */
@@ -852,7 +851,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         c->rotor_omega = c->omega;
         c->cos_step = cos(c->omega * c->h), c->sin_step = sin(c->omega * c->h);
     }
-    const double cos0 = c->cos_theta, sin0 = c->sin_theta;
+    const double cos0 = c->tables[c->at_theta].cs[0], sin0 = c->tables[c->at_theta].cs[1];
     const double cos1 = cos0 * c->cos_step - sin0 * c->sin_step,
                  sin1 = sin0 * c->cos_step + cos0 * c->sin_step;
     /* a sample past the period boundary belongs to the next period: its forcing amplitude */
@@ -879,7 +878,7 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     }
     c->at_boundary = 0;
     c->time_s += c->h;
-    update_fourier(c, theta0, theta1, at_end, y);
+    update_fourier(c, theta0, theta1, y);
     for (int i = 0; i < 3 * c->ni; i++)
         c->y_prev[i] = y[i];
     if (out) {
