@@ -20,8 +20,8 @@ void rths_rng_seed(rths_rng *rng, uint64_t seed) {
         rng->s[i] = splitmix64(&x);
 }
 
-uint64_t rths_rng_next(rths_rng *rng) {
-    uint64_t *s = rng->s;
+/* one step of the generator on its state s[4] (rths_rng_normals runs it on a local copy) */
+static inline uint64_t xoshiro_next(uint64_t *s) {
     uint64_t result = rotl(s[1] * 5, 7) * 9;
     uint64_t t = s[1] << 17;
     s[2] ^= s[0];
@@ -31,6 +31,10 @@ uint64_t rths_rng_next(rths_rng *rng) {
     s[2] ^= t;
     s[3] = rotl(s[3], 45);
     return result;
+}
+
+uint64_t rths_rng_next(rths_rng *rng) {
+    return xoshiro_next(rng->s);
 }
 
 double rths_rng_uniform(rths_rng *rng) {
@@ -79,27 +83,34 @@ static double normal_tail(rths_rng *rng, int negative) {
     return negative ? x - ZIGGURAT_R : ZIGGURAT_R - x;
 }
 
+/* One generator output as the ziggurat reads it: the layer from the low bits, the uniform in
+ * [-1, 1) from the top 53 (disjoint). */
+static inline unsigned normal_layer(uint64_t bits, double *u) {
+    *u = 2.0 * ((double)(bits >> 11) * 0x1.0p-53) - 1.0;
+    return (unsigned)(bits & (ZIGGURAT_LAYERS - 1));
+}
+
 /* The ziggurat's first try from one generator output: the value, or NAN when the draw falls
  * outside its layer's rectangle (about 1.2 % of draws). */
 static inline double normal_try(uint64_t bits) {
-    unsigned layer = (unsigned)(bits & (ZIGGURAT_LAYERS - 1));
-    double u = 2.0 * ((double)(bits >> 11) * 0x1.0p-53) - 1.0; /* [-1, 1) */
+    double u;
+    unsigned layer = normal_layer(bits, &u);
     return fabs(u) < zig_ratio[layer] ? u * zig_x[layer] : NAN;
 }
 
-/* The rest of a draw whose first try (bits) missed its rectangle: the tail, the wedge, or new
- * tries. */
+/* The rest of a draw whose try (bits) missed its rectangle: the tail, the wedge, or new tries. */
 static double normal_rest(rths_rng *rng, uint64_t bits) {
     for (;;) {
-        unsigned layer = (unsigned)(bits & (ZIGGURAT_LAYERS - 1));
-        double u = 2.0 * ((double)(bits >> 11) * 0x1.0p-53) - 1.0;
-        if (fabs(u) < zig_ratio[layer]) return u * zig_x[layer];
+        double u;
+        unsigned layer = normal_layer(bits, &u);
         if (layer == 0) return normal_tail(rng, u < 0);
         /* the wedge between this layer's rectangle and the density */
         double x = u * zig_x[layer];
         double f_lo = zig_f[layer], f_hi = zig_f[layer + 1]; /* the layer's edges, tabulated */
         if (f_hi + rths_rng_uniform(rng) * (f_lo - f_hi) < exp(-0.5 * x * x)) return x;
         bits = rths_rng_next(rng);
+        double again = normal_try(bits);
+        if (again == again) return again;
     }
 }
 
@@ -112,22 +123,16 @@ double rths_rng_normal(rths_rng *rng) {
 /* The same draws as rths_rng_normal, the generator's state held in registers over the block
  * (stored only around the rare rest of a draw): a call per draw cost as much as the draw. */
 void rths_rng_normals(rths_rng *rng, double *out, int n) {
-    uint64_t s0 = rng->s[0], s1 = rng->s[1], s2 = rng->s[2], s3 = rng->s[3];
+    rths_rng local = *rng;
     for (int i = 0; i < n; i++) {
-        uint64_t bits = rotl(s1 * 5, 7) * 9, t = s1 << 17; /* rths_rng_next on the registers */
-        s2 ^= s0;
-        s3 ^= s1;
-        s1 ^= s2;
-        s0 ^= s3;
-        s2 ^= t;
-        s3 = rotl(s3, 45);
+        uint64_t bits = xoshiro_next(local.s);
         double x = normal_try(bits);
         if (x != x) {
-            rng->s[0] = s0, rng->s[1] = s1, rng->s[2] = s2, rng->s[3] = s3;
+            *rng = local;
             x = normal_rest(rng, bits);
-            s0 = rng->s[0], s1 = rng->s[1], s2 = rng->s[2], s3 = rng->s[3];
+            local = *rng;
         }
         out[i] = x;
     }
-    rng->s[0] = s0, rng->s[1] = s1, rng->s[2] = s2, rng->s[3] = s3;
+    *rng = local;
 }
