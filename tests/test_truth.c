@@ -121,6 +121,28 @@ static void test_bilinear_truth_folds(void **state) {
     }
     assert_int_equal(flips, 2);
     assert_true(turns >= 2); /* the two folds (plus any jitter of a near-vertical stretch) */
+    /* the largest Floquet modulus on each branch between the folds (13.91-14.006 Hz): asked with
+     * a branch's own amplitude, the value interpolated on that branch's piece, above 1 on the
+     * unstable one only; none outside the curve */
+    assert_non_null(t.max_floquet);
+    const double f = 13.95;
+    int branches = 0, unstable = 0;
+    for (int j = 0; j + 1 < t.n; j++) {
+        double f0 = t.freq_hz[j], f1 = t.freq_hz[j + 1];
+        if (!((f0 - f) * (f1 - f) <= 0) || f0 == f1) continue;
+        int st;
+        double a = rths_truth_branch_amplitude_m(&s, &t, f, t.amp_m[j], &st);
+        double mu = rths_truth_branch_max_floquet(&t, f, a);
+        double lo = fmin(t.max_floquet[j], t.max_floquet[j + 1]),
+               hi = fmax(t.max_floquet[j], t.max_floquet[j + 1]);
+        assert_true(mu >= lo - 1e-12 && mu <= hi + 1e-12);
+        assert_int_equal(mu < 1, st);
+        branches++;
+        unstable += !st;
+    }
+    assert_int_equal(branches, 3);
+    assert_int_equal(unstable, 1);
+    assert_true(isnan(rths_truth_branch_max_floquet(&t, 20.0, 1e-3)));
     rths_truth_free(&t);
     rths_setup_free(&s);
     rths_config_free(cfg);
@@ -157,6 +179,7 @@ static void test_branch_interpolation(void **state) {
     }
     print_message("branch interpolation: cubic %.2e, straight line %.2e relative\n", worst_cubic,
                   worst_line);
+    assert_true(isnan(rths_truth_branch_max_floquet(&t, 14.0, 1.0))); /* no multipliers given */
     assert_true(worst_cubic < 2e-4);
     assert_true(worst_cubic < 0.1 * worst_line);
 }

@@ -11,7 +11,9 @@ typedef struct rths_truth_curve {
     double *freq_hz;
     double *amp_m, *amp_h2_m, *amp_h3_m; /* interface displacement amplitude per harmonic, m */
     int *stable;                         /* 0 where the periodic solution is unstable */
-    int exact; /* 1: the analytic FRF (linear structure), 0: the shooting solution */
+    double *max_floquet; /* the shooting solution's largest Floquet multiplier modulus at each
+                            point; NULL for the analytic curve */
+    int exact;           /* 1: the analytic FRF (linear structure), 0: the shooting solution */
     /* several interface DoFs (linear structure): the fundamental amplitude of each, m,
        amp_dof_m[d * n + j] for DoF d at freq_hz[j]; dofs 0 and NULL otherwise */
     int dofs;
@@ -47,6 +49,11 @@ double rths_truth_relative_error(const rths_setup *s, const rths_truth_curve *t,
  * f_hz. */
 double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
                                      double amp_m, int *stable);
+
+/* Bilinear: the largest Floquet multiplier modulus at f_hz on the branch of a measured point
+ * (amp_m), interpolated linearly on the piece rths_truth_branch_amplitude_m picks; NAN for the
+ * analytic curve or when no piece spans f_hz. */
+double rths_truth_branch_max_floquet(const rths_truth_curve *t, double f_hz, double amp_m);
 
 /* Distance in frequency from f_hz to the nearest change of the curve's stability (a fold of the
  * true assembly), Hz; INFINITY when the curve has none. */

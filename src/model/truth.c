@@ -13,6 +13,7 @@ void rths_truth_free(rths_truth_curve *t) {
     free(t->amp_h2_m);
     free(t->amp_h3_m);
     free(t->stable);
+    free(t->max_floquet);
     free(t->amp_dof_m);
     memset(t, 0, sizeof *t);
 }
@@ -43,12 +44,17 @@ static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_
     int rc =
         rths_bilinear_frf(&s->assembly, &s->leg, s->static_force, s->force, &opt, &pp, &count, err);
     if (!rc) rc = truth_alloc(t, count, err);
+    if (!rc && !(t->max_floquet = calloc((size_t)count, sizeof(double)))) {
+        rths_truth_free(t);
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
     for (int j = 0; j < count && !rc; j++) {
         t->freq_hz[j] = pp[j].omega_rad_s / (2 * M_PI);
         t->amp_m[j] = hypot(pp[j].cos_m[iface + n], pp[j].sin_m[iface + n]);
         t->amp_h2_m[j] = hypot(pp[j].cos_m[iface + 2 * n], pp[j].sin_m[iface + 2 * n]);
         t->amp_h3_m[j] = hypot(pp[j].cos_m[iface + 3 * n], pp[j].sin_m[iface + 3 * n]);
         t->stable[j] = pp[j].stable;
+        t->max_floquet[j] = pp[j].max_floquet;
     }
     rths_periodic_points_free(pp, count);
     return rc;
@@ -191,26 +197,50 @@ static double interpolate(const rths_truth_curve *t, int j, double f_hz) {
     return cubic > 0 ? cubic : a;
 }
 
-double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
-                                     double amp_m, int *stable) {
-    if (stable) *stable = 1;
-    if (!s->has_bilinear) return rths_truth_linear_amplitude_m(s, f_hz);
-    /* every piece of the curve that spans f_hz is a branch there; the point's is the nearest in
-     * log amplitude (the branches of a folded response differ by far more than any error) */
-    double best = NAN, best_gap = INFINITY;
+/* The piece [j, j + 1] of the curve on a measured point's branch at f_hz: of the pieces that
+ * span f_hz (each a branch there), the one nearest amp_m in log amplitude (the branches of a
+ * folded response differ by far more than any error), and its amplitude at f_hz; -1 for none. */
+static int branch_piece(const rths_truth_curve *t, double f_hz, double amp_m, double *amp_out) {
+    int best = -1;
+    double best_gap = INFINITY;
+    *amp_out = NAN;
     for (int j = 0; j + 1 < t->n; j++) {
         double f0 = t->freq_hz[j], f1 = t->freq_hz[j + 1];
         if (!((f0 - f_hz) * (f1 - f_hz) <= 0) || f0 == f1) continue;
-        double x = (f_hz - f0) / (f1 - f0);
         double a = interpolate(t, j, f_hz);
         double gap = fabs(log(a / amp_m));
         if (a > 0 && gap < best_gap) {
             best_gap = gap;
-            best = a;
-            if (stable) *stable = x < 0.5 ? t->stable[j] : t->stable[j + 1];
+            best = j;
+            *amp_out = a;
         }
     }
     return best;
+}
+
+/* where f_hz lies on piece j, 0 .. 1 */
+static double piece_fraction(const rths_truth_curve *t, int j, double f_hz) {
+    return (f_hz - t->freq_hz[j]) / (t->freq_hz[j + 1] - t->freq_hz[j]);
+}
+
+double rths_truth_branch_amplitude_m(const rths_setup *s, const rths_truth_curve *t, double f_hz,
+                                     double amp_m, int *stable) {
+    if (stable) *stable = 1;
+    if (!s->has_bilinear) return rths_truth_linear_amplitude_m(s, f_hz);
+    double a;
+    int j = branch_piece(t, f_hz, amp_m, &a);
+    if (j >= 0 && stable)
+        *stable = piece_fraction(t, j, f_hz) < 0.5 ? t->stable[j] : t->stable[j + 1];
+    return a;
+}
+
+double rths_truth_branch_max_floquet(const rths_truth_curve *t, double f_hz, double amp_m) {
+    if (!t->max_floquet) return NAN;
+    double a;
+    int j = branch_piece(t, f_hz, amp_m, &a);
+    if (j < 0) return NAN;
+    double x = piece_fraction(t, j, f_hz);
+    return t->max_floquet[j] + x * (t->max_floquet[j + 1] - t->max_floquet[j]);
 }
 
 double rths_truth_fold_distance_hz(const rths_truth_curve *t, double f_hz) {

@@ -437,7 +437,6 @@ static void release(frf_state *st) {
     rths_truth_free(&st->truth);
     free(st->pts);
     free(st->floquet_pts);
-    frf_floquet_truth_free(&st->floquet_truth);
     free(st->resume_pts);
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
@@ -457,7 +456,7 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     if (!rc) rc = create_rig(&st, err);
     if (!rc) rc = frf_plan_within_limits(&st, err);
     if (!rc && st.floquet.enabled) /* to judge the experimental multipliers in summary.json */
-        rc = frf_floquet_truth_compute(st.setup, &st.truth, &st.floquet_truth, err);
+        rc = frf_floquet_truth_compute(st.setup, &st.floquet_truth, err);
     if (!rc) rc = lock_folder(&st, 0, err);
     if (!rc) rc = check_journal(&st, err);
     if (!rc) rc = lock_folder(&st, 1, err);

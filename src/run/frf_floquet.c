@@ -125,55 +125,12 @@ static int linear_decay_rate(const rths_setup *s, double *sigma, rths_error *err
     return rc;
 }
 
-int frf_floquet_truth_compute(const rths_setup *s, const rths_truth_curve *range,
-                              frf_floquet_truth *t, rths_error *err) {
-    *t = (frf_floquet_truth){0};
-    if (!s->has_bilinear) return linear_decay_rate(s, &t->decay_rate_per_s, err);
-    if (range->n < 2) return rths_error_set(err, RTHS_EINPUT, "no truth curve to follow");
-    /* the shooting truth.csv is computed with (rths_truth_compute), over the same range */
-    rths_shooting_options opt = {.start_hz = range->freq_hz[0],
-                                 .end_hz = range->freq_hz[range->n - 1],
-                                 .steps_per_period = 1024,
-                                 .max_step = 0.02,
-                                 .max_points = 4000};
-    rths_periodic_point *pp = NULL;
-    int count = 0, iface = s->split.int_dofs[0], n = s->assembly.n;
-    int rc =
-        rths_bilinear_frf(&s->assembly, &s->leg, s->static_force, s->force, &opt, &pp, &count, err);
-    if (!rc) {
-        t->freq_hz = malloc((size_t)count * sizeof *t->freq_hz);
-        t->amp_m = malloc((size_t)count * sizeof *t->amp_m);
-        t->max_abs = malloc((size_t)count * sizeof *t->max_abs);
-        if (!t->freq_hz || !t->amp_m || !t->max_abs)
-            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    }
-    for (int j = 0; j < count && !rc; j++) {
-        t->freq_hz[j] = pp[j].omega_rad_s / (2 * M_PI);
-        t->amp_m[j] = hypot(pp[j].cos_m[iface + n], pp[j].sin_m[iface + n]);
-        t->max_abs[j] = pp[j].max_floquet;
-    }
-    if (!rc) t->n = count;
-    rths_periodic_points_free(pp, count);
-    return rc;
+int frf_floquet_truth_compute(const rths_setup *s, frf_floquet_truth *t, rths_error *err) {
+    *t = (frf_floquet_truth){.linear = !s->has_bilinear};
+    return t->linear ? linear_decay_rate(s, &t->decay_rate_per_s, err) : RTHS_OK;
 }
 
-double frf_floquet_truth_at(const frf_floquet_truth *t, double f_hz, double amp_m) {
-    if (!t->freq_hz) return exp(t->decay_rate_per_s / f_hz);
-    double best = NAN, best_gap = INFINITY;
-    for (int j = 0; j + 1 < t->n; j++) {
-        double f0 = t->freq_hz[j], f1 = t->freq_hz[j + 1];
-        if (!((f0 - f_hz) * (f1 - f_hz) <= 0) || f0 == f1) continue;
-        double x = (f_hz - f0) / (f1 - f0), a = t->amp_m[j] + x * (t->amp_m[j + 1] - t->amp_m[j]);
-        double gap = fabs(log(a / amp_m));
-        if (a > 0 && gap < best_gap) {
-            best_gap = gap;
-            best = t->max_abs[j] + x * (t->max_abs[j + 1] - t->max_abs[j]);
-        }
-    }
-    return best;
-}
-
-void frf_floquet_truth_free(frf_floquet_truth *t) {
-    free(t->freq_hz), free(t->amp_m), free(t->max_abs);
-    *t = (frf_floquet_truth){0};
+double frf_floquet_truth_at(const frf_state *run, double f_hz, double amp_m) {
+    if (run->floquet_truth.linear) return exp(run->floquet_truth.decay_rate_per_s / f_hz);
+    return rths_truth_branch_max_floquet(&run->truth, f_hz, amp_m);
 }

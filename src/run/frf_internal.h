@@ -16,12 +16,11 @@ typedef struct frf_floquet_point {
 } frf_floquet_point;
 
 /* The true assembly's largest Floquet multiplier modulus, to judge the experimental estimate:
- * with a bilinear leg the shooting solution's along its curve (as truth.csv's), else
- * e^{sigma T} of the least damped eigenvalue's real part sigma. */
+ * with a bilinear leg the truth curve's (truth.csv's shooting solution), else e^{sigma T} of the
+ * least damped eigenvalue's real part sigma. */
 typedef struct frf_floquet_truth {
-    int n;
-    double *freq_hz, *amp_m, *max_abs; /* the shooting curve (n 0: linear) */
-    double decay_rate_per_s;           /* linear: sigma, 1/s (negative when stable) */
+    int linear;
+    double decay_rate_per_s; /* linear: sigma, 1/s (negative when stable) */
 } frf_floquet_truth;
 
 typedef struct frf_state {
@@ -81,13 +80,11 @@ int frf_plan_within_limits(frf_state *st, rths_error *err);
  * the outputs (RTHS_EINPUT naming the key), noting the allowed changes in st->changes. */
 int frf_check_resume_config(frf_state *st, rths_error *err);
 
-/* frf_floquet.c: the truth's largest multiplier modulus over the run's truth curve's range, and
- * at a point (f_hz, amp_m) on its branch (the piece of the curve spanning f_hz nearest in log
- * amplitude, interpolated linearly; NaN when none spans f_hz). */
-int frf_floquet_truth_compute(const rths_setup *s, const rths_truth_curve *range,
-                              frf_floquet_truth *t, rths_error *err);
-double frf_floquet_truth_at(const frf_floquet_truth *t, double f_hz, double amp_m);
-void frf_floquet_truth_free(frf_floquet_truth *t);
+/* frf_floquet.c: what the truth's largest multiplier modulus needs beyond the truth curve (which
+ * carries it with a bilinear leg): a linear structure's least damped decay rate; and the modulus
+ * at a point (f_hz, amp_m) on its branch (NaN when the curve has no piece there). */
+int frf_floquet_truth_compute(const rths_setup *s, frf_floquet_truth *t, rths_error *err);
+double frf_floquet_truth_at(const frf_state *run, double f_hz, double amp_m);
 
 /* frf_outputs.c */
 double frf_harmonic_error(const rths_point *pt, int k);

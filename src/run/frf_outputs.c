@@ -460,8 +460,7 @@ static void floquet_with_truth(const frf_state *run, const rths_point *pt, int s
                                double fold_hz, point_stats *ps) {
     const frf_floquet_point *f = floquet_point(run, pt->index);
     if (!f) return;
-    double truth =
-        frf_floquet_truth_at(&run->floquet_truth, pt->sol.frequency_hz, pt->sol.amplitude_m);
+    double truth = frf_floquet_truth_at(run, pt->sol.frequency_hz, pt->sol.amplitude_m);
     if (isfinite(truth) && isfinite(f->max_abs_se)) {
         double z = fabs(f->max_abs - truth) / f->max_abs_se;
         ps->floquet_se_compared++;
