@@ -141,7 +141,7 @@ static void begin(rths_corrector *c, const rths_arclength *arc) {
     c->cur.sol.harmonics = c->harmonics;
 }
 
-/* Euclidean size of the target part of scaled unknowns u. */
+/* Euclidean size of the target part of unknowns u (scaled, or in metres). */
 static double target_norm(const rths_corrector *c, const double *u) {
     double size = 0;
     for (int i = 0; i < c->n; i++)
@@ -155,10 +155,7 @@ void rths_corrector_set_trust_anchor(rths_corrector *c, double anchor_m) {
 
 int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m) {
     if (!(c->trust_anchor_m > 0 && c->opt.trust_growth > 0)) return 1;
-    double size = 0;
-    for (int i = 0; i < c->n; i++)
-        size += u_m[i] * u_m[i];
-    return sqrt(size) <= c->opt.trust_growth * c->trust_anchor_m;
+    return target_norm(c, u_m) <= c->opt.trust_growth * c->trust_anchor_m;
 }
 
 int rths_corrector_trust_actions(const rths_corrector *c) {
