@@ -49,6 +49,9 @@ typedef struct rths_evaluation {
     int interface_dofs;
     rths_fourier phys_dof[RTHS_MAX_INTERFACE_DOFS], num_dof[RTHS_MAX_INTERFACE_DOFS];
     rths_fourier phys_dof_se[RTHS_MAX_INTERFACE_DOFS], num_dof_se[RTHS_MAX_INTERFACE_DOFS];
+    /* the periods' integrity counts (rths_period) summed over every period this evaluation
+     * read, waiting and averaging, and the controller samples those periods held */
+    long late_samples, clipped_demand_samples, saturated_sensor_samples, samples_read;
 } rths_evaluation;
 
 /* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */

@@ -36,6 +36,14 @@ typedef struct rths_period {
     rths_fourier phys_dof[RTHS_MAX_INTERFACE_DOFS];
     rths_fourier num_dof[RTHS_MAX_INTERFACE_DOFS];
     rths_fourier force_dof[RTHS_MAX_INTERFACE_DOFS];
+    /* Integrity of the period: samples whose deadline was missed (the controller process; the
+     * virtual rig runs on a simulated clock and never misses one), samples in which any
+     * actuator demand was clamped (demand limit or DAC range), samples in which any converter
+     * reading sat at its full scale. The coupling the result depends on holds only for samples
+     * counted in none of them. */
+    int late_samples;
+    int clipped_demand_samples;
+    int saturated_sensor_samples;
 } rths_period;
 
 typedef enum {
