@@ -9,6 +9,9 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/resource.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 static const char *data_path(const char *name) {
     static char path[1024];
@@ -78,6 +81,52 @@ static void test_bad_files(void **state) {
     expect_refused("bad_nan.mtx", 3, "not a finite number");
     expect_refused("bad_both_triangles.mtx", 4, "one triangle only");
     expect_refused("bad_array_short.mtx", 5, "file ends after 3 of the 4 values");
+    /* what strtod and sscanf would let through: a NUL byte hiding the rest of the line, a
+     * hexadecimal float, words after the header's SYMMETRY */
+    expect_refused("bad_nul.mtx", 3, "NUL byte");
+    expect_refused("bad_hex.mtx", 3, "'0x1.5p2' is not a decimal number");
+    expect_refused("bad_header_words.mtx", 1, "unexpected words after the header");
+}
+
+/* A mass or stiffness matrix: a missing or negative diagonal term is refused from the entries,
+ * before a dense matrix of the declared size exists. The 12000 x 12000 file is 70 bytes; under an
+ * address-space limit of 512 MB (below the 1.15 GB its dense form needs) it must still be refused
+ * for what it is, not for memory. */
+static void test_positive_diagonal(void **state) {
+    (void)state;
+    double *m;
+    int r, c;
+    rths_error err;
+    assert_int_equal(rths_mtx_read_checked(data_path("coord_symmetric.mtx"),
+                                           RTHS_MTX_POSITIVE_DIAGONAL, &m, &r, &c, &err),
+                     RTHS_OK);
+    free(m);
+    assert_int_equal(rths_mtx_read_checked(data_path("bad_negative_diagonal.mtx"),
+                                           RTHS_MTX_POSITIVE_DIAGONAL, &m, &r, &c, &err),
+                     RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "diagonal entry (2,2) is negative"));
+    assert_int_equal(rths_mtx_read_checked(data_path("coord_general.mtx"),
+                                           RTHS_MTX_POSITIVE_DIAGONAL, &m, &r, &c, &err),
+                     RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "must be square (is 3 x 2)"));
+
+    pid_t pid = fork();
+    assert_true(pid >= 0);
+    if (pid == 0) {
+#if !defined(__SANITIZE_ADDRESS__)
+        struct rlimit lim = {512ul << 20, 512ul << 20};
+        if (setrlimit(RLIMIT_AS, &lim)) _exit(3);
+#endif
+        int rc = rths_mtx_read_checked(data_path("bad_missing_diagonal.mtx"),
+                                       RTHS_MTX_POSITIVE_DIAGONAL, &m, &r, &c, &err);
+        if (rc != RTHS_EINPUT) _exit(1);
+        if (!strstr(err.msg, "diagonal entry (2,2) is zero or missing")) _exit(2);
+        _exit(0);
+    }
+    int status;
+    assert_int_equal(waitpid(pid, &status, 0), pid);
+    assert_true(WIFEXITED(status));
+    assert_int_equal(WEXITSTATUS(status), 0);
 }
 
 static void test_missing_file(void **state) {
@@ -94,6 +143,7 @@ int main(void) {
         cmocka_unit_test(test_good_files),
         cmocka_unit_test(test_bad_files),
         cmocka_unit_test(test_missing_file),
+        cmocka_unit_test(test_positive_diagonal),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

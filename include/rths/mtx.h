@@ -4,7 +4,8 @@
  * "%%MatrixMarket matrix FORMAT FIELD SYMMETRY" with FORMAT coordinate or array, FIELD real,
  * double or integer, SYMMETRY general or symmetric; '%' comment lines; a size line; then the
  * entries (coordinate: "i j value", 1-based, duplicates summed as FE assembly does; array: values
- * column by column, for symmetric only the lower triangle). No Debian package with a permissive
+ * column by column, for symmetric only the lower triangle). Values are decimal (no hexadecimal
+ * floats, no NUL bytes, nothing after the header's five words). No Debian package with a permissive
  * licence reads it (SuiteSparse's reader sits in GPL-linked CHOLMOD), hence this small reader. */
 #ifndef RTHS_MTX_H
 #define RTHS_MTX_H
@@ -18,5 +19,16 @@
  * expanded to both triangles). Every problem is RTHS_EINPUT with "PATH:LINE: what is wrong";
  * a file that cannot be opened names the system's reason. */
 int rths_mtx_read(const char *path, double **out, int *rows, int *cols, rths_error *err);
+
+/* Checks rths_mtx_read_checked can make on the entries before the dense matrix is formed. */
+enum {
+    /* square, every diagonal term (duplicates summed) > 0: a mass or stiffness matrix */
+    RTHS_MTX_POSITIVE_DIAGONAL = 1,
+};
+/* rths_mtx_read with checks (flags: the enum above, or-ed). The file's entries are held as they
+ * are read and checked before the dense matrix is allocated, so memory grows with the entries
+ * present: a short file declaring a large size is refused without allocating it. */
+int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, int *cols,
+                          rths_error *err);
 
 #endif

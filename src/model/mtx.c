@@ -14,6 +14,7 @@ typedef struct {
     FILE *f;
     char *line;
     size_t cap;
+    ssize_t len; /* bytes getline read: a NUL byte before them would hide the rest of the line */
     long lineno;
 } mtx_reader;
 
@@ -24,7 +25,7 @@ static int bad(const mtx_reader *r, rths_error *err, const char *what) {
 /* Next line that is neither a comment nor blank; 0 at end of file. */
 static int next_data_line(mtx_reader *r) {
     for (;;) {
-        if (getline(&r->line, &r->cap, r->f) < 0) return 0;
+        if ((r->len = getline(&r->line, &r->cap, r->f)) < 0) return 0;
         r->lineno++;
         const char *p = r->line + strspn(r->line, " \t\r\n");
         if (*p && *p != '%') return 1;
@@ -34,9 +35,19 @@ static int next_data_line(mtx_reader *r) {
 /* Parses exactly `count` whitespace-separated fields of the current line as numbers. */
 static int parse_fields(mtx_reader *r, int count, double *v, rths_error *err) {
     char *p = r->line, msg[160];
+    if ((ssize_t)strlen(r->line) != r->len) return bad(r, err, "the line holds a NUL byte");
     for (int k = 0; k < count; k++) {
         char *end;
         errno = 0;
+        p += strspn(p, " \t");
+        /* strtod also reads C99 hexadecimal floats ("0x1p3"), which no FE code writes: a value
+         * like that is a corrupt or foreign file, not a number to trust */
+        size_t token = strcspn(p, " \t\r\n");
+        if (memchr(p, 'x', token) || memchr(p, 'X', token)) {
+            snprintf(msg, sizeof msg, "'%.*s' is not a decimal number",
+                     token < 40 ? (int)token : 40, p);
+            return bad(r, err, msg);
+        }
         v[k] = strtod(p, &end);
         if (end == p) {
             snprintf(msg, sizeof msg, "expected %d number%s on this line, found %d", count,
@@ -80,7 +91,9 @@ static int parse_header(mtx_reader *r, mtx_kind *kind, rths_error *err) {
     }
     r->lineno = 1;
     char banner[32] = "", object[32] = "", format[32] = "", field[32] = "", symmetry[32] = "";
-    int got = sscanf(r->line, "%31s %31s %31s %31s %31s", banner, object, format, field, symmetry);
+    char extra[32] = "";
+    int got = sscanf(r->line, "%31s %31s %31s %31s %31s %31s", banner, object, format, field,
+                     symmetry, extra);
     if (got < 1 || strcasecmp(banner, "%%MatrixMarket"))
         return bad(r, err,
                    "not a Matrix Market file: the first line must start with "
@@ -106,6 +119,7 @@ static int parse_header(mtx_reader *r, mtx_kind *kind, rths_error *err) {
         kind->symmetric = 1;
     else
         return bad(r, err, "symmetry must be 'general' or 'symmetric'");
+    if (got > 5) return bad(r, err, "unexpected words after the header's SYMMETRY");
     return RTHS_OK;
 }
 
@@ -139,10 +153,41 @@ static int read_size(mtx_reader *r, const mtx_kind *kind, int *rows, int *cols, 
     return RTHS_OK;
 }
 
-/* Coordinate entries: summed (FE assembly writes element contributions separately); a symmetric
- * file may use either triangle, not both. */
+/* The entries as the file lists them, held until the whole file has been checked: memory grows
+ * with the entries present, never with the size line's promise (a few bytes declaring
+ * 12000 x 12000 must be refused before a dense matrix of that size exists). */
+typedef struct {
+    int *i, *j;
+    double *v;
+    long n, cap;
+} mtx_entries;
+
+static int push_entry(mtx_entries *t, int i, int j, double v) {
+    if (t->n == t->cap) {
+        long cap = t->cap ? 2 * t->cap : 1024;
+        int *ni = realloc(t->i, (size_t)cap * sizeof *ni);
+        if (ni) t->i = ni;
+        int *nj = realloc(t->j, (size_t)cap * sizeof *nj);
+        if (nj) t->j = nj;
+        double *nv = realloc(t->v, (size_t)cap * sizeof *nv);
+        if (nv) t->v = nv;
+        if (!ni || !nj || !nv) return -1;
+        t->cap = cap;
+    }
+    t->i[t->n] = i;
+    t->j[t->n] = j;
+    t->v[t->n] = v;
+    t->n++;
+    return 0;
+}
+
+static int out_of_memory(const mtx_reader *r, rths_error *err) {
+    return rths_error_set(err, RTHS_EFAIL, "%s: out of memory after %ld lines", r->path, r->lineno);
+}
+
+/* Coordinate entries; a symmetric file may use either triangle, not both. */
 static int read_coordinate(mtx_reader *r, const mtx_kind *kind, int rows, int cols, long entries,
-                           double *m, rths_error *err) {
+                           mtx_entries *t, rths_error *err) {
     int lower = 0, upper = 0;
     for (long e = 0; e < entries; e++) {
         if (!next_data_line(r)) {
@@ -164,14 +209,13 @@ static int read_coordinate(mtx_reader *r, const mtx_kind *kind, int rows, int co
             return bad(r, err,
                        "a symmetric file stores one triangle only, this entry is in the "
                        "other one");
-        RTHS_AT(m, rows, i, j) += v[2];
-        if (kind->symmetric && i != j) RTHS_AT(m, rows, j, i) += v[2];
+        if (push_entry(t, i, j, v[2])) return out_of_memory(r, err);
     }
     return RTHS_OK;
 }
 
 /* Array entries: column by column; symmetric: the lower triangle only. */
-static int read_array(mtx_reader *r, const mtx_kind *kind, int rows, long entries, double *m,
+static int read_array(mtx_reader *r, const mtx_kind *kind, int rows, long entries, mtx_entries *t,
                       rths_error *err) {
     int i = 0, j = 0;
     for (long e = 0; e < entries; e++) {
@@ -186,8 +230,7 @@ static int read_array(mtx_reader *r, const mtx_kind *kind, int rows, long entrie
         double v;
         int rc = parse_fields(r, 1, &v, err);
         if (rc) return rc;
-        RTHS_AT(m, rows, i, j) = v;
-        if (kind->symmetric) RTHS_AT(m, rows, j, i) = v;
+        if (push_entry(t, i, j, v)) return out_of_memory(r, err);
         if (++i == rows) {
             j++;
             i = kind->symmetric ? j : 0;
@@ -196,26 +239,80 @@ static int read_array(mtx_reader *r, const mtx_kind *kind, int rows, long entrie
     return RTHS_OK;
 }
 
+/* The dense matrix of checked entries: coordinate duplicates summed (FE assembly writes element
+ * contributions separately), symmetric files expanded to both triangles. */
+static void assemble(const mtx_kind *kind, int rows, const mtx_entries *t, double *m) {
+    for (long e = 0; e < t->n; e++) {
+        int i = t->i[e], j = t->j[e];
+        if (kind->coordinate) {
+            RTHS_AT(m, rows, i, j) += t->v[e];
+            if (kind->symmetric && i != j) RTHS_AT(m, rows, j, i) += t->v[e];
+        } else {
+            RTHS_AT(m, rows, i, j) = t->v[e];
+            if (kind->symmetric) RTHS_AT(m, rows, j, i) = t->v[e];
+        }
+    }
+}
+
+/* Every diagonal term (duplicates summed) positive, checked on the entries before the dense
+ * matrix exists: a mass or stiffness matrix without one is singular or indefinite anyway, and a
+ * few-byte file declaring a large size must cost nothing to refuse. */
+static int check_positive_diagonal(const mtx_reader *r, int n, const mtx_entries *t,
+                                   rths_error *err) {
+    double *diag = calloc((size_t)n, sizeof *diag);
+    if (!diag) return out_of_memory(r, err);
+    for (long e = 0; e < t->n; e++)
+        if (t->i[e] == t->j[e]) diag[t->i[e]] += t->v[e];
+    int rc = RTHS_OK;
+    for (int i = 0; i < n && !rc; i++)
+        if (!(diag[i] > 0))
+            rc = rths_error_set(err, RTHS_EINPUT,
+                                "%s: diagonal entry (%d,%d) is %s: a mass or stiffness matrix "
+                                "needs a positive diagonal term on every DoF",
+                                r->path, i + 1, i + 1,
+                                diag[i] == 0 ? "zero or missing" : "negative");
+    free(diag);
+    return rc;
+}
+
 int rths_mtx_read(const char *path, double **out, int *rows, int *cols, rths_error *err) {
+    return rths_mtx_read_checked(path, 0, out, rows, cols, err);
+}
+
+int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, int *cols,
+                          rths_error *err) {
     *out = NULL;
     *rows = *cols = 0;
     mtx_reader r = {.path = path};
     r.f = fopen(path, "r");
     if (!r.f) return rths_error_set(err, RTHS_EINPUT, "%s: cannot open: %s", path, strerror(errno));
     mtx_kind kind = {0};
+    mtx_entries t = {0};
     long entries = 0;
     double *m = NULL;
     int rc = parse_header(&r, &kind, err);
     if (!rc) rc = read_size(&r, &kind, rows, cols, &entries, err);
+    if (!rc)
+        rc = kind.coordinate ? read_coordinate(&r, &kind, *rows, *cols, entries, &t, err)
+                             : read_array(&r, &kind, *rows, entries, &t, err);
+    if (!rc && next_data_line(&r)) rc = bad(&r, err, "more entries than the size line announces");
+    if (!rc && (flags & RTHS_MTX_POSITIVE_DIAGONAL)) {
+        if (*rows != *cols)
+            rc = rths_error_set(err, RTHS_EINPUT, "%s: must be square (is %d x %d)", path, *rows,
+                                *cols);
+        else
+            rc = check_positive_diagonal(&r, *rows, &t, err);
+    }
     if (!rc) {
         m = rths_mat_new(*rows, *cols);
         if (!m)
             rc = rths_error_set(err, RTHS_EFAIL, "%s: out of memory (%d x %d)", path, *rows, *cols);
+        else
+            assemble(&kind, *rows, &t, m);
     }
-    if (!rc)
-        rc = kind.coordinate ? read_coordinate(&r, &kind, *rows, *cols, entries, m, err)
-                             : read_array(&r, &kind, *rows, entries, m, err);
-    if (!rc && next_data_line(&r)) rc = bad(&r, err, "more entries than the size line announces");
+    free(t.i);
+    free(t.j);
+    free(t.v);
     free(r.line);
     fclose(r.f);
     if (rc) {
