@@ -481,10 +481,16 @@ static int handle(struct mg_connection *c, void *cbdata) {
     pthread_t thread;
     pthread_attr_init(&attr);
     pthread_attr_setstacksize(&attr, (size_t)8 << 20);
-    if (pthread_create(&thread, &attr, request_thread, &job) == 0)
+    int e = pthread_create(&thread, &attr, request_thread, &job);
+    if (e == 0) {
         pthread_join(thread, NULL);
-    else
-        mg_printf(c, "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n\r\n");
+    } else { /* plain text: json-c is what this small stack cannot afford */
+        char why[160];
+        int n = snprintf(why, sizeof why,
+                         "the view cannot start a thread for this request (%s): try again",
+                         strerror(e));
+        job.status = send_body(c, 503, "text/plain; charset=utf-8", why, (size_t)n);
+    }
     pthread_attr_destroy(&attr);
     return job.status;
 }
