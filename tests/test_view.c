@@ -5,6 +5,14 @@
  * decimated samples, its lateness histogram counts every sample, and the loop-side publishing
  * code calls nothing that allocates, locks or prints.
  *
+ *
+ * The HTTP server's hardening, in process over raw loopback sockets (requests sent exactly as
+ * written): files of the run folder that are symlinks or FIFOs are refused without a byte of
+ * what they name, files over 16 MB are served whole, an encoded NUL is refused, HEAD of the event
+ * stream ends, a busy server says 503 Service Unavailable, idle connections are closed and do
+ * not starve the API. Every server a test starts is stopped by its teardown, whatever the
+ * test's outcome.
+ *
  * `test_view --serve-controller CONFIG [key=value...]` is not a test: it runs a controller with
  * its page on free loopback ports for tests/cli/view.sh's browser test, until SIGTERM. */
 #include "rths/continuation.h"
@@ -17,12 +25,20 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <arpa/inet.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <netinet/in.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/socket.h>
+#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
 static char scratch[64];
+static rths_view *served; /* the server a test started, stopped by its teardown */
 
 static int setup(void **state) {
     (void)state;
@@ -32,6 +48,8 @@ static int setup(void **state) {
 
 static int teardown(void **state) {
     (void)state;
+    rths_view_stop(served);
+    served = NULL;
     char cmd[128];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", scratch);
     return system(cmd) == 0 ? 0 : -1;
@@ -399,6 +417,271 @@ static void loop_side_source_is_clean(void **state) {
         if (!seen[i]) fail_msg("server.c has no '%s' to scan", loop_functions[i]);
 }
 
+/* ---- the HTTP server's hardening, over raw sockets ---- */
+
+/* A TCP connection to the view on loopback whose reads give up after timeout_s; -1 on failure. */
+static int connect_view(int port, double timeout_s) {
+    int fd = socket(AF_INET, SOCK_STREAM | SOCK_CLOEXEC, 0);
+    if (fd < 0) return -1;
+    struct sockaddr_in a = {.sin_family = AF_INET, .sin_port = htons((uint16_t)port)};
+    a.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
+    struct timeval tv = {(time_t)timeout_s, (suseconds_t)((timeout_s - (time_t)timeout_s) * 1e6)};
+    if (connect(fd, (struct sockaddr *)&a, sizeof a) != 0 ||
+        setsockopt(fd, SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof tv) != 0) {
+        close(fd);
+        return -1;
+    }
+    return fd;
+}
+
+/* The request exactly as written (no encoding, unlike a client library), and the whole answer
+ * until the server closes the connection: malloc'ed, NUL-terminated, its length in *len. NULL
+ * when the answer had not ended within timeout_s (an answer that keeps coming, a stream, too). */
+static char *raw_http(int port, const char *request, double timeout_s, size_t *len) {
+    int fd = connect_view(port, timeout_s);
+    if (fd < 0) return NULL;
+    size_t cap = 1 << 16, n = 0;
+    char *buf = malloc(cap + 1);
+    double deadline = rths_monotonic_s() + timeout_s;
+    ssize_t got = send(fd, request, strlen(request), MSG_NOSIGNAL);
+    while (buf && got > 0) {
+        if (n == cap && !(buf = realloc(buf, (cap *= 2) + 1))) break;
+        double left = deadline - rths_monotonic_s();
+        struct pollfd pfd = {.fd = fd, .events = POLLIN};
+        if (left <= 0 || poll(&pfd, 1, (int)(left * 1e3) + 1) <= 0) {
+            got = -1;
+            break;
+        }
+        got = recv(fd, buf + n, cap - n, 0);
+        if (got > 0) n += (size_t)got;
+    }
+    close(fd);
+    if (!buf || got < 0) { /* the answer had not ended in time */
+        free(buf);
+        return NULL;
+    }
+    buf[n] = 0;
+    if (len) *len = n;
+    return buf;
+}
+
+static int status_of(const char *answer) {
+    int status = -1;
+    return answer && sscanf(answer, "HTTP/1.%*d %d", &status) == 1 ? status : -1;
+}
+
+static const char *body_of(const char *answer) {
+    const char *end = strstr(answer, "\r\n\r\n");
+    assert_non_null(end);
+    return end + 4;
+}
+
+/* GET path: the answer, which must have come with status want and must not hold `never`. */
+static char *expect_answer(int port, const char *path, int want, const char *never) {
+    char request[512];
+    snprintf(request, sizeof request, "GET %s HTTP/1.0\r\n\r\n", path);
+    char *a = raw_http(port, request, 20, NULL);
+    if (!a) fail_msg("GET %s: no complete answer within 20 s", path);
+    if (status_of(a) != want) fail_msg("GET %s: %.120s, expected %d", path, a, want);
+    if (never && strstr(a, never))
+        fail_msg("GET %s: the answer holds '%s': %.300s", path, never, a);
+    return a;
+}
+
+static char *scratch_path(const char *name) {
+    static char path[4][256];
+    static int next;
+    char *p = path[next++ % 4];
+    snprintf(p, sizeof path[0], "%s/%s", scratch, name);
+    return p;
+}
+
+static int serve_scratch_run(void) {
+    rths_view_options opt;
+    rths_view_options_defaults(&opt);
+    opt.port = 0;
+    opt.run_dir = scratch_path("run");
+    rths_error err;
+    if (rths_view_start(&opt, &served, &err)) fail_msg("%s", err.msg);
+    return rths_view_port(served);
+}
+
+/* Symlinks in the run folder pointing outside it (the probe: ln -s /etc/passwd RUN/live.json)
+ * are refused by every route that reads a file, and no byte of the target is sent, not even in
+ * an error message (/api/points echoed a field of a symlinked CSV). */
+static void symlinks_refused(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("secret.csv", "a,b\nSECRET-4711,1\n");
+    write_text("run/journal.jsonl", "\n"); /* makes it a run folder */
+    const char *links[] = {"live.json", "summary.json", "frf.csv",
+                           "truth.csv", "config.yaml",  "figure.png"};
+    for (size_t i = 0; i < sizeof links / sizeof links[0]; i++) {
+        char link[128];
+        snprintf(link, sizeof link, "run/%s", links[i]);
+        assert_int_equal(symlink(scratch_path("secret.csv"), scratch_path(link)), 0);
+    }
+    int port = serve_scratch_run();
+    const char *refused[] = {"/api/live",      "/api/summary",    "/api/points",      "/api/truth",
+                             "/run/live.json", "/run/figure.png", "/run/summary.json"};
+    for (size_t i = 0; i < sizeof refused / sizeof refused[0]; i++) {
+        char *a = expect_answer(port, refused[i], 403, "SECRET");
+        if (!strstr(a, "symbolic link")) fail_msg("GET %s: no reason: %s", refused[i], a);
+        free(a);
+    }
+    /* the status lists the run's own files only, and the plan comes from none of the links */
+    char *a = expect_answer(port, "/api/status", 200, "SECRET");
+    json_object *st = json_tokener_parse(body_of(a)), *files, *x;
+    assert_non_null(st);
+    assert_true(json_object_object_get_ex(st, "files", &files));
+    assert_true(json_object_object_get_ex(files, "journal.jsonl", &x));
+    assert_false(json_object_object_get_ex(files, "live.json", &x));
+    assert_false(json_object_object_get_ex(files, "frf.csv", &x));
+    json_object_put(st);
+    free(a);
+}
+
+/* A FIFO named live.json blocked a server thread for ever (reading waits for a writer): it is
+ * refused at once. Should the server block anyway, the FIFO is opened for writing so that the
+ * thread and the test can end. */
+static void fifo_refused(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("run/journal.jsonl", "\n");
+    assert_int_equal(mkfifo(scratch_path("run/live.json"), 0600), 0);
+    int port = serve_scratch_run();
+    const char *paths[] = {"GET /api/live HTTP/1.0\r\n\r\n", "GET /run/live.json HTTP/1.0\r\n\r\n"};
+    for (int i = 0; i < 2; i++) {
+        char *a = raw_http(port, paths[i], 20, NULL);
+        if (!a) {
+            int unblock = open(scratch_path("run/live.json"), O_WRONLY | O_NONBLOCK);
+            if (unblock >= 0) close(unblock);
+            fail_msg("%.20s...: no answer within 20 s (blocked on the FIFO)", paths[i]);
+        }
+        if (status_of(a) != 403 || !strstr(a, i ? "not a regular file" : "a FIFO"))
+            fail_msg("%.20s...: %s", paths[i], a);
+        free(a);
+    }
+}
+
+/* Files over 16 MB were cut to 16 MB with 200 (/api/live, /api/summary) and /run/ files to
+ * 256 MB: they are sent whole, Content-Length their size. */
+static void large_files_whole(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("run/journal.jsonl", "\n");
+    size_t size = ((size_t)17 << 20) + 7;
+    char *data = malloc(size);
+    assert_non_null(data);
+    for (size_t i = 0; i < size; i++)
+        data[i] = (char)('a' + (i * 7 + i / 4093) % 26);
+    FILE *f = fopen(scratch_path("run/live.json"), "wb");
+    assert_non_null(f);
+    assert_int_equal(fwrite(data, 1, size, f), size);
+    fclose(f);
+    int port = serve_scratch_run();
+    const char *requests[] = {"GET /api/live HTTP/1.0\r\n\r\n",
+                              "GET /run/live.json HTTP/1.0\r\n\r\n"};
+    for (int i = 0; i < 2; i++) {
+        size_t len = 0;
+        char *a = raw_http(port, requests[i], 20, &len);
+        assert_non_null(a);
+        assert_int_equal(status_of(a), 200);
+        const char *body = body_of(a);
+        unsigned long long declared = 0;
+        const char *cl = strcasestr(a, "Content-Length:");
+        assert_true(cl && cl < body && sscanf(cl + 15, "%llu", &declared) == 1);
+        assert_int_equal(declared, size);
+        assert_int_equal(len - (size_t)(body - a), size);
+        assert_memory_equal(body, data, size);
+        free(a);
+    }
+    free(data);
+}
+
+/* civetweb decodes the path before the handler sees it, which cut it at an encoded NUL:
+ * /run/frf.csv%00.png served frf.csv. Refused with 400, in the path and in the query. */
+static void encoded_nul_refused(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("run/frf.csv", "point,frequency_hz\n0,12.5\n");
+    int port = serve_scratch_run();
+    const char *paths[] = {"/run/frf.csv%00.png", "/api/status%00", "/api/status?x=%00",
+                           "/run/frf.csv?%00"};
+    for (size_t i = 0; i < sizeof paths / sizeof paths[0]; i++) {
+        char *a = expect_answer(port, paths[i], 400, "frequency_hz");
+        if (!strstr(a, "400 Bad Request") || !strstr(a, "NUL")) fail_msg("%s: %s", paths[i], a);
+        free(a);
+    }
+    /* the view decodes the rest itself: an encoded letter still names the file */
+    char *a = expect_answer(port, "/run/fr%66.csv", 200, NULL);
+    assert_non_null(strstr(body_of(a), "0,12.5"));
+    free(a);
+}
+
+/* HEAD /api/events opened a stream that never ended: it answers the stream's head and closes.
+ * With every event stream taken (8), a 9th is refused with "503 Service Unavailable" (it said
+ * Internal Server Error) and the API still answers. */
+static void events_head_and_busy(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("run/journal.jsonl", "\n");
+    int port = serve_scratch_run();
+    char *a = raw_http(port, "HEAD /api/events HTTP/1.0\r\n\r\n", 10, NULL);
+    if (!a) fail_msg("HEAD /api/events: the answer did not end within 10 s (a stream)");
+    assert_int_equal(status_of(a), 200);
+    assert_non_null(strstr(a, "Content-Type: text/event-stream"));
+    assert_string_equal(body_of(a), "");
+    free(a);
+    enum { STREAMS = 8 };
+    int streams[STREAMS];
+    for (int i = 0; i < STREAMS; i++) {
+        streams[i] = connect_view(port, 20);
+        assert_true(streams[i] >= 0);
+        const char *get = "GET /api/events HTTP/1.0\r\n\r\n";
+        assert_int_equal(send(streams[i], get, strlen(get), MSG_NOSIGNAL), (ssize_t)strlen(get));
+        char head[512] = "";
+        size_t n = 0;
+        ssize_t got;
+        while (!strstr(head, "retry:") && n + 1 < sizeof head &&
+               (got = recv(streams[i], head + n, sizeof head - 1 - n, 0)) > 0)
+            head[n += (size_t)got] = 0;
+        if (!strstr(head, "retry:")) fail_msg("event stream %d did not start: %s", i, head);
+    }
+    a = expect_answer(port, "/api/events", 503, NULL);
+    if (!strstr(a, "503 Service Unavailable") || !strstr(a, "too many live pages"))
+        fail_msg("9th stream: %s", a);
+    free(a);
+    free(expect_answer(port, "/api/status", 200, NULL));
+    for (int i = 0; i < STREAMS; i++)
+        close(streams[i]);
+}
+
+/* Connections that never send a request held the server's workers (16) for civetweb's default
+ * 30 s, so 16 idle connections blocked every request. With more idle connections than workers
+ * (40), a request is still answered and an idle connection is closed by the server, both well
+ * within 20 s (the view closes them after 5 s; the bound leaves room for a loaded machine). */
+static void idle_connections_closed(void **state) {
+    (void)state;
+    assert_int_equal(mkdir(scratch_path("run"), 0700), 0);
+    write_text("run/journal.jsonl", "\n");
+    int port = serve_scratch_run();
+    enum { IDLE = 40 };
+    int idle[IDLE];
+    for (int i = 0; i < IDLE; i++)
+        assert_true((idle[i] = connect_view(port, 20)) >= 0);
+    char *a = expect_answer(port, "/api/status", 200, NULL);
+    free(a);
+    char byte;
+    ssize_t got = recv(idle[0], &byte, 1, 0);
+    int e = errno;
+    for (int i = 0; i < IDLE; i++)
+        close(idle[i]);
+    if (got != 0)
+        fail_msg("an idle connection was not closed within 20 s (recv %zd, %s)", got,
+                 got < 0 ? strerror(e) : "data");
+}
+
 /* test_view --serve-controller CONFIG [key=value...]: see the top of this file. */
 static int serve_controller(int argc, char **argv) {
     sigset_t stop;
@@ -431,6 +714,12 @@ int main(int argc, char **argv) {
         cmocka_unit_test_setup_teardown(points_from_csv, setup, teardown),
         cmocka_unit_test_setup_teardown(points_from_journal, setup, teardown),
         cmocka_unit_test(process_snapshot),
+        cmocka_unit_test_setup_teardown(symlinks_refused, setup, teardown),
+        cmocka_unit_test_setup_teardown(fifo_refused, setup, teardown),
+        cmocka_unit_test_setup_teardown(large_files_whole, setup, teardown),
+        cmocka_unit_test_setup_teardown(encoded_nul_refused, setup, teardown),
+        cmocka_unit_test_setup_teardown(events_head_and_busy, setup, teardown),
+        cmocka_unit_test_setup_teardown(idle_connections_closed, setup, teardown),
         cmocka_unit_test(controller_page),
         cmocka_unit_test(loop_side_source_is_clean),
     };

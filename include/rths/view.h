@@ -15,8 +15,12 @@
  *   /run/NAME          a file directly inside the run folder (figures, CSV); nothing else
  *   /api/process       a live process's own data (the controller's scope and lateness), when
  *                      one is served
- * Requests naming anything outside the run folder (.., encoded or not, slashes, symlinks that
- * leave it) are refused with 403; unknown paths get 404; all errors are short JSON or text. */
+ * Requests naming anything outside the run folder (.., encoded or not, slashes) are refused with
+ * 403, and so is every file of the folder that is a symlink, FIFO, device or folder (only regular
+ * files are read, never through a link); an encoded NUL gets 400; unknown paths get 404; all
+ * errors are short JSON or text naming the reason, never a file's content. Files are sent whole.
+ * Idle connections are closed after 5 s; live pages take at most 8 of the 32 workers
+ * (docs/view.md, "Safety"). */
 #ifndef RTHS_VIEW_H
 #define RTHS_VIEW_H
 

@@ -14,6 +14,7 @@
 #include <strings.h>
 #include <sys/stat.h>
 #include <time.h>
+#include <unistd.h>
 
 struct rths_view {
     struct mg_context *ctx;
@@ -29,9 +30,16 @@ struct rths_view {
     atomic_int event_streams; /* open /api/events streams, each holding a server thread */
 };
 
-/* Each live page holds one of the server's 16 threads for as long as it is open: beyond this
+/* Each live page holds one of the server's threads for as long as it is open: beyond this
  * many, a new stream is refused so the page's own requests are always served. */
 enum { VIEW_MAX_EVENT_STREAMS = 8 };
+/* civetweb's worker threads: every connection holds one from accept until it is closed, idle or
+ * not. Streams take at most 8, the rest serve requests. */
+#define VIEW_THREADS "32"
+/* A connection that has not sent its request (or stops reading the answer) within this time is
+ * closed (civetweb's request_timeout_ms, 30 s by default): idle connections cannot hold every
+ * worker for long. A browser sends its request at once, even over a slow network. */
+#define VIEW_REQUEST_TIMEOUT_MS "5000"
 
 /* The files of a run whose changes the page hears about, and the API each one feeds. */
 static const char *const watched[][2] = {
@@ -99,21 +107,62 @@ int rths_view_parse_listen(const char *text, char *host, size_t host_cap, int *p
 
 /* ---- responses ---- */
 
-static int send_body(struct mg_connection *c, int status, const char *mime, const void *body,
-                     size_t len) {
-    const char *reason = status == 200   ? "OK"
-                         : status == 403 ? "Forbidden"
-                         : status == 404 ? "Not Found"
-                         : status == 405 ? "Method Not Allowed"
-                                         : "Internal Server Error";
+static const char *reason_phrase(int status) {
+    switch (status) {
+    case 200:
+        return "OK";
+    case 400:
+        return "Bad Request";
+    case 403:
+        return "Forbidden";
+    case 404:
+        return "Not Found";
+    case 405:
+        return "Method Not Allowed";
+    case 414:
+        return "URI Too Long";
+    case 503:
+        return "Service Unavailable";
+    default:
+        return "Internal Server Error";
+    }
+}
+
+static int is_head(struct mg_connection *c) {
+    return !strcmp(mg_get_request_info(c)->request_method, "HEAD");
+}
+
+static void send_head(struct mg_connection *c, int status, const char *mime, size_t len) {
     mg_printf(c,
               "HTTP/1.1 %d %s\r\nContent-Type: %s\r\nContent-Length: %zu\r\n"
               "Cache-Control: no-store\r\nX-Content-Type-Options: nosniff\r\n"
               "Connection: close\r\n\r\n",
-              status, reason, mime, len);
-    const struct mg_request_info *ri = mg_get_request_info(c);
-    if (len && strcmp(ri->request_method, "HEAD")) mg_write(c, body, len);
+              status, reason_phrase(status), mime, len);
+}
+
+static int send_body(struct mg_connection *c, int status, const char *mime, const void *body,
+                     size_t len) {
+    send_head(c, status, mime, len);
+    if (len && !is_head(c)) mg_write(c, body, len);
     return status;
+}
+
+/* An open run file, whole, whatever its size (never truncated): Content-Length is its size when
+ * opened; the run only appends to or atomically replaces its files, so that many bytes are
+ * there. Should it shrink, the connection closes short of Content-Length and the client sees an
+ * incomplete answer, not a complete wrong one. */
+static int send_file(struct mg_connection *c, const view_file *f, const char *mime) {
+    size_t left = (size_t)f->st.st_size;
+    send_head(c, 200, mime, left);
+    if (is_head(c)) return 200;
+    char buf[65536];
+    while (left > 0) {
+        ssize_t n = read(f->fd, buf, left < sizeof buf ? left : sizeof buf);
+        if (n < 0 && errno == EINTR) continue;
+        if (n <= 0 || mg_write(c, buf, (size_t)n) <= 0) break;
+        left -= (size_t)n;
+    }
+    return 200;
 }
 
 static int send_json_error(struct mg_connection *c, int status, const char *msg) {
@@ -125,8 +174,9 @@ static int send_json_error(struct mg_connection *c, int status, const char *msg)
     return status;
 }
 
-static int send_owned_json(struct mg_connection *c, char *text, const rths_error *err) {
-    if (!text) return send_json_error(c, 500, err->msg);
+/* text (malloc'ed, freed here) with 200, or err's message with status when text is NULL. */
+static int send_owned_json(struct mg_connection *c, int status, char *text, const rths_error *err) {
+    if (!text) return send_json_error(c, status == 200 ? 500 : status, err->msg);
     send_body(c, 200, "application/json", text, strlen(text));
     free(text);
     return 200;
@@ -148,10 +198,11 @@ static int send_html_error(struct mg_connection *c, int status, const char *msg)
 /* ---- routes ---- */
 
 /* Anything that could name a file outside the run folder: dot-dot (plain or percent-encoded),
- * backslashes, encoded slashes, NUL. Checked on the raw request before any decoding. */
+ * backslashes, encoded slashes. Checked on the raw request (civetweb is told not to decode it)
+ * and again on the path this server decodes itself. */
 static int is_traversal(const char *raw) {
     return strstr(raw, "..") || strcasestr(raw, "%2e") || strcasestr(raw, "%2f") ||
-           strcasestr(raw, "%5c") || strchr(raw, '\\') || strcasestr(raw, "%00");
+           strcasestr(raw, "%5c") || strchr(raw, '\\');
 }
 
 static int serve_asset(struct mg_connection *c, const char *name) {
@@ -178,42 +229,38 @@ static const char *mime_of(const char *name) {
     return "application/octet-stream";
 }
 
-/* /run/NAME: a regular file directly inside the run folder, also after resolving symlinks. */
+/* /run/NAME: a regular file directly inside the run folder, not a symlink (view_files.c),
+ * served whole. */
 static int serve_run_file(rths_view *v, struct mg_connection *c, const char *name) {
     if (!*name || name[0] == '.' || strchr(name, '/'))
         return send_html_error(c, 403, "Refused: only files directly inside the run folder.");
-    char *path = rths_path_join(v->run_dir, name);
-    char *real = path ? realpath(path, NULL) : NULL;
-    size_t dlen = strlen(v->run_dir);
-    struct stat st;
-    int inside = real && !strncmp(real, v->run_dir, dlen) && real[dlen] == '/' &&
-                 !strchr(real + dlen + 1, '/');
-    int status;
-    if (real && !inside)
-        status = send_html_error(c, 403, "Refused: that file lies outside the run folder.");
-    else if (!real || stat(real, &st) != 0 || !S_ISREG(st.st_mode))
+    view_file f;
+    rths_error err = {0};
+    int status = view_file_open(v->run_dir, name, &f, &err);
+    if (status == 200)
+        status = send_file(c, &f, mime_of(name));
+    else if (status == 404)
         status = send_html_error(c, 404, "The run folder holds no such file.");
-    else {
-        size_t len = 0;
-        char *data = rths_read_file(real, (size_t)256 << 20, &len);
-        status = data ? send_body(c, 200, mime_of(name), data, len)
-                      : send_html_error(c, 500, "Cannot read that file.");
-        free(data);
-    }
-    free(real);
-    free(path);
+    else if (status == 403)
+        status = send_html_error(c, 403,
+                                 "Refused: that name is a symbolic link or not a regular file; "
+                                 "the view serves only the run folder's own files.");
+    else
+        status = send_html_error(c, 500, "Cannot read that file.");
+    view_file_close(&f);
     return status;
 }
 
+/* /api/live, /api/summary: the file as the run wrote it, whole; `missing` when absent. */
 static int serve_file_json(rths_view *v, struct mg_connection *c, const char *name,
                            const char *missing) {
-    char *path = rths_path_join(v->run_dir, name);
-    size_t len = 0;
-    char *data = path ? rths_read_file(path, (size_t)16 << 20, &len) : NULL;
-    free(path);
-    int status =
-        data ? send_body(c, 200, "application/json", data, len) : send_json_error(c, 404, missing);
-    free(data);
+    view_file f;
+    rths_error err = {0};
+    int status = view_file_open(v->run_dir, name, &f, &err);
+    status = status == 200   ? send_file(c, &f, "application/json")
+             : status == 404 ? send_json_error(c, 404, missing)
+                             : send_json_error(c, status, err.msg);
+    view_file_close(&f);
     return status;
 }
 
@@ -222,7 +269,7 @@ static json_object *files_object(const rths_view *v) {
     for (int i = 0; i < N_WATCHED; i++) {
         char *path = rths_path_join(v->run_dir, watched[i][0]);
         struct stat st;
-        if (path && stat(path, &st) == 0) {
+        if (path && lstat(path, &st) == 0 && S_ISREG(st.st_mode)) { /* the run's own files */
             json_object *f = json_object_new_object();
             json_object_object_add(f, "bytes", json_object_new_int64((int64_t)st.st_size));
             json_object_object_add(f, "modified_unix_s",
@@ -260,7 +307,7 @@ static int serve_status(rths_view *v, struct mg_connection *c) {
     char *text = view_json_text(o);
     json_object_put(o);
     rths_error err = {.msg = "out of memory"};
-    return send_owned_json(c, text, &err);
+    return send_owned_json(c, 500, text, &err);
 }
 
 /* A signature of the watched files: any change of size, time or inode (rename) shows. */
@@ -268,7 +315,7 @@ static void signature(const rths_view *v, long long sig[N_WATCHED][3]) {
     for (int i = 0; i < N_WATCHED; i++) {
         char *path = rths_path_join(v->run_dir, watched[i][0]);
         struct stat st;
-        if (path && stat(path, &st) == 0) {
+        if (path && lstat(path, &st) == 0) {
             sig[i][0] = (long long)st.st_size;
             sig[i][1] = (long long)st.st_mtim.tv_sec * 1000000000LL + st.st_mtim.tv_nsec;
             sig[i][2] = (long long)st.st_ino;
@@ -289,7 +336,13 @@ static void sleep_s(double s) {
  * the browser goes (a write fails) or the view stops. */
 static int serve_event_stream(rths_view *v, struct mg_connection *c);
 
+static const char event_stream_head[] =
+    "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
+    "Connection: close\r\n\r\n";
+
 static int serve_events(rths_view *v, struct mg_connection *c) {
+    /* HEAD: the head a stream would have, and no stream (it would hold a thread for nothing) */
+    if (is_head(c)) return mg_printf(c, "%s", event_stream_head), 200;
     if (atomic_fetch_add(&v->event_streams, 1) >= VIEW_MAX_EVENT_STREAMS) {
         atomic_fetch_sub(&v->event_streams, 1);
         return send_json_error(c, 503,
@@ -304,8 +357,7 @@ static int serve_events(rths_view *v, struct mg_connection *c) {
 /* Polls the run folder and pushes a change event; a keep-alive every second otherwise, so a
  * page that went away frees its thread within a second. */
 static int serve_event_stream(rths_view *v, struct mg_connection *c) {
-    mg_printf(c, "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
-                 "Connection: close\r\n\r\nretry: 1000\n\n");
+    mg_printf(c, "%sretry: 1000\n\n", event_stream_head);
     long long last[N_WATCHED][3], now[N_WATCHED][3];
     memset(last, 0xff, sizeof last);
     memset(now, 0xff, sizeof now);
@@ -350,7 +402,7 @@ static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
         if (!v->process) return send_json_error(c, 404, "this view serves no live process");
         err.code = RTHS_EFAIL;
         snprintf(err.msg, sizeof err.msg, "the process gave no data");
-        return send_owned_json(c, v->process(v->process_user), &err);
+        return send_owned_json(c, 500, v->process(v->process_user), &err);
     }
     if (!v->run_dir) return send_json_error(c, 404, "this view serves no run folder");
     struct stat st;
@@ -360,14 +412,14 @@ static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
         return send_json_error(c, 404, msg);
     }
     if (!strcmp(what, "points")) {
-        rths_view_points_json(v->run_dir, &text, &err);
-        return send_owned_json(c, text, &err);
+        int status = view_points_json(v->run_dir, &text, &err);
+        return send_owned_json(c, status, text, &err);
     }
     if (!strcmp(what, "truth")) {
-        if (!view_file_exists(v->run_dir, "truth.csv"))
+        if (!view_file_present(v->run_dir, "truth.csv"))
             return send_json_error(c, 404, "no truth.csv in the run folder (yet)");
-        view_truth_json(v->run_dir, &text, &err);
-        return send_owned_json(c, text, &err);
+        int status = view_truth_json(v->run_dir, &text, &err);
+        return send_owned_json(c, status, text, &err);
     }
     if (!strcmp(what, "live"))
         return serve_file_json(v, c, "live.json",
@@ -379,12 +431,24 @@ static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
         c, 404, "unknown API: use points, truth, live, summary, status, events, process");
 }
 
+/* civetweb hands the path over undecoded (decode_url=no, rths_view_start): decoding it itself
+ * would cut it at an encoded NUL ("/run/frf.csv%00.png" served frf.csv), so %00 is refused
+ * before this server decodes the path, and the decoded path is checked again. */
 static int handle_request(rths_view *v, struct mg_connection *c) {
     const struct mg_request_info *ri = mg_get_request_info(c);
-    const char *uri = ri->local_uri ? ri->local_uri : "/";
+    const char *raw = ri->local_uri_raw ? ri->local_uri_raw : ri->local_uri ? ri->local_uri : "/";
     if (strcmp(ri->request_method, "GET") && strcmp(ri->request_method, "HEAD"))
         return send_html_error(c, 405, "Only GET and HEAD.");
-    if (is_traversal(ri->request_uri ? ri->request_uri : "") || is_traversal(uri))
+    if (strstr(raw, "%00") || (ri->query_string && strstr(ri->query_string, "%00")))
+        return send_html_error(c, 400, "Refused: the request holds an encoded NUL (%00).");
+    if (is_traversal(raw))
+        return send_html_error(c, 403, "Refused: the path leaves the run folder.");
+    char uri[PATH_MAX];
+    int n = mg_url_decode(raw, (int)strlen(raw), uri, (int)sizeof uri, 0);
+    if (n < 0) return send_html_error(c, 414, "Refused: the path is too long.");
+    if ((size_t)n != strlen(uri))
+        return send_html_error(c, 400, "Refused: the request holds an encoded NUL (%00).");
+    if (is_traversal(uri))
         return send_html_error(c, 403, "Refused: the path leaves the run folder.");
     if (!strcmp(uri, "/") || !strcmp(uri, "/index.html")) return serve_asset(c, v->page);
     if (!strncmp(uri, "/assets/", 8)) return serve_asset(c, uri + 8);
@@ -417,10 +481,16 @@ static int handle(struct mg_connection *c, void *cbdata) {
     pthread_t thread;
     pthread_attr_init(&attr);
     pthread_attr_setstacksize(&attr, (size_t)8 << 20);
-    if (pthread_create(&thread, &attr, request_thread, &job) == 0)
+    int e = pthread_create(&thread, &attr, request_thread, &job);
+    if (e == 0) {
         pthread_join(thread, NULL);
-    else
-        mg_printf(c, "HTTP/1.1 503 Service Unavailable\r\nContent-Length: 0\r\n\r\n");
+    } else { /* plain text: json-c is what this small stack cannot afford */
+        char why[160];
+        int n = snprintf(why, sizeof why,
+                         "the view cannot start a thread for this request (%s): try again",
+                         strerror(e));
+        job.status = send_body(c, 503, "text/plain; charset=utf-8", why, (size_t)n);
+    }
     pthread_attr_destroy(&attr);
     return job.status;
 }
@@ -456,8 +526,19 @@ int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *e
     char ports[300];
     snprintf(ports, sizeof ports, strchr(opt->host, ':') ? "[%s]:%d" : "%s:%d", opt->host,
              opt->port);
-    const char *options[] = {"listening_ports",   ports, "num_threads", "16",
-                             "enable_keep_alive", "no",  NULL};
+    /* one request per connection (no keep-alive), idle connections closed after the request
+     * timeout, the path left undecoded for handle_request */
+    const char *options[] = {"listening_ports",
+                             ports,
+                             "num_threads",
+                             VIEW_THREADS,
+                             "request_timeout_ms",
+                             VIEW_REQUEST_TIMEOUT_MS,
+                             "enable_keep_alive",
+                             "no",
+                             "decode_url",
+                             "no",
+                             NULL};
     struct mg_callbacks callbacks = {.log_message = quiet_log};
     struct mg_init_data init = {
         .callbacks = &callbacks, .user_data = v, .configuration_options = options};

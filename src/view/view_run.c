@@ -21,7 +21,7 @@
 int view_file_exists(const char *dir, const char *name) {
     char *p = rths_path_join(dir, name);
     struct stat st;
-    int ok = p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
+    int ok = p && lstat(p, &st) == 0 && S_ISREG(st.st_mode); /* a symlink is not the run's */
     free(p);
     return ok;
 }
@@ -62,15 +62,21 @@ static json_object *columns_array(const char *const *columns, int n) {
     return a;
 }
 
+/* The journal read through the view's own opening of it (view_files.c): returns the HTTP
+ * status. A journal that cannot be read is a 500 naming it, the server keeps running. */
 static int points_from_journal(const char *dir, json_object *root, rths_error *err) {
-    char *path = rths_path_join(dir, "journal.jsonl");
     rths_point *pts = NULL;
     char *strategy = NULL;
     int n = 0;
-    int rc = path ? rths_journal_read(path, &pts, &n, &strategy, err)
-                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
-    free(path);
-    if (rc) return rc;
+    view_file f;
+    int status = view_file_open(dir, "journal.jsonl", &f, err);
+    if (status == 200) status = view_file_parse_check(&f, "journal.jsonl", err);
+    if (status == 200 && rths_journal_read(f.proc_path, &pts, &n, &strategy, err)) {
+        view_error_rename(err, f.proc_path, "journal.jsonl");
+        status = 500;
+    }
+    view_file_close(&f);
+    if (status != 200) return status;
     json_object *arr = json_object_new_array();
     for (int i = 0; i < n; i++) {
         double row[VIEW_FRF_COLUMNS];
@@ -83,25 +89,31 @@ static int points_from_journal(const char *dir, json_object *root, rths_error *e
     json_object_object_add(root, "points", arr);
     free(strategy);
     free(pts);
-    return RTHS_OK;
+    return 200;
 }
 
-/* DIR/NAME read by the report module's CSV reader (the run's files: C locale, "nan" for NaN) */
+/* DIR/NAME read by the report module's CSV reader (the run's files: C locale, "nan" for NaN)
+ * through the view's own opening of it (view_files.c): returns the HTTP status. */
 static int read_run_csv(const char *dir, const char *name, rths_table *t, rths_error *err) {
-    char *path = rths_path_join(dir, name);
-    int rc = path ? rths_csv_read(path, t, err) : rths_error_set(err, RTHS_EFAIL, "no memory");
-    free(path);
-    return rc;
+    view_file f;
+    int status = view_file_open(dir, name, &f, err);
+    if (status == 200) status = view_file_parse_check(&f, name, err);
+    if (status == 200 && rths_csv_read(f.proc_path, t, err)) {
+        view_error_rename(err, f.proc_path, name);
+        status = 500;
+    }
+    view_file_close(&f);
+    return status;
 }
 
 static int points_from_csv(const char *dir, json_object *root, rths_error *err) {
     rths_table t;
-    int rc = read_run_csv(dir, "frf.csv", &t, err);
-    if (rc) return rc;
+    int status = read_run_csv(dir, "frf.csv", &t, err);
+    if (status != 200) return status;
     double *row = malloc((size_t)(t.columns > 0 ? t.columns : 1) * sizeof *row);
     if (!row) {
         rths_table_free(&t);
-        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        return rths_error_set(err, RTHS_EFAIL, "out of memory"), 500;
     }
     const char *const *names = (const char *const *)t.column_names;
     json_object *arr = json_object_new_array();
@@ -115,7 +127,7 @@ static int points_from_csv(const char *dir, json_object *root, rths_error *err) 
     json_object_object_add(root, "points", arr);
     free(row);
     rths_table_free(&t);
-    return RTHS_OK;
+    return 200;
 }
 
 char *view_json_text(json_object *obj) {
@@ -127,32 +139,39 @@ char *view_json_text(json_object *obj) {
     return copy;
 }
 
-int rths_view_points_json(const char *dir, char **json, rths_error *err) {
+/* Whatever entry has the name decides (a symlinked frf.csv is refused, not skipped for the
+ * journal): the page never shows points other than the run's own. */
+int view_points_json(const char *dir, char **json, rths_error *err) {
     *json = NULL;
     json_object *root = json_object_new_object();
-    int rc;
-    if (view_file_exists(dir, "frf.csv"))
-        rc = points_from_csv(dir, root, err);
-    else if (view_file_exists(dir, "journal.jsonl"))
-        rc = points_from_journal(dir, root, err);
+    int status;
+    if (view_file_present(dir, "frf.csv"))
+        status = points_from_csv(dir, root, err);
+    else if (view_file_present(dir, "journal.jsonl"))
+        status = points_from_journal(dir, root, err);
     else {
         /* a run that has not accepted anything yet */
         json_object_object_add(root, "source", json_object_new_string("none"));
         json_object_object_add(root, "columns", columns_array(frf_columns, VIEW_FRF_COLUMNS));
         json_object_object_add(root, "points", json_object_new_array());
-        rc = RTHS_OK;
+        status = 200;
     }
-    if (!rc && !(*json = view_json_text(root)))
-        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (status == 200 && !(*json = view_json_text(root)))
+        status = (rths_error_set(err, RTHS_EFAIL, "out of memory"), 500);
     json_object_put(root);
-    return rc;
+    return status;
+}
+
+int rths_view_points_json(const char *dir, char **json, rths_error *err) {
+    int status = view_points_json(dir, json, err);
+    return status == 200 ? RTHS_OK : err->code ? err->code : RTHS_EFAIL;
 }
 
 int view_truth_json(const char *dir, char **json, rths_error *err) {
     *json = NULL;
     rths_table t;
-    int rc = read_run_csv(dir, "truth.csv", &t, err);
-    if (rc) return rc;
+    int status = read_run_csv(dir, "truth.csv", &t, err);
+    if (status != 200) return status;
     json_object *root = json_object_new_object();
     for (int c = 0; c < t.columns; c++) {
         json_object *col = json_object_new_array_ext(t.rows);
@@ -161,22 +180,24 @@ int view_truth_json(const char *dir, char **json, rths_error *err) {
         json_object_object_add(root, t.column_names[c], col);
     }
     rths_table_free(&t);
-    if (!(*json = view_json_text(root))) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!(*json = view_json_text(root)))
+        status = (rths_error_set(err, RTHS_EFAIL, "out of memory"), 500);
     json_object_put(root);
-    return rc;
+    return status;
 }
 
 json_object *view_plan_object(const char *dir) {
-    char *path = rths_path_join(dir, "config.yaml");
     rths_config *cfg = NULL;
     rths_error err;
     rths_continuation_options cont;
     rths_continuation_defaults(&cont);
     json_object *plan = NULL;
+    view_file f;
     /* config.yaml is the configuration as the run resolved it: its continuation section says
      * what range the run covers */
-    if (path && view_file_exists(dir, "config.yaml") &&
-        !rths_config_load(path, NULL, 0, &cfg, &err) &&
+    if (view_file_open(dir, "config.yaml", &f, &err) == 200 &&
+        view_file_parse_check(&f, "config.yaml", &err) == 200 &&
+        !rths_config_load(f.proc_path, NULL, 0, &cfg, &err) &&
         !rths_continuation_config_read(cfg, &cont, &err)) {
         plan = json_object_new_object();
         json_object_object_add(plan, "start_hz", json_object_new_double(cont.start_hz));
@@ -187,6 +208,6 @@ json_object *view_plan_object(const char *dir) {
         json_object_object_add(plan, "max_points", json_object_new_int(cont.max_points));
     }
     rths_config_free(cfg);
-    free(path);
+    view_file_close(&f);
     return plan;
 }

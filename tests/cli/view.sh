@@ -7,13 +7,53 @@
 # bilinear run's unstable points drawn as frf.csv says: view_runs_browser.mjs), a real run paced by rig.pace watched from
 # start to end (paced_browser.mjs), and the controller process's page on a driven controller
 # (controller_browser.mjs). Screenshots stay in view-test-output/.
+# Every process started here is stopped whatever the outcome (stop_all, on EXIT and on TERM, INT,
+# HUP), each server also runs under `timeout` so that not even a SIGKILLed script leaves one for
+# long, and the script's last check is that none is left.
 set -u
 bin=$1
 src=$2
 source "$src/tests/cli/lib/common.sh"
 out="$PWD/view-test-output"
-pids=()
-trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; rm -rf "$work"' EXIT
+servers=() # every background process started here: views, runs, the controller and its host
+trap 'stop_all; rm -rf "$work"' EXIT
+trap 'exit 143' TERM
+trap 'exit 130' INT
+trap 'exit 129' HUP
+# A server outlives a killed script by at most this long (timeout's own limit).
+life=900
+
+# alive PID: running, not a zombie waiting to be reaped
+alive() {
+    local stat
+    stat=$(cat "/proc/$1/stat" 2>/dev/null) || return 1
+    stat=${stat##*) }
+    [ "${stat:0:1}" != Z ]
+}
+
+# forget PID: a process waited for here leaves servers (its pid may be reused)
+forget() {
+    local keep=() p
+    for p in "${servers[@]}"; do [ "$p" = "$1" ] || keep+=("$p"); done
+    servers=("${keep[@]}")
+}
+
+# stop_all: SIGTERM to every process in servers, then waits for them; SIGKILL to what still runs
+# after 10 s.
+stop_all() {
+    [ ${#servers[@]} -gt 0 ] || return 0
+    local p left
+    kill -TERM "${servers[@]}" 2>/dev/null
+    for _ in $(seq 100); do
+        left=0
+        for p in "${servers[@]}"; do alive "$p" && left=1; done
+        [ $left = 0 ] && break
+        sleep 0.1
+    done
+    kill -KILL "${servers[@]}" 2>/dev/null
+    wait "${servers[@]}" 2>/dev/null
+    servers=()
+}
 
 command -v node >/dev/null || { echo "FAIL node is missing (make deps installs nodejs)"; exit 1; }
 
@@ -22,8 +62,8 @@ command -v node >/dev/null || { echo "FAIL node is missing (make deps installs n
 start_view() {
     local name=$1
     shift
-    "$bin" view "$@" >"$work/$name.out" 2>"$work/$name.err" &
-    pids+=($!)
+    timeout -k 5 $life "$bin" view "$@" >"$work/$name.out" 2>"$work/$name.err" &
+    servers+=($!)
     for _ in $(seq 100); do
         port=$(sed -n 's|.* at http://[^ ]*:\([0-9][0-9]*\)/ .*|\1|p' "$work/$name.out")
         [ -n "$port" ] && break
@@ -66,21 +106,31 @@ if start_view finished "$work/run" --listen 127.0.0.1:0; then
     [ $rc -eq 1 ] && grep -q "cannot listen" "$work/err" && echo "ok   port in use: $(cat "$work/err")" ||
         fail "port in use: exit $rc $(cat "$work/err")"
     # live pages hold a server thread each: the 9th event stream is refused (503) and the API
-    # still answers (16 streams used to take every thread)
-    pids=()
-    for i in 1 2 3 4 5 6 7 8; do
-        curl -s -N --max-time 20 "${base}api/events" >/dev/null &
-        pids+=($!)
+    # still answers (16 streams used to take every thread); the 9th asks once all 8 have begun.
+    # A stream api_check.mjs left ends at the server's next keep-alive (within 2 s): a stream
+    # refused meanwhile is asked for again.
+    streams=()
+    stream() { curl -s -N --max-time 25 "${base}api/events" >"$work/ev$1" & streams[$1]=$!; }
+    for i in 1 2 3 4 5 6 7 8; do stream $i; done
+    for _ in $(seq 150); do
+        begun=0
+        for i in 1 2 3 4 5 6 7 8; do
+            if grep -q "^retry:" "$work/ev$i"; then begun=$((begun + 1))
+            elif grep -q "too many live pages" "$work/ev$i"; then wait "${streams[$i]}"; stream $i; fi
+        done
+        [ $begun = 8 ] && break
+        sleep 0.1
     done
-    sleep 1
-    code=$(curl -s -o "$work/ev9" -w '%{http_code}' --max-time 5 "${base}api/events")
+    code=$(curl -s -D "$work/ev9.head" -o "$work/ev9" -w '%{http_code}' --max-time 5 "${base}api/events")
     [ "$code" = 503 ] && grep -q "too many live pages" "$work/ev9" &&
-        echo "ok   9th event stream: 503, $(cat "$work/ev9")" || fail "9th event stream: HTTP $code"
+        grep -q "503 Service Unavailable" "$work/ev9.head" &&
+        echo "ok   9th event stream: 503 Service Unavailable, $(cat "$work/ev9")" ||
+        fail "9th event stream: HTTP $code ($begun streams begun), $(head -n 1 "$work/ev9.head")"
     code=$(curl -s -o /dev/null -w '%{http_code}' --max-time 5 "${base}api/status")
     [ "$code" = 200 ] && echo "ok   the API answers with 8 streams open" ||
         fail "API with 8 streams open: HTTP $code"
-    kill "${pids[@]}" 2>/dev/null
-    wait "${pids[@]}" 2>/dev/null
+    kill "${streams[@]}" 2>/dev/null
+    wait "${streams[@]}" 2>/dev/null
 fi
 
 # 3. in progress: no frf.csv or summary.json yet, the points come from the journal and must
@@ -90,6 +140,20 @@ rm "$work/inprogress/frf.csv" "$work/inprogress/summary.json"
 if start_view inprogress "$work/inprogress" --listen 127.0.0.1:0; then
     node "$src/tests/browser/api_check.mjs" "$base" "$work/inprogress" "$work/run/frf.csv" journal.jsonl $uplot ||
         fail "API of a run in progress"
+    # a symlink out of the folder is refused without a byte of its target; an encoded NUL is
+    # refused; HEAD of the event stream ends (the command's own server: test_view has the rest)
+    mv "$work/inprogress/live.json" "$work/live.json.saved"
+    ln -s /etc/passwd "$work/inprogress/live.json"
+    code=$(curl -s -o "$work/linked" -w '%{http_code}' --max-time 5 "${base}api/live")
+    [ "$code" = 403 ] && ! grep -q "root:" "$work/linked" && echo "ok   symlinked live.json: 403, $(cat "$work/linked")" ||
+        fail "symlinked live.json: HTTP $code"
+    rm "$work/inprogress/live.json"
+    mv "$work/live.json.saved" "$work/inprogress/live.json"
+    code=$(curl -s -o /dev/null -w '%{http_code}' --max-time 5 "${base}run/truth.csv%00.png")
+    [ "$code" = 400 ] && echo "ok   /run/truth.csv%00.png: 400" || fail "/run/truth.csv%00.png: HTTP $code"
+    code=$(curl -s -I -o "$work/head" -w '%{http_code}' --max-time 5 "${base}api/events")
+    [ "$code" = 200 ] && grep -q "text/event-stream" "$work/head" && echo "ok   HEAD /api/events: 200, no stream" ||
+        fail "HEAD /api/events: HTTP $code"
     # the folder vanishes under the server: clear errors, no crash
     rm -rf "$work/inprogress"
     code=$(node -e "fetch('${base}api/points').then(async r => console.log(r.status, (await r.json()).error))")
@@ -149,13 +213,14 @@ else
     t0=$(date +%s.%N)
     "$bin" "${paced[@]}" --out "$work/paced" --set rig.pace=4 >"$work/paced.out" 2>"$work/paced.err" &
     paced_pid=$!
-    pids+=($paced_pid)
+    servers+=($paced_pid)
     for _ in $(seq 200); do [ -s "$work/paced/journal.jsonl" ] && break; sleep 0.05; done
     if start_view paced_view "$work/paced" --listen 127.0.0.1:0; then
         timeout 300 node "$src/tests/browser/paced_browser.mjs" "$src/web" "$chromium" "$out" \
             "$base" "$work/paced" "$paced_pid" || fail "paced run in the browser"
     fi
     wait "$paced_pid" || fail "paced frf run: $(cat "$work/paced.err")"
+    forget "$paced_pid"
     wall=$(echo "$(date +%s.%N) - $t0" | bc)
     # pacing only sleeps: the same numbers as unpaced, and never faster than rig time / 4 (a lower
     # bound: sleeping cannot make a run faster, so this cannot flake on a loaded machine)
@@ -172,12 +237,13 @@ else
     # over TCP) drives it while the browser watches
     ctl_cfg="$src/examples/four_storey.yaml"
     if "$bin" controller --help | grep -q -- "--view"; then
-        "$bin" controller --config "$ctl_cfg" --listen 127.0.0.1:0 --view 127.0.0.1:0 \
-            --set server.realtime=false >"$work/ctl.out" 2>"$work/ctl.err" &
+        timeout -k 5 $life "$bin" controller --config "$ctl_cfg" --listen 127.0.0.1:0 \
+            --view 127.0.0.1:0 --set server.realtime=false >"$work/ctl.out" 2>"$work/ctl.err" &
     else
-        "$PWD/test_view" --serve-controller "$ctl_cfg" >"$work/ctl.out" 2>"$work/ctl.err" &
+        timeout -k 5 $life "$PWD/test_view" --serve-controller "$ctl_cfg" >"$work/ctl.out" \
+            2>"$work/ctl.err" &
     fi
-    pids+=($!)
+    servers+=($!)
     cport= vport=
     for _ in $(seq 200); do
         cport=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/ctl.out")
@@ -190,12 +256,20 @@ else
         "$bin" simulate "$ctl_cfg" --out "$work/drive" --rig "tcp://127.0.0.1:$cport" --frequency 13 \
             --target 2e-5,-1e-5 --periods 400 --quiet >"$work/drive.out" 2>"$work/drive.err" &
         drive_pid=$!
-        pids+=($drive_pid)
+        servers+=($drive_pid)
         timeout 120 node "$src/tests/browser/controller_browser.mjs" "$src/web" "$chromium" "$out" \
             "http://127.0.0.1:$vport/" || fail "controller page in the browser"
         kill "$drive_pid" 2>/dev/null
+        wait "$drive_pid" 2>/dev/null
+        forget "$drive_pid"
     fi
 fi
+
+# 9. nothing this script started is left: every server stopped and waited for (a `pids=()` here
+# once dropped the first view, which outlived every `make test`)
+stop_all
+left=$(pgrep -af -- "$work" || true)
+[ -z "$left" ] && echo "ok   every process started here has ended" || fail "still running: $left"
 
 [ "$failures" -eq 0 ] || { echo "$failures failure(s)"; exit 1; }
 echo "all view checks passed"
