@@ -18,18 +18,34 @@
 
 #include "rths/core.h"
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define RTHS_API_VERSION 1
+/* 2: rths_error's message grew to RTHS_ERROR_MSG_LEN (8192) bytes, from the 1024 version 1
+ * documented, and the layout queries below were added. */
+#define RTHS_API_VERSION 2
 
 /* RTHS_API_VERSION of the library actually loaded (compare with the header's). */
 int rths_api_version(void);
 /* The rths release, e.g. "0.1.0". */
 const char *rths_api_release(void);
+
+/* ---- the layout of the structs a caller allocates (part of the ABI) ----
+ * rths_error and rths_api_frf_options are allocated by the caller. A binding that declares them
+ * itself instead of compiling this header (python/rths/_lib.py through ctypes) checks its
+ * declaration against the library it loaded, and refuses to use a library whose layout differs:
+ * a smaller rths_error than the library's is overwritten past its end. */
+
+/* sizeof(type) as this library was compiled, for "rths_error" and "rths_api_frf_options"; 0 for
+ * any other name. */
+size_t rths_api_sizeof(const char *type);
+/* offsetof(type, field) as this library was compiled (e.g. "rths_error", "msg"); -1 for an
+ * unknown type or field. */
+long rths_api_offsetof(const char *type, const char *field);
 
 /* ---- configuration ---- */
 

@@ -107,7 +107,7 @@ class Config:
             overrides = [str(s) for s in set]
         array = (ctypes.c_char_p * max(1, len(overrides)))(*[s.encode() for s in overrides])
         handle = ctypes.c_void_p()
-        err = _lib.Error()
+        err = _c().Error()
         rc = _c().rths_api_config_load(None if path is None else str(path).encode(), array,
                                        len(overrides), ctypes.byref(handle), ctypes.byref(err))
         _check(rc, err)
@@ -207,7 +207,7 @@ def _take_result(handle):
 
 def _run(fn, *args):
     handle = ctypes.c_void_p()
-    err = _lib.Error()
+    err = _c().Error()
     rc = fn(*args, ctypes.byref(handle), ctypes.byref(err))
     _check(rc, err)
     return _take_result(handle)

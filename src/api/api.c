@@ -4,6 +4,7 @@
 #include <dirent.h>
 #include <errno.h>
 #include <json-c/json.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -15,6 +16,49 @@ int rths_api_version(void) {
 
 const char *rths_api_release(void) {
     return RTHS_VERSION;
+}
+
+/* ---- the layout of the caller-allocated structs (rths.h) ---- */
+
+typedef struct {
+    const char *type, *field; /* field NULL: the type's own size in offset */
+    size_t offset;
+} layout_entry;
+
+#define LAYOUT_TYPE(t)                                                                             \
+    { #t, NULL, sizeof(t) }
+#define LAYOUT_FIELD(t, f)                                                                         \
+    { #t, #f, offsetof(t, f) }
+
+static const layout_entry layout[] = {
+    LAYOUT_TYPE(rths_error),
+    LAYOUT_FIELD(rths_error, code),
+    LAYOUT_FIELD(rths_error, msg),
+    LAYOUT_TYPE(rths_api_frf_options),
+    LAYOUT_FIELD(rths_api_frf_options, out_dir),
+    LAYOUT_FIELD(rths_api_frf_options, strategy),
+    LAYOUT_FIELD(rths_api_frf_options, harmonics),
+    LAYOUT_FIELD(rths_api_frf_options, has_seed),
+    LAYOUT_FIELD(rths_api_frf_options, seed),
+    LAYOUT_FIELD(rths_api_frf_options, resume),
+    LAYOUT_FIELD(rths_api_frf_options, rig_uri),
+    LAYOUT_FIELD(rths_api_frf_options, on_point),
+    LAYOUT_FIELD(rths_api_frf_options, should_cancel),
+    LAYOUT_FIELD(rths_api_frf_options, user),
+    LAYOUT_FIELD(rths_api_frf_options, force),
+};
+
+size_t rths_api_sizeof(const char *type) {
+    for (size_t i = 0; type && i < sizeof layout / sizeof layout[0]; i++)
+        if (!layout[i].field && !strcmp(layout[i].type, type)) return layout[i].offset;
+    return 0;
+}
+
+long rths_api_offsetof(const char *type, const char *field) {
+    for (size_t i = 0; type && field && i < sizeof layout / sizeof layout[0]; i++)
+        if (layout[i].field && !strcmp(layout[i].type, type) && !strcmp(layout[i].field, field))
+            return (long)layout[i].offset;
+    return -1;
 }
 
 /* ---- configuration ---- */
