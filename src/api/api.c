@@ -285,7 +285,10 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
 }
 
 int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
-                             const char *command, rths_error *err) {
+                             const char *command, rths_error *caller_err) {
+    rths_error local; /* the caller's err may be NULL; run.log still gets the reason */
+    rths_error *err = caller_err ? caller_err : &local;
+    rths_error_clear(err);
     char *argv[] = {(char *)command, "(C API)", NULL};
     rths_report *rep;
     int rc = rths_report_open(dir, command, 2, argv, &rep, err);
@@ -301,8 +304,9 @@ int rths_result_write_folder(rths_result *r, const rths_config *c, const char *d
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
         free(path);
     }
+    if (!rc) rc = rths_report_write_mat(rep, err); /* a failure fails the call */
     rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err->msg : "");
-    rths_report_close(rep); /* writes results.mat */
+    rths_report_close(rep);
     if (rc) return rc;
     char *yaml = read_text(dir, "config.yaml");
     free(r->dir);

@@ -336,6 +336,9 @@ int rths_cmd_chart(int argc, char **argv) {
     rths_report_log(rep, "chart %dx%d in %.3f s, %d stable, %d boundary points", chart.nt, chart.np,
                     seconds, n_stable, chart.n_boundary);
     rc = plot(rep, &chart, p_ess, &setup.split, &err);
+    /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
+     * one line; the other files stay), rather than a warning at close */
+    if (!rc) rc = rths_report_write_mat(rep, &err);
 done:
     if (summary) json_object_put(summary);
     if (have_chart) rths_chart_free(&chart);

@@ -250,6 +250,9 @@ int rths_cmd_model(int argc, char **argv) {
                         t_modes - t_read, rths_frf_method_name(rths_frf_sweep_method(sweep)),
                         t_prepare - t_modes, count, n_out, t_frf, rths_monotonic_s() - t0);
     }
+    /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
+     * one line; the other files stay), rather than a warning at close */
+    if (!rc) rc = rths_report_write_mat(rep, &err);
     if (rep)
         rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);
