@@ -12,8 +12,11 @@ FILE:LINE:COL for a configuration) or rths.RunError (numerics, I/O, rig fault).
 """
 import ctypes
 import json
+import numbers
+import os
 import signal
 import threading
+import warnings
 
 from . import _lib
 
@@ -30,7 +33,7 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "model", "chart", "frf", "frf_available", "read_run", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "frf", "frf_available", "read_run", "library_release"]
 
 def _c():
     global _LIB
@@ -62,6 +65,11 @@ class Cancelled(KeyboardInterrupt):
     def __init__(self, result):
         super().__init__("FRF test cancelled; accepted points saved in " + str(result.dir))
         self.result = result
+
+
+class IncompleteRunWarning(UserWarning):
+    """read_run found a folder without summary.json: the run did not finish (killed, or still
+    running); the result holds what it had written (result.complete is False)."""
 
 
 def _check(rc, err):
@@ -160,13 +168,16 @@ class Table(dict):
 
 class Result:
     """A run's tables (by CSV name: result.frf, result.modes, result["true_frf"]), its summary
-    (dict, from summary.json), config_yaml (text) and dir (the run folder or None)."""
+    (dict, from summary.json), config_yaml (text) and dir (the run folder or None). complete is
+    False for a run folder without summary.json (a run that was killed or is still running: its
+    summary is {} and its tables are what it had written, e.g. truth without frf)."""
 
-    def __init__(self, tables, summary, config_yaml, dir):
+    def __init__(self, tables, summary, config_yaml, dir, complete=True):
         self.tables = tables
         self.summary = summary
         self.config_yaml = config_yaml
         self.dir = dir
+        self.complete = complete
 
     def __getitem__(self, name):
         return self.tables[name]
@@ -197,10 +208,14 @@ def _take_result(handle):
                 columns[c.rths_result_column_name(handle, t, k).decode()] = column
             tables[name] = Table(name, columns)
         text = c.rths_result_summary_json(handle).decode()
-        summary = json.loads(text) if text.strip() else {}
-        config_yaml = c.rths_result_config_yaml(handle).decode()
         folder = c.rths_result_dir(handle)
-        return Result(tables, summary, config_yaml, folder.decode() if folder else None)
+        folder = folder.decode() if folder else None
+        try:
+            summary = json.loads(text) if text.strip() else {}
+        except ValueError as e:  # the library checks it; this is the last line of defence
+            raise InputError(2, f"{folder}/summary.json: not valid JSON ({e})") from None
+        config_yaml = c.rths_result_config_yaml(handle).decode()
+        return Result(tables, summary, config_yaml, folder, complete=bool(text.strip()))
     finally:
         c.rths_result_free(handle)
 
@@ -223,19 +238,50 @@ def model(cfg, out=None):
     """Modes and analytic FRF of the true assembly (rths model): result.modes, result.true_frf,
     equal to the CLI's modes.csv and true_frf.csv. out: also write a run folder there."""
     cfg = _config(cfg)
-    return _run(_c().rths_api_model, cfg._handle, None if out is None else str(out).encode())
+    return _run(_c().rths_api_model, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
 
 
 def chart(cfg, out=None):
     """Stability chart of the delayed-feedback test (rths chart): result.chart, .boundary,
     .critical, equal to the CLI's CSV files. out: also write a run folder there."""
     cfg = _config(cfg)
-    return _run(_c().rths_api_chart, cfg._handle, None if out is None else str(out).encode())
+    return _run(_c().rths_api_chart, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
 
 
 def read_run(dir):
-    """A run folder: every CSV as a Table (result.frf["amplitude_m"]), summary, config_yaml."""
-    return _run(_c().rths_api_read_run, str(dir).encode())
+    """A run folder: every CSV rths wrote there as a Table (result.frf["amplitude_m"]; a user's
+    own CSV files are not read), summary, config_yaml. A folder that is not a run folder, or whose
+    summary.json is damaged, raises InputError. A run that did not finish (no summary.json: killed,
+    or still running) gives result.complete False and an IncompleteRunWarning."""
+    result = _run(_c().rths_api_read_run, os.fsencode(_path("dir", dir)))
+    if not result.complete:
+        warnings.warn(IncompleteRunWarning(
+            f"{result.dir}: no summary.json, the run did not finish (killed, or still running); "
+            f"tables read: {', '.join(result.tables) or 'none'}; an FRF run continues with "
+            "rths.frf(..., resume=True)"), stacklevel=2)
+    return result
+
+
+def _path(name, value):
+    """A folder argument as str, refusing None (str(None) would be a folder called 'None')."""
+    if value is None:
+        raise InputError(2, f"{name}: a folder is required, got None")
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise InputError(2, f"{name}: expected a path (str or os.PathLike), got "
+                            f"{type(value).__name__}")
+    return os.fsdecode(value)
+
+
+def _integer(name, value, lo, hi):
+    """value as an int in [lo, hi]; InputError otherwise (ctypes would wrap it silently: seed
+    2**64 was seed 0, harmonics 2**40 was 0, 'the configuration's')."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(2, f"{name}={value!r}: expected an integer")
+    if not lo <= int(value) <= hi:
+        raise InputError(2, f"{name}={value}: must be in [{lo}, {hi}]")
+    return int(value)
 
 
 def frf_available():
@@ -274,17 +320,21 @@ def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=No
     accepted saved) and the exception is raised again. Ctrl-C stops the run the same way and
     raises rths.Cancelled carrying the saved result. A test whose true response exceeds the
     rig's displacement limit raises InputError unless force=True."""
+    out = _path("out", out)
+    # checked here, before ctypes narrows them (the library checks harmonics' upper limit)
+    harmonics = None if harmonics is None else _integer("harmonics", harmonics, 1, 2**31 - 1)
+    seed = None if seed is None else _integer("seed", seed, 0, 2**64 - 1)
     cfg = _config(cfg)
     c = _c()
     o = _lib.FrfOptions()
     c.rths_api_frf_options_default(ctypes.byref(o))
-    o.out_dir = str(out).encode()
+    o.out_dir = os.fsencode(out)
     if strategy is not None:
         o.strategy = strategy.encode()
     if harmonics is not None:
-        o.harmonics = int(harmonics)
+        o.harmonics = harmonics
     if seed is not None:
-        o.has_seed, o.seed = 1, int(seed)
+        o.has_seed, o.seed = 1, seed
     o.resume = 1 if resume else 0
     o.force = 1 if force else 0
     if rig is not None:

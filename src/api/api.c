@@ -1,7 +1,6 @@
 /* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
 #include "api/api_internal.h"
 
-#include <dirent.h>
 #include <errno.h>
 #include <json-c/json.h>
 #include <stddef.h>
@@ -9,6 +8,7 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 int rths_api_version(void) {
     return RTHS_API_VERSION;
@@ -322,45 +322,103 @@ static int compare_names(const void *a, const void *b) {
     return strcmp(*(char *const *)a, *(char *const *)b);
 }
 
-/* The folder's *.csv names, sorted (a stable table order). */
+/* The CSV files the rths commands write (rths_report_path(rep, "NAME.csv") in src): what a folder
+ * without .rths-files (a run killed before it closed its folder) is read for. A new output table
+ * belongs here too. */
+static const char *const rths_csv_files[] = {
+    "absolute.csv", "boundary.csv", "chart.csv", "coefficients.csv", "critical.csv", "fidelity.csv",
+    "frf.csv",      "modes.csv",    "trace.csv", "true_frf.csv",     "truth.csv",
+};
+
+static int is_regular_file(const char *dir, const char *name) {
+    char *path = rths_path_join(dir, name);
+    struct stat st;
+    int yes = path && stat(path, &st) == 0 && S_ISREG(st.st_mode);
+    free(path);
+    return yes;
+}
+
+static int add_name(char ***names, int *n, int *cap, const char *name, rths_error *err) {
+    for (int i = 0; i < *n; i++)
+        if (!strcmp((*names)[i], name)) return RTHS_OK; /* listed twice */
+    if (*n == *cap) {
+        *cap = *cap ? 2 * *cap : 16;
+        char **p = realloc(*names, (size_t)*cap * sizeof *p);
+        if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        *names = p;
+    }
+    if (!((*names)[*n] = strdup(name))) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    (*n)++;
+    return RTHS_OK;
+}
+
+/* The CSV files rths wrote into dir, sorted (a stable table order): those its run listed in
+ * .rths-files (written when a run closes its folder), or, without that list, those of the folder
+ * named as an rths output. A user's own CSV file there is never read. */
 static int list_csv(const char *dir, char ***names, int *n, rths_error *err) {
     *names = NULL;
     *n = 0;
-    DIR *d = opendir(dir);
-    if (!d)
-        return rths_error_set(err, RTHS_EINPUT, "cannot read run folder %s: %s", dir,
-                              strerror(errno));
-    struct dirent *e;
     int cap = 0, rc = RTHS_OK;
-    while (!rc && (e = readdir(d))) {
-        size_t len = strlen(e->d_name);
-        if (len <= 4 || strcmp(e->d_name + len - 4, ".csv")) continue;
-        if (*n == cap) {
-            cap = cap ? 2 * cap : 16;
-            char **p = realloc(*names, (size_t)cap * sizeof *p);
-            if (!p) {
-                rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-                break;
-            }
-            *names = p;
+    char *list_path = rths_path_join(dir, ".rths-files");
+    char *list = list_path ? rths_read_file(list_path, SIZE_MAX, NULL) : NULL;
+    free(list_path);
+    if (list) {
+        for (char *save = NULL, *line = strtok_r(list, "\n", &save); line && !rc;
+             line = strtok_r(NULL, "\n", &save)) {
+            size_t len = strlen(line);
+            if (len > 4 && !strcmp(line + len - 4, ".csv") && !strchr(line, '/') &&
+                is_regular_file(dir, line))
+                rc = add_name(names, n, &cap, line, err);
         }
-        if (!((*names)[*n] = strdup(e->d_name)))
-            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-        else
-            (*n)++;
+        free(list);
+    } else {
+        for (size_t i = 0; i < sizeof rths_csv_files / sizeof rths_csv_files[0] && !rc; i++)
+            if (is_regular_file(dir, rths_csv_files[i]))
+                rc = add_name(names, n, &cap, rths_csv_files[i], err);
     }
-    closedir(d);
     if (*n) qsort(*names, (size_t)*n, sizeof **names, compare_names);
     return rc;
+}
+
+/* A folder an rths command wrote has its run.log (every command opens one), and an FRF run its
+ * journal. */
+static int check_run_folder(const char *dir, rths_error *err) {
+    struct stat st;
+    if (stat(dir, &st))
+        return rths_error_set(err, RTHS_EINPUT, "cannot read run folder %s: %s", dir,
+                              strerror(errno));
+    if (!S_ISDIR(st.st_mode))
+        return rths_error_set(err, RTHS_EINPUT, "%s is not a run folder: not a directory", dir);
+    if (!is_regular_file(dir, "run.log") && !is_regular_file(dir, "summary.json") &&
+        !is_regular_file(dir, "journal.jsonl"))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s is not a run folder: no run.log, summary.json or journal.jsonl "
+                              "in it",
+                              dir);
+    return RTHS_OK;
+}
+
+/* summary.json's text, checked: an rths run writes it atomically, so text that is not one JSON
+ * object was damaged afterwards. */
+static int check_summary(const char *dir, const char *text, rths_error *err) {
+    if (!text[0]) return RTHS_OK; /* none: the run did not finish */
+    enum json_tokener_error why = json_tokener_success;
+    json_object *o = json_tokener_parse_verbose(text, &why);
+    int ok = o && json_object_is_type(o, json_type_object);
+    json_object_put(o);
+    if (ok) return RTHS_OK;
+    return rths_error_set(err, RTHS_EINPUT, "%s/summary.json: not a JSON object (%s)", dir,
+                          o ? "another JSON value" : json_tokener_error_desc(why));
 }
 
 int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
     *out = NULL;
     if (!dir) return rths_error_set(err, RTHS_EINPUT, "no run folder given");
-    char **names;
-    int n;
+    char **names = NULL;
+    int n = 0;
     rths_result *r = NULL;
-    int rc = list_csv(dir, &names, &n, err);
+    int rc = check_run_folder(dir, err);
+    if (!rc) rc = list_csv(dir, &names, &n, err);
     if (!rc) rc = rths_result_new(&r, err);
     for (int i = 0; i < n && !rc; i++) {
         char *path = rths_path_join(dir, names[i]);
@@ -382,6 +440,7 @@ int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
         if (yaml) free(r->config_yaml), r->config_yaml = yaml;
         r->dir = strdup(dir);
         if (!summary || !yaml || !r->dir) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        if (!rc) rc = check_summary(dir, r->summary_json, err);
     }
     if (rc) {
         rths_result_free(r);

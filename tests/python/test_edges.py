@@ -1,0 +1,195 @@
+"""The package's edges found by a hostile probe (issue 24, item 11): read_run on a killed run, on a
+folder with a user's CSV, on a damaged summary.json and on a folder that is no run; frf's out,
+seed and harmonics checked before ctypes narrows them; threads writing run folders at once. Run by
+tests/cli/python.sh."""
+import os
+import signal
+import subprocess
+import tempfile
+import threading
+import time
+import unittest
+
+import h5py
+import numpy as np
+
+import rths
+
+BIN = os.environ["RTHS_BIN"]
+SRC = os.environ["RTHS_SOURCE_DIR"]
+SCRATCH = os.environ.get("RTHS_SCRATCH") or tempfile.mkdtemp()
+SEED_CFG = os.path.join(SRC, "examples", "four_storey.yaml")
+LINEAR_CFG = os.path.join(SRC, "examples", "four_storey_linear.yaml")
+
+
+def fresh(name):
+    """A new, empty scratch folder (unique: tests may run at once)."""
+    return tempfile.mkdtemp(prefix=name + "_", dir=SCRATCH)
+
+
+def model_folder(name):
+    out = os.path.join(fresh(name), "run")
+    p = subprocess.run([BIN, "model", SEED_CFG, "--out", out, "--quiet",
+                        "--set", "model.frf.points=30"], capture_output=True, text=True)
+    assert p.returncode == 0, p.stderr
+    return out
+
+
+class ReadRun(unittest.TestCase):
+    def test_killed_run_is_flagged_incomplete(self):
+        # a real `rths frf` killed (SIGKILL) after its second accepted point: no summary.json
+        out = os.path.join(fresh("killed"), "run")
+        p = subprocess.Popen([BIN, "frf", LINEAR_CFG, "--out", out, "--quiet", "--seed", "5"],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        journal = os.path.join(out, "journal.jsonl")
+        deadline = time.monotonic() + 120
+        try:
+            while time.monotonic() < deadline and p.poll() is None:
+                if os.path.exists(journal):
+                    with open(journal) as f:
+                        if len(f.readlines()) >= 3:  # header + 2 points
+                            break
+                time.sleep(0.02)
+        finally:
+            p.send_signal(signal.SIGKILL)
+            p.wait()
+        self.assertEqual(p.returncode, -signal.SIGKILL, "the run ended before it was killed")
+        self.assertFalse(os.path.exists(os.path.join(out, "summary.json")))
+        with self.assertWarns(rths.IncompleteRunWarning) as w:
+            run = rths.read_run(out)
+        self.assertFalse(run.complete)
+        self.assertEqual(run.summary, {})
+        self.assertIn("did not finish", str(w.warning))
+        self.assertIn("resume=True", str(w.warning))
+        self.assertNotIn("frf", run.tables)  # frf.csv is written when the run ends
+        # the same folder with a user's CSV: still read, without it
+        with open(os.path.join(out, "notes.csv"), "w") as f:
+            f.write("my notes, not numbers\n")
+        with self.assertWarns(rths.IncompleteRunWarning):
+            again = rths.read_run(out)
+        self.assertEqual(list(again.tables), list(run.tables))
+
+    def test_finished_run_is_complete(self):
+        out = model_folder("finished")
+        with warnings_as_errors():
+            run = rths.read_run(out)
+        self.assertTrue(run.complete)
+        self.assertEqual(sorted(run.tables), ["modes", "true_frf"])
+
+    def test_users_csv_not_read(self):
+        out = model_folder("notes")
+        with open(os.path.join(out, "notes.csv"), "w") as f:
+            f.write("date,remark\n2026-12-01,shaker warm\n")
+        with open(os.path.join(out, "numbers.csv"), "w") as f:
+            f.write("a_m\n1\n")  # even one that parses: not rths's
+        run = rths.read_run(out)
+        self.assertEqual(sorted(run.tables), ["modes", "true_frf"])
+        self.assertEqual(run.true_frf.rows, 30)
+
+    def test_damaged_summary_names_the_file(self):
+        out = model_folder("damaged")
+        path = os.path.join(out, "summary.json")
+        with open(path) as f:
+            text = f.read()
+        with open(path, "w") as f:
+            f.write(text[: len(text) // 2])  # cut in the middle
+        with self.assertRaises(rths.InputError) as ctx:
+            rths.read_run(out)
+        self.assertIn(path + ": not a JSON object", str(ctx.exception))
+        self.assertEqual(ctx.exception.code, 2)
+        with open(path, "w") as f:
+            f.write("[1, 2]\n")
+        with self.assertRaisesRegex(rths.InputError, "summary.json: not a JSON object"):
+            rths.read_run(out)
+
+    def test_not_a_run_folder(self):
+        with self.assertRaisesRegex(rths.InputError, r"^/ is not a run folder: no run\.log"):
+            rths.read_run("/")
+        empty = fresh("empty")
+        with self.assertRaisesRegex(rths.InputError, "is not a run folder"):
+            rths.read_run(empty)
+        with self.assertRaisesRegex(rths.InputError, "not a directory"):
+            rths.read_run(SEED_CFG)
+        with self.assertRaisesRegex(rths.InputError, "a folder is required"):
+            rths.read_run(None)
+
+
+class warnings_as_errors:
+    """A block in which any warning fails the test."""
+
+    def __enter__(self):
+        import warnings
+        self.catch = warnings.catch_warnings()
+        self.catch.__enter__()
+        warnings.simplefilter("error")
+
+    def __exit__(self, *exc):
+        return self.catch.__exit__(*exc)
+
+
+class FrfArguments(unittest.TestCase):
+    """Refused before anything runs: no folder, no ./None."""
+
+    def refused(self, regex, **kwargs):
+        here = fresh("args")
+        cwd = os.getcwd()
+        os.chdir(here)
+        try:
+            with self.assertRaisesRegex(rths.InputError, regex):
+                rths.frf(LINEAR_CFG, **kwargs)
+        finally:
+            os.chdir(cwd)
+        self.assertEqual(os.listdir(here), [])
+
+    def test_out_none(self):
+        self.refused(r"^out: a folder is required, got None$", out=None)
+        self.refused(r"^out: expected a path", out=3)
+
+    def test_seed_range(self):
+        self.refused(r"^seed=18446744073709551616: must be in \[0, 18446744073709551615\]$",
+                     out="run", seed=2**64)
+        self.refused(r"^seed=-1: must be in", out="run", seed=-1)
+        self.refused(r"^seed=1\.5: expected an integer$", out="run", seed=1.5)
+
+    def test_harmonics_range(self):
+        self.refused(r"^harmonics=1099511627776: must be in \[1, ", out="run", harmonics=2**40)
+        self.refused(r"^harmonics=0: must be in \[1, ", out="run", harmonics=0)
+        # the library's own limit, above the package's check
+        out = os.path.join(fresh("harmonics"), "run")
+        with self.assertRaisesRegex(rths.InputError, r"harmonics 99 is not in 1\.\.\d"):
+            rths.frf(LINEAR_CFG, out=out, harmonics=99)
+
+    def test_model_out_none_is_no_folder(self):
+        self.assertIsNone(rths.model(SEED_CFG, out=None).dir)
+
+
+class Threads(unittest.TestCase):
+    def test_threads_write_folders_at_once(self):
+        # results.mat from 4 threads at once (each rths_api_model with a folder): HDF5 lock errors
+        # came intermittently before the MAT writer was serialised
+        base = fresh("threads")
+        cfg = rths.Config.load(SEED_CFG, set={"model.frf.points": 200})
+        errors = []
+
+        def work(k):
+            try:
+                for i in range(3):
+                    rths.model(cfg, out=os.path.join(base, f"t{k}_{i}"))
+            except Exception as e:  # noqa: BLE001 - reported below
+                errors.append(e)
+
+        threads = [threading.Thread(target=work, args=(k,)) for k in range(4)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join()
+        self.assertEqual(errors, [])
+        want = rths.model(cfg).true_frf.x3_amplitude_m
+        for name in sorted(os.listdir(base)):
+            with h5py.File(os.path.join(base, name, "results.mat"), "r") as f:
+                np.testing.assert_array_equal(f["true_frf"]["x3_amplitude_m"][()].ravel(), want)
+            self.assertFalse([n for n in os.listdir(os.path.join(base, name)) if ".tmp" in n])
+
+
+if __name__ == "__main__":
+    unittest.main()
