@@ -138,6 +138,30 @@ int rths_api_frf_available(void);
 int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
                  rths_error *err);
 
+/* ---- the rths command's own entry points (src/cli) ----
+ * The operations above on a configuration the command has read already, and the one writer of a
+ * result into an open run folder: `rths model` and rths_api_model share their tables, summary and
+ * CSV writer through these. They take the library's internal types (rths/setup.h, rths/report.h),
+ * which change with it: not for other programs, and outside RTHS_API_VERSION. */
+struct rths_setup;
+struct rths_report;
+
+typedef struct rths_api_model_timing {
+    double modes_s, frf_prepare_s, frf_s; /* wall seconds of the stages */
+    char modes_method[32];                /* "banded, dsbgvd" or "dense, dsygvd" */
+    char frf_method[64];                  /* rths_frf_method_name */
+    int frf_points, frf_dofs;             /* true_frf's rows and DoFs */
+} rths_api_model_timing;
+
+/* rths_api_model's result (tables "modes", "true_frf", the summary naming config_path and the
+ * overrides) from the setup read from the configuration; timing may be NULL. */
+int rths_api_model_compute(const struct rths_setup *setup, const char *config_path,
+                           const char *const *overrides, int n_overrides, rths_result **out,
+                           rths_api_model_timing *timing, rths_error *err);
+/* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
+ * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
+int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
+
 #ifdef __cplusplus
 }
 #endif

@@ -284,6 +284,30 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
     return rc;
 }
 
+int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = RTHS_OK;
+    for (int t = 0; t < r->n_tables && !rc; t++)
+        rc = write_table_csv(rep, &r->tables[t], err);
+    if (!rc && r->summary_json[0]) {
+        /* as rths_json_write writes every summary: the text and a newline */
+        size_t len = strlen(r->summary_json);
+        char *text = malloc(len + 2);
+        char *path = rths_report_path(rep, "summary.json");
+        if (text && path) {
+            memcpy(text, r->summary_json, len);
+            text[len] = '\n';
+            text[len + 1] = 0;
+            rc = rths_write_file_atomic(path, text, len + 1, err);
+            if (!rc) rths_report_log(rep, "wrote summary.json");
+        } else {
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        }
+        free(text);
+        free(path);
+    }
+    return rc;
+}
+
 int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
                              const char *command, rths_error *caller_err) {
     rths_error local; /* the caller's err may be NULL; run.log still gets the reason */
@@ -296,14 +320,7 @@ int rths_result_write_folder(rths_result *r, const rths_config *c, const char *d
     char *path = rths_report_path(rep, "config.yaml");
     rc = path ? rths_config_write(c, path, err) : rths_error_set(err, RTHS_EFAIL, "out of memory");
     free(path);
-    for (int t = 0; t < r->n_tables && !rc; t++)
-        rc = write_table_csv(rep, &r->tables[t], err);
-    if (!rc) {
-        path = rths_report_path(rep, "summary.json");
-        rc = path ? rths_write_file_atomic(path, r->summary_json, strlen(r->summary_json), err)
-                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
-        free(path);
-    }
+    if (!rc) rc = rths_api_result_write(r, rep, err);
     if (!rc) rc = rths_report_write_mat(rep, err); /* a failure fails the call */
     rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err->msg : "");
     rths_report_close(rep);
