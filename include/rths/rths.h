@@ -158,9 +158,32 @@ typedef struct rths_api_model_timing {
 int rths_api_model_compute(const struct rths_setup *setup, const char *config_path,
                            const char *const *overrides, int n_overrides, rths_result **out,
                            rths_api_model_timing *timing, rths_error *err);
+struct rths_chart;
+struct rths_chart_options;
+
+typedef struct rths_api_chart_facts {
+    double seconds;                   /* the chart's computation, wall seconds */
+    double p_essential;               /* essential-spectrum limit of p (NaN: none in the range) */
+    int stable_points;                /* grid points labelled stable */
+    char essential_statement[512];    /* summary.json's essential_spectrum.statement */
+    double probe_p[4];                /* the configured p, then 0.6, 0.67, 0.8 */
+    double probe_critical_delay_s[4]; /* located stand-alone at probe_p (NaN: none found) */
+    double probe_crossing_omega_rad_s[4];
+} rths_api_chart_facts;
+
+/* rths_api_chart's result (tables "chart", "boundary", "critical", the summary naming config_path
+ * and the overrides) from the setup and the stability options read from the configuration. chart
+ * (may be NULL) receives the computed chart (free with rths_chart_free); facts may be NULL. */
+int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_chart_options *o,
+                           const char *config_path, const char *const *overrides, int n_overrides,
+                           rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
+                           rths_error *err);
 /* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
  * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
+/* Its two halves, for a command that writes a file of its own between them. */
+int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
 
 #ifdef __cplusplus
 }

@@ -285,10 +285,20 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
 }
 
 int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = rths_api_result_write_tables(r, rep, err);
+    return rc ? rc : rths_api_result_write_summary(r, rep, err);
+}
+
+int rths_api_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err) {
     int rc = RTHS_OK;
     for (int t = 0; t < r->n_tables && !rc; t++)
         rc = write_table_csv(rep, &r->tables[t], err);
-    if (!rc && r->summary_json[0]) {
+    return rc;
+}
+
+int rths_api_result_write_summary(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = RTHS_OK;
+    if (r->summary_json[0]) {
         /* as rths_json_write writes every summary: the text and a newline */
         size_t len = strlen(r->summary_json);
         char *text = malloc(len + 2);

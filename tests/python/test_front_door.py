@@ -62,5 +62,47 @@ class Model(unittest.TestCase):
         self.check(SEED_CFG, {"split.mass_ratio": 0.4, "model.frf.points": 50})
 
 
+COARSE = {"stability.tau_points": 12, "stability.p_points": 9, "stability.mdbm_tau_points": 10,
+          "stability.mdbm_p_points": 9, "stability.omega_points": 40}
+
+
+def same_shape(test, a, b, where="summary"):
+    """a and b have the same keys, list lengths and types everywhere; numbers agree to 1e-9 of
+    their size (the chart's LAPACK sums may differ in the last bits between processes, see
+    test_rths.py's Chart test), everything else exactly."""
+    if isinstance(a, dict):
+        test.assertEqual(list(a), list(b), where)
+        for k in a:
+            same_shape(test, a[k], b[k], f"{where}.{k}")
+    elif isinstance(a, list):
+        test.assertEqual(len(a), len(b), where)
+        for i, (x, y) in enumerate(zip(a, b)):
+            same_shape(test, x, y, f"{where}[{i}]")
+    elif isinstance(a, float) and isinstance(b, float):
+        test.assertLessEqual(abs(a - b), 1e-9 * max(abs(a), abs(b), 1e-300), where)
+    else:
+        test.assertEqual(a, b, where)
+
+
+class Chart(unittest.TestCase):
+    def test_summary_is_the_commands(self):
+        # rths_api_chart's summary was a different, thinner one (tau_points, p_points,
+        # essential_spectrum_p_limit); it is now the command's, from the same code
+        out = os.path.join(tempfile.mkdtemp(prefix="front_chart_", dir=SCRATCH), "cli")
+        args = [a for k, v in COARSE.items() for a in ("--set", f"{k}={v}")]
+        p = subprocess.run([BIN, "chart", SEED_CFG, "--out", out, "--quiet", *args],
+                           capture_output=True, text=True)
+        self.assertEqual(p.returncode, 0, p.stderr)
+        c = rths.chart(rths.Config.load(SEED_CFG, set=COARSE))
+        with open(os.path.join(out, "summary.json")) as f:
+            cli_summary = json.load(f)
+        skip = ("created_utc", "compute_seconds")
+        same_shape(self, {k: v for k, v in c.summary.items() if k not in skip},
+                   {k: v for k, v in cli_summary.items() if k not in skip})
+        self.assertIn("statement", c.summary["essential_spectrum"])
+        for table in ("chart", "boundary", "critical"):
+            self.assertEqual(c[table].columns, list(read_csv(os.path.join(out, table + ".csv"))))
+
+
 if __name__ == "__main__":
     unittest.main()
