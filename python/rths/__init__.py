@@ -192,6 +192,29 @@ class Result:
         return f"<rths.Result {self.dir or '(no folder)'}: tables {', '.join(self.tables)}>"
 
 
+# Columns that count or label (no SI unit in their names): numpy int64 arrays, and Python ints in
+# on_point's rows, when every value is a finite integer (a NaN, "not measured", keeps the column
+# float). The rest are doubles, as in the CSV files.
+INTEGER_COLUMNS = frozenset({
+    "point", "mode", "evaluations", "iterations", "converged", "fold", "segment", "se_honest",
+    "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
+
+
+def _typed(name, column):
+    """column as int64 when name is an integer column and every value is a finite integer."""
+    if (name in INTEGER_COLUMNS and np.all(np.isfinite(column))
+            and np.array_equal(column, np.round(column))):
+        return column.astype(np.int64)
+    return column
+
+
+def _typed_value(name, value):
+    if name in INTEGER_COLUMNS and value == value and abs(value) != float("inf") \
+            and value == int(value):
+        return int(value)
+    return value
+
+
 def _take_result(handle):
     """Copies a C rths_result into a Result and frees it."""
     c = _c()
@@ -205,7 +228,8 @@ def _take_result(handle):
                 data = c.rths_result_column(handle, t, k)
                 column = (np.ctypeslib.as_array(data, shape=(rows,)).copy() if rows
                           else np.zeros(0))
-                columns[c.rths_result_column_name(handle, t, k).decode()] = column
+                column_name = c.rths_result_column_name(handle, t, k).decode()
+                columns[column_name] = _typed(column_name, column)
             tables[name] = Table(name, columns)
         text = c.rths_result_summary_json(handle).decode()
         folder = c.rths_result_dir(handle)
@@ -301,7 +325,8 @@ class _Callbacks:
         if self.on_point is None or self.error is not None:
             return 0 if self.error is None else 1
         try:
-            self.on_point({names[i].decode(): row[i] for i in range(n)})
+            self.on_point({name: _typed_value(name, row[i])
+                           for i, name in ((i, names[i].decode()) for i in range(n))})
             return 0
         except BaseException as e:  # noqa: B036 - re-raised after the run is saved
             self.error = e

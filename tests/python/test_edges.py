@@ -163,6 +163,34 @@ class FrfArguments(unittest.TestCase):
         self.assertIsNone(rths.model(SEED_CFG, out=None).dir)
 
 
+class IntegerColumns(unittest.TestCase):
+    """Counts and labels come back as integers (issue 28: row["point"] was a float)."""
+
+    def test_model_and_frf(self):
+        m = rths.model(SEED_CFG)
+        self.assertEqual(m.modes.mode.dtype, np.int64)
+        self.assertEqual(list(m.modes.mode), [1, 2, 3, 4])
+        self.assertEqual(m.modes.frequency_hz.dtype, np.float64)
+        out = os.path.join(fresh("ints"), "run")
+        rows = []
+        # two points are enough: the callback stops the run cleanly after the second
+        def take(row):
+            rows.append(row)
+            if len(rows) == 2:
+                raise StopIteration
+
+        with self.assertRaises(StopIteration):
+            rths.frf(LINEAR_CFG, out=out, seed=3, on_point=take)
+        self.assertIs(type(rows[0]["point"]), int)
+        self.assertIs(type(rows[1]["evaluations"]), int)
+        self.assertIs(type(rows[0]["frequency_hz"]), float)
+        run = rths.read_run(out)
+        for name in ("point", "evaluations", "iterations", "converged", "segment"):
+            self.assertEqual(run.frf[name].dtype, np.int64, name)
+        self.assertEqual(list(run.frf.point), [0, 1])
+        self.assertEqual(run.frf.amplitude_m.dtype, np.float64)
+
+
 class Threads(unittest.TestCase):
     def test_threads_write_folders_at_once(self):
         # results.mat from 4 threads at once (each rths_api_model with a folder): HDF5 lock errors
