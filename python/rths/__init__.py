@@ -336,20 +336,57 @@ class _Callbacks:
         return 1 if self.cancelled or self.error is not None else 0
 
 
+def _discard_earlier_run(out):
+    """Makes out ready for a new FRF run over an earlier one (frf's overwrite=True): its journal
+    and live state go, so the run starts afresh instead of asking for resume; the earlier run's
+    other files are replaced by the run itself (the ones it listed in .rths-files are removed
+    when it opens the folder, report.h), a user's files stay, run.log keeps its history. A run
+    still writing there (run.lock held) is refused."""
+    import fcntl
+    journal = os.path.join(out, "journal.jsonl")
+    if not os.path.exists(journal):
+        return
+    lock = os.path.join(out, "run.lock")
+    fd = os.open(lock, os.O_RDONLY) if os.path.exists(lock) else None
+    try:
+        if fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise InputError(2, f"{out}: a run is writing there now (run.lock is held); "
+                                    "overwrite=True replaces only a finished or stopped run") \
+                    from None
+        for name in ("journal.jsonl", "live.json"):
+            try:
+                os.remove(os.path.join(out, name))
+            except FileNotFoundError:
+                pass
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
 def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=None,
-        on_point=None, force=False):
+        on_point=None, force=False, overwrite=False):
     """The iterative hybrid test with continuation (rths frf) into the run folder out.
 
     Returns a Result whose table frf holds frf.csv's columns. on_point(row) is called with each
     accepted point's frf.csv row as a dict; if it raises, the run stops cleanly (everything
     accepted saved) and the exception is raised again. Ctrl-C stops the run the same way and
     raises rths.Cancelled carrying the saved result. A test whose true response exceeds the
-    rig's displacement limit raises InputError unless force=True."""
+    rig's displacement limit raises InputError unless force=True. A folder holding an earlier
+    FRF run raises InputError (continue it with resume=True) unless overwrite=True, which starts
+    a new run there."""
     out = _path("out", out)
     # checked here, before ctypes narrows them (the library checks harmonics' upper limit)
     harmonics = None if harmonics is None else _integer("harmonics", harmonics, 1, 2**31 - 1)
     seed = None if seed is None else _integer("seed", seed, 0, 2**64 - 1)
+    if overwrite and resume:
+        raise InputError(2, "overwrite=True and resume=True: choose one (overwrite starts afresh, "
+                            "resume continues the earlier run)")
     cfg = _config(cfg)
+    if overwrite:
+        _discard_earlier_run(out)
     c = _c()
     o = _lib.FrfOptions()
     c.rths_api_frf_options_default(ctypes.byref(o))

@@ -163,6 +163,30 @@ class FrfArguments(unittest.TestCase):
         self.assertIsNone(rths.model(SEED_CFG, out=None).dir)
 
 
+@unittest.skipUnless(rths.frf_available(), "librths built without the run module")
+class Overwrite(unittest.TestCase):
+    def test_rerun_needs_overwrite(self):
+        # re-running a script into its folder: refused naming resume; overwrite=True starts a new
+        # run there, the same as a run into a fresh folder; a user's file stays
+        out = os.path.join(fresh("overwrite"), "run")
+        rths.frf(LINEAR_CFG, out=out, seed=3)
+        with open(os.path.join(out, "notes.txt"), "w") as f:
+            f.write("mine\n")
+        with self.assertRaisesRegex(rths.InputError, "already holds a run"):
+            rths.frf(LINEAR_CFG, out=out, seed=4)
+        with self.assertRaisesRegex(rths.InputError, "choose one"):
+            rths.frf(LINEAR_CFG, out=out, seed=4, overwrite=True, resume=True)
+        again = rths.frf(LINEAR_CFG, out=out, seed=4, overwrite=True)
+        fresh_run = rths.frf(LINEAR_CFG, out=os.path.join(fresh("overwrite_ref"), "run"), seed=4)
+        self.assertEqual(again.frf.columns, fresh_run.frf.columns)
+        for name in fresh_run.frf.columns:
+            np.testing.assert_array_equal(again.frf[name], fresh_run.frf[name], err_msg=name)
+        self.assertEqual(again.summary["seed"], 4)
+        with open(os.path.join(out, "journal.jsonl")) as f:
+            self.assertEqual(len(f.readlines()), 1 + fresh_run.frf.rows)
+        self.assertTrue(os.path.exists(os.path.join(out, "notes.txt")))
+
+
 class IntegerColumns(unittest.TestCase):
     """Counts and labels come back as integers (issue 28: row["point"] was a float)."""
 
