@@ -60,6 +60,13 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
 void rths_api_config_free(rths_api_config *cfg);
 /* Degrees of freedom of the configured assembly. */
 int rths_api_config_dofs(const rths_api_config *cfg);
+/* The value of key ("split.mass_ratio") as configured (the file with the overrides applied), as
+ * text: a scalar as written ("0.33", "true", "shaker"), a list of numbers as "[1, 2.5]", a matrix
+ * as "[[1, 0], [0, 1]]" (%.17g). *text is malloc'ed (free with rths_api_free). RTHS_EINPUT for a
+ * key that is not set (its default applies; docs/config.md) or that holds a mapping. */
+int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err);
+/* Frees what the library allocated for the caller (rths_api_config_get's text). */
+void rths_api_free(void *p);
 
 /* ---- results: named tables of doubles, a summary, a folder ---- */
 

@@ -95,6 +95,19 @@ def _yaml_value(value):
     return str(value)
 
 
+def _scalar(text):
+    """A YAML scalar's text as the value the configuration's getters read: bool, int, float or
+    the text itself."""
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 class Config:
     """A test description (YAML) with overrides, checked on load. Use Config.load."""
 
@@ -126,6 +139,35 @@ class Config:
         more = ([f"{k}={_yaml_value(v)}" for k, v in set.items()] if isinstance(set, dict)
                 else [str(s) for s in set])
         return Config.load(self.path, self.overrides + more)
+
+    def __getitem__(self, key):
+        """The value of key ("split.mass_ratio") as configured, the file with the overrides: a
+        number, bool or str for a scalar, a list (of lists) of floats for a list (matrix).
+        KeyError for a key that is not set (its default applies, docs/config.md) or that holds a
+        mapping."""
+        c = _c()
+        text = ctypes.c_void_p()
+        err = c.Error()
+        rc = c.rths_api_config_get(self._handle, str(key).encode(), ctypes.byref(text),
+                                   ctypes.byref(err))
+        if rc == 2:
+            raise KeyError(err.msg.decode("utf-8", "replace"))
+        _check(rc, err)
+        try:
+            value = ctypes.string_at(text).decode()
+        finally:
+            c.rths_api_free(text)
+        if not value.startswith("["):
+            return _scalar(value)
+        floats = json.loads(value, parse_int=float)
+        return floats
+
+    def get(self, key, default=None):
+        """self[key], or default when the key is not set."""
+        try:
+            return self[key]
+        except KeyError:
+            return default
 
     @property
     def dofs(self):

@@ -86,6 +86,8 @@ def _declare(lib):
         "rths_api_config_load": (c_int, [c_char_p, ctypes.POINTER(c_char_p), c_int, handle, err]),
         "rths_api_config_free": (None, [c_void_p]),
         "rths_api_config_dofs": (c_int, [c_void_p]),
+        "rths_api_config_get": (c_int, [c_void_p, c_char_p, ctypes.POINTER(c_void_p), err]),
+        "rths_api_free": (None, [c_void_p]),
         "rths_api_model": (c_int, [c_void_p, c_char_p, handle, err]),
         "rths_api_chart": (c_int, [c_void_p, c_char_p, handle, err]),
         "rths_api_read_run": (c_int, [c_char_p, handle, err]),

@@ -119,10 +119,16 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
         rths_api_config_free(cfg);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
-    /* read once now, so a bad file or key is reported by the load */
+    /* read once now, so a bad file or key is reported by the load: the structural sections and
+     * their keys, and the top-level sections (a misspelt section or a key of structure, split,
+     * forcing or model fails here, as every operation would refuse it later) */
     rths_config *c;
     rths_setup setup;
     int rc = rths_api_load(cfg, &c, &setup, err);
+    if (!rc) {
+        rc = rths_config_check_sections(c, NULL, err);
+        if (rc) rths_api_unload(c, &setup);
+    }
     if (rc) {
         rths_api_config_free(cfg);
         return rc;
@@ -135,6 +141,68 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
 
 int rths_api_config_dofs(const rths_api_config *cfg) {
     return cfg ? cfg->dofs : 0;
+}
+
+void rths_api_free(void *p) {
+    free(p);
+}
+
+/* "[a, b, ...]" of n numbers at v[0], v[stride], ... (%.17g), appended to buf at *len. */
+static void append_list(char *buf, size_t size, size_t *len, const double *v, int n,
+                        size_t stride) {
+    *len += (size_t)snprintf(buf + *len, size - *len, "[");
+    for (int i = 0; i < n && *len < size; i++)
+        *len += (size_t)snprintf(buf + *len, size - *len, "%s%.17g", i ? ", " : "",
+                                 v[(size_t)i * stride]);
+    if (*len < size) *len += (size_t)snprintf(buf + *len, size - *len, "]");
+}
+
+int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err) {
+    *text = NULL;
+    if (!cfg || !key) return rths_error_set(err, RTHS_EINPUT, "no configuration or key given");
+    rths_config *c;
+    int rc =
+        rths_config_load(cfg->path, (const char *const *)cfg->overrides, cfg->n_overrides, &c, err);
+    if (rc) return rc;
+    rths_error ignored; /* each shape is tried in turn; the last failure is the message */
+    const char *scalar = NULL;
+    double *v = NULL;
+    int rows = 0, cols = 0;
+    if (!rths_config_has(c, key)) {
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "key '%s' is not set in the configuration (its default applies, "
+                            "docs/config.md)",
+                            key);
+    } else if (!rths_config_get_string(c, key, 1, NULL, &scalar, &ignored) && scalar) {
+        if (!(*text = strdup(scalar))) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    } else if (!rths_config_get_double_list(c, key, 1, &v, &cols, &ignored) ||
+               !rths_config_get_matrix(c, key, 1, &v, &rows, &cols, &ignored)) {
+        int matrix = rows > 0;
+        size_t size = 32 + (size_t)(matrix ? rows : 1) * (size_t)(cols + 1) * 28;
+        char *buf = malloc(size);
+        size_t len = 0;
+        if (!buf) {
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        } else if (!matrix) {
+            append_list(buf, size, &len, v, cols, 1);
+        } else {
+            len += (size_t)snprintf(buf, size, "[");
+            for (int r = 0; r < rows; r++) { /* column-major: row r is v[r], v[r + rows], ... */
+                if (r) len += (size_t)snprintf(buf + len, size - len, ", ");
+                append_list(buf, size, &len, v + r, cols, (size_t)rows);
+            }
+            len += (size_t)snprintf(buf + len, size - len, "]");
+        }
+        *text = buf;
+    } else {
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "key '%s' holds a mapping or a list that is not numbers: ask for one "
+                            "of its keys",
+                            key);
+    }
+    free(v);
+    rths_config_free(c);
+    return rc;
 }
 
 /* ---- results ---- */

@@ -187,6 +187,42 @@ class Overwrite(unittest.TestCase):
         self.assertTrue(os.path.exists(os.path.join(out, "notes.txt")))
 
 
+class ConfigValues(unittest.TestCase):
+    """Config.load checks the keys it can at once, and values read back (issue 28)."""
+
+    def test_typos_refused_at_load(self):
+        with self.assertRaisesRegex(rths.InputError,
+                                    r"unknown key 'structure\.storeys\.mass_kgg'.*mass_kg"):
+            rths.Config.load(SEED_CFG, set={"structure.storeys.mass_kgg": [1, 2, 3, 4]})
+        with self.assertRaisesRegex(rths.InputError, r"unknown key 'rigg'"):
+            rths.Config.load(SEED_CFG, set={"rigg.noise": False})
+
+    def test_read_back(self):
+        cfg = rths.Config.load(SEED_CFG, set={"split.mass_ratio": 0.33, "rig.noise": False})
+        self.assertEqual(cfg["split.mass_ratio"], 0.33)
+        self.assertIs(cfg["rig.noise"], False)
+        self.assertEqual(cfg["structure.storeys.mass_kg"], [5.37, 5.37, 5.37, 10.74])
+        five = cfg.with_set({"split.mass_ratio": 0.5})
+        self.assertEqual(five["split.mass_ratio"], 0.5)
+        self.assertEqual(cfg["split.mass_ratio"], 0.33)  # the original is unchanged
+        two = ["structure.matrices.mass_kg=[[2, 0], [0, 1]]",
+               "structure.matrices.damping_n_s_per_m=[[1, 0], [0, 1]]",
+               "structure.matrices.stiffness_n_per_m=[[2000, -1000], [-1000, 1000.5]]",
+               "split.interface=[2]", "split.physical=[1]", "split.mass_ratio=0.5",
+               "forcing.dof=2"]
+        m = rths.Config.load(None, set=two)
+        stiffness = m["structure.matrices.stiffness_n_per_m"]
+        self.assertEqual(stiffness, [[2000.0, -1000.0], [-1000.0, 1000.5]])  # rows as written
+        self.assertIs(type(stiffness[0][0]), float)
+        self.assertEqual(m["split.interface"], [2.0])
+        self.assertEqual(m.dofs, 2)
+        with self.assertRaisesRegex(KeyError, "is not set in the configuration"):
+            cfg["continuation.start_hz"]
+        self.assertEqual(cfg.get("continuation.start_hz", 3.5), 3.5)
+        with self.assertRaisesRegex(KeyError, "holds a mapping"):
+            cfg["structure"]
+
+
 class IntegerColumns(unittest.TestCase):
     """Counts and labels come back as integers (issue 28: row["point"] was a float)."""
 
