@@ -11,7 +11,10 @@
 #include <matio.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <dirent.h>
+#include <pthread.h>
 #include <string.h>
+#include <sys/resource.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -177,11 +180,109 @@ static void test_folder_ownership(void **state) {
     rths_report_close(rep);
 }
 
+/* A folder with one CSV of rows x 3 numbers (about 60 bytes a row), nothing else. */
+static void write_table_folder(const char *folder, int rows) {
+    assert_int_equal(mkdir(folder, 0755), 0);
+    char path[512];
+    snprintf(path, sizeof path, "%s/table.csv", folder);
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs("time_s,x_m,f_n\n", f);
+    for (int i = 0; i < rows; i++)
+        fprintf(f, "%.17g,%.17g,%.17g\n", i * 1e-4, sin(i * 0.01), cos(i * 0.02));
+    assert_int_equal(fclose(f), 0);
+}
+
+/* Whether folder holds a name containing part. */
+static int has_name_with(const char *folder, const char *part) {
+    DIR *d = opendir(folder);
+    assert_non_null(d);
+    struct dirent *e;
+    int found = 0;
+    while ((e = readdir(d)))
+        found |= strstr(e->d_name, part) != NULL;
+    closedir(d);
+    return found;
+}
+
+/* A file size limit (`ulimit -f`) below results.mat's size: the write fails with the operating
+ * system's reason, the process is not killed (SIGXFSZ killed it before) and no temporary file is
+ * left; with the limit lifted the same folder is written. */
+static void test_file_size_limit(void **state) {
+    (void)state;
+    char run[300];
+    snprintf(run, sizeof run, "%s/limited", dir);
+    write_table_folder(run, 400); /* about 24 kB of CSV, a MAT file of the same order */
+    struct rlimit old;
+    assert_int_equal(getrlimit(RLIMIT_FSIZE, &old), 0);
+    struct rlimit low = {8192, old.rlim_max};
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &low), 0);
+    rths_error err;
+    rths_error_clear(&err);
+    int rc = rths_matfile_write(run, NULL, 0, NULL, 0, &err);
+    assert_int_equal(setrlimit(RLIMIT_FSIZE, &old), 0);
+    assert_int_equal(rc, RTHS_EFAIL);
+    char want[400];
+    snprintf(want, sizeof want, "cannot write %s/results.mat: File too large", run);
+    assert_string_equal(err.msg, want);
+    assert_false(has_name_with(run, "results.mat"));
+    assert_int_equal(rths_matfile_write(run, NULL, 0, NULL, 0, &err), RTHS_OK);
+    assert_true(exists(run, "results.mat"));
+    assert_false(has_name_with(run, ".tmp"));
+}
+
+/* Threads writing results.mat at once (Python threads each running rths.frf) all succeed: the
+ * writer is serialised (HDF5 lock errors before, intermittently). */
+enum { WRITERS = 4, WRITES = 3 };
+
+static void *writer(void *arg) {
+    const char *folder = arg;
+    static int failures; /* only read after the joins */
+    for (int i = 0; i < WRITES; i++) {
+        rths_error err;
+        if (rths_matfile_write(folder, NULL, 0, NULL, 0, &err)) {
+            fprintf(stderr, "%s: %s\n", folder, err.msg);
+            __atomic_add_fetch(&failures, 1, __ATOMIC_SEQ_CST);
+        }
+    }
+    return &failures;
+}
+
+static void test_threads(void **state) {
+    (void)state;
+    char folders[WRITERS][280];
+    pthread_t threads[WRITERS];
+    for (int t = 0; t < WRITERS; t++) {
+        snprintf(folders[t], sizeof folders[t], "%.256s/thread%d", dir, t);
+        write_table_folder(folders[t], 200 + 50 * t);
+    }
+    for (int t = 0; t < WRITERS; t++)
+        assert_int_equal(pthread_create(&threads[t], NULL, writer, folders[t]), 0);
+    int *failures = NULL;
+    for (int t = 0; t < WRITERS; t++)
+        assert_int_equal(pthread_join(threads[t], (void **)&failures), 0);
+    assert_int_equal(*failures, 0);
+    for (int t = 0; t < WRITERS; t++) {
+        char path[320];
+        snprintf(path, sizeof path, "%.280s/results.mat", folders[t]);
+        mat_t *mat = Mat_Open(path, MAT_ACC_RDONLY);
+        assert_non_null(mat);
+        matvar_t *table = Mat_VarRead(mat, "table");
+        assert_non_null(table);
+        matvar_t *x = field(table, "x_m");
+        assert_int_equal(x->dims[0], 200 + 50 * t);
+        assert_true(((const double *)x->data)[100] == sin(100 * 0.01));
+        Mat_VarFree(table);
+        Mat_Close(mat);
+        assert_false(has_name_with(folders[t], ".tmp"));
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_mat_equals_csv),
-        cmocka_unit_test(test_csv_read_errors),
-        cmocka_unit_test(test_folder_ownership),
+        cmocka_unit_test(test_mat_equals_csv),   cmocka_unit_test(test_csv_read_errors),
+        cmocka_unit_test(test_folder_ownership), cmocka_unit_test(test_file_size_limit),
+        cmocka_unit_test(test_threads),
     };
     return cmocka_run_group_tests(tests, setup_dir, teardown_dir);
 }

@@ -41,4 +41,4 @@ def pyplot():
         return plt
     except ImportError:
         sys.exit("this example plots with matplotlib: sudo apt install python3-matplotlib "
-                 "(or pip install --user matplotlib)")
+                 "(or pip install matplotlib in a virtual environment, docs/python.md)")

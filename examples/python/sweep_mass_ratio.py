@@ -4,7 +4,7 @@ test of the seed building across its second mode for several p, against the true
 analytic FRF, in one figure.
 
     make build
-    sudo apt install python3-matplotlib      # or: pip install --user matplotlib
+    sudo apt install python3-matplotlib      # or pip in a virtual environment (docs/python.md)
     python3 examples/python/sweep_mass_ratio.py [OUT_DIR]      -> OUT_DIR/mass_ratios.png
 """
 import os

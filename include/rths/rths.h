@@ -18,18 +18,34 @@
 
 #include "rths/core.h"
 
+#include <stddef.h>
 #include <stdint.h>
 
 #ifdef __cplusplus
 extern "C" {
 #endif
 
-#define RTHS_API_VERSION 1
+/* 2: rths_error's message grew to RTHS_ERROR_MSG_LEN (8192) bytes, from the 1024 version 1
+ * documented, and the layout queries below were added. */
+#define RTHS_API_VERSION 2
 
 /* RTHS_API_VERSION of the library actually loaded (compare with the header's). */
 int rths_api_version(void);
 /* The rths release, e.g. "0.1.0". */
 const char *rths_api_release(void);
+
+/* ---- the layout of the structs a caller allocates (part of the ABI) ----
+ * rths_error and rths_api_frf_options are allocated by the caller. A binding that declares them
+ * itself instead of compiling this header (python/rths/_lib.py through ctypes) checks its
+ * declaration against the library it loaded, and refuses to use a library whose layout differs:
+ * a smaller rths_error than the library's is overwritten past its end. */
+
+/* sizeof(type) as this library was compiled, for "rths_error" and "rths_api_frf_options"; 0 for
+ * any other name. */
+size_t rths_api_sizeof(const char *type);
+/* offsetof(type, field) as this library was compiled (e.g. "rths_error", "msg"); -1 for an
+ * unknown type or field. */
+long rths_api_offsetof(const char *type, const char *field);
 
 /* ---- configuration ---- */
 
@@ -44,6 +60,13 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
 void rths_api_config_free(rths_api_config *cfg);
 /* Degrees of freedom of the configured assembly. */
 int rths_api_config_dofs(const rths_api_config *cfg);
+/* The value of key ("split.mass_ratio") as configured (the file with the overrides applied), as
+ * text: a scalar as written ("0.33", "true", "shaker"), a list of numbers as "[1, 2.5]", a matrix
+ * as "[[1, 0], [0, 1]]" (%.17g). *text is malloc'ed (free with rths_api_free). RTHS_EINPUT for a
+ * key that is not set (its default applies; docs/config.md) or that holds a mapping. */
+int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err);
+/* Frees what the library allocated for the caller (rths_api_config_get's text). */
+void rths_api_free(void *p);
 
 /* ---- results: named tables of doubles, a summary, a folder ---- */
 
@@ -121,6 +144,53 @@ int rths_api_frf_available(void);
  * result, but the folder still holds everything accepted (rths_api_read_run reads it). */
 int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
                  rths_error *err);
+
+/* ---- the rths command's own entry points (src/cli) ----
+ * The operations above on a configuration the command has read already, and the one writer of a
+ * result into an open run folder: `rths model` and rths_api_model share their tables, summary and
+ * CSV writer through these. They take the library's internal types (rths/setup.h, rths/report.h),
+ * which change with it: not for other programs, and outside RTHS_API_VERSION. */
+struct rths_setup;
+struct rths_report;
+
+typedef struct rths_api_model_timing {
+    double modes_s, frf_prepare_s, frf_s; /* wall seconds of the stages */
+    char modes_method[32];                /* "banded, dsbgvd" or "dense, dsygvd" */
+    char frf_method[64];                  /* rths_frf_method_name */
+    int frf_points, frf_dofs;             /* true_frf's rows and DoFs */
+} rths_api_model_timing;
+
+/* rths_api_model's result (tables "modes", "true_frf", the summary naming config_path and the
+ * overrides) from the setup read from the configuration; timing may be NULL. */
+int rths_api_model_compute(const struct rths_setup *setup, const char *config_path,
+                           const char *const *overrides, int n_overrides, rths_result **out,
+                           rths_api_model_timing *timing, rths_error *err);
+struct rths_chart;
+struct rths_chart_options;
+
+typedef struct rths_api_chart_facts {
+    double seconds;                   /* the chart's computation, wall seconds */
+    double p_essential;               /* essential-spectrum limit of p (NaN: none in the range) */
+    int stable_points;                /* grid points labelled stable */
+    char essential_statement[512];    /* summary.json's essential_spectrum.statement */
+    double probe_p[4];                /* the configured p, then 0.6, 0.67, 0.8 */
+    double probe_critical_delay_s[4]; /* located stand-alone at probe_p (NaN: none found) */
+    double probe_crossing_omega_rad_s[4];
+} rths_api_chart_facts;
+
+/* rths_api_chart's result (tables "chart", "boundary", "critical", the summary naming config_path
+ * and the overrides) from the setup and the stability options read from the configuration. chart
+ * (may be NULL) receives the computed chart (free with rths_chart_free); facts may be NULL. */
+int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_chart_options *o,
+                           const char *config_path, const char *const *overrides, int n_overrides,
+                           rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
+                           rths_error *err);
+/* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
+ * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
+int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
+/* Its two halves, for a command that writes a file of its own between them. */
+int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
 
 #ifdef __cplusplus
 }

@@ -12,8 +12,11 @@ FILE:LINE:COL for a configuration) or rths.RunError (numerics, I/O, rig fault).
 """
 import ctypes
 import json
+import numbers
+import os
 import signal
 import threading
+import warnings
 
 from . import _lib
 
@@ -30,7 +33,7 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "model", "chart", "frf", "frf_available", "read_run", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "frf", "frf_available", "read_run", "library_release"]
 
 def _c():
     global _LIB
@@ -64,6 +67,11 @@ class Cancelled(KeyboardInterrupt):
         self.result = result
 
 
+class IncompleteRunWarning(UserWarning):
+    """read_run found a folder without summary.json: the run did not finish (killed, or still
+    running); the result holds what it had written (result.complete is False)."""
+
+
 def _check(rc, err):
     if rc == 0:
         return
@@ -87,6 +95,19 @@ def _yaml_value(value):
     return str(value)
 
 
+def _scalar(text):
+    """A YAML scalar's text as the value the configuration's getters read: bool, int, float or
+    the text itself."""
+    if text in ("true", "false"):
+        return text == "true"
+    for kind in (int, float):
+        try:
+            return kind(text)
+        except ValueError:
+            pass
+    return text
+
+
 class Config:
     """A test description (YAML) with overrides, checked on load. Use Config.load."""
 
@@ -107,7 +128,7 @@ class Config:
             overrides = [str(s) for s in set]
         array = (ctypes.c_char_p * max(1, len(overrides)))(*[s.encode() for s in overrides])
         handle = ctypes.c_void_p()
-        err = _lib.Error()
+        err = _c().Error()
         rc = _c().rths_api_config_load(None if path is None else str(path).encode(), array,
                                        len(overrides), ctypes.byref(handle), ctypes.byref(err))
         _check(rc, err)
@@ -118,6 +139,35 @@ class Config:
         more = ([f"{k}={_yaml_value(v)}" for k, v in set.items()] if isinstance(set, dict)
                 else [str(s) for s in set])
         return Config.load(self.path, self.overrides + more)
+
+    def __getitem__(self, key):
+        """The value of key ("split.mass_ratio") as configured, the file with the overrides: a
+        number, bool or str for a scalar, a list (of lists) of floats for a list (matrix).
+        KeyError for a key that is not set (its default applies, docs/config.md) or that holds a
+        mapping."""
+        c = _c()
+        text = ctypes.c_void_p()
+        err = c.Error()
+        rc = c.rths_api_config_get(self._handle, str(key).encode(), ctypes.byref(text),
+                                   ctypes.byref(err))
+        if rc == 2:
+            raise KeyError(err.msg.decode("utf-8", "replace"))
+        _check(rc, err)
+        try:
+            value = ctypes.string_at(text).decode()
+        finally:
+            c.rths_api_free(text)
+        if not value.startswith("["):
+            return _scalar(value)
+        floats = json.loads(value, parse_int=float)
+        return floats
+
+    def get(self, key, default=None):
+        """self[key], or default when the key is not set."""
+        try:
+            return self[key]
+        except KeyError:
+            return default
 
     @property
     def dofs(self):
@@ -160,13 +210,16 @@ class Table(dict):
 
 class Result:
     """A run's tables (by CSV name: result.frf, result.modes, result["true_frf"]), its summary
-    (dict, from summary.json), config_yaml (text) and dir (the run folder or None)."""
+    (dict, from summary.json), config_yaml (text) and dir (the run folder or None). complete is
+    False for a run folder without summary.json (a run that was killed or is still running: its
+    summary is {} and its tables are what it had written, e.g. truth without frf)."""
 
-    def __init__(self, tables, summary, config_yaml, dir):
+    def __init__(self, tables, summary, config_yaml, dir, complete=True):
         self.tables = tables
         self.summary = summary
         self.config_yaml = config_yaml
         self.dir = dir
+        self.complete = complete
 
     def __getitem__(self, name):
         return self.tables[name]
@@ -179,6 +232,29 @@ class Result:
 
     def __repr__(self):
         return f"<rths.Result {self.dir or '(no folder)'}: tables {', '.join(self.tables)}>"
+
+
+# Columns that count or label (no SI unit in their names): numpy int64 arrays, and Python ints in
+# on_point's rows, when every value is a finite integer (a NaN, "not measured", keeps the column
+# float). The rest are doubles, as in the CSV files.
+INTEGER_COLUMNS = frozenset({
+    "point", "mode", "evaluations", "iterations", "converged", "fold", "segment", "se_honest",
+    "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
+
+
+def _typed(name, column):
+    """column as int64 when name is an integer column and every value is a finite integer."""
+    if (name in INTEGER_COLUMNS and np.all(np.isfinite(column))
+            and np.array_equal(column, np.round(column))):
+        return column.astype(np.int64)
+    return column
+
+
+def _typed_value(name, value):
+    if name in INTEGER_COLUMNS and value == value and abs(value) != float("inf") \
+            and value == int(value):
+        return int(value)
+    return value
 
 
 def _take_result(handle):
@@ -194,20 +270,25 @@ def _take_result(handle):
                 data = c.rths_result_column(handle, t, k)
                 column = (np.ctypeslib.as_array(data, shape=(rows,)).copy() if rows
                           else np.zeros(0))
-                columns[c.rths_result_column_name(handle, t, k).decode()] = column
+                column_name = c.rths_result_column_name(handle, t, k).decode()
+                columns[column_name] = _typed(column_name, column)
             tables[name] = Table(name, columns)
         text = c.rths_result_summary_json(handle).decode()
-        summary = json.loads(text) if text.strip() else {}
-        config_yaml = c.rths_result_config_yaml(handle).decode()
         folder = c.rths_result_dir(handle)
-        return Result(tables, summary, config_yaml, folder.decode() if folder else None)
+        folder = folder.decode() if folder else None
+        try:
+            summary = json.loads(text) if text.strip() else {}
+        except ValueError as e:  # the library checks it; this is the last line of defence
+            raise InputError(2, f"{folder}/summary.json: not valid JSON ({e})") from None
+        config_yaml = c.rths_result_config_yaml(handle).decode()
+        return Result(tables, summary, config_yaml, folder, complete=bool(text.strip()))
     finally:
         c.rths_result_free(handle)
 
 
 def _run(fn, *args):
     handle = ctypes.c_void_p()
-    err = _lib.Error()
+    err = _c().Error()
     rc = fn(*args, ctypes.byref(handle), ctypes.byref(err))
     _check(rc, err)
     return _take_result(handle)
@@ -223,19 +304,50 @@ def model(cfg, out=None):
     """Modes and analytic FRF of the true assembly (rths model): result.modes, result.true_frf,
     equal to the CLI's modes.csv and true_frf.csv. out: also write a run folder there."""
     cfg = _config(cfg)
-    return _run(_c().rths_api_model, cfg._handle, None if out is None else str(out).encode())
+    return _run(_c().rths_api_model, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
 
 
 def chart(cfg, out=None):
     """Stability chart of the delayed-feedback test (rths chart): result.chart, .boundary,
     .critical, equal to the CLI's CSV files. out: also write a run folder there."""
     cfg = _config(cfg)
-    return _run(_c().rths_api_chart, cfg._handle, None if out is None else str(out).encode())
+    return _run(_c().rths_api_chart, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
 
 
 def read_run(dir):
-    """A run folder: every CSV as a Table (result.frf["amplitude_m"]), summary, config_yaml."""
-    return _run(_c().rths_api_read_run, str(dir).encode())
+    """A run folder: every CSV rths wrote there as a Table (result.frf["amplitude_m"]; a user's
+    own CSV files are not read), summary, config_yaml. A folder that is not a run folder, or whose
+    summary.json is damaged, raises InputError. A run that did not finish (no summary.json: killed,
+    or still running) gives result.complete False and an IncompleteRunWarning."""
+    result = _run(_c().rths_api_read_run, os.fsencode(_path("dir", dir)))
+    if not result.complete:
+        warnings.warn(IncompleteRunWarning(
+            f"{result.dir}: no summary.json, the run did not finish (killed, or still running); "
+            f"tables read: {', '.join(result.tables) or 'none'}; an FRF run continues with "
+            "rths.frf(..., resume=True)"), stacklevel=2)
+    return result
+
+
+def _path(name, value):
+    """A folder argument as str, refusing None (str(None) would be a folder called 'None')."""
+    if value is None:
+        raise InputError(2, f"{name}: a folder is required, got None")
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise InputError(2, f"{name}: expected a path (str or os.PathLike), got "
+                            f"{type(value).__name__}")
+    return os.fsdecode(value)
+
+
+def _integer(name, value, lo, hi):
+    """value as an int in [lo, hi]; InputError otherwise (ctypes would wrap it silently: seed
+    2**64 was seed 0, harmonics 2**40 was 0, 'the configuration's')."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise InputError(2, f"{name}={value!r}: expected an integer")
+    if not lo <= int(value) <= hi:
+        raise InputError(2, f"{name}={value}: must be in [{lo}, {hi}]")
+    return int(value)
 
 
 def frf_available():
@@ -255,7 +367,8 @@ class _Callbacks:
         if self.on_point is None or self.error is not None:
             return 0 if self.error is None else 1
         try:
-            self.on_point({names[i].decode(): row[i] for i in range(n)})
+            self.on_point({name: _typed_value(name, row[i])
+                           for i, name in ((i, names[i].decode()) for i in range(n))})
             return 0
         except BaseException as e:  # noqa: B036 - re-raised after the run is saved
             self.error = e
@@ -265,26 +378,67 @@ class _Callbacks:
         return 1 if self.cancelled or self.error is not None else 0
 
 
+def _discard_earlier_run(out):
+    """Makes out ready for a new FRF run over an earlier one (frf's overwrite=True): its journal
+    and live state go, so the run starts afresh instead of asking for resume; the earlier run's
+    other files are replaced by the run itself (the ones it listed in .rths-files are removed
+    when it opens the folder, report.h), a user's files stay, run.log keeps its history. A run
+    still writing there (run.lock held) is refused."""
+    import fcntl
+    journal = os.path.join(out, "journal.jsonl")
+    if not os.path.exists(journal):
+        return
+    lock = os.path.join(out, "run.lock")
+    fd = os.open(lock, os.O_RDONLY) if os.path.exists(lock) else None
+    try:
+        if fd is not None:
+            try:
+                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            except BlockingIOError:
+                raise InputError(2, f"{out}: a run is writing there now (run.lock is held); "
+                                    "overwrite=True replaces only a finished or stopped run") \
+                    from None
+        for name in ("journal.jsonl", "live.json"):
+            try:
+                os.remove(os.path.join(out, name))
+            except FileNotFoundError:
+                pass
+    finally:
+        if fd is not None:
+            os.close(fd)
+
+
 def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=None,
-        on_point=None, force=False):
+        on_point=None, force=False, overwrite=False):
     """The iterative hybrid test with continuation (rths frf) into the run folder out.
 
     Returns a Result whose table frf holds frf.csv's columns. on_point(row) is called with each
     accepted point's frf.csv row as a dict; if it raises, the run stops cleanly (everything
     accepted saved) and the exception is raised again. Ctrl-C stops the run the same way and
     raises rths.Cancelled carrying the saved result. A test whose true response exceeds the
-    rig's displacement limit raises InputError unless force=True."""
+    rig's displacement limit raises InputError unless force=True. A folder holding an earlier
+    FRF run raises InputError (continue it with resume=True) unless overwrite=True, which starts
+    a new run there."""
+    out = _path("out", out)
+    # checked here, before ctypes narrows them (the library checks harmonics' upper limit)
+    harmonics = None if harmonics is None else _integer("harmonics", harmonics, 1, 2**31 - 1)
+    seed = None if seed is None else _integer("seed", seed, 0, 2**64 - 1)
+    if overwrite and resume:
+        raise InputError(2, "overwrite=True and resume=True: choose one (overwrite starts afresh, "
+                            "resume continues the earlier run)")
     cfg = _config(cfg)
+    if overwrite:
+        _discard_earlier_run(out)
     c = _c()
     o = _lib.FrfOptions()
     c.rths_api_frf_options_default(ctypes.byref(o))
-    o.out_dir = str(out).encode()
+    o.out_dir = os.fsencode(out)
     if strategy is not None:
         o.strategy = strategy.encode()
     if harmonics is not None:
-        o.harmonics = int(harmonics)
+        o.harmonics = harmonics
     if seed is not None:
-        o.has_seed, o.seed = 1, int(seed)
+        o.has_seed, o.seed = 1, seed
     o.resume = 1 if resume else 0
     o.force = 1 if force else 0
     if rig is not None:

@@ -3,14 +3,18 @@ import ctypes
 import ctypes.util
 import os
 
-API_VERSION = 1  # RTHS_API_VERSION this package was written against
-ERROR_MSG_LEN = 1024  # RTHS_ERROR_MSG_LEN (include/rths/core.h)
+API_VERSION = 2  # RTHS_API_VERSION this package was written against
 
 
-class Error(ctypes.Structure):
-    """rths_error: a status code and a message."""
+def error_type(msg_len):
+    """rths_error (include/rths/core.h): a status code and a message of msg_len bytes. The length
+    is the loaded library's (RTHS_ERROR_MSG_LEN as it was compiled, rths_api_sizeof), never a
+    copy kept here: a smaller struct than the library's would be written past its end."""
 
-    _fields_ = [("code", ctypes.c_int), ("msg", ctypes.c_char * ERROR_MSG_LEN)]
+    class Error(ctypes.Structure):
+        _fields_ = [("code", ctypes.c_int), ("msg", ctypes.c_char * msg_len)]
+
+    return Error
 
 
 POINT_FN = ctypes.CFUNCTYPE(ctypes.c_int, ctypes.c_void_p, ctypes.c_int,
@@ -40,9 +44,41 @@ def _candidates():
     return [p for p in (tree if os.path.exists(tree) else None, found, "librths.so.0") if p]
 
 
+class LayoutError(OSError):
+    """The loaded librths lays out a shared struct differently from this package."""
+
+
+def _layout(lib, path):
+    """Declares rths_error by the library's size (lib.Error) and checks every struct this package
+    mirrors, field by field, against the library's sizeof/offsetof (rths.h, "the layout of the
+    structs a caller allocates"); LayoutError naming the first difference."""
+    lib.rths_api_sizeof.restype = ctypes.c_size_t
+    lib.rths_api_sizeof.argtypes = [ctypes.c_char_p]
+    lib.rths_api_offsetof.restype = ctypes.c_long
+    lib.rths_api_offsetof.argtypes = [ctypes.c_char_p, ctypes.c_char_p]
+    size = lib.rths_api_sizeof(b"rths_error")
+    msg = lib.rths_api_offsetof(b"rths_error", b"msg")
+    if size == 0 or msg < 0:
+        raise LayoutError(f"{path} does not report the size of rths_error")
+    lib.Error = error_type(size - msg)
+    for ctype, cname in ((lib.Error, "rths_error"), (FrfOptions, "rths_api_frf_options")):
+        for field, _ in ctype._fields_:
+            want = lib.rths_api_offsetof(cname.encode(), field.encode())
+            got = getattr(ctype, field).offset
+            if want != got:
+                raise LayoutError(f"{path}: {cname}.{field} is at byte {want} in the library, "
+                                  f"{got} in this package (python/rths/_lib.py): refusing to "
+                                  "use it; rebuild the library or update the package")
+        want, got = lib.rths_api_sizeof(cname.encode()), ctypes.sizeof(ctype)
+        if want != got:
+            raise LayoutError(f"{path}: {cname} has {want} bytes in the library, {got} in this "
+                              "package (python/rths/_lib.py): refusing to use it; rebuild the "
+                              "library or update the package")
+
+
 def _declare(lib):
     c_int, c_char_p, c_void_p = ctypes.c_int, ctypes.c_char_p, ctypes.c_void_p
-    err = ctypes.POINTER(Error)
+    err = ctypes.POINTER(lib.Error)
     handle = ctypes.POINTER(c_void_p)
     signatures = {
         "rths_api_version": (c_int, []),
@@ -50,6 +86,8 @@ def _declare(lib):
         "rths_api_config_load": (c_int, [c_char_p, ctypes.POINTER(c_char_p), c_int, handle, err]),
         "rths_api_config_free": (None, [c_void_p]),
         "rths_api_config_dofs": (c_int, [c_void_p]),
+        "rths_api_config_get": (c_int, [c_void_p, c_char_p, ctypes.POINTER(c_void_p), err]),
+        "rths_api_free": (None, [c_void_p]),
         "rths_api_model": (c_int, [c_void_p, c_char_p, handle, err]),
         "rths_api_chart": (c_int, [c_void_p, c_char_p, handle, err]),
         "rths_api_read_run": (c_int, [c_char_p, handle, err]),
@@ -83,10 +121,13 @@ def load():
         except OSError as e:
             tried.append(f"{path} ({e})")
             continue
-        _declare(lib)
+        lib.rths_api_version.restype = ctypes.c_int
+        lib.rths_api_version.argtypes = []
         if lib.rths_api_version() != API_VERSION:
             raise OSError(f"{path} has C API version {lib.rths_api_version()}, "
                           f"this package needs {API_VERSION}")
+        _layout(lib, path)
+        _declare(lib)
         return lib
     raise OSError("librths not found: build it (make build) or set RTHS_LIBRARY; tried "
                   + "; ".join(tried))

@@ -1,13 +1,14 @@
 /* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
 #include "api/api_internal.h"
 
-#include <dirent.h>
 #include <errno.h>
 #include <json-c/json.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 int rths_api_version(void) {
     return RTHS_API_VERSION;
@@ -15,6 +16,49 @@ int rths_api_version(void) {
 
 const char *rths_api_release(void) {
     return RTHS_VERSION;
+}
+
+/* ---- the layout of the caller-allocated structs (rths.h) ---- */
+
+typedef struct {
+    const char *type, *field; /* field NULL: the type's own size in offset */
+    size_t offset;
+} layout_entry;
+
+#define LAYOUT_TYPE(t)                                                                             \
+    { #t, NULL, sizeof(t) }
+#define LAYOUT_FIELD(t, f)                                                                         \
+    { #t, #f, offsetof(t, f) }
+
+static const layout_entry layout[] = {
+    LAYOUT_TYPE(rths_error),
+    LAYOUT_FIELD(rths_error, code),
+    LAYOUT_FIELD(rths_error, msg),
+    LAYOUT_TYPE(rths_api_frf_options),
+    LAYOUT_FIELD(rths_api_frf_options, out_dir),
+    LAYOUT_FIELD(rths_api_frf_options, strategy),
+    LAYOUT_FIELD(rths_api_frf_options, harmonics),
+    LAYOUT_FIELD(rths_api_frf_options, has_seed),
+    LAYOUT_FIELD(rths_api_frf_options, seed),
+    LAYOUT_FIELD(rths_api_frf_options, resume),
+    LAYOUT_FIELD(rths_api_frf_options, rig_uri),
+    LAYOUT_FIELD(rths_api_frf_options, on_point),
+    LAYOUT_FIELD(rths_api_frf_options, should_cancel),
+    LAYOUT_FIELD(rths_api_frf_options, user),
+    LAYOUT_FIELD(rths_api_frf_options, force),
+};
+
+size_t rths_api_sizeof(const char *type) {
+    for (size_t i = 0; type && i < sizeof layout / sizeof layout[0]; i++)
+        if (!layout[i].field && !strcmp(layout[i].type, type)) return layout[i].offset;
+    return 0;
+}
+
+long rths_api_offsetof(const char *type, const char *field) {
+    for (size_t i = 0; type && field && i < sizeof layout / sizeof layout[0]; i++)
+        if (layout[i].field && !strcmp(layout[i].type, type) && !strcmp(layout[i].field, field))
+            return (long)layout[i].offset;
+    return -1;
 }
 
 /* ---- configuration ---- */
@@ -75,10 +119,16 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
         rths_api_config_free(cfg);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
-    /* read once now, so a bad file or key is reported by the load */
+    /* read once now, so a bad file or key is reported by the load: the structural sections and
+     * their keys, and the top-level sections (a misspelt section or a key of structure, split,
+     * forcing or model fails here, as every operation would refuse it later) */
     rths_config *c;
     rths_setup setup;
     int rc = rths_api_load(cfg, &c, &setup, err);
+    if (!rc) {
+        rc = rths_config_check_sections(c, NULL, err);
+        if (rc) rths_api_unload(c, &setup);
+    }
     if (rc) {
         rths_api_config_free(cfg);
         return rc;
@@ -91,6 +141,68 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
 
 int rths_api_config_dofs(const rths_api_config *cfg) {
     return cfg ? cfg->dofs : 0;
+}
+
+void rths_api_free(void *p) {
+    free(p);
+}
+
+/* "[a, b, ...]" of n numbers at v[0], v[stride], ... (%.17g), appended to buf at *len. */
+static void append_list(char *buf, size_t size, size_t *len, const double *v, int n,
+                        size_t stride) {
+    *len += (size_t)snprintf(buf + *len, size - *len, "[");
+    for (int i = 0; i < n && *len < size; i++)
+        *len += (size_t)snprintf(buf + *len, size - *len, "%s%.17g", i ? ", " : "",
+                                 v[(size_t)i * stride]);
+    if (*len < size) *len += (size_t)snprintf(buf + *len, size - *len, "]");
+}
+
+int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err) {
+    *text = NULL;
+    if (!cfg || !key) return rths_error_set(err, RTHS_EINPUT, "no configuration or key given");
+    rths_config *c;
+    int rc =
+        rths_config_load(cfg->path, (const char *const *)cfg->overrides, cfg->n_overrides, &c, err);
+    if (rc) return rc;
+    rths_error ignored; /* each shape is tried in turn; the last failure is the message */
+    const char *scalar = NULL;
+    double *v = NULL;
+    int rows = 0, cols = 0;
+    if (!rths_config_has(c, key)) {
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "key '%s' is not set in the configuration (its default applies, "
+                            "docs/config.md)",
+                            key);
+    } else if (!rths_config_get_string(c, key, 1, NULL, &scalar, &ignored) && scalar) {
+        if (!(*text = strdup(scalar))) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    } else if (!rths_config_get_double_list(c, key, 1, &v, &cols, &ignored) ||
+               !rths_config_get_matrix(c, key, 1, &v, &rows, &cols, &ignored)) {
+        int matrix = rows > 0;
+        size_t size = 32 + (size_t)(matrix ? rows : 1) * (size_t)(cols + 1) * 28;
+        char *buf = malloc(size);
+        size_t len = 0;
+        if (!buf) {
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        } else if (!matrix) {
+            append_list(buf, size, &len, v, cols, 1);
+        } else {
+            len += (size_t)snprintf(buf, size, "[");
+            for (int r = 0; r < rows; r++) { /* column-major: row r is v[r], v[r + rows], ... */
+                if (r) len += (size_t)snprintf(buf + len, size - len, ", ");
+                append_list(buf, size, &len, v + r, cols, (size_t)rows);
+            }
+            len += (size_t)snprintf(buf + len, size - len, "]");
+        }
+        *text = buf;
+    } else {
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "key '%s' holds a mapping or a list that is not numbers: ask for one "
+                            "of its keys",
+                            key);
+    }
+    free(v);
+    rths_config_free(c);
+    return rc;
 }
 
 /* ---- results ---- */
@@ -240,8 +352,45 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
     return rc;
 }
 
+int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = rths_api_result_write_tables(r, rep, err);
+    return rc ? rc : rths_api_result_write_summary(r, rep, err);
+}
+
+int rths_api_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = RTHS_OK;
+    for (int t = 0; t < r->n_tables && !rc; t++)
+        rc = write_table_csv(rep, &r->tables[t], err);
+    return rc;
+}
+
+int rths_api_result_write_summary(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = RTHS_OK;
+    if (r->summary_json[0]) {
+        /* as rths_json_write writes every summary: the text and a newline */
+        size_t len = strlen(r->summary_json);
+        char *text = malloc(len + 2);
+        char *path = rths_report_path(rep, "summary.json");
+        if (text && path) {
+            memcpy(text, r->summary_json, len);
+            text[len] = '\n';
+            text[len + 1] = 0;
+            rc = rths_write_file_atomic(path, text, len + 1, err);
+            if (!rc) rths_report_log(rep, "wrote summary.json");
+        } else {
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        }
+        free(text);
+        free(path);
+    }
+    return rc;
+}
+
 int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
-                             const char *command, rths_error *err) {
+                             const char *command, rths_error *caller_err) {
+    rths_error local; /* the caller's err may be NULL; run.log still gets the reason */
+    rths_error *err = caller_err ? caller_err : &local;
+    rths_error_clear(err);
     char *argv[] = {(char *)command, "(C API)", NULL};
     rths_report *rep;
     int rc = rths_report_open(dir, command, 2, argv, &rep, err);
@@ -249,16 +398,10 @@ int rths_result_write_folder(rths_result *r, const rths_config *c, const char *d
     char *path = rths_report_path(rep, "config.yaml");
     rc = path ? rths_config_write(c, path, err) : rths_error_set(err, RTHS_EFAIL, "out of memory");
     free(path);
-    for (int t = 0; t < r->n_tables && !rc; t++)
-        rc = write_table_csv(rep, &r->tables[t], err);
-    if (!rc) {
-        path = rths_report_path(rep, "summary.json");
-        rc = path ? rths_write_file_atomic(path, r->summary_json, strlen(r->summary_json), err)
-                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
-        free(path);
-    }
+    if (!rc) rc = rths_api_result_write(r, rep, err);
+    if (!rc) rc = rths_report_write_mat(rep, err); /* a failure fails the call */
     rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err->msg : "");
-    rths_report_close(rep); /* writes results.mat */
+    rths_report_close(rep);
     if (rc) return rc;
     char *yaml = read_text(dir, "config.yaml");
     free(r->dir);
@@ -274,45 +417,103 @@ static int compare_names(const void *a, const void *b) {
     return strcmp(*(char *const *)a, *(char *const *)b);
 }
 
-/* The folder's *.csv names, sorted (a stable table order). */
+/* The CSV files the rths commands write (rths_report_path(rep, "NAME.csv") in src): what a folder
+ * without .rths-files (a run killed before it closed its folder) is read for. A new output table
+ * belongs here too. */
+static const char *const rths_csv_files[] = {
+    "absolute.csv", "boundary.csv", "chart.csv", "coefficients.csv", "critical.csv", "fidelity.csv",
+    "frf.csv",      "modes.csv",    "trace.csv", "true_frf.csv",     "truth.csv",
+};
+
+static int is_regular_file(const char *dir, const char *name) {
+    char *path = rths_path_join(dir, name);
+    struct stat st;
+    int yes = path && stat(path, &st) == 0 && S_ISREG(st.st_mode);
+    free(path);
+    return yes;
+}
+
+static int add_name(char ***names, int *n, int *cap, const char *name, rths_error *err) {
+    for (int i = 0; i < *n; i++)
+        if (!strcmp((*names)[i], name)) return RTHS_OK; /* listed twice */
+    if (*n == *cap) {
+        *cap = *cap ? 2 * *cap : 16;
+        char **p = realloc(*names, (size_t)*cap * sizeof *p);
+        if (!p) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        *names = p;
+    }
+    if (!((*names)[*n] = strdup(name))) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    (*n)++;
+    return RTHS_OK;
+}
+
+/* The CSV files rths wrote into dir, sorted (a stable table order): those its run listed in
+ * .rths-files (written when a run closes its folder), or, without that list, those of the folder
+ * named as an rths output. A user's own CSV file there is never read. */
 static int list_csv(const char *dir, char ***names, int *n, rths_error *err) {
     *names = NULL;
     *n = 0;
-    DIR *d = opendir(dir);
-    if (!d)
-        return rths_error_set(err, RTHS_EINPUT, "cannot read run folder %s: %s", dir,
-                              strerror(errno));
-    struct dirent *e;
     int cap = 0, rc = RTHS_OK;
-    while (!rc && (e = readdir(d))) {
-        size_t len = strlen(e->d_name);
-        if (len <= 4 || strcmp(e->d_name + len - 4, ".csv")) continue;
-        if (*n == cap) {
-            cap = cap ? 2 * cap : 16;
-            char **p = realloc(*names, (size_t)cap * sizeof *p);
-            if (!p) {
-                rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-                break;
-            }
-            *names = p;
+    char *list_path = rths_path_join(dir, ".rths-files");
+    char *list = list_path ? rths_read_file(list_path, SIZE_MAX, NULL) : NULL;
+    free(list_path);
+    if (list) {
+        for (char *save = NULL, *line = strtok_r(list, "\n", &save); line && !rc;
+             line = strtok_r(NULL, "\n", &save)) {
+            size_t len = strlen(line);
+            if (len > 4 && !strcmp(line + len - 4, ".csv") && !strchr(line, '/') &&
+                is_regular_file(dir, line))
+                rc = add_name(names, n, &cap, line, err);
         }
-        if (!((*names)[*n] = strdup(e->d_name)))
-            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-        else
-            (*n)++;
+        free(list);
+    } else {
+        for (size_t i = 0; i < sizeof rths_csv_files / sizeof rths_csv_files[0] && !rc; i++)
+            if (is_regular_file(dir, rths_csv_files[i]))
+                rc = add_name(names, n, &cap, rths_csv_files[i], err);
     }
-    closedir(d);
     if (*n) qsort(*names, (size_t)*n, sizeof **names, compare_names);
     return rc;
+}
+
+/* A folder an rths command wrote has its run.log (every command opens one), and an FRF run its
+ * journal. */
+static int check_run_folder(const char *dir, rths_error *err) {
+    struct stat st;
+    if (stat(dir, &st))
+        return rths_error_set(err, RTHS_EINPUT, "cannot read run folder %s: %s", dir,
+                              strerror(errno));
+    if (!S_ISDIR(st.st_mode))
+        return rths_error_set(err, RTHS_EINPUT, "%s is not a run folder: not a directory", dir);
+    if (!is_regular_file(dir, "run.log") && !is_regular_file(dir, "summary.json") &&
+        !is_regular_file(dir, "journal.jsonl"))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s is not a run folder: no run.log, summary.json or journal.jsonl "
+                              "in it",
+                              dir);
+    return RTHS_OK;
+}
+
+/* summary.json's text, checked: an rths run writes it atomically, so text that is not one JSON
+ * object was damaged afterwards. */
+static int check_summary(const char *dir, const char *text, rths_error *err) {
+    if (!text[0]) return RTHS_OK; /* none: the run did not finish */
+    enum json_tokener_error why = json_tokener_success;
+    json_object *o = json_tokener_parse_verbose(text, &why);
+    int ok = o && json_object_is_type(o, json_type_object);
+    json_object_put(o);
+    if (ok) return RTHS_OK;
+    return rths_error_set(err, RTHS_EINPUT, "%s/summary.json: not a JSON object (%s)", dir,
+                          o ? "another JSON value" : json_tokener_error_desc(why));
 }
 
 int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
     *out = NULL;
     if (!dir) return rths_error_set(err, RTHS_EINPUT, "no run folder given");
-    char **names;
-    int n;
+    char **names = NULL;
+    int n = 0;
     rths_result *r = NULL;
-    int rc = list_csv(dir, &names, &n, err);
+    int rc = check_run_folder(dir, err);
+    if (!rc) rc = list_csv(dir, &names, &n, err);
     if (!rc) rc = rths_result_new(&r, err);
     for (int i = 0; i < n && !rc; i++) {
         char *path = rths_path_join(dir, names[i]);
@@ -334,6 +535,7 @@ int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
         if (yaml) free(r->config_yaml), r->config_yaml = yaml;
         r->dir = strdup(dir);
         if (!summary || !yaml || !r->dir) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        if (!rc) rc = check_summary(dir, r->summary_json, err);
     }
     if (rc) {
         rths_result_free(r);

@@ -1,10 +1,13 @@
-/* rths_api_chart: the stability chart of the delayed-feedback test as tables, the same numbers as
- * `rths chart` writes to chart.csv, boundary.csv and critical.csv. */
+/* rths_api_chart: the stability chart of the delayed-feedback test as tables and a summary. The one
+ * implementation of `rths chart`'s tables and summary: the command calls rths_api_chart_compute
+ * and writes its result with rths_api_result_write, as rths_api_chart does. */
 #include "api/api_internal.h"
 #include "rths/stability.h"
 
 #include <json-c/json.h>
+#include <complex.h>
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -34,20 +37,197 @@ static int chart_tables(rths_result *r, const rths_chart *c, rths_error *err) {
     return rc;
 }
 
-static struct json_object *chart_summary(const rths_chart_options *o, const rths_chart *c) {
-    json_object *root = rths_json_summary_new("chart");
-    if (!root) return NULL;
-    int n_stable = 0;
-    for (int k = 0; k < c->nt * c->np; k++)
-        n_stable += c->stable[k];
-    double p_ess = rths_chart_essential_limit(c);
-    json_object_object_add(root, "tau_points", json_object_new_int(o->tau_points));
-    json_object_object_add(root, "p_points", json_object_new_int(o->p_points));
-    json_object_object_add(root, "stable_points", json_object_new_int(n_stable));
-    json_object_object_add(root, "boundary_points", json_object_new_int(c->n_boundary));
-    json_object_object_add(root, "essential_spectrum_p_limit",
-                           isfinite(p_ess) ? json_object_new_double(p_ess) : NULL);
-    return root;
+/* Critical delays located stand-alone at four p (the configured one first), and the neutral
+ * chains' roots z at the configured p. */
+typedef struct {
+    double p[4], tau_s[4], omega_rad_s[4];
+    double rate_times_tau; /* the chain bound at the configured p */
+    double complex z[64];
+    int nz;
+} probes;
+
+static int probe_chart(rths_split_family *fam, const rths_chart_options *o, int n, probes *pr,
+                       rths_error *err) {
+    int rc = RTHS_OK;
+    for (int k = 0; k < 4 && !rc; k++) {
+        rths_dde d;
+        if ((rc = rths_split_family_build(fam, pr->p[k], &d, err))) break;
+        rc = rths_dde_critical_delay(&d, o->tau_min_s * 1e-3, 10 * o->tau_max_s, 400,
+                                     o->chebyshev_nodes, &pr->tau_s[k], &pr->omega_rad_s[k], err);
+        rths_dde_free(&d);
+    }
+    if (rc) return rc;
+    rths_dde dcfg;
+    if ((rc = rths_split_family_build(fam, pr->p[0], &dcfg, err))) return rc;
+    rc = n <= 64 ? rths_dde_essential(&dcfg, &pr->rate_times_tau, pr->z, &pr->nz, err)
+                 : rths_dde_essential(&dcfg, &pr->rate_times_tau, NULL, NULL, err);
+    rths_dde_free(&dcfg);
+    return rc;
+}
+
+static json_object *grid_json(const rths_chart_options *o) {
+    json_object *g = json_object_new_object();
+    json_object_object_add(g, "tau_min_s", json_object_new_double(o->tau_min_s));
+    json_object_object_add(g, "tau_max_s", json_object_new_double(o->tau_max_s));
+    json_object_object_add(g, "tau_points", json_object_new_int(o->tau_points));
+    json_object_object_add(g, "p_min", json_object_new_double(o->p_min));
+    json_object_object_add(g, "p_max", json_object_new_double(o->p_max));
+    json_object_object_add(g, "p_points", json_object_new_int(o->p_points));
+    json_object_object_add(g, "omega_min_rad_s", json_object_new_double(o->omega_min_rad_s));
+    json_object_object_add(g, "omega_max_rad_s", json_object_new_double(o->omega_max_rad_s));
+    json_object_object_add(g, "omega_points", json_object_new_int(o->omega_points));
+    json_object_object_add(g, "mdbm_tau_points", json_object_new_int(o->mdbm_tau_points));
+    json_object_object_add(g, "mdbm_p_points", json_object_new_int(o->mdbm_p_points));
+    json_object_object_add(g, "mdbm_refine", json_object_new_int(o->mdbm_refine));
+    json_object_object_add(g, "chebyshev_nodes", json_object_new_int(o->chebyshev_nodes));
+    return g;
+}
+
+static void essential_statement(const rths_chart *c, double p_ess, const rths_chart_options *o,
+                                char *stmt, size_t size) {
+    if (isfinite(p_ess))
+        snprintf(stmt, size,
+                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
+                 "det(M_0 + z M_tau) = 0; they are in the left half-plane (necessary for "
+                 "stability at any delay) only for p > %.6f",
+                 p_ess);
+    else
+        snprintf(stmt, size,
+                 "neutral root chains lie on Re(lambda) = -ln|z|/tau for the roots z of "
+                 "det(M_0 + z M_tau) = 0; their side does not change over p in [%g, %g]: %s",
+                 o->p_min, o->p_max,
+                 c->essential_rate_times_tau[0] < 0 ? "left half-plane (stable chains)"
+                                                    : "right half-plane or on the axis "
+                                                      "(unstable for every delay)");
+}
+
+static json_object *essential_json(const char *stmt, double p_ess, double p_cfg, const probes *pr) {
+    json_object *ess = json_object_new_object();
+    json_object_object_add(ess, "statement", json_object_new_string(stmt));
+    json_object_object_add(ess, "p_limit", isfinite(p_ess) ? json_object_new_double(p_ess) : NULL);
+    json_object_object_add(ess, "config_p", json_object_new_double(p_cfg));
+    json_object_object_add(ess, "config_rate_times_tau",
+                           isfinite(pr->rate_times_tau) ? json_object_new_double(pr->rate_times_tau)
+                                                        : NULL);
+    json_object *zs = json_object_new_array();
+    for (int k = 0; k < pr->nz; k++) {
+        json_object *zz = json_object_new_array();
+        json_object_array_add(zz, json_object_new_double(creal(pr->z[k])));
+        json_object_array_add(zz, json_object_new_double(cimag(pr->z[k])));
+        json_object_array_add(zs, zz);
+    }
+    json_object_object_add(ess, "config_z_roots_re_im", zs);
+    return ess;
+}
+
+static json_object *critical_json(const probes *pr) {
+    json_object *cr = json_object_new_array();
+    for (int k = 0; k < 4; k++) {
+        json_object *e = json_object_new_object();
+        json_object_object_add(e, "p", json_object_new_double(pr->p[k]));
+        json_object_object_add(e, "critical_delay_s",
+                               isnan(pr->tau_s[k]) ? NULL : json_object_new_double(pr->tau_s[k]));
+        json_object_object_add(
+            e, "crossing_omega_rad_s",
+            isnan(pr->omega_rad_s[k]) ? NULL : json_object_new_double(pr->omega_rad_s[k]));
+        json_object_array_add(cr, e);
+    }
+    return cr;
+}
+
+/* The chart's summary after the common head (version, command, time, configuration file,
+ * overrides): what `rths chart` has always written. */
+static void chart_summary_add(json_object *summary, const rths_chart_options *o,
+                              const rths_chart *chart, const rths_setup *setup, const probes *pr,
+                              const rths_api_chart_facts *f) {
+    json_object_object_add(summary, "grid", grid_json(o));
+    json_object_object_add(summary, "interface_dofs", json_object_new_int(setup->split.n_int));
+    json_object_object_add(summary, "points", json_object_new_int(chart->nt * chart->np));
+    json_object_object_add(summary, "stable_points", json_object_new_int(f->stable_points));
+    json_object_object_add(summary, "boundary_points", json_object_new_int(chart->n_boundary));
+    json_object_object_add(summary, "boundary_max_scaled_residual",
+                           json_object_new_double(chart->b_max_residual));
+    json_object *xc = json_object_new_object();
+    json_object_object_add(xc, "label_changes", json_object_new_int(chart->label_changes));
+    json_object_object_add(xc, "label_changes_without_boundary",
+                           json_object_new_int(chart->label_changes_unexplained));
+    json_object_object_add(xc, "boundary_points_inside_stable_region",
+                           json_object_new_int(chart->boundary_unexplained));
+    json_object_object_add(summary, "labels_vs_boundaries", xc);
+    json_object_object_add(
+        summary, "essential_spectrum",
+        essential_json(f->essential_statement, f->p_essential, setup->split.mass_ratio, pr));
+    json_object_object_add(summary, "critical_delays", critical_json(pr));
+    json_object_object_add(summary, "compute_seconds", json_object_new_double(f->seconds));
+}
+
+int rths_api_chart_compute(const rths_setup *setup, const rths_chart_options *options,
+                           const char *config_path, const char *const *overrides, int n_overrides,
+                           rths_result **out, rths_chart *keep, rths_api_chart_facts *facts,
+                           rths_error *err) {
+    *out = NULL;
+    rths_chart_options o = *options;
+    rths_chart chart;
+    int have_chart = 0;
+    rths_result *r = NULL;
+    double *cint = NULL, *kint = NULL;
+    rths_api_chart_facts f = {0};
+    /* the configured split's interface damping/stiffness shares hold for every p */
+    rths_split_family fam;
+    int rc = rths_split_family_of(&setup->assembly, setup->roles, &setup->split, &fam, &cint, &kint,
+                                  err);
+    double t0 = rths_monotonic_s();
+    if (!rc) {
+        rc = rths_chart_compute(rths_split_family_build, &fam, &o, &chart, err);
+        have_chart = !rc;
+    }
+    f.seconds = rths_monotonic_s() - t0;
+    /* critical delays at a few p of interest and at the configured one, the chains at it */
+    probes pr = {{setup->split.mass_ratio, 0.6, 0.67, 0.8}, {0}, {0}, 0, {0}, 0};
+    if (!rc) rc = probe_chart(&fam, &o, setup->assembly.n, &pr, err);
+    if (!rc) {
+        f.p_essential = rths_chart_essential_limit(&chart);
+        for (int k = 0; k < chart.nt * chart.np; k++)
+            f.stable_points += chart.stable[k];
+        essential_statement(&chart, f.p_essential, &o, f.essential_statement,
+                            sizeof f.essential_statement);
+        for (int k = 0; k < 4; k++) {
+            f.probe_p[k] = pr.p[k];
+            f.probe_critical_delay_s[k] = pr.tau_s[k];
+            f.probe_crossing_omega_rad_s[k] = pr.omega_rad_s[k];
+        }
+    }
+    if (!rc) rc = rths_result_new(&r, err);
+    if (!rc) rc = chart_tables(r, &chart, err);
+    if (!rc) {
+        json_object *summary = rths_json_summary_new("chart");
+        if (summary && config_path)
+            json_object_object_add(summary, "config_file", json_object_new_string(config_path));
+        json_object *sets = json_object_new_array();
+        for (int i = 0; i < n_overrides; i++)
+            json_object_array_add(sets, json_object_new_string(overrides[i]));
+        if (summary)
+            json_object_object_add(summary, "overrides", sets);
+        else
+            json_object_put(sets);
+        if (summary) chart_summary_add(summary, &o, &chart, setup, &pr, &f);
+        rc = rths_result_set_summary(r, summary, err);
+    }
+    if (have_chart) {
+        if (!rc && keep)
+            *keep = chart;
+        else
+            rths_chart_free(&chart);
+    }
+    free(cint);
+    free(kint);
+    if (facts) *facts = f;
+    if (rc) {
+        rths_result_free(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
 }
 
 int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result **out,
@@ -58,29 +238,15 @@ int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result 
     rths_config *c;
     rths_setup setup;
     rths_chart_options o;
-    rths_chart chart;
-    int have_chart = 0;
     rths_result *r = NULL;
-    double *cint = NULL, *kint = NULL;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (rc) return rc;
-    rths_split_family fam;
     if (!(rc = rths_chart_config_read(c, &o, err))) rc = rths_api_check_config(c, own, err);
+    o.progress = 0;
     if (!rc)
-        rc = rths_split_family_of(&setup.assembly, setup.roles, &setup.split, &fam, &cint, &kint,
-                                  err);
-    if (!rc) {
-        o.progress = 0;
-        rc = rths_chart_compute(rths_split_family_build, &fam, &o, &chart, err);
-        have_chart = !rc;
-    }
-    if (!rc) rc = rths_result_new(&r, err);
-    if (!rc) rc = chart_tables(r, &chart, err);
-    if (!rc) rc = rths_result_set_summary(r, chart_summary(&o, &chart), err);
+        rc = rths_api_chart_compute(&setup, &o, cfg->path, (const char *const *)cfg->overrides,
+                                    cfg->n_overrides, &r, NULL, NULL, err);
     if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "chart", err);
-    if (have_chart) rths_chart_free(&chart);
-    free(cint);
-    free(kint);
     rths_api_unload(c, &setup);
     if (rc) {
         rths_result_free(r);

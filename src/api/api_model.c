@@ -1,5 +1,6 @@
-/* rths_api_model: modes and analytic FRF of the true assembly as tables, the same numbers as
- * `rths model` writes to modes.csv and true_frf.csv. */
+/* rths_api_model: modes and analytic FRF of the true assembly as tables. The one implementation of
+ * `rths model`'s tables and summary: the command calls rths_api_model_compute and writes its
+ * result with rths_api_result_write, as rths_api_model does. */
 #include "api/api_internal.h"
 
 #include <complex.h>
@@ -12,40 +13,41 @@
 /* Column c of a table being filled: a block of rows doubles per column. */
 #define COL(block, rows, c) ((block) + (size_t)(c) * (size_t)(rows))
 
-static int modes_table(rths_result *r, const rths_modes *m, rths_error *err) {
-    int n = m->n, cols = 4 + n;
+/* modes.csv: every mode, the shape at the output DoFs (all of them up to 64 DoFs; above, the
+ * physical substructure's and the forcing DoF: rths_setup_output_dofs). */
+static int modes_table(rths_result *r, const rths_modes *m, const int *dofs, int n_out,
+                       rths_error *err) {
+    int n = m->n, cols = 4 + n_out;
     const char **names = calloc((size_t)cols, sizeof *names);
-    char(*phi)[32] = calloc((size_t)n + 1, sizeof *phi);
+    char(*phi)[32] = calloc((size_t)n_out + 1, sizeof *phi);
     const double **data = calloc((size_t)cols, sizeof *data);
     double *index = calloc((size_t)n + 1, sizeof *index);
-    int rc =
-        names && phi && data && index ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    double *shapes = calloc((size_t)n * (size_t)n_out + 1, sizeof *shapes);
+    int rc = names && phi && data && index && shapes
+                 ? RTHS_OK
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) {
         static const char *const fixed[4] = {"mode", "frequency_hz", "omega_rad_s",
                                              "damping_ratio"};
         for (int i = 0; i < 4; i++)
             names[i] = fixed[i];
-        for (int r2 = 0; r2 < n; r2++)
-            index[r2] = r2 + 1;
+        for (int mode = 0; mode < n; mode++)
+            index[mode] = mode + 1;
         data[0] = index;
         data[1] = m->frequency_hz;
         data[2] = m->omega_rad_s;
         data[3] = m->damping_ratio;
         /* phi<i>: DoF i of every mode, i.e. row i of the shape matrix */
-        for (int i = 0; i < n; i++) {
-            snprintf(phi[i], sizeof phi[i], "phi%d_per_sqrt_kg", i + 1);
+        for (int i = 0; i < n_out; i++) {
+            snprintf(phi[i], sizeof phi[i], "phi%d_per_sqrt_kg", dofs[i] + 1);
             names[4 + i] = phi[i];
+            for (int mode = 0; mode < n; mode++)
+                COL(shapes, n, i)[mode] = RTHS_AT(m->shapes, n, dofs[i], mode);
+            data[4 + i] = COL(shapes, n, i);
         }
+        rc = rths_result_add_columns(r, "modes", n, cols, names, data, err);
     }
-    double *rows_of_shapes = rc ? NULL : calloc((size_t)n * n + 1, sizeof *rows_of_shapes);
-    if (!rc && !rows_of_shapes) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    for (int i = 0; i < n && !rc; i++) {
-        for (int mode = 0; mode < n; mode++)
-            COL(rows_of_shapes, n, i)[mode] = RTHS_AT(m->shapes, n, i, mode);
-        data[4 + i] = COL(rows_of_shapes, n, i);
-    }
-    if (!rc) rc = rths_result_add_columns(r, "modes", n, cols, names, data, err);
-    free(rows_of_shapes);
+    free(shapes);
     free(names);
     free(phi);
     free(data);
@@ -53,22 +55,19 @@ static int modes_table(rths_result *r, const rths_modes *m, rths_error *err) {
     return rc;
 }
 
-/* The same DoFs, solver and numbers as `rths model`'s true_frf.csv (rths_frf_sweep). */
-static int frf_table(rths_result *r, const rths_setup *s, const rths_modes *m, const double *freqs,
-                     int count, double *peak_amp, double *peak_hz, rths_error *err) {
-    int n_out = 0;
-    int *dofs = rths_setup_output_dofs(s, &n_out);
+/* true_frf.csv: the analytic FRF at the output DoFs on the grid freqs (rths_frf_sweep); the
+ * interface DoF's peak for the summary. */
+static int frf_table(rths_result *r, const rths_setup *s, rths_frf_sweep *sweep, const int *dofs,
+                     int n_out, const double *freqs, int count, double *peak_amp, double *peak_hz,
+                     rths_error *err) {
     int cols = 1 + 2 * n_out;
     const char **names = calloc((size_t)cols, sizeof *names);
     char(*text)[40] = calloc((size_t)(2 * n_out) + 1, sizeof *text);
     const double **data = calloc((size_t)cols, sizeof *data);
     double *block = calloc((size_t)cols * (size_t)count + 1, sizeof *block);
     double complex *x = calloc((size_t)n_out + 1, sizeof *x);
-    rths_frf_sweep *sweep = NULL;
-    int rc = dofs && names && text && data && block && x
-                 ? RTHS_OK
-                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
-    if (!rc) rc = rths_frf_sweep_create(&s->assembly, m, s->force, n_out, dofs, &sweep, err);
+    int rc = names && text && data && block && x ? RTHS_OK
+                                                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
     int iface = 0;
     for (int i = 0; i < n_out; i++)
         if (dofs[i] == s->split.int_dofs[0]) iface = i;
@@ -94,8 +93,6 @@ static int frf_table(rths_result *r, const rths_setup *s, const rths_modes *m, c
             data[c] = COL(block, count, c);
         rc = rths_result_add_columns(r, "true_frf", count, cols, names, data, err);
     }
-    rths_frf_sweep_destroy(sweep);
-    free(dofs);
     free(names);
     free(text);
     free(data);
@@ -104,11 +101,76 @@ static int frf_table(rths_result *r, const rths_setup *s, const rths_modes *m, c
     return rc;
 }
 
+/* The summary every run folder of `rths model` gets: who asked (configuration file, overrides) and
+ * the model's facts. */
 static struct json_object *model_summary(const rths_setup *s, const rths_modes *m, int points,
-                                         double peak_amp, double peak_hz) {
+                                         double peak_amp, double peak_hz, const char *config_path,
+                                         const char *const *overrides, int n_overrides) {
     json_object *root = rths_json_summary_new("model");
-    if (root) rths_model_summary_add(root, s, m, points, peak_amp, peak_hz);
+    if (!root) return NULL;
+    if (config_path)
+        json_object_object_add(root, "config_file", json_object_new_string(config_path));
+    json_object *sets = json_object_new_array();
+    for (int i = 0; i < n_overrides; i++)
+        json_object_array_add(sets, json_object_new_string(overrides[i]));
+    json_object_object_add(root, "overrides", sets);
+    rths_model_summary_add(root, s, m, points, peak_amp, peak_hz);
     return root;
+}
+
+int rths_api_model_compute(const rths_setup *setup, const char *config_path,
+                           const char *const *overrides, int n_overrides, rths_result **out,
+                           rths_api_model_timing *timing, rths_error *err) {
+    *out = NULL;
+    rths_api_model_timing t = {0};
+    rths_modes modes = {0};
+    rths_frf_sweep *sweep = NULL;
+    rths_result *r = NULL;
+    double *freqs = NULL, peak_amp = 0, peak_hz = 0;
+    int count = 0, n_out = 0, *dofs = NULL;
+    double t0 = rths_monotonic_s();
+    int rc = rths_modal_analysis(&setup->assembly, &modes, err);
+    double t_modes = rths_monotonic_s();
+    t.modes_s = t_modes - t0;
+    snprintf(t.modes_method, sizeof t.modes_method, "%s",
+             rths_assembly_half_bandwidth(&setup->assembly) <= setup->assembly.n / 8
+                 ? "banded, dsbgvd"
+                 : "dense, dsygvd");
+    if (!rc)
+        rc = rths_frf_grid(&modes, setup->frf_start_hz, setup->frf_end_hz, setup->frf_points,
+                           &freqs, &count, err);
+    if (!rc && !(dofs = rths_setup_output_dofs(setup, &n_out)))
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc)
+        rc =
+            rths_frf_sweep_create(&setup->assembly, &modes, setup->force, n_out, dofs, &sweep, err);
+    double t_prepare = rths_monotonic_s();
+    t.frf_prepare_s = t_prepare - t_modes;
+    if (!rc)
+        snprintf(t.frf_method, sizeof t.frf_method, "%s",
+                 rths_frf_method_name(rths_frf_sweep_method(sweep)));
+    if (!rc) rc = rths_result_new(&r, err);
+    if (!rc) rc = modes_table(r, &modes, dofs, n_out, err);
+    if (!rc) rc = frf_table(r, setup, sweep, dofs, n_out, freqs, count, &peak_amp, &peak_hz, err);
+    t.frf_s = rths_monotonic_s() - t_prepare;
+    t.frf_points = count;
+    t.frf_dofs = n_out;
+    if (!rc)
+        rc = rths_result_set_summary(r,
+                                     model_summary(setup, &modes, count, peak_amp, peak_hz,
+                                                   config_path, overrides, n_overrides),
+                                     err);
+    free(freqs);
+    free(dofs);
+    rths_frf_sweep_destroy(sweep);
+    rths_modes_free(&modes);
+    if (timing) *timing = t;
+    if (rc) {
+        rths_result_free(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
 }
 
 int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result **out,
@@ -118,26 +180,14 @@ int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result 
     static const char *const own[] = {"structure", "split", "forcing", "model", NULL};
     rths_config *c;
     rths_setup setup;
-    rths_modes modes = {0};
     rths_result *r = NULL;
-    double *freqs = NULL, peak_amp = 0, peak_hz = 0;
-    int count = 0;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (rc) return rc;
     rc = rths_api_check_config(c, own, err);
-    if (!rc) rc = rths_modal_analysis(&setup.assembly, &modes, err);
     if (!rc)
-        rc = rths_frf_grid(&modes, setup.frf_start_hz, setup.frf_end_hz, setup.frf_points, &freqs,
-                           &count, err);
-    if (!rc) rc = rths_result_new(&r, err);
-    if (!rc) rc = modes_table(r, &modes, err);
-    if (!rc) rc = frf_table(r, &setup, &modes, freqs, count, &peak_amp, &peak_hz, err);
-    if (!rc)
-        rc = rths_result_set_summary(r, model_summary(&setup, &modes, count, peak_amp, peak_hz),
-                                     err);
+        rc = rths_api_model_compute(&setup, cfg->path, (const char *const *)cfg->overrides,
+                                    cfg->n_overrides, &r, NULL, err);
     if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "model", err);
-    free(freqs);
-    rths_modes_free(&modes);
     rths_api_unload(c, &setup);
     if (rc) {
         rths_result_free(r);

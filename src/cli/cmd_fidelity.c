@@ -311,6 +311,9 @@ int rths_cmd_fidelity(int argc, char **argv) {
     double half_width = fmax(6 * half_power_hz, 3 * widest);
     if (!(half_width > 0)) half_width = 0.5 * (o.sweep.end_hz - o.sweep.start_hz);
     rc = plot(rep, &o, setup.split.mass_ratio, peak_hz[0], peak_m[0], half_width, &err);
+    /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
+     * one line; the other files stay), rather than a warning at close */
+    if (!rc) rc = rths_report_write_mat(rep, &err);
 done:
     if (summary) json_object_put(summary);
     free(freqs);

@@ -11,11 +11,15 @@
 #include <fcntl.h>
 #include <json-c/json.h>
 #include <math.h>
+#include <hdf5.h>
 #include <matio.h>
+#include <pthread.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 /* MATLAB names: a letter first, then letters, digits, '_'; at most 63 characters. */
@@ -294,40 +298,140 @@ static int write_journal_harmonics(mat_t *mat, const char *dir, const rths_table
     return rc;
 }
 
-int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
-                       const rths_table *extra, int n_extra, rths_error *err) {
-    char path[4096], tmp[4096 + 32];
-    snprintf(path, sizeof path, "%s/results.mat", dir);
-    snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
-    remove(tmp);
+/* HDF5's reason for a failed write, from its error stack: the operating system's message that its
+ * low-level write quotes ("error message = 'No space left on device'"). HDF5 calls this instead of
+ * printing its stack (H5Eset_auto2), so a failure costs one line of ours, not thousands of its. */
+typedef struct {
+    char reason[256];
+} hdf5_failure;
+
+static herr_t find_os_reason(unsigned n, const H5E_error2_t *e, void *data) {
+    (void)n;
+    hdf5_failure *f = data;
+    const char *quote = e && e->desc ? strstr(e->desc, "error message = '") : NULL;
+    if (!quote || f->reason[0]) return 0;
+    quote += strlen("error message = '");
+    size_t len = strcspn(quote, "'");
+    if (len >= sizeof f->reason) len = sizeof f->reason - 1;
+    memcpy(f->reason, quote, len);
+    f->reason[len] = 0;
+    return 0;
+}
+
+static herr_t on_hdf5_error(hid_t stack, void *data) {
+    H5Ewalk2(stack, H5E_WALK_DOWNWARD, find_os_reason, data);
+    return 0;
+}
+
+/* Writes the MAT file to tmp and checks that it reads back; runs in the writer's child process. */
+static int write_tmp(const char *tmp, const char *dir, const char *const *csv_names, int n_csv,
+                     const rths_table *extra, int n_extra, const hdf5_failure *hdf5,
+                     rths_error *err) {
     mat_t *mat = Mat_CreateVer(tmp, NULL, MAT_FT_MAT73);
     if (!mat)
-        return rths_error_set(err, RTHS_EFAIL,
-                              "cannot create %s (libmatio without MAT 7.3 / HDF5 support?)", tmp);
+        return rths_error_set(err, RTHS_EFAIL, "cannot create %s: %s", tmp,
+                              hdf5->reason[0] ? hdf5->reason
+                                              : "libmatio without MAT 7.3 (HDF5) support?");
     int rc = write_tables(mat, dir, csv_names, n_csv, err);
     for (int i = 0; i < n_extra && !rc; i++)
         rc = write_var(mat, table_var(&extra[i]), extra[i].name, err);
     if (!rc) rc = write_journal_harmonics(mat, dir, extra, n_extra, err);
     if (!rc) rc = write_texts(mat, dir, err);
-    /* HDF5 reports a failed write (disk full, file size limit) only when the file closes */
-    if (Mat_Close(mat) && !rc)
-        rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: closing it failed (disk full?)",
-                            path);
+    /* HDF5 reports most failed writes (disk full, file size limit) only when the file closes */
+    if (Mat_Close(mat) && !rc) rc = rths_error_set(err, RTHS_EFAIL, "closing it failed");
     if (!rc) {
         /* the data must be on disk, and readable, before the name points at them */
         int fd = open(tmp, O_RDONLY | O_CLOEXEC);
-        if (fd < 0 || fsync(fd))
-            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+        if (fd < 0 || fsync(fd)) rc = rths_error_set(err, RTHS_EFAIL, "%s", strerror(errno));
         if (fd >= 0) close(fd);
         mat_t *check = rc ? NULL : Mat_Open(tmp, MAT_ACC_RDONLY);
-        if (!rc && !check)
-            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: it does not read back", path);
+        if (!rc && !check) rc = rths_error_set(err, RTHS_EFAIL, "it does not read back");
         if (check) Mat_Close(check);
     }
-    if (!rc) {
-        if (rename(tmp, path))
-            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+    /* the operating system's reason, when HDF5 met one, says more than matio's status */
+    if (rc && hdf5->reason[0]) rths_error_set(err, RTHS_EFAIL, "%s", hdf5->reason);
+    return rc;
+}
+
+/* One MAT writer at a time in a process: two threads in HDF5 at once (Python threads each running
+ * rths.frf) failed intermittently with HDF5 lock errors. */
+static pthread_mutex_t writer_lock = PTHREAD_MUTEX_INITIALIZER;
+
+/* The write runs in a child process. A write that fails inside HDF5 (disk full, `ulimit -f`) leaves
+ * the library's open-file table in a state that crashes its own clean-up at exit (SIGSEGV in
+ * H5F__close_cb, exit 139), and no HDF5 call can close that file again: the child takes that state
+ * with it and leaves by _exit. In the child SIGXFSZ is ignored, so a file size limit turns into
+ * EFBIG from write() (a failure) instead of killing the process; HDF5's own error printing is
+ * replaced by on_hdf5_error. The child's message comes back through a pipe. */
+static int write_in_child(const char *tmp, const char *dir, const char *const *csv_names, int n_csv,
+                          const rths_table *extra, int n_extra, rths_error *err) {
+    int fds[2];
+    if (pipe2(fds, O_CLOEXEC))
+        return rths_error_set(err, RTHS_EFAIL, "cannot start the writer: %s", strerror(errno));
+    fflush(NULL); /* nothing buffered is written twice */
+    pid_t pid = fork();
+    if (pid < 0) {
+        int e = errno;
+        close(fds[0]);
+        close(fds[1]);
+        return rths_error_set(err, RTHS_EFAIL, "cannot start the writer: %s", strerror(e));
     }
-    if (rc) remove(tmp);
+    if (pid == 0) {
+        close(fds[0]);
+        signal(SIGXFSZ, SIG_IGN);
+        int null = open("/dev/null", O_WRONLY | O_CLOEXEC);
+        if (null >= 0) dup2(null, STDERR_FILENO); /* matio's own warnings: the message says it */
+        static hdf5_failure hdf5;
+        H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, &hdf5);
+        static rths_error child_err;
+        rths_error_clear(&child_err);
+        int rc = write_tmp(tmp, dir, csv_names, n_csv, extra, n_extra, &hdf5, &child_err);
+        if (rc) {
+            size_t len = strlen(child_err.msg), done = 0;
+            while (done < len) {
+                ssize_t w = write(fds[1], child_err.msg + done, len - done);
+                if (w <= 0) break;
+                done += (size_t)w;
+            }
+        }
+        _exit(rc ? RTHS_EFAIL : RTHS_OK);
+    }
+    close(fds[1]);
+    char message[RTHS_ERROR_MSG_LEN];
+    size_t got = 0;
+    for (;;) {
+        ssize_t r = read(fds[0], message + got, sizeof message - 1 - got);
+        if (r > 0 && (got += (size_t)r) < sizeof message - 1) continue;
+        if (r < 0 && errno == EINTR) continue;
+        break;
+    }
+    close(fds[0]);
+    message[got] = 0;
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return RTHS_OK;
+    if (WIFSIGNALED(status))
+        return rths_error_set(err, RTHS_EFAIL, "the writer died of signal %d (%s)",
+                              WTERMSIG(status), strsignal(WTERMSIG(status)));
+    return rths_error_set(err, RTHS_EFAIL, "%s", got ? message : "the writer failed");
+}
+
+int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
+                       const rths_table *extra, int n_extra, rths_error *err) {
+    char path[4096], tmp[4096 + 32];
+    snprintf(path, sizeof path, "%s/results.mat", dir);
+    snprintf(tmp, sizeof tmp, "%s.tmp.%ld", path, (long)getpid());
+    pthread_mutex_lock(&writer_lock);
+    remove(tmp);
+    rths_error why;
+    rths_error_clear(&why);
+    int rc = write_in_child(tmp, dir, csv_names, n_csv, extra, n_extra, &why);
+    if (!rc && rename(tmp, path)) rc = rths_error_set(&why, RTHS_EFAIL, "%s", strerror(errno));
+    if (rc) {
+        remove(tmp); /* whatever went wrong, no temporary file is left behind */
+        rths_error_set(err, RTHS_EFAIL, "cannot write %s: %.3000s", path, why.msg);
+    }
+    pthread_mutex_unlock(&writer_lock);
     return rc;
 }
