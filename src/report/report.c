@@ -294,7 +294,9 @@ int rths_report_write_mat(rths_report *rep, rths_error *err) {
         names_add(rep->files, "results.mat"); /* for .rths-files */
         rths_report_log(rep, "wrote results.mat");
     }
-    if (!rc) rep->files->changed = 0;
+    /* a failed write was reported to the caller: the close does not retry it (a second message),
+     * only a folder that changed since */
+    rep->files->changed = 0;
     return rc;
 }
 
