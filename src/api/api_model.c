@@ -55,6 +55,40 @@ static int modes_table(rths_result *r, const rths_modes *m, const int *dofs, int
     return rc;
 }
 
+/* The grid's largest amplitude lies up to half a grid step from the true peak: 0.06 % low on the
+ * seed's second mode. Golden-section search for the maximum of |x| between the grid neighbours
+ * of the grid's maximum (one peak there: the grid resolves every mode), to a bracket of 1e-10 of
+ * the frequency; the result is never below the grid's own maximum. */
+static int refine_peak(rths_frf_sweep *sweep, int iface, const double *freqs, int count,
+                       double *peak_amp, double *peak_hz, double complex *x, rths_error *err) {
+    int at = 0;
+    while (at < count && freqs[at] != *peak_hz)
+        at++;
+    if (count < 3 || at == count) return RTHS_OK;
+    double lo = freqs[at > 0 ? at - 1 : 0], hi = freqs[at < count - 1 ? at + 1 : count - 1];
+    const double g = 0.5 * (sqrt(5.0) - 1.0);
+    double f1 = hi - g * (hi - lo), f2 = lo + g * (hi - lo), a1, a2;
+    int rc = rths_frf_sweep_eval(sweep, 2 * M_PI * f1, x, err);
+    a1 = cabs(x[iface]);
+    if (!rc) rc = rths_frf_sweep_eval(sweep, 2 * M_PI * f2, x, err);
+    a2 = cabs(x[iface]);
+    while (!rc && hi - lo > 1e-10 * hi) {
+        if (a1 > a2) {
+            hi = f2, f2 = f1, a2 = a1, f1 = hi - g * (hi - lo);
+            rc = rths_frf_sweep_eval(sweep, 2 * M_PI * f1, x, err);
+            a1 = cabs(x[iface]);
+        } else {
+            lo = f1, f1 = f2, a1 = a2, f2 = lo + g * (hi - lo);
+            rc = rths_frf_sweep_eval(sweep, 2 * M_PI * f2, x, err);
+            a2 = cabs(x[iface]);
+        }
+    }
+    if (rc) return rc;
+    double best_amp = a1 > a2 ? a1 : a2, best_hz = a1 > a2 ? f1 : f2;
+    if (best_amp > *peak_amp) *peak_amp = best_amp, *peak_hz = best_hz;
+    return RTHS_OK;
+}
+
 /* true_frf.csv: the analytic FRF at the output DoFs on the grid freqs (rths_frf_sweep); the
  * interface DoF's peak for the summary. */
 static int frf_table(rths_result *r, const rths_setup *s, rths_frf_sweep *sweep, const int *dofs,
@@ -81,6 +115,7 @@ static int frf_table(rths_result *r, const rths_setup *s, rths_frf_sweep *sweep,
         }
         if (!rc && cabs(x[iface]) > *peak_amp) *peak_amp = cabs(x[iface]), *peak_hz = freqs[j];
     }
+    if (!rc) rc = refine_peak(sweep, iface, freqs, count, peak_amp, peak_hz, x, err);
     if (!rc) {
         names[0] = "frequency_hz";
         for (int i = 0; i < n_out; i++) {
