@@ -204,8 +204,12 @@ static void fake_safe(void *device) {
 
 static void test_failed_read_trips_and_safes(void **state) {
     (void)state;
-    const rths_io_plugin table = {fake_version, fake_open,  fake_close,
-                                  fake_read,    fake_write, fake_safe};
+    const rths_io_plugin table = {.abi_version = fake_version,
+                                  .open = fake_open,
+                                  .close = fake_close,
+                                  .read = fake_read,
+                                  .write = fake_write,
+                                  .safe_state = fake_safe};
     rths_config *cfg = seed_config(NULL, 0);
     rths_setup s;
     rths_error err;
@@ -239,8 +243,12 @@ static void test_failed_read_trips_and_safes(void **state) {
 /* A device that cannot apply a forcing on an internal physical DoF refuses such a setup. */
 static void test_internal_forcing_needs_a_device_that_applies_it(void **state) {
     (void)state;
-    const rths_io_plugin table = {fake_version, fake_open,  fake_close,
-                                  fake_read,    fake_write, fake_safe};
+    const rths_io_plugin table = {.abi_version = fake_version,
+                                  .open = fake_open,
+                                  .close = fake_close,
+                                  .read = fake_read,
+                                  .write = fake_write,
+                                  .safe_state = fake_safe};
     const char *sets[] = {"forcing.dof=2"};
     rths_config *cfg = seed_config(sets, 1);
     rths_setup s;

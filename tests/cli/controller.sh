@@ -2,7 +2,7 @@
 # rths controller from the command line: usage errors (exit 2, nothing started), start on an
 # ephemeral port ("listening on ADDR:PORT" on stdout), a host run over TCP, a second controller on
 # the same port refused, SIGTERM -> disarm, statistics, exit 0; then two interface DoFs over
-# protocol version 2 (a version-1 host refused by name, rths frf against the in-process run). No timing is asserted: waits poll
+# protocol version 3 (a version-1 host refused by name, rths frf against the in-process run). No timing is asserted: waits poll
 # for a state with generous limits (this is not a real-time kernel).
 set -u
 RTHS=$1
@@ -47,7 +47,7 @@ BUILD=$(dirname "$RTHS")
 "$RTHS" controller --help | grep -q -- "--io PLUGIN.so" || fail "--help does not document --io"
 expect_exit 2 "wrong ABI plug-in" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
     --io "$BUILD/tests/io/wrong_abi.so"
-grep -q "wrong_abi.so: ABI version 42, this controller speaks version 1" "$tmp/x.err" ||
+grep -q "wrong_abi.so: ABI version 43, this controller speaks versions 1 to 2" "$tmp/x.err" ||
     fail "wrong ABI message"
 [ -s "$tmp/x.out" ] && fail "a refused plug-in still printed on stdout"
 expect_exit 2 "plug-in missing a symbol" "$RTHS" controller --config "$CFG" \
@@ -55,6 +55,20 @@ expect_exit 2 "plug-in missing a symbol" "$RTHS" controller --config "$CFG" \
 grep -q "symbol 'rths_io_plugin_safe_state' is missing" "$tmp/x.err" || fail "missing-symbol message"
 expect_exit 2 "no such plug-in" "$RTHS" controller --config "$CFG" --io "$tmp/none.so"
 grep -q "none.so" "$tmp/x.err" || fail "missing plug-in message does not name the file"
+# An empty --io (an unset variable in a lab's script) or a bare name (searched in the system's
+# library path) is refused, naming the rule; --duration 1 ends a controller that wrongly starts.
+expect_exit 2 "empty --io" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --io "" \
+    --duration 1 --set server.realtime=false
+grep -q "plug-in path is empty" "$tmp/x.err" || fail "empty --io message"
+expect_exit 2 "--io without a slash" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
+    --io libc.so.6 --duration 1 --set server.realtime=false
+grep -q "'libc.so.6': not a path" "$tmp/x.err" || fail "bare --io name message"
+expect_exit 2 "empty io.plugin" "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
+    --set "io.plugin=''" --duration 1 --set server.realtime=false
+grep -q "io.plugin.*is empty" "$tmp/x.err" || fail "empty io.plugin message"
+expect_exit 2 "io.plugin without a slash" "$RTHS" controller --config "$CFG" \
+    --listen 127.0.0.1:0 --set io.plugin=libc.so.6 --duration 1 --set server.realtime=false
+grep -q "not a path" "$tmp/x.err" || fail "bare io.plugin message"
 
 # The seed with heavier damping (the transient dies out in seconds of wall-clock time), noise
 # off, and a two-point natural continuation: shared by the controller and both host runs.
@@ -167,7 +181,7 @@ pid=
 grep -q "stopped after [0-9]* samples" "$tmp/ctl.err" || fail "no statistics after stop"
 
 # ---- Two interface DoFs (examples/two_interface_storeys.yaml: storeys 2 and 3 on two shakers),
-# protocol version 2 carrying every DoF's target and records. Noise off.
+# protocol version 3 carrying every DoF's target and records. Noise off.
 CFG2="$SRC/examples/two_interface_storeys.yaml"
 "$RTHS" controller --config "$CFG2" --listen 127.0.0.1:0 --set server.realtime=false \
     --set rig.noise=false --io "$BUILD/rths_io_virtual.so" >"$tmp/ctl2.out" 2>"$tmp/ctl2.err" &
@@ -199,11 +213,30 @@ text = data[12:12 + n].decode()
 crc, = struct.unpack("<I", data[8 + length:12 + length])
 print(f"version {version} type {typ:#x} code {code}: {text}")
 ok = (version == 1 and typ == 0xFF and code == 3 and crc == zlib.crc32(data[:8 + length])
-      and "peer speaks rths protocol version 1; this build speaks version 2" in text
+      and "peer speaks rths protocol version 1; this build speaks version 3" in text
       and len(data) == 12 + length)
 sys.exit(0 if ok else 1)
 PY
 wait_for "peer speaks rths protocol version 1" "$tmp/ctl2.err" "version notice on the controller"
+
+# The HELLO's client name reaches the operator's console only as printable text (issue 24.14):
+# a newline would forge a console line, an escape sequence reach the terminal.
+/usr/bin/python3 - "$port" <<'PY' >"$tmp/evil.out" 2>&1 || fail "hostile hello: $(cat "$tmp/evil.out")"
+import socket, struct, sys, zlib
+name = b"evil\nrths controller: t = 0 s: FORGED LINE\x1b[2J"
+payload = struct.pack("<HB", 3, len(name)) + name
+body = struct.pack("<BBBBHH", 0x52, 0x54, 3, 0x01, 1, len(payload)) + payload
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=20)
+s.sendall(body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF))
+head = s.recv(8)
+print("reply type %#x" % head[3])
+s.close()
+sys.exit(0 if head[3] == 0x81 else 1)
+PY
+wait_for "says hello (evil?rths controller: t = 0 s: FORGED LINE?\[2J)" "$tmp/ctl2.err" \
+    "the sanitised client name"
+grep -q "^rths controller: t = 0 s: FORGED LINE" "$tmp/ctl2.err" && fail "a client name forged a line"
+grep -q $'\x1b' "$tmp/ctl2.err" && fail "an escape sequence reached the console"
 
 # rths frf of the example through the controller process against the in-process run. The link
 # itself adds nothing (test_controller_process: the same per-period records to 1e-13 m), but the
