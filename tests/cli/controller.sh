@@ -70,6 +70,21 @@ expect_exit 2 "io.plugin without a slash" "$RTHS" controller --config "$CFG" \
     --listen 127.0.0.1:0 --set io.plugin=libc.so.6 --duration 1 --set server.realtime=false
 grep -q "not a path" "$tmp/x.err" || fail "bare io.plugin message"
 
+# --latency-test: the paced loop alone, no configuration needed; percentiles and the worst
+# wake-up lateness on stdout (the figures themselves are the machine's, not asserted).
+expect_exit 0 "--latency-test" "$RTHS" controller --latency-test 0.2 --set server.realtime=false
+grep -Eq "^samples 2000 at 10000 Hz: wake-up lateness p50 [0-9]+ us, p90 [0-9]+ us, p99 [0-9]+ us, p99.9 [0-9]+ us, worst [0-9]+ us; [0-9]+ overruns" \
+    "$tmp/x.out" || fail "--latency-test output: $(cat "$tmp/x.out")"
+expect_exit 2 "--latency-test 0" "$RTHS" controller --latency-test 0
+grep -q -- "--latency-test" "$tmp/x.err" || fail "--latency-test 0 message"
+# server.realtime=true says plainly what was granted and what not (SCHED_FIFO, memory, CPU)
+expect_exit 0 "--latency-test realtime" "$RTHS" controller --latency-test 0.05 \
+    --set server.realtime=true
+for what in "SCHED_FIFO priority 80" "memory" "CPU"; do
+    grep -Eq "real time: .*$what.*(granted|NOT granted)|real time: memory (locked|locking)" \
+        "$tmp/x.err" || fail "no real-time report of $what: $(cat "$tmp/x.err")"
+done
+
 # The seed with heavier damping (the transient dies out in seconds of wall-clock time), noise
 # off, and a two-point natural continuation: shared by the controller and both host runs.
 PHYS=(--set "structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]" --set rig.noise=false)
@@ -324,4 +339,90 @@ wait "$pid"
 rc=$?
 pid=
 [ "$rc" -eq 0 ] || fail "two-DoF controller exit $rc after SIGTERM"
+
+# ---- A misbehaving I/O plug-in (tests/data/io/misbehaving.c, built here against librths) ----
+cc -shared -fPIC -std=c11 -D_GNU_SOURCE -I"$SRC/include" "$SRC/tests/data/io/misbehaving.c" \
+    -o "$tmp/misbehaving.so" -L"$BUILD" -lrths -Wl,-rpath,"$BUILD" 2>"$tmp/cc.err" ||
+    fail "cannot build the misbehaving plug-in: $(cat "$tmp/cc.err")"
+start_controller() { # out-prefix, then extra arguments
+    local out=$1
+    shift
+    "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false \
+        "${PHYS[@]}" --io "$tmp/misbehaving.so" "$@" >"$tmp/$out.out" 2>"$tmp/$out.err" &
+    pid=$!
+    port=
+    for _ in $(seq 1 400); do
+        port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$tmp/$out.out")
+        [ -n "$port" ] && return 0
+        kill -0 "$pid" 2>/dev/null || fail "$out: controller exited before listening"
+        sleep 0.05
+    done
+    fail "$out: no 'listening on' line"
+}
+
+# A read that takes 200 us at 10 kHz (a whole sample period and more): the loop overruns, and
+# every period record carries its late samples (issue 24.1: before, overruns were counted only in
+# the process's histogram and every period looked good). A version-3 host, raw: HELLO, SUBSCRIBE
+# to periods, SET_FORCING (periods close disarmed too), then three PERIOD frames.
+start_controller slow --set io.sleep_us=200
+/usr/bin/python3 - "$port" <<'PY' >"$tmp/late.out" 2>&1 || fail "late samples: $(cat "$tmp/late.out")"
+import socket, struct, sys, zlib
+s = socket.create_connection(("127.0.0.1", int(sys.argv[1])), timeout=30)
+def send(typ, seq, payload):
+    body = struct.pack("<BBBBHH", 0x52, 0x54, 3, typ, seq, len(payload)) + payload
+    s.sendall(body + struct.pack("<I", zlib.crc32(body) & 0xFFFFFFFF))
+buf = b""
+def frame():
+    global buf
+    while True:
+        if len(buf) >= 8:
+            length = struct.unpack("<H", buf[6:8])[0]
+            if len(buf) >= 12 + length:
+                f, buf = buf[:12 + length], buf[12 + length:]
+                return f[3], f[8:8 + length]
+        chunk = s.recv(65536)
+        if not chunk:
+            sys.exit("connection closed")
+        buf += chunk
+send(0x01, 1, struct.pack("<HB", 3, 4) + b"test")
+send(0x08, 2, struct.pack("<BI", 1, 1))
+send(0x04, 3, struct.pack("<dd", 10.0, 0.0))
+periods = []
+while len(periods) < 4:
+    typ, p = frame()
+    if typ == 0x84:
+        index, f, t0, t1, samples, late, clipped, saturated = struct.unpack("<IdddIIII", p[:44])
+        periods.append((samples, late, clipped, saturated))
+periods = periods[1:]  # the first may have opened before SET_FORCING took effect
+for samples, late, clipped, saturated in periods:
+    print(f"period of {samples} samples: {late} late, {clipped} clipped, {saturated} saturated")
+ok = all(0 < late <= samples and clipped == 0 and saturated == 0 for samples, late, clipped, saturated in periods)
+sys.exit(0 if ok else 1)
+PY
+cat "$tmp/late.out"
+kill -TERM "$pid"
+wait "$pid"
+rc=$?
+pid=
+[ "$rc" -eq 0 ] || fail "slow plug-in controller exit $rc after SIGTERM"
+
+# A read that never returns (issue 24.2): the supervisor drives the plug-in's safe state (the
+# plug-in reports how long after the missed deadline), latches a fault naming the stall, and the
+# process still exits on SIGTERM, with status 1 naming the stall. (How soon is printed, not
+# asserted: this machine is no real-time kernel.)
+start_controller stall --set io.block_after_samples=5000 --set server.stall_margin_s=0.05
+wait_for "misbehaving plug-in: safe state" "$tmp/stall.err" "the safe state of a stalled loop"
+wait_for "fault latched: watchdog: the loop stalled" "$tmp/stall.err" "the stall's fault notice"
+grep "misbehaving plug-in: safe state" "$tmp/stall.err"
+kill -TERM "$pid"
+for _ in $(seq 1 200); do
+    kill -0 "$pid" 2>/dev/null || break
+    sleep 0.05
+done
+kill -0 "$pid" 2>/dev/null && fail "a stalled controller did not exit on SIGTERM"
+wait "$pid"
+rc=$?
+pid=
+[ "$rc" -eq 1 ] || fail "stalled controller exit $rc after SIGTERM, expected 1"
+grep -q "the loop stalled in the I/O device" "$tmp/stall.err" || fail "no stall message at exit"
 echo "ok"
