@@ -533,11 +533,21 @@ static void test_watchdog_ramps_to_zero(void **state) {
     assert_int_equal(reply.u.status.fault, 6);
     assert_int_equal(reply.u.status.last_disarm, RTHS_DISARM_WATCHDOG);
     assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);
+    /* protocol 3: the fault's text names what tripped, the value and the limit (issue 23.8) */
+    print_message("STATUS fault detail: %s\n", reply.u.status.fault_detail);
+    double silent = 0;
+    assert_int_equal(
+        sscanf(reply.u.status.fault_detail, "watchdog: the host was silent for %lf s", &silent), 1);
+    assert_true(silent >= watchdog_s); /* tripped beyond it (printed to 6 digits) */
+    assert_non_null(strstr(reply.u.status.fault_detail, "beyond server.watchdog_s = 0.3 s"));
     raw_request(&r, RTHS_MSG_ARM, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ESTATE);
+    assert_non_null(strstr(reply.u.error.message, "the host was silent for"));
     raw_request(&r, RTHS_MSG_RESET_FAULT, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ACK);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_string_equal(reply.u.status.fault_detail, ""); /* no fault, no text */
     arm(&r);
     close(r.fd);
     wait_for_disarm(s, RTHS_DISARM_LINK);

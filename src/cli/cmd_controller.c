@@ -242,6 +242,16 @@ static void wait_for_stop(const sigset_t *sigs, double duration_s) {
     }
 }
 
+/* A lateness percentile in whole microseconds; the loop's histogram ends at 50 ms, beyond which
+ * only ">= 50000 us" is known. */
+static const char *lateness_us(double s, char *buf, size_t cap) {
+    if (s > 0.05)
+        snprintf(buf, cap, ">= 50000 us");
+    else
+        snprintf(buf, cap, "%.0f us", s * 1e6);
+    return buf;
+}
+
 /* --latency-test: the configuration (optional) gives the server section and the rate. */
 static int latency_test(const controller_args *args, rths_server_options *opt, rths_error *err) {
     rths_config *cfg = NULL;
@@ -259,12 +269,14 @@ static int latency_test(const controller_args *args, rths_server_options *opt, r
                 args->latency_test_s, rate_hz);
     rths_server_stats st;
     if ((rc = rths_server_latency_test(opt, rate_hz, args->latency_test_s, &st, err))) return rc;
-    printf("samples %llu at %g Hz: wake-up lateness p50 %.0f us, p90 %.0f us, p99 %.0f us, "
-           "p99.9 %.0f us, worst %.0f us; %llu overruns (lateness of a whole sample period or "
-           "more, %.3g %%); SCHED_FIFO %s, memory locked %s, pinned %s\n",
-           (unsigned long long)st.samples, rate_hz, st.lateness_p50_s * 1e6,
-           st.lateness_p90_s * 1e6, st.lateness_p99_s * 1e6, st.lateness_p999_s * 1e6,
-           st.worst_lateness_s * 1e6, (unsigned long long)st.overruns,
+    char p50[32], p90[32], p99[32], p999[32];
+    printf("samples %llu at %g Hz: wake-up lateness p50 %s, p90 %s, p99 %s, p99.9 %s, worst %.0f "
+           "us; %llu overruns (lateness of a whole sample period or more, %.3g %%); SCHED_FIFO "
+           "%s, memory locked %s, pinned %s\n",
+           (unsigned long long)st.samples, rate_hz, lateness_us(st.lateness_p50_s, p50, 32),
+           lateness_us(st.lateness_p90_s, p90, 32), lateness_us(st.lateness_p99_s, p99, 32),
+           lateness_us(st.lateness_p999_s, p999, 32), st.worst_lateness_s * 1e6,
+           (unsigned long long)st.overruns,
            st.samples ? 100.0 * (double)st.overruns / (double)st.samples : 0.0,
            st.rt_fifo ? "yes" : "no", st.rt_mlock ? "yes" : "no", st.rt_pinned ? "yes" : "no");
     return RTHS_OK;
@@ -273,12 +285,14 @@ static int latency_test(const controller_args *args, rths_server_options *opt, r
 static void print_stats(rths_server *srv) {
     rths_server_stats st;
     rths_server_get_stats(srv, &st);
+    char p50[32], p99[32], p999[32];
     fprintf(stderr,
-            "rths controller: stopped after %llu samples; lateness p50 %.0f us, p99 %.0f us, "
-            "p99.9 %.0f us, worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
-            (unsigned long long)st.samples, st.lateness_p50_s * 1e6, st.lateness_p99_s * 1e6,
-            st.lateness_p999_s * 1e6, st.worst_lateness_s * 1e6, (unsigned long long)st.overruns,
-            st.step_mean_s * 1e6, st.step_max_s * 1e6);
+            "rths controller: stopped after %llu samples; lateness p50 %s, p99 %s, p99.9 %s, "
+            "worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
+            (unsigned long long)st.samples, lateness_us(st.lateness_p50_s, p50, 32),
+            lateness_us(st.lateness_p99_s, p99, 32), lateness_us(st.lateness_p999_s, p999, 32),
+            st.worst_lateness_s * 1e6, (unsigned long long)st.overruns, st.step_mean_s * 1e6,
+            st.step_max_s * 1e6);
 }
 
 /* Starts the page (--view) and the server, prints where they listen, runs until stopped. */

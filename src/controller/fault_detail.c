@@ -49,7 +49,7 @@ void rths_fault_detail_format(const rths_fault_detail *d, char *out, size_t cap)
                  name);
         return;
     case RTHS_FAULT_CAUSE_HOST_SILENT:
-        snprintf(out, cap, "%s: the host was silent for %.3g s, beyond server.watchdog_s = %g s",
+        snprintf(out, cap, "%s: the host was silent for %.6g s, beyond server.watchdog_s = %g s",
                  name, d->value, d->limit);
         return;
     case RTHS_FAULT_CAUSE_LOOP_STALLED:
