@@ -26,7 +26,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <fcntl.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -94,6 +96,7 @@ struct rths_server {
      * thread, so nothing it may still touch is freed. */
     _Atomic int64_t busy_since_ns;
     _Atomic int64_t stalled_ns;
+    atomic_int loop_tid; /* the loop thread's kernel id, for its state in /proc */
     int loop_abandoned;
     int hw_watchdog; /* the plug-in's hardware watchdog is armed */
     char hw_watchdog_why[200];
@@ -389,6 +392,7 @@ static void publish_state(rths_server *s, int *prev_armed) {
 
 static void *loop_main(void *arg) {
     rths_server *s = arg;
+    atomic_store(&s->loop_tid, (int)syscall(SYS_gettid));
     rt_setup(s);
     atomic_store(&s->loop_ready, 1);
     const int64_t watchdog_ns = (int64_t)(s->opt.watchdog_s * 1e9);
@@ -450,12 +454,36 @@ static void *loop_main(void *arg) {
 
 /* ---- the supervisor thread ---- */
 
+/* The loop thread's scheduling state from /proc/self/task/TID/stat: 'R' running or runnable,
+ * 'S' or 'D' waiting (inside a blocking call), ...; '?' when it cannot be read. */
+static char thread_state(int tid) {
+    char path[64], buf[512];
+    snprintf(path, sizeof path, "/proc/self/task/%d/stat", tid);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return '?';
+    ssize_t n = read(fd, buf, sizeof buf - 1);
+    close(fd);
+    if (n <= 0) return '?';
+    buf[n] = '\0';
+    const char *close_paren = strrchr(buf, ')'); /* the name may hold spaces and parentheses */
+    return close_paren && close_paren[1] == ' ' && close_paren[2] ? close_paren[2] : '?';
+}
+
+static int64_t thread_cpu_ns(clockid_t cid) {
+    struct timespec ts;
+    if (clock_gettime(cid, &ts)) return -1;
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
 /* Watches the loop from outside: when one sample has run longer than its sample period plus
- * server.stall_margin_s (a plug-in blocked in read or write, or a step that never returns), it
- * drives the device's safe state itself, latches the watchdog fault naming the stall, and tells
- * the operator (through the network thread). Checks every fifth of the margin (at most 5 ms),
- * so the safe state follows the missed deadline within 1.2 margins. The loop's lateness between
- * samples is not a stall: those samples are counted late in their periods. */
+ * server.stall_margin_s (a plug-in blocked in read or write, or spinning in them), it drives
+ * the device's safe state itself, latches the watchdog fault naming the stall, and tells the
+ * operator (through the network thread). Checks every fifth of the margin (at most 5 ms), so a
+ * blocked loop's safe state follows the missed deadline within 1.2 margins. A loop thread that
+ * is runnable but not running (preempted on a loaded machine without real-time priority) is not
+ * stuck in the device: it is given time (its samples are late, and counted so), unless it also
+ * uses the CPU for a whole margin (a device spinning) or stays behind by a second more. The
+ * loop's lateness between samples is never a stall: those samples are counted late. */
 static void *supervisor_main(void *arg) {
     rths_server *s = arg;
     const int64_t margin = (int64_t)(s->opt.stall_margin_s * 1e9);
@@ -463,13 +491,27 @@ static void *supervisor_main(void *arg) {
     int64_t poll_ns = margin / 5;
     if (poll_ns > 5000000) poll_ns = 5000000;
     if (poll_ns < 100000) poll_ns = 100000;
+    clockid_t cpu_clock;
+    int have_cpu_clock = !pthread_getcpuclockid(s->loop_thread, &cpu_clock);
+    int64_t watched_since = 0, watch_start = 0, cpu_at_start = 0;
     while (!atomic_load(&s->supervisor_stop)) {
         struct timespec ts = {0, (long)poll_ns};
         nanosleep(&ts, NULL);
         if (atomic_load_explicit(&s->stalled_ns, memory_order_relaxed)) continue;
         int64_t since = atomic_load_explicit(&s->busy_since_ns, memory_order_relaxed);
-        int64_t ran = since ? mono_ns() - since : 0;
+        int64_t now = mono_ns(), ran = since ? now - since : 0;
         if (ran <= allowed) continue;
+        if (thread_state(atomic_load(&s->loop_tid)) == 'R' && have_cpu_clock) {
+            /* running or preempted: stuck only if it spins (CPU for half the time watched) */
+            int64_t cpu = thread_cpu_ns(cpu_clock);
+            if (watched_since != since) {
+                watched_since = since, watch_start = now, cpu_at_start = cpu;
+                continue;
+            }
+            int spinning = now - watch_start >= margin && cpu >= 0 &&
+                           2 * (cpu - cpu_at_start) >= now - watch_start;
+            if (!spinning && ran <= allowed + 1000000000) continue;
+        }
         rths_engine_safe_state(s->engine);
         rths_fault_detail why = {.fault = RTHS_RIG_FAULT_WATCHDOG,
                                  .cause = RTHS_FAULT_CAUSE_LOOP_STALLED,
@@ -1224,6 +1266,9 @@ int rths_server_loop_stalled(rths_server *s, double *ran_s) {
     return ran != 0;
 }
 
+/* A server whose loop thread was abandoned (stuck in the device), kept reachable until exit. */
+static rths_server *abandoned;
+
 void rths_server_destroy(rths_server *s) {
     if (!s) return;
     rths_server_stop(s);
@@ -1231,7 +1276,10 @@ void rths_server_destroy(rths_server *s) {
     if (s->listen_fd >= 0) close(s->listen_fd);
     /* an abandoned loop thread may still return into the engine and the rings: they stay (the
      * process is ending; closing the device under a thread inside it is not safe) */
-    if (s->loop_abandoned) return;
+    if (s->loop_abandoned) {
+        abandoned = s; /* still referenced: what the stuck thread may touch is not a leak */
+        return;
+    }
     rths_engine_destroy(s->engine);
     free(s->c.tx);
     free(s->lat_hist);
