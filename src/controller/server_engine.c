@@ -66,9 +66,12 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     info->ramp_time_s = copt.ramp_time_s;
     info->min_frequency_hz = copt.min_frequency_hz;
     info->displacement_limit_m = copt.displacement_limit_m;
+    /* the plug-in's own words reach the host's console: printable text only */
+    char device_text[120 + 4];
+    rths_proto_printable(device->description, 120, device_text, sizeof device_text);
     snprintf(info->description, sizeof info->description,
-             "rths controller: %d DoF assembly, %d interface DoF(s), %.0f Hz; %.120s",
-             e->setup.assembly.n, info->interface_dofs, copt.sample_rate_hz, device->description);
+             "rths controller: %d DoF assembly, %d interface DoF(s), %.0f Hz; %s",
+             e->setup.assembly.n, info->interface_dofs, copt.sample_rate_hz, device_text);
     *out = e;
     return RTHS_OK;
 }
