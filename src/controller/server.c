@@ -369,7 +369,10 @@ static void publish_fault_detail(rths_server *s, const rths_fault_detail *d) {
 static void publish_state(rths_server *s, int *prev_armed) {
     int armed = rths_engine_armed(s->engine);
     int fault = rths_engine_fault(s->engine);
-    if (fault != atomic_load_explicit(&s->fault, memory_order_relaxed)) {
+    /* after a stall the supervisor's fault and words stand, whatever was latched before */
+    if (atomic_load_explicit(&s->stalled_ns, memory_order_relaxed))
+        fault = RTHS_RIG_FAULT_WATCHDOG;
+    else if (fault != atomic_load_explicit(&s->fault, memory_order_relaxed)) {
         rths_fault_detail d;
         rths_engine_fault_detail(s->engine, &d);
         publish_fault_detail(s, &d);
