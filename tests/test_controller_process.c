@@ -276,7 +276,7 @@ static void test_session_rules_and_hello(void **state) {
     raw r2;
     raw_connect(&r2, rths_server_port(s)); /* replaces the disarmed first client */
     rths_msg_init(&m, RTHS_MSG_HELLO, 0);
-    m.u.hello.version = 3;
+    m.u.hello.version = RTHS_PROTO_VERSION + 1;
     raw_send(&r2, &m);
     assert_int_equal(raw_until_closed(&r2), RTHS_PROTO_EVERSION);
     assert_int_equal(raw_until_closed(&r), 0); /* the replaced connection was closed */
@@ -533,11 +533,21 @@ static void test_watchdog_ramps_to_zero(void **state) {
     assert_int_equal(reply.u.status.fault, 6);
     assert_int_equal(reply.u.status.last_disarm, RTHS_DISARM_WATCHDOG);
     assert_int_equal(reply.u.status.flags & RTHS_STATUS_ARMED, 0);
+    /* protocol 3: the fault's text names what tripped, the value and the limit (issue 23.8) */
+    print_message("STATUS fault detail: %s\n", reply.u.status.fault_detail);
+    double silent = 0;
+    assert_int_equal(
+        sscanf(reply.u.status.fault_detail, "watchdog: the host was silent for %lf s", &silent), 1);
+    assert_true(silent >= watchdog_s); /* tripped beyond it (printed to 6 digits) */
+    assert_non_null(strstr(reply.u.status.fault_detail, "beyond server.watchdog_s = 0.3 s"));
     raw_request(&r, RTHS_MSG_ARM, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ERROR);
     assert_int_equal(reply.u.error.code, RTHS_PROTO_ESTATE);
+    assert_non_null(strstr(reply.u.error.message, "the host was silent for"));
     raw_request(&r, RTHS_MSG_RESET_FAULT, &reply);
     assert_int_equal(reply.type, RTHS_MSG_ACK);
+    raw_request(&r, RTHS_MSG_GET_STATUS, &reply);
+    assert_string_equal(reply.u.status.fault_detail, ""); /* no fault, no text */
     arm(&r);
     close(r.fd);
     wait_for_disarm(s, RTHS_DISARM_LINK);
@@ -874,14 +884,12 @@ static void test_remote_continuation_matches_in_process(void **state) {
 /* A version-1 host (its HELLO, byte for byte as a version-1 build sends it: docs/protocol.md,
  * section 6) is refused with ERROR 3 framed as version 1, which it can read, naming both
  * versions; the connection is closed and the controller serves the next (version-2) host. */
-static void test_version_one_host_refused(void **state) {
-    (void)state;
-    static const uint8_t hello_v1[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
-                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
-    rths_server *s = start_server(0, 5.0);
+/* A host of an older version (1, and 2: periods without their integrity counts) is refused in
+ * its own framing, naming both versions (docs/protocol.md, section 8). */
+static void refuse_old_host(rths_server *s, const uint8_t *hello, size_t hello_len, int version) {
     raw r;
     raw_connect(&r, rths_server_port(s));
-    raw_send_bytes(&r, hello_v1, sizeof hello_v1);
+    raw_send_bytes(&r, hello, hello_len);
     /* read everything until the controller closes */
     double deadline = now_s() + WAIT_S;
     for (;;) {
@@ -894,15 +902,29 @@ static void test_version_one_host_refused(void **state) {
         r.len += (size_t)k;
     }
     close(r.fd);
-    assert_int_equal(rths_proto_frame_version(r.rx, r.len), 1);
+    assert_int_equal(rths_proto_frame_version(r.rx, r.len), version);
     rths_msg m;
     size_t used;
     assert_int_equal(rths_proto_decode_error_any_version(r.rx, r.len, &m, &used), RTHS_PROTO_OK);
     assert_int_equal(used, r.len); /* one frame, then the close */
     assert_int_equal(m.u.error.code, RTHS_PROTO_EVERSION);
-    print_message("a version-1 host reads: %s\n", m.u.error.message);
-    assert_non_null(strstr(m.u.error.message,
-                           "peer speaks rths protocol version 1; this build speaks version 2"));
+    print_message("a version-%d host reads: %s\n", version, m.u.error.message);
+    char want[96];
+    snprintf(want, sizeof want, "peer speaks rths protocol version %d; this build speaks version 3",
+             version);
+    assert_non_null(strstr(m.u.error.message, want));
+}
+
+static void test_version_one_host_refused(void **state) {
+    (void)state;
+    static const uint8_t hello_v1[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
+                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
+    static const uint8_t hello_v2[] = {0x52, 0x54, 0x02, 0x01, 0x01, 0x00, 0x07, 0x00, 0x02, 0x00,
+                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xe7, 0x22, 0x01, 0x1d};
+    rths_server *s = start_server(0, 5.0);
+    refuse_old_host(s, hello_v1, sizeof hello_v1, 1);
+    refuse_old_host(s, hello_v2, sizeof hello_v2, 2);
+    raw r;
     raw_connect(&r, rths_server_port(s));
     raw_hello(&r);
     close(r.fd);
@@ -955,7 +977,7 @@ static void test_version_one_controller_refused(void **state) {
     assert_null(rig);
     print_message("the host says: %s\n", err.msg);
     assert_non_null(strstr(err.msg, "peer speaks rths protocol version 1; this build speaks "
-                                    "version 2"));
+                                    "version 3"));
     assert_non_null(strstr(err.msg, "unsupported protocol version")); /* the controller's word */
     pthread_join(th, NULL);
     close(f.listen_fd);

@@ -204,8 +204,12 @@ static void fake_safe(void *device) {
 
 static void test_failed_read_trips_and_safes(void **state) {
     (void)state;
-    const rths_io_plugin table = {fake_version, fake_open,  fake_close,
-                                  fake_read,    fake_write, fake_safe};
+    const rths_io_plugin table = {.abi_version = fake_version,
+                                  .open = fake_open,
+                                  .close = fake_close,
+                                  .read = fake_read,
+                                  .write = fake_write,
+                                  .safe_state = fake_safe};
     rths_config *cfg = seed_config(NULL, 0);
     rths_setup s;
     rths_error err;
@@ -239,8 +243,12 @@ static void test_failed_read_trips_and_safes(void **state) {
 /* A device that cannot apply a forcing on an internal physical DoF refuses such a setup. */
 static void test_internal_forcing_needs_a_device_that_applies_it(void **state) {
     (void)state;
-    const rths_io_plugin table = {fake_version, fake_open,  fake_close,
-                                  fake_read,    fake_write, fake_safe};
+    const rths_io_plugin table = {.abi_version = fake_version,
+                                  .open = fake_open,
+                                  .close = fake_close,
+                                  .read = fake_read,
+                                  .write = fake_write,
+                                  .safe_state = fake_safe};
     const char *sets[] = {"forcing.dof=2"};
     rths_config *cfg = seed_config(sets, 1);
     rths_setup s;
@@ -259,6 +267,103 @@ static void test_internal_forcing_needs_a_device_that_applies_it(void **state) {
     rths_config_free(cfg);
 }
 
+/* ABI 2's optional hardware watchdog: armed once with the timeout, kicked once per sample by the
+ * loop (the proof that it lives), never without an arm; a plug-in without the entries says so. A
+ * version-1 plug-in still loads: open is told version 1, and what version 2 added (full scales,
+ * optional entries) is left out, so nothing it did not declare is counted. */
+static struct {
+    int kicks, arms, opened_version;
+    double timeout_s;
+} hw;
+static uint32_t v1_version(void) {
+    return 1;
+}
+static int hw_open(const rths_io_open_args *a, void **device, rths_io_device_info *info,
+                   rths_error *err) {
+    hw.opened_version = (int)a->abi_version;
+    info->displacement_full_scale_m = 1e-12; /* beyond version 1: must be ignored for it */
+    return fake_open(a, device, info, err);
+}
+static int hw_arm(void *device, double timeout_s) {
+    (void)device;
+    hw.arms++;
+    hw.timeout_s = timeout_s;
+    return 0;
+}
+static void hw_kick(void *device) {
+    (void)device;
+    hw.kicks++;
+}
+static int hw_read(void *device, rths_sensor_sample *out) {
+    (void)device;
+    memset(out, 0, sizeof *out);
+    out->n = 3;
+    out->displacement_m[2] = 1e-9; /* beyond the declared 1e-12 m full scale */
+    return 0;
+}
+static unsigned hw_flags(void *device) {
+    (void)device;
+    return RTHS_IO_SAMPLE_DEMAND_CLIPPED;
+}
+
+static void test_hardware_watchdog_and_version_one(void **state) {
+    (void)state;
+    rths_config *cfg = seed_config(NULL, 0);
+    rths_setup s;
+    rths_error err;
+    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_io_open_args args = args_for(cfg, &s);
+    rths_controller_options co;
+    rths_controller_defaults(&co);
+    for (int version = 1; version <= 2; version++) {
+        memset(&hw, 0, sizeof hw);
+        const rths_io_plugin table = {.abi_version = version == 1 ? v1_version : fake_version,
+                                      .open = hw_open,
+                                      .close = fake_close,
+                                      .read = hw_read,
+                                      .write = fake_write,
+                                      .safe_state = fake_safe,
+                                      .sample_flags = hw_flags,
+                                      .watchdog_arm = hw_arm,
+                                      .watchdog_kick = hw_kick};
+        rths_io *io = NULL;
+        if (rths_io_open_table(&table, "hw", &args, &io, &err)) fail_msg("%s", err.msg);
+        assert_int_equal(hw.opened_version, version);
+        rths_sample_loop *loop = NULL;
+        if (rths_sample_loop_create_io(&s, &co, io, &loop, &err)) fail_msg("%s", err.msg);
+        rths_controller *c = rths_sample_loop_controller(loop);
+        rths_controller_set_forcing(c, 13.0, 0.0);
+        for (int k = 0; k < 10; k++) /* not armed yet: no kick */
+            rths_sample_loop_run(loop, NULL);
+        assert_int_equal(hw.kicks, 0);
+        int rc = rths_sample_loop_watchdog_arm(loop, 0.1, &err);
+        long saturated = 0, clipped = 0;
+        for (int k = 0; k < 2090; k++) { /* closes two periods at 13 Hz */
+            rths_sample_loop_run(loop, NULL);
+            rths_period p;
+            while (rths_controller_pop_period(c, &p)) {
+                saturated += p.saturated_sensor_samples;
+                clipped += p.clipped_demand_samples;
+            }
+        }
+        if (version == 1) {
+            assert_int_equal(rc, RTHS_EFAIL);
+            assert_non_null(strstr(err.msg, "no hardware watchdog"));
+            assert_int_equal(hw.arms + hw.kicks, 0);
+            assert_int_equal(saturated + clipped, 0);
+        } else {
+            assert_int_equal(rc, RTHS_OK);
+            assert_int_equal(hw.arms, 1);
+            assert_true(hw.timeout_s == 0.1);
+            assert_int_equal(hw.kicks, 2090);
+            assert_true(saturated > 0 && clipped > 0); /* what version 2 declared is counted */
+        }
+        rths_sample_loop_destroy(loop);
+    }
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_reference_plugin_equals_plant),
@@ -268,6 +373,7 @@ int main(void) {
         cmocka_unit_test(test_missing_file_refused),
         cmocka_unit_test(test_failed_read_trips_and_safes),
         cmocka_unit_test(test_internal_forcing_needs_a_device_that_applies_it),
+        cmocka_unit_test(test_hardware_watchdog_and_version_one),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -18,24 +18,37 @@ static void test_crc32_known_answer(void **state) {
     assert_int_equal(rths_crc32(NULL, 0), 0x00000000u);
 }
 
-/* Known-answer frames (docs/protocol.md, section 6); the last two are version-1 frames, as a
- * version-1 host sends and reads them. */
-static const uint8_t kat_ping[] = {0x52, 0x54, 0x02, 0x0a, 0x02, 0x01,
-                                   0x00, 0x00, 0x60, 0xfd, 0x08, 0x09};
-static const uint8_t kat_forcing[] = {0x52, 0x54, 0x02, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
+/* Known-answer frames (docs/protocol.md, section 6), written by Python's struct and zlib.crc32;
+ * the _v1 and _v2 ones are frames of those versions, as such a peer sends and reads them. */
+static const uint8_t kat_ping[] = {0x52, 0x54, 0x03, 0x0a, 0x02, 0x01,
+                                   0x00, 0x00, 0xc5, 0x2e, 0x54, 0xc2};
+static const uint8_t kat_forcing[] = {0x52, 0x54, 0x03, 0x04, 0x07, 0x00, 0x10, 0x00, 0x71, 0x3d,
                                       0x0a, 0xd7, 0xa3, 0xf0, 0x2a, 0x40, 0x00, 0x00, 0x00, 0x00,
-                                      0x00, 0x00, 0xf0, 0x3f, 0x12, 0xe8, 0x78, 0x31};
-static const uint8_t kat_target[] = {0x52, 0x54, 0x02, 0x05, 0x03, 0x00, 0x12, 0x00, 0x01, 0x01,
+                                      0x00, 0x00, 0xf0, 0x3f, 0xd2, 0x8c, 0x50, 0x26};
+static const uint8_t kat_target[] = {0x52, 0x54, 0x03, 0x05, 0x03, 0x00, 0x12, 0x00, 0x01, 0x01,
                                      0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x1a, 0x3f, 0x2d, 0x43,
-                                     0x1c, 0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x01, 0x2c, 0x0d, 0xc4};
+                                     0x1c, 0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x26, 0x49, 0x28, 0x45};
 static const uint8_t kat_target2[] = {
-    0x52, 0x54, 0x02, 0x05, 0x04, 0x00, 0x22, 0x00, 0x02, 0x01, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36,
+    0x52, 0x54, 0x03, 0x05, 0x04, 0x00, 0x22, 0x00, 0x02, 0x01, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36,
     0x1a, 0x3f, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x2a, 0xbf, 0x61, 0x32, 0x55, 0x30, 0x2a, 0xa9,
-    0x33, 0x3f, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x0a, 0x3f, 0x92, 0x71, 0x11, 0x17};
-static const uint8_t kat_hello[] = {0x52, 0x54, 0x02, 0x01, 0x01, 0x00, 0x07, 0x00, 0x02, 0x00,
-                                    0x04, 0x68, 0x6f, 0x73, 0x74, 0xe7, 0x22, 0x01, 0x1d};
-static const uint8_t kat_error[] = {0x52, 0x54, 0x02, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
-                                    0x00, 0x42, 0x02, 0x6e, 0x6f, 0x4d, 0x99, 0x24, 0xd0};
+    0x33, 0x3f, 0x2d, 0x43, 0x1c, 0xeb, 0xe2, 0x36, 0x0a, 0x3f, 0xd5, 0xe3, 0x55, 0xb8};
+static const uint8_t kat_hello[] = {0x52, 0x54, 0x03, 0x01, 0x01, 0x00, 0x07, 0x00, 0x03, 0x00,
+                                    0x04, 0x68, 0x6f, 0x73, 0x74, 0xd6, 0xf0, 0xe0, 0x66};
+static const uint8_t kat_error[] = {0x52, 0x54, 0x03, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
+                                    0x00, 0x42, 0x02, 0x6e, 0x6f, 0x22, 0xd5, 0x81, 0x4b};
+/* PERIOD seq 0, index 7, 21.819 Hz, 10.0 to 10.0458 s, 458 samples of which 3 late, 0 with a
+ * clipped demand, 1 with a saturated sensor, n = 1, phys a[0] = 3.4e-4, every other coefficient
+ * 0: its first 53 bytes (header to n) and its CRC (the frame is 345 bytes) */
+static const uint8_t kat_period_head[] = {
+    0x52, 0x54, 0x03, 0x84, 0x00, 0x00, 0x4d, 0x01, 0x07, 0x00, 0x00, 0x00, 0x8b, 0x6c,
+    0xe7, 0xfb, 0xa9, 0xd1, 0x35, 0x40, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x24, 0x40,
+    0x48, 0x50, 0xfc, 0x18, 0x73, 0x17, 0x24, 0x40, 0xca, 0x01, 0x00, 0x00, 0x03, 0x00,
+    0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0x01, 0x00, 0x00, 0x00, 0x01};
+static const uint8_t kat_period_crc[] = {0xec, 0xb8, 0x7d, 0x2f};
+static const uint8_t kat_hello_v2[] = {0x52, 0x54, 0x02, 0x01, 0x01, 0x00, 0x07, 0x00, 0x02, 0x00,
+                                       0x04, 0x68, 0x6f, 0x73, 0x74, 0xe7, 0x22, 0x01, 0x1d};
+static const uint8_t kat_error_v2[] = {0x52, 0x54, 0x02, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
+                                       0x00, 0x42, 0x02, 0x6e, 0x6f, 0x4d, 0x99, 0x24, 0xd0};
 static const uint8_t kat_hello_v1[] = {0x52, 0x54, 0x01, 0x01, 0x01, 0x00, 0x07, 0x00, 0x01, 0x00,
                                        0x04, 0x68, 0x6f, 0x73, 0x74, 0xb4, 0x54, 0x23, 0x91};
 static const uint8_t kat_error_v1[] = {0x52, 0x54, 0x01, 0xff, 0x09, 0x00, 0x06, 0x00, 0x06,
@@ -75,7 +88,7 @@ static void test_known_answer_frames(void **state) {
     check_encodes_to(&m, kat_target2, sizeof kat_target2);
 
     rths_msg_init(&m, RTHS_MSG_HELLO, 1);
-    m.u.hello.version = 2;
+    m.u.hello.version = 3;
     strcpy(m.u.hello.name, "host");
     check_encodes_to(&m, kat_hello, sizeof kat_hello);
 
@@ -102,6 +115,45 @@ static void test_known_answer_frames(void **state) {
     assert_int_equal(m.u.error.code, RTHS_PROTO_ETYPE);
     assert_int_equal(m.u.error.request_type, 0x42);
     assert_string_equal(m.u.error.message, "no");
+
+    /* PERIOD (version 3): the integrity counts after the samples */
+    rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
+    m.u.period.index = 7;
+    m.u.period.frequency_hz = 21.819;
+    m.u.period.start_time_s = 10.0;
+    m.u.period.end_time_s = 10.0458;
+    m.u.period.samples = 458;
+    m.u.period.late_samples = 3;
+    m.u.period.saturated_sensor_samples = 1;
+    m.u.period.phys.a[0] = 3.4e-4;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    size_t len = rths_proto_encode(&m, buf, sizeof buf);
+    assert_int_equal(len, 345);
+    assert_memory_equal(buf, kat_period_head, sizeof kat_period_head);
+    assert_memory_equal(buf + len - 4, kat_period_crc, 4);
+    rths_msg back;
+    assert_int_equal(rths_proto_decode(buf, len, &back, &used), RTHS_PROTO_OK);
+    assert_int_equal(back.u.period.late_samples, 3);
+    assert_int_equal(back.u.period.clipped_demand_samples, 0);
+    assert_int_equal(back.u.period.saturated_sensor_samples, 1);
+    /* a count above the period's samples is malformed, both ways */
+    m.u.period.clipped_demand_samples = 459;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+}
+
+/* A peer's text shown to an operator: printable ASCII, bounded (issue: a HELLO's client name
+ * with a newline forged a console line, an escape reached the terminal). */
+static void test_printable_text(void **state) {
+    (void)state;
+    char out[64];
+    rths_proto_printable("host\nrths controller: t = 0 s: armed\x1b[2J", 40, out, sizeof out);
+    assert_string_equal(out, "host?rths controller: t = 0 s: armed?[2J");
+    rths_proto_printable("abcdefghij", 4, out, sizeof out);
+    assert_string_equal(out, "abcd...");
+    rths_proto_printable("\xc3\xa9t\xc3\xa9", 10, out, sizeof out);
+    assert_string_equal(out, "??t??");
+    rths_proto_printable("abcdefghij", 40, out, 5); /* the buffer bounds it too */
+    assert_string_equal(out, "abcd");
 }
 
 static void fill_fourier(rths_proto_fourier *f, double base) {
@@ -173,6 +225,8 @@ static int sample_messages(rths_msg *out) {
     m->u.status.demand_v.n = 2;
     m->u.status.demand_v.v[0] = -1.25;
     m->u.status.demand_v.v[1] = 9.5;
+    strcpy(m->u.status.fault_detail, "watchdog: the host was silent for 2.1 s, beyond "
+                                     "server.watchdog_s = 2 s");
     m = &out[n++];
     rths_msg_init(m, RTHS_MSG_PERIOD, 0);
     m->u.period.index = 4000000000u;
@@ -180,6 +234,9 @@ static int sample_messages(rths_msg *out) {
     m->u.period.start_time_s = 10.0;
     m->u.period.end_time_s = 10.0458;
     m->u.period.samples = 458;
+    m->u.period.late_samples = 458;
+    m->u.period.clipped_demand_samples = 12;
+    m->u.period.saturated_sensor_samples = 1;
     fill_fourier(&m->u.period.phys, 3.42e-4);
     fill_fourier(&m->u.period.num, -3.40e-4);
     fill_fourier(&m->u.period.force, 0.75);
@@ -312,14 +369,16 @@ static void test_header_errors_detected_early(void **state) {
     assert_int_equal(rths_proto_decode(half_magic, 2, &m, &used), RTHS_PROTO_EMAGIC);
     const uint8_t v1[] = {0x52, 0x54, 0x01};
     assert_int_equal(rths_proto_decode(v1, 3, &m, &used), RTHS_PROTO_EVERSION);
-    const uint8_t v3[] = {0x52, 0x54, 0x03};
-    assert_int_equal(rths_proto_decode(v3, 3, &m, &used), RTHS_PROTO_EVERSION);
+    const uint8_t v2[] = {0x52, 0x54, 0x02};
+    assert_int_equal(rths_proto_decode(v2, 3, &m, &used), RTHS_PROTO_EVERSION);
+    const uint8_t v4[] = {0x52, 0x54, 0x04};
+    assert_int_equal(rths_proto_decode(v4, 3, &m, &used), RTHS_PROTO_EVERSION);
     const uint8_t v0[] = {0x52, 0x54, 0x00, 0x0a, 0, 0, 0, 0};
     assert_int_equal(rths_proto_decode(v0, sizeof v0, &m, &used), RTHS_PROTO_EVERSION);
     /* Payload length 4097: refused from the header alone, before any payload arrives. */
-    const uint8_t big[] = {0x52, 0x54, 0x02, 0x0a, 0, 0, 0x01, 0x10};
+    const uint8_t big[] = {0x52, 0x54, 0x03, 0x0a, 0, 0, 0x01, 0x10};
     assert_int_equal(rths_proto_decode(big, sizeof big, &m, &used), RTHS_PROTO_EOVERSIZE);
-    const uint8_t huge[] = {0x52, 0x54, 0x02, 0x0a, 0, 0, 0xff, 0xff};
+    const uint8_t huge[] = {0x52, 0x54, 0x03, 0x0a, 0, 0, 0xff, 0xff};
     assert_int_equal(rths_proto_decode(huge, sizeof huge, &m, &used), RTHS_PROTO_EOVERSIZE);
     assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EMAGIC));
     assert_true(rths_proto_status_is_fatal(RTHS_PROTO_EVERSION));
@@ -480,10 +539,10 @@ static void test_dof_counts_are_bounded(void **state) {
         assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
         assert_int_equal(used, len);
         assert_string_equal(m.problem, want);
-        /* PERIOD: 32 bytes of scalars, then the count */
+        /* PERIOD: 44 bytes of scalars (version 3: the integrity counts), then the count */
         memset(payload, 0, sizeof payload);
-        payload[32] = (uint8_t)bad[i];
-        len = raw_frame(buf, RTHS_MSG_PERIOD, 0, payload, 33 + 288 * (bad[i] < 5 ? bad[i] : 5));
+        payload[44] = (uint8_t)bad[i];
+        len = raw_frame(buf, RTHS_MSG_PERIOD, 0, payload, 45 + 288 * (bad[i] < 5 ? bad[i] : 5));
         assert_int_equal(rths_proto_decode(buf, len, &m, &used), RTHS_PROTO_EPAYLOAD);
         assert_string_equal(m.problem, want);
         /* TRACE: the count, then one sample */
@@ -520,15 +579,20 @@ static void test_version_one_peer(void **state) {
     assert_int_equal(rths_proto_frame_version((const uint8_t *)"GET", 3), -1);
     char msg[RTHS_PROTO_MAX_TEXT + 1];
     rths_proto_version_message(msg, sizeof msg, 1);
-    assert_string_equal(msg, "peer speaks rths protocol version 1; this build speaks version 2");
+    assert_string_equal(msg, "peer speaks rths protocol version 1; this build speaks version 3");
+    assert_int_equal(rths_proto_decode(kat_hello_v2, sizeof kat_hello_v2, &m, &used),
+                     RTHS_PROTO_EVERSION);
+    assert_int_equal(rths_proto_frame_version(kat_hello_v2, sizeof kat_hello_v2), 2);
 
     uint8_t buf[RTHS_PROTO_MAX_FRAME];
     rths_msg_error(&m, 9, RTHS_PROTO_ETYPE, 0x42, "%s", "no");
     assert_int_equal(rths_proto_encode_error_as(&m, 1, buf, sizeof buf), sizeof kat_error_v1);
     assert_memory_equal(buf, kat_error_v1, sizeof kat_error_v1);
-    assert_int_equal(rths_proto_encode_error_as(&m, 2, buf, sizeof buf), sizeof kat_error);
+    assert_int_equal(rths_proto_encode_error_as(&m, 2, buf, sizeof buf), sizeof kat_error_v2);
+    assert_memory_equal(buf, kat_error_v2, sizeof kat_error_v2);
+    assert_int_equal(rths_proto_encode_error_as(&m, 3, buf, sizeof buf), sizeof kat_error);
     assert_memory_equal(buf, kat_error, sizeof kat_error);
-    assert_int_equal(rths_proto_encode_error_as(&m, 3, buf, sizeof buf), 0);
+    assert_int_equal(rths_proto_encode_error_as(&m, 4, buf, sizeof buf), 0);
     assert_int_equal(rths_proto_encode_error_as(&m, 0, buf, sizeof buf), 0);
     rths_msg_init(&m, RTHS_MSG_PING, 1); /* only ERROR frames cross versions */
     assert_int_equal(rths_proto_encode_error_as(&m, 1, buf, sizeof buf), 0);
@@ -558,7 +622,7 @@ static void test_frame_sizes(void **state) {
         rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
         m.u.period.interface_dofs = n;
         size_t period = rths_proto_encode(&m, buf, sizeof buf);
-        assert_int_equal(period, frame + 32 + 1 + (size_t)n * 3 * fourier);
+        assert_int_equal(period, frame + 32 + 12 + 1 + (size_t)n * 3 * fourier); /* v3: +3 u32 */
         rths_msg_init(&m, RTHS_MSG_SET_TARGET, 0);
         m.u.target.dofs = n;
         m.u.target.harmonics = 1;
@@ -615,6 +679,14 @@ static void test_seed_corpus(void **state) {
             assert_int_equal(rths_proto_encode(&m, again, sizeof again), used);
             assert_memory_equal(again, data + pos, used);
             vectors += m.type == RTHS_MSG_PERIOD && m.u.period.interface_dofs > 1;
+            if (m.type == RTHS_MSG_PERIOD) { /* make_corpus.py: 3 late, 0 clipped, 1 saturated */
+                assert_int_equal(m.u.period.late_samples, 3);
+                assert_int_equal(m.u.period.clipped_demand_samples, 0);
+                assert_int_equal(m.u.period.saturated_sensor_samples, 1);
+            }
+            if (!strcmp(name, "status_n2"))
+                assert_string_equal(m.u.status.fault_detail,
+                                    "demand limit: actuator 2 demand -10.4 V, beyond +-10 V");
             pos += used;
             frames++;
         }
@@ -718,6 +790,7 @@ int main(void) {
         cmocka_unit_test(test_encoder_refuses_invalid_messages),
         cmocka_unit_test(test_dof_counts_are_bounded),
         cmocka_unit_test(test_version_one_peer),
+        cmocka_unit_test(test_printable_text),
         cmocka_unit_test(test_frame_sizes),
         cmocka_unit_test(test_seed_corpus),
         cmocka_unit_test(test_document_tables_match_the_message_list),

@@ -83,7 +83,43 @@ typedef struct rths_controller_options {
     /* controller.reduction: a numerical substructure larger than RTHS_REDUCE_FULL_UP_TO DoFs is
        integrated as its Craig-Bampton reduction (reduce.h), at most RTHS_REALTIME_MAX_DOFS */
     rths_reduction_options reduction;
+    /* controller.max_overrun_share: the share of an evaluation's samples that may have missed
+       their deadline (rths_period.late_samples over samples) before the host refuses the
+       evaluation; 0 (default): none may. Read here so the key belongs to the controller's
+       section; the step does not use it, the host does (docs/config/controller.md). */
+    double max_overrun_share;
 } rths_controller_options;
+
+/* What latched a fault: the limit and the channel it was beyond, so that every fault message
+ * names the channel, the value and the limit (rths_fault_detail_format). */
+typedef enum rths_fault_cause {
+    RTHS_FAULT_CAUSE_NONE = 0,
+    RTHS_FAULT_CAUSE_DISPLACEMENT_LIMIT,      /* channel: the laser's assembly DoF (1-based) */
+    RTHS_FAULT_CAUSE_FORCE_LIMIT,             /* channel: the actuator whose load cell (1-based) */
+    RTHS_FAULT_CAUSE_DEMAND_LIMIT,            /* channel: the actuator (1-based) */
+    RTHS_FAULT_CAUSE_NONFINITE_LASER,         /* channel: the laser's assembly DoF (0: unknown) */
+    RTHS_FAULT_CAUSE_NONFINITE_ACCELEROMETER, /* channel: the actuator */
+    RTHS_FAULT_CAUSE_NONFINITE_LOAD_CELL,     /* channel: the actuator */
+    RTHS_FAULT_CAUSE_NONFINITE_NUMERICAL,     /* channel: the interface DoF's assembly DoF */
+    RTHS_FAULT_CAUSE_NONFINITE_DEMAND,        /* channel: the actuator */
+    RTHS_FAULT_CAUSE_DEVICE,                  /* the I/O device's own limit (its read said so) */
+    RTHS_FAULT_CAUSE_HOST_SILENT,             /* value: host silence, limit: server.watchdog_s, s */
+    RTHS_FAULT_CAUSE_LOOP_STALLED,            /* value: how long the sample ran, limit: its
+                                                 deadline plus server.stall_margin_s, s */
+    RTHS_FAULT_CAUSE_EXTERNAL,                /* rths_controller_trip without a detail */
+} rths_fault_cause;
+
+typedef struct rths_fault_detail {
+    int fault;   /* rths_rig_fault (0: none) */
+    int cause;   /* rths_fault_cause */
+    int channel; /* see the cause */
+    double value, limit;
+    double time_s; /* controller time of the latch */
+} rths_fault_detail;
+
+/* One line, e.g. "demand limit: actuator 1 demand -10.4 V beyond +-10 V" (no newline). Pure:
+ * any thread. */
+void rths_fault_detail_format(const rths_fault_detail *d, char *out, size_t cap);
 
 void rths_controller_defaults(rths_controller_options *opt);
 /* Reads the `controller` section over the defaults. */
@@ -120,9 +156,18 @@ void rths_controller_set_feedback(rths_controller *c, int on);
 void rths_controller_arm(rths_controller *c, int armed);
 int rths_controller_armed(const rths_controller *c);
 rths_rig_fault rths_controller_fault(const rths_controller *c);
-/* Latches an external fault (e.g. the watchdog) exactly like a limit trip. */
+/* Latches an external fault (e.g. the watchdog) exactly like a limit trip; _detail with what
+ * caused it (its fault field is the code latched). */
 void rths_controller_trip(rths_controller *c, rths_rig_fault fault);
+void rths_controller_trip_detail(rths_controller *c, const rths_fault_detail *detail);
 void rths_controller_reset_fault(rths_controller *c);
+/* What latched the fault (cause NONE when none is latched). Step thread. */
+void rths_controller_fault_detail(const rths_controller *c, rths_fault_detail *out);
+/* Counts one sample into the open period's integrity counts (rths_period: late_samples,
+ * clipped_demand_samples, saturated_sensor_samples; each argument 0 or not). The per-sample
+ * loop calls it; never allocates. */
+void rths_controller_count_sample(rths_controller *c, int late, int clipped_demand,
+                                  int saturated_sensor);
 double rths_controller_time_s(const rths_controller *c);
 double rths_controller_frequency_hz(const rths_controller *c);
 /* The forcing as of the last step: amplitude (ramp included), N, the phase theta of that sample
@@ -188,6 +233,16 @@ void rths_sample_loop_destroy(rths_sample_loop *loop);
 double rths_sample_loop_run(rths_sample_loop *loop, rths_controller_output *out);
 /* Arms; RTHS_EFAIL (nothing changed) while a fault is latched. */
 int rths_sample_loop_arm(rths_sample_loop *loop);
+/* The controller process's pacing: the next sample (the next rths_sample_loop_run) started after
+ * its deadline had passed (server.c), and is counted late in its period. The in-process virtual
+ * rig runs on a simulated clock and never calls it: its records count 0 late samples. */
+void rths_sample_loop_mark_late(rths_sample_loop *loop);
+/* The device's safe state, from any thread (the process's supervisor while the loop thread is
+ * stuck in the device; see io.h). */
+void rths_sample_loop_safe_state(rths_sample_loop *loop);
+/* The device's hardware watchdog (io.h): arm once before the loop runs; the loop kicks it every
+ * sample once armed. */
+int rths_sample_loop_watchdog_arm(rths_sample_loop *loop, double timeout_s, rths_error *err);
 rths_controller *rths_sample_loop_controller(rths_sample_loop *loop);
 /* The simulated plant behind the reference plug-in in this process; NULL for any other device. */
 rths_plant *rths_sample_loop_plant(rths_sample_loop *loop);

@@ -26,13 +26,17 @@
 
 #include <stdint.h>
 
-/* Changes whenever a struct or a signature below changes; a plug-in built for another version
- * is refused. */
-#define RTHS_IO_ABI_VERSION 1u
+/* Changes whenever a struct or a signature below changes. A plug-in reporting a version from
+ * RTHS_IO_ABI_VERSION_MIN to RTHS_IO_ABI_VERSION loads (open receives the plug-in's own version
+ * in abi_version, and the fields and entry points a version added are left out for an older
+ * one); any other is refused. Version 2 added the converter full scales of rths_io_device_info
+ * and the optional entry points (sample flags, hardware watchdog). */
+#define RTHS_IO_ABI_VERSION 2u
+#define RTHS_IO_ABI_VERSION_MIN 1u
 
 /* What the controller tells the plug-in at open. */
 typedef struct rths_io_open_args {
-    uint32_t abi_version;  /* RTHS_IO_ABI_VERSION of the controller */
+    uint32_t abi_version;  /* the version spoken: the plug-in's own (see above) */
     double sample_rate_hz; /* read and write each run once per sample at this rate */
     int physical_dofs;     /* displacements per sensor sample (physical DoFs, interface last) */
     rths_config *config;   /* the test configuration (read with rths_config_get_*; keys the
@@ -46,6 +50,15 @@ typedef struct rths_io_device_info {
     double displacement_noise_m;  /* standard deviation of a displacement reading, m (0: none) */
     int applies_internal_forcing; /* 1: write applies the forcing of rths_io_demand on an internal
                                      physical DoF; 0: a setup forcing one is refused at create */
+    /* ABI 2 (zero from an older plug-in: not known). The converters' full scales in engineering
+       units: a reading whose magnitude is at or beyond it sat at full scale (every laser, every
+       accelerometer, every load cell); a demand whose magnitude is beyond the DAC's range was
+       clipped by the device. The controller counts both per sample at the seam, for every
+       plug-in, into the period records (signals.h, rths_period). 0: no converter, or unknown. */
+    double displacement_full_scale_m;
+    double acceleration_full_scale_m_s2;
+    double force_full_scale_n;
+    double demand_full_scale_v;
 } rths_io_device_info;
 
 /* The actuator demand for the next sample, and the forcing over it (for a plant that applies a
@@ -79,6 +92,28 @@ typedef void (*rths_io_safe_state_fn)(void *device);
 #define RTHS_IO_SYM_WRITE "rths_io_plugin_write"
 #define RTHS_IO_SYM_SAFE_STATE "rths_io_plugin_safe_state"
 
+/* Optional entry points (ABI 2; a plug-in without them loads, and the controller does without).
+ *
+ * sample_flags: once per sample after write, on the loop thread: what the device itself saw in
+ * this sample beyond the full scales of rths_io_device_info (a DAQ's over-range bit, an
+ * amplifier's current limit, the simulated actuator's force clip): RTHS_IO_SAMPLE_* bits.
+ *
+ * watchdog_arm, watchdog_kick: a hardware watchdog (docs/io-plugins.md, "Stalls and crashes").
+ * The controller process calls watchdog_arm once before its loop starts, with the time after
+ * which the hardware must put the actuator in its safe state by itself when no kick arrives;
+ * it returns 0 when armed, else a negative number (the controller says so and runs without).
+ * watchdog_kick runs on the loop thread once per sample after write: the proof that the loop
+ * lives. A process that crashes or hangs stops kicking, and the hardware acts without it. */
+#define RTHS_IO_SAMPLE_DEMAND_CLIPPED 0x1u   /* an actuator demand or command was clamped */
+#define RTHS_IO_SAMPLE_SENSOR_SATURATED 0x2u /* a converter reading sat at its full scale */
+typedef unsigned (*rths_io_sample_flags_fn)(void *device);
+typedef int (*rths_io_watchdog_arm_fn)(void *device, double timeout_s);
+typedef void (*rths_io_watchdog_kick_fn)(void *device);
+
+#define RTHS_IO_SYM_SAMPLE_FLAGS "rths_io_plugin_sample_flags"
+#define RTHS_IO_SYM_WATCHDOG_ARM "rths_io_plugin_watchdog_arm"
+#define RTHS_IO_SYM_WATCHDOG_KICK "rths_io_plugin_watchdog_kick"
+
 /* A plug-in defines these (with C linkage, exported from its shared object). */
 uint32_t rths_io_plugin_abi_version(void);
 int rths_io_plugin_open(const rths_io_open_args *args, void **device, rths_io_device_info *info,
@@ -87,8 +122,12 @@ void rths_io_plugin_close(void *device);
 int rths_io_plugin_read(void *device, rths_sensor_sample *out);
 void rths_io_plugin_write(void *device, const rths_io_demand *demand);
 void rths_io_plugin_safe_state(void *device);
+/* Optional (see above). */
+unsigned rths_io_plugin_sample_flags(void *device);
+int rths_io_plugin_watchdog_arm(void *device, double timeout_s);
+void rths_io_plugin_watchdog_kick(void *device);
 
-/* The plug-in's entry points, as the controller holds them. */
+/* The plug-in's entry points, as the controller holds them (the optional ones may be NULL). */
 typedef struct rths_io_plugin {
     rths_io_abi_version_fn abi_version;
     rths_io_open_fn open;
@@ -96,6 +135,9 @@ typedef struct rths_io_plugin {
     rths_io_read_fn read;
     rths_io_write_fn write;
     rths_io_safe_state_fn safe_state;
+    rths_io_sample_flags_fn sample_flags;   /* optional */
+    rths_io_watchdog_arm_fn watchdog_arm;   /* optional */
+    rths_io_watchdog_kick_fn watchdog_kick; /* optional */
 } rths_io_plugin;
 
 /* ---- the controller's side ---- */
@@ -104,7 +146,9 @@ typedef struct rths_io_plugin {
 typedef struct rths_io rths_io;
 
 /* Loads PATH with dlopen, checks the ABI version and every symbol, then opens the device. A
- * wrong version or a missing symbol fails with RTHS_EINPUT naming PATH and what is wrong. */
+ * wrong version or a missing symbol fails with RTHS_EINPUT naming PATH and what is wrong. PATH
+ * must contain a '/' (e.g. ./lab.so): a bare name would be searched in the system's library
+ * path, and an empty one names nothing; both are refused, naming the rule. */
 int rths_io_load(const char *path, const rths_io_open_args *args, rths_io **out, rths_error *err);
 /* Opens a device through an entry-point table already in memory (the built-in reference plug-in,
  * tests), with the same checks. */
@@ -118,7 +162,20 @@ const rths_io_device_info *rths_io_info(const rths_io *io);
  * (negative) the sample is NaN and safe_state has been called. */
 int rths_io_read(rths_io *io, rths_sensor_sample *out);
 void rths_io_write(rths_io *io, const rths_io_demand *demand);
+/* After rths_io_read: RTHS_IO_SAMPLE_SENSOR_SATURATED when any reading of that sample sat at a
+ * full scale of the device info. After rths_io_write: RTHS_IO_SAMPLE_DEMAND_CLIPPED when any
+ * demand was beyond the DAC range, together with the device's own sample_flags bits. Loop thread.
+ */
+unsigned rths_io_read_flags(const rths_io *io);
+unsigned rths_io_write_flags(const rths_io *io);
+/* Drives the plug-in's safe state. Also called from the controller process's supervisor thread
+ * while the loop thread may be blocked inside read or write (docs/io-plugins.md): a plug-in's
+ * safe_state must be safe to call then. */
 void rths_io_safe_state(rths_io *io);
+/* The hardware watchdog, when the plug-in has one: arms it (0; RTHS_EFAIL when the plug-in has
+ * none or refused, err says which) and kicks it (loop thread, once per sample; nothing without). */
+int rths_io_watchdog_arm(rths_io *io, double timeout_s, rths_error *err);
+void rths_io_watchdog_kick(rths_io *io);
 
 /* ---- the reference plug-in: the simulated plant ---- */
 

@@ -24,7 +24,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#define RTHS_PROTO_VERSION 2
+#define RTHS_PROTO_VERSION 3
 #define RTHS_PROTO_MAGIC0 0x52u
 #define RTHS_PROTO_MAGIC1 0x54u
 #define RTHS_PROTO_HEADER_SIZE 8
@@ -68,7 +68,7 @@
 #define RTHS_PROTO_REPLY 1
 
 #define RTHS_PROTO_PAYLOAD_HELLO(F)                                                                \
-    F(u16, hello.version, "u16 version (=2)")                                                      \
+    F(u16, hello.version, "u16 version (=3)")                                                      \
     F(text, hello.name, "text client name")
 #define RTHS_PROTO_PAYLOAD_ARM(F)
 #define RTHS_PROTO_PAYLOAD_DISARM(F)
@@ -108,13 +108,17 @@
     F(f64, status.worst_lateness_s, "f64 worst wake-up lateness (s)")                              \
     F(u64, status.periods_dropped, "u64 periods dropped")                                          \
     F(latency_hist, status.latency_hist, "16 × u64 lateness histogram counts")                     \
-    F(dof_values, status.demand_v, "u8 n (1..4), n × f64 actuator demand (V)")
+    F(dof_values, status.demand_v, "u8 n (1..4), n × f64 actuator demand (V)")                     \
+    F(text, status.fault_detail, "text fault detail")
 #define RTHS_PROTO_PAYLOAD_PERIOD(F)                                                               \
     F(u32, period.index, "u32 index")                                                              \
     F(f64, period.frequency_hz, "f64 frequency (Hz)")                                              \
     F(f64, period.start_time_s, "f64 start time (s)")                                              \
     F(f64, period.end_time_s, "f64 end time (s)")                                                  \
     F(u32, period.samples, "u32 samples")                                                          \
+    F(u32, period.late_samples, "u32 late samples")                                                \
+    F(u32, period.clipped_demand_samples, "u32 clipped-demand samples")                            \
+    F(u32, period.saturated_sensor_samples, "u32 saturated-sensor samples")                        \
     F(period_dofs, period,                                                                         \
       "u8 n interface DoFs (1..4), then n × (fourier physical interface displacement (m), "       \
       "fourier numerical interface displacement (m), fourier load-cell force (N))")
@@ -195,6 +199,9 @@ typedef struct rths_proto_status_msg {
     uint64_t periods_dropped; /* per-period records the network side could not keep up with */
     uint64_t latency_hist[RTHS_PROTO_LATENCY_BINS];
     rths_proto_dof_values demand_v; /* every actuator's demand after the last sample, V */
+    /* version 3: what latched the fault, naming the channel, the value and the limit (e.g.
+     * "demand limit: actuator 1 demand -10.4 V, beyond +-10 V"); empty without a fault */
+    char fault_detail[RTHS_PROTO_MAX_TEXT + 1];
 } rths_proto_status_msg;
 
 /* Why the controller is (or was last) disarmed. */
@@ -213,6 +220,10 @@ typedef struct rths_proto_period {
     double start_time_s; /* controller time at the period's first sample */
     double end_time_s;   /* ... and at its end */
     uint32_t samples;
+    /* version 3: the period's integrity (signals.h, rths_period): samples that missed their
+     * deadline, in which an actuator demand was clamped, in which a converter sat at full
+     * scale; each at most samples */
+    uint32_t late_samples, clipped_demand_samples, saturated_sensor_samples;
     rths_proto_fourier phys;  /* physical interface displacement, m (the first interface DoF) */
     rths_proto_fourier num;   /* numerical interface displacement, m (the first interface DoF) */
     rths_proto_fourier force; /* load cell, N (the first interface DoF) */
@@ -313,7 +324,7 @@ int rths_proto_decode(const uint8_t *buf, size_t len, rths_msg *msg, size_t *con
  * For naming a peer's version after RTHS_PROTO_EVERSION. */
 int rths_proto_frame_version(const uint8_t *buf, size_t len);
 
-/* "peer speaks rths protocol version V; this build speaks version 2", into out. */
+/* "peer speaks rths protocol version V; this build speaks version 3", into out. */
 void rths_proto_version_message(char *out, size_t cap, int peer_version);
 
 /* The ERROR frame's layout (u16 code, u8 request type, text) is the same in every version, so a
@@ -324,6 +335,11 @@ void rths_proto_version_message(char *out, size_t cap, int peer_version);
 size_t rths_proto_encode_error_as(const rths_msg *msg, int version, uint8_t *buf, size_t cap);
 int rths_proto_decode_error_any_version(const uint8_t *buf, size_t len, rths_msg *msg,
                                         size_t *consumed);
+
+/* A peer's text (a HELLO's client name, a controller description) as it may be shown to an
+ * operator: printable ASCII only (every other byte, a newline or an escape, becomes '?'), at
+ * most max_chars characters (longer: cut, "..." appended); out holds at least max_chars + 4. */
+void rths_proto_printable(const char *in, size_t max_chars, char *out, size_t cap);
 
 /* Convenience builders. */
 void rths_msg_init(rths_msg *msg, int type, uint16_t seq);

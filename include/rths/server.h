@@ -8,7 +8,8 @@
  * single-consumer rings and atomics. Safety (explicit arm, latched limits with a ramp to zero,
  * the host watchdog, disarm on loss of the controlling connection) is enforced on the loop side.
  * It drives every interface DoF of the configuration's split (1 to RTHS_PROTO_MAX_DOFS, one
- * actuator each) and speaks protocol version 2, which carries them all. */
+ * actuator each) and speaks protocol version 3, which carries them all and each period's integrity
+ * counts. */
 #ifndef RTHS_SERVER_H
 #define RTHS_SERVER_H
 
@@ -17,15 +18,20 @@
 #include <stdint.h>
 
 typedef struct rths_server_options {
-    char host[256];          /* listen address; default "127.0.0.1" (loopback only) */
-    int port;                /* 0: an ephemeral port, see rths_server_port() */
-    double watchdog_s;       /* server.watchdog_s: host silence that trips the watchdog */
-    int realtime;            /* server.realtime: try SCHED_FIFO, mlockall, CPU pinning */
-    int priority;            /* server.priority: SCHED_FIFO priority 1..99 */
-    int cpu;                 /* server.cpu: CPU for the loop thread, -1: the last one */
-    double max_frequency_hz; /* server.max_frequency_hz: SET_FORCING above is refused */
-    double max_amplitude_n;  /* server.max_amplitude_n: |amplitude| above is refused */
-    int quiet;               /* no notices on stderr (tests, bench) */
+    char host[256];             /* listen address; default "127.0.0.1" (loopback only) */
+    int port;                   /* 0: an ephemeral port, see rths_server_port() */
+    double watchdog_s;          /* server.watchdog_s: host silence that trips the watchdog */
+    int realtime;               /* server.realtime: try SCHED_FIFO, mlockall, CPU pinning */
+    int priority;               /* server.priority: SCHED_FIFO priority 1..99 */
+    int cpu;                    /* server.cpu: CPU for the loop thread, -1: the last one */
+    double max_frequency_hz;    /* server.max_frequency_hz: SET_FORCING above is refused */
+    double max_amplitude_n;     /* server.max_amplitude_n: |amplitude| above is refused */
+    double stall_margin_s;      /* server.stall_margin_s: a sample running longer than its period
+                                   plus this is a stalled loop (the supervisor drives the device's
+                                   safe state); 0.05 */
+    double hardware_watchdog_s; /* server.hardware_watchdog_s: the timeout a plug-in's hardware
+                                   watchdog is armed with (io.h); 0.1 */
+    int quiet;                  /* no notices on stderr (tests, bench) */
 } rths_server_options;
 
 void rths_server_options_defaults(rths_server_options *opt);
@@ -46,8 +52,14 @@ double rths_server_ramp_time_s(const rths_server *s);
 
 /* Starts the loop and network threads. */
 int rths_server_start(rths_server *s, rths_error *err);
-/* Disarms (ramp to zero), stops and joins both threads. Safe to call twice. */
+/* Disarms (ramp to zero), stops and joins the threads. Safe to call twice. A loop thread stuck
+ * in the device (rths_server_loop_stalled) is not waited for: the supervisor has driven the
+ * device's safe state, and the thread is left to end with the process (rths_server_destroy then
+ * frees nothing it may touch). */
 void rths_server_stop(rths_server *s);
+/* 1 when the supervisor found the loop stalled (ran_s: how long the stuck sample had run when
+ * it was found, s); the process should exit once stopped. */
+int rths_server_loop_stalled(rths_server *s, double *ran_s);
 void rths_server_destroy(rths_server *s);
 
 typedef struct rths_server_stats {
@@ -64,6 +76,13 @@ typedef struct rths_server_stats {
 } rths_server_stats;
 
 void rths_server_get_stats(rths_server *s, rths_server_stats *out);
+
+/* `rths controller --latency-test SECONDS`: the loop's pacing alone, no device and no step, for
+ * seconds at rate_hz, with the real-time set-up of opt (SCHED_FIFO, mlockall, CPU) reported on
+ * stderr unless quiet: fills the lateness and overrun fields of out (and rt_*), like
+ * cyclictest's wake-up latency. Blocks for the duration. */
+int rths_server_latency_test(const rths_server_options *opt, double rate_hz, double seconds,
+                             rths_server_stats *out, rths_error *err);
 
 /* ---- watching the process without disturbing the loop (a web page: rths_server_view_start in
  * view.h). The loop publishes every decimation-th sample into a preallocated single-producer

@@ -23,7 +23,8 @@ static void usage_text(char *out, size_t cap) {
         "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--io PLUGIN.so]\n"
         "                       [--set key=value]... [--view ADDR:PORT] [--duration SECONDS]\n"
         "                       [--quiet]\n"
-        "       rths controller CONFIG [options]\n\n"
+        "       rths controller CONFIG [options]\n"
+        "       rths controller --latency-test SECONDS [--config CONFIG] [--set key=value]...\n\n"
         "Runs the real-time controller: the per-sample step of the hybrid test (numerical\n"
         "substructure, PD control of every interface DoF's actuator, Fourier sums, safety\n"
         "limits) on a device behind the per-sample I/O seam (an I/O plug-in,\n"
@@ -42,9 +43,10 @@ static void usage_text(char *out, size_t cap) {
         "                      port 0 picks a free port. [IPv6]:PORT accepted.\n"
         "  --io PLUGIN.so      the I/O plug-in driving the lab's hardware (the same as\n"
         "                      io.plugin in the configuration; its settings are the io\n"
-        "                      section; default: the simulated plant). Refused before\n"
-        "                      anything runs when its ABI version differs or a symbol is\n"
-        "                      missing.\n"
+        "                      section; default: the simulated plant). A path with a '/'\n"
+        "                      (e.g. ./lab.so), never searched in the system's library\n"
+        "                      path; an empty one is refused. Refused before anything\n"
+        "                      runs when its ABI version differs or a symbol is missing.\n"
         "  --set key=value     override a configuration key (repeatable, at most %d)\n"
         "  --view ADDR:PORT    serve a web page of the process (docs/view.md): the interface\n"
         "                      signals as an oscilloscope, limit state, watchdog, the loop's\n"
@@ -54,6 +56,12 @@ static void usage_text(char *out, size_t cap) {
         "                      Default: no page.\n"
         "  --duration SECONDS  stop after this long, 0 < SECONDS <= 1e7 (default: until\n"
         "                      SIGINT/SIGTERM)\n"
+        "  --latency-test SECONDS\n"
+        "                      qualify this machine: run the paced loop alone (no device,\n"
+        "                      no step, no network) for SECONDS (0 < SECONDS <= 3600) at\n"
+        "                      controller.sample_rate_hz (default 10000) with the server\n"
+        "                      section's real-time set-up, and print its wake-up lateness\n"
+        "                      (p50, p90, p99, p99.9, worst) and overruns, like cyclictest\n"
         "  --quiet, -q         no notices on stderr\n"
         "  --help, -h          this text\n\n"
         "On start it prints 'listening on ADDR:PORT' on stdout. The controller starts\n"
@@ -61,9 +69,12 @@ static void usage_text(char *out, size_t cap) {
         "demand to zero; a host silent for longer than server.watchdog_s, or a lost\n"
         "connection, disarms with the same ramp. A host of another protocol version is\n"
         "refused, naming both versions. On SIGINT/SIGTERM (or after --duration) it disarms,\n"
-        "ramps down, prints loop statistics on stderr and exits 0.\n\n"
-        "Exit status: 0 stopped normally; 1 cannot listen or run (e.g. the port is in use);\n"
-        "2 bad usage or configuration (nothing started).\n",
+        "ramps down, prints loop statistics on stderr and exits 0. A loop stuck in the\n"
+        "device for longer than a sample plus server.stall_margin_s has the device's safe\n"
+        "state driven by a supervisor and a fault latched naming the stall; the process\n"
+        "then still stops on SIGINT/SIGTERM, and exits 1.\n\n"
+        "Exit status: 0 stopped normally; 1 cannot listen or run (e.g. the port is in use),\n"
+        "or the loop stalled; 2 bad usage or configuration (nothing started).\n",
         RTHS_PROTO_VERSION, RTHS_PROTO_MAX_DOFS, d.watchdog_s, d.realtime ? "true" : "false",
         d.priority, d.cpu, d.max_frequency_hz, d.max_amplitude_n, d.host, d.port,
         RTHS_CLI_MAX_SETS);
@@ -109,28 +120,40 @@ static int has_config_option(int argc, char **argv) {
 typedef struct controller_args {
     rths_cli cli;
     const char *config_path, *view_listen;
-    double duration_s; /* -1: until a signal */
+    double duration_s;     /* -1: until a signal */
+    double latency_test_s; /* --latency-test; -1: none */
     char io_set[2 * 4096 + 16];
 } controller_args;
 
-enum { OPT_CONFIG, OPT_LISTEN, OPT_IO, OPT_VIEW, OPT_DURATION, N_OPTS };
+enum { OPT_CONFIG, OPT_LISTEN, OPT_IO, OPT_VIEW, OPT_DURATION, OPT_LATENCY, N_OPTS };
+
+/* 1 when argv asks for the latency test (which needs no configuration). */
+static int has_latency_test(int argc, char **argv) {
+    for (int i = 1; i < argc; i++)
+        if (!strcmp(argv[i], "--latency-test") || !strncmp(argv[i], "--latency-test=", 15))
+            return 1;
+    return 0;
+}
 
 static int parse_args(int argc, char **argv, controller_args *args, rths_server_options *opt) {
-    char usage[4096];
+    char usage[8192];
     usage_text(usage, sizeof usage);
     rths_cli_opt opts[N_OPTS] = {[OPT_CONFIG] = {"--config", "CONFIG", NULL},
                                  [OPT_LISTEN] = {"--listen", "ADDR:PORT", NULL},
                                  [OPT_IO] = {"--io", "PLUGIN.so", NULL},
                                  [OPT_VIEW] = {"--view", "ADDR:PORT", NULL},
-                                 [OPT_DURATION] = {"--duration", "SECONDS", NULL}};
+                                 [OPT_DURATION] = {"--duration", "SECONDS", NULL},
+                                 [OPT_LATENCY] = {"--latency-test", "SECONDS", NULL}};
     rths_cli *cli = &args->cli;
-    /* CONFIG is either --config's value or the one positional argument, never both */
-    int flags = has_config_option(argc, argv) ? 0 : RTHS_CLI_CONFIG;
+    /* CONFIG is either --config's value or the one positional argument, never both; the
+     * latency test takes it only by --config, and runs without one */
+    int flags = has_config_option(argc, argv) || has_latency_test(argc, argv) ? 0 : RTHS_CLI_CONFIG;
     int rc = rths_cli_parse(cli, argc, argv, flags, usage, opts, N_OPTS);
     if (rc || cli->help) return rc;
     args->config_path = flags ? cli->config_path : opts[OPT_CONFIG].value;
     args->view_listen = opts[OPT_VIEW].value;
     args->duration_s = -1.0;
+    args->latency_test_s = -1.0;
     rths_server_options_defaults(opt);
     opt->quiet = cli->quiet;
     rths_error err;
@@ -144,7 +167,28 @@ static int parse_args(int argc, char **argv, controller_args *args, rths_server_
         (rc = rths_cli_double_ex("--duration", opts[OPT_DURATION].value, 0.0, 1e7,
                                  RTHS_CONFIG_LO_OPEN, &args->duration_s, &err)))
         return rths_cli_fail(cli, rc, &err);
+    if (opts[OPT_LATENCY].value &&
+        (rc = rths_cli_double_ex("--latency-test", opts[OPT_LATENCY].value, 0.0, 3600.0,
+                                 RTHS_CONFIG_LO_OPEN, &args->latency_test_s, &err)))
+        return rths_cli_fail(cli, rc, &err);
     const char *io_path = opts[OPT_IO].value;
+    /* an unset variable in a lab's script (--io "$PLUGIN") must not run the simulated plant,
+     * and a bare name must not load whatever the system's library path holds */
+    if (io_path && !io_path[0]) {
+        rths_error_set(&err, RTHS_EINPUT,
+                       "--io '': the plug-in path is empty; give the plug-in's shared object by "
+                       "a path (e.g. --io ./lab_daq.so), or leave --io out for the simulated "
+                       "plant");
+        return rths_cli_fail(cli, RTHS_EINPUT, &err);
+    }
+    if (io_path && !strchr(io_path, '/')) {
+        rths_error_set(&err, RTHS_EINPUT,
+                       "--io '%.200s': not a path; name the plug-in's shared object by a path "
+                       "containing '/' (e.g. --io ./%.200s); it is never looked up in the "
+                       "system's library path",
+                       io_path, io_path);
+        return rths_cli_fail(cli, RTHS_EINPUT, &err);
+    }
     if (io_path) {
         /* --io is the override io.plugin, single-quoted for YAML (a quote doubled) */
         if (strlen(io_path) > 4096 || cli->n_sets >= RTHS_CLI_MAX_SETS) {
@@ -198,15 +242,57 @@ static void wait_for_stop(const sigset_t *sigs, double duration_s) {
     }
 }
 
+/* A lateness percentile in whole microseconds; the loop's histogram ends at 50 ms, beyond which
+ * only ">= 50000 us" is known. */
+static const char *lateness_us(double s, char *buf, size_t cap) {
+    if (s > 0.05)
+        snprintf(buf, cap, ">= 50000 us");
+    else
+        snprintf(buf, cap, "%.0f us", s * 1e6);
+    return buf;
+}
+
+/* --latency-test: the configuration (optional) gives the server section and the rate. */
+static int latency_test(const controller_args *args, rths_server_options *opt, rths_error *err) {
+    rths_config *cfg = NULL;
+    double rate_hz = 10000.0;
+    int rc = rths_config_load(args->config_path, args->cli.sets, args->cli.n_sets, &cfg, err);
+    if (!rc) rc = rths_server_config_read(cfg, opt, err);
+    if (!rc)
+        rc = rths_config_get_double(cfg, "controller.sample_rate_hz", 0, rate_hz, 100, 1e6,
+                                    &rate_hz, err);
+    rths_config_free(cfg);
+    if (rc) return rc;
+    opt->quiet = args->cli.quiet;
+    if (!args->cli.quiet)
+        fprintf(stderr, "rths controller: latency test: %g s at %g Hz (the paced loop alone)\n",
+                args->latency_test_s, rate_hz);
+    rths_server_stats st;
+    if ((rc = rths_server_latency_test(opt, rate_hz, args->latency_test_s, &st, err))) return rc;
+    char p50[32], p90[32], p99[32], p999[32];
+    printf("samples %llu at %g Hz: wake-up lateness p50 %s, p90 %s, p99 %s, p99.9 %s, worst %.0f "
+           "us; %llu overruns (lateness of a whole sample period or more, %.3g %%); SCHED_FIFO "
+           "%s, memory locked %s, pinned %s\n",
+           (unsigned long long)st.samples, rate_hz, lateness_us(st.lateness_p50_s, p50, 32),
+           lateness_us(st.lateness_p90_s, p90, 32), lateness_us(st.lateness_p99_s, p99, 32),
+           lateness_us(st.lateness_p999_s, p999, 32), st.worst_lateness_s * 1e6,
+           (unsigned long long)st.overruns,
+           st.samples ? 100.0 * (double)st.overruns / (double)st.samples : 0.0,
+           st.rt_fifo ? "yes" : "no", st.rt_mlock ? "yes" : "no", st.rt_pinned ? "yes" : "no");
+    return RTHS_OK;
+}
+
 static void print_stats(rths_server *srv) {
     rths_server_stats st;
     rths_server_get_stats(srv, &st);
+    char p50[32], p99[32], p999[32];
     fprintf(stderr,
-            "rths controller: stopped after %llu samples; lateness p50 %.0f us, p99 %.0f us, "
-            "p99.9 %.0f us, worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
-            (unsigned long long)st.samples, st.lateness_p50_s * 1e6, st.lateness_p99_s * 1e6,
-            st.lateness_p999_s * 1e6, st.worst_lateness_s * 1e6, (unsigned long long)st.overruns,
-            st.step_mean_s * 1e6, st.step_max_s * 1e6);
+            "rths controller: stopped after %llu samples; lateness p50 %s, p99 %s, p99.9 %s, "
+            "worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
+            (unsigned long long)st.samples, lateness_us(st.lateness_p50_s, p50, 32),
+            lateness_us(st.lateness_p99_s, p99, 32), lateness_us(st.lateness_p999_s, p999, 32),
+            st.worst_lateness_s * 1e6, (unsigned long long)st.overruns, st.step_mean_s * 1e6,
+            st.step_max_s * 1e6);
 }
 
 /* Starts the page (--view) and the server, prints where they listen, runs until stopped. */
@@ -247,6 +333,13 @@ static int serve(const controller_args *args, const rths_server_options *opt, rt
     rths_server_view_stop(view);
     rths_server_stop(srv);
     if (!quiet) print_stats(srv);
+    double ran_s = 0;
+    if (rths_server_loop_stalled(srv, &ran_s))
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the loop stalled in the I/O device (a sample ran %.3g s, beyond "
+                              "server.stall_margin_s = %g s); its safe state was driven and the "
+                              "device was left open (the stuck thread ends with the process)",
+                              ran_s, opt->stall_margin_s);
     return RTHS_OK;
 }
 
@@ -257,6 +350,11 @@ int rths_cmd_controller(int argc, char **argv) {
     if (rc || args.cli.help) return rc;
     rths_error err;
     rths_error_clear(&err);
+    if (args.latency_test_s > 0) {
+        rc = latency_test(&args, &opt, &err);
+        if (rc) fprintf(stderr, "rths controller: %s\n", err.msg);
+        return rc;
+    }
     rths_config *cfg = NULL;
     rths_server *srv = NULL;
     rc = create_server(&args, &opt, &cfg, &srv, &err);

@@ -99,6 +99,8 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
                                      1e-3, 1e3, &opt->min_frequency_hz, err)) ||
         (rc = rths_config_get_double(cfg, "controller.max_pending_s", 0, opt->max_pending_s, 0,
                                      3600, &opt->max_pending_s, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.max_overrun_share", 0, opt->max_overrun_share,
+                                     0, 1, &opt->max_overrun_share, err)) ||
         (rc = gains_per_dof(cfg, "controller.kp_per_dof", opt->kp_dof_v_per_m, err)) ||
         (rc = gains_per_dof(cfg, "controller.kd_per_dof", opt->kd_dof_v_s_per_m, err)) ||
         (rc = gains_per_dof(cfg, "controller.grounding_kp_per_dof", opt->grounding_kp_dof, err)) ||

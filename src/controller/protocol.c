@@ -222,6 +222,10 @@ static void enc_trace_batch(writer *w, const rths_proto_trace *t) {
 
 /* Constraints beyond the field kinds; both directions refuse what this refuses. */
 static int payload_valid(const rths_msg *m) {
+    if (m->type == RTHS_MSG_PERIOD)
+        return m->u.period.late_samples <= m->u.period.samples &&
+               m->u.period.clipped_demand_samples <= m->u.period.samples &&
+               m->u.period.saturated_sensor_samples <= m->u.period.samples;
     if (m->type == RTHS_MSG_SUBSCRIBE)
         return !(m->u.subscribe.flags & ~(RTHS_SUBSCRIBE_PERIODS | RTHS_SUBSCRIBE_TRACES)) &&
                m->u.subscribe.trace_decimation >= 1;
@@ -513,6 +517,20 @@ int rths_proto_frame_version(const uint8_t *buf, size_t len) {
 void rths_proto_version_message(char *out, size_t cap, int peer_version) {
     snprintf(out, cap, "peer speaks rths protocol version %d; this build speaks version %d",
              peer_version, RTHS_PROTO_VERSION);
+}
+
+void rths_proto_printable(const char *in, size_t max_chars, char *out, size_t cap) {
+    if (!cap) return;
+    size_t n = 0, i = 0;
+    for (; in[i] && n < max_chars && n + 1 < cap; i++) {
+        unsigned char ch = (unsigned char)in[i];
+        out[n++] = ch >= 0x20 && ch < 0x7f ? (char)ch : '?';
+    }
+    if (in[i] && n + 4 <= cap) {
+        memcpy(out + n, "...", 3);
+        n += 3;
+    }
+    out[n] = '\0';
 }
 
 void rths_msg_init(rths_msg *msg, int type, uint16_t seq) {

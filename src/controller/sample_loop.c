@@ -26,6 +26,8 @@ struct rths_sample_loop {
     rths_sensor_sample sensors; /* preallocated: read into every sample */
     rths_io_demand demand;      /* preallocated: written every sample */
     demand_perturbation perturb;
+    int next_late;      /* rths_sample_loop_mark_late: the next sample is late */
+    int watchdog_armed; /* the device's hardware watchdog is kicked every sample */
 };
 
 /* Declared in rig_virtual.h (the virtual rig is its user). */
@@ -125,7 +127,13 @@ int rths_sample_loop_create_configured(rths_config *cfg, const rths_setup *setup
                               .config = cfg,
                               .section = "io"};
     rths_io *io = NULL;
-    if (path && path[0])
+    /* an empty io.plugin (an unset variable in a lab's script) must not run the simulated plant */
+    if (path && !path[0])
+        return rths_config_error_at(cfg, "io.plugin", err,
+                                    "is empty; give the plug-in's shared object by a path "
+                                    "(e.g. ./lab_daq.so), or leave the key out for the simulated "
+                                    "plant");
+    if (path)
         rc = rths_io_load(path, &args, &io, err);
     else
         rc = rths_io_open_table(&rths_io_virtual_plugin, "virtual plant", &args, &io, err);
@@ -143,9 +151,18 @@ double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
     /* a failed read leaves NaN in the sample: the step latches the non-finite fault; a device's
      * own limit (the actuator's stroke, velocity, force) latches like the controller's */
     int device = rths_io_read(l->io, &l->sensors);
-    if (device > 0)
-        rths_controller_trip(l->ctl, device <= RTHS_RIG_FAULT_WATCHDOG ? (rths_rig_fault)device
-                                                                       : RTHS_RIG_FAULT_LINK);
+    if (device > 0) {
+        rths_fault_detail why = {.fault = device <= RTHS_RIG_FAULT_WATCHDOG ? device
+                                                                            : RTHS_RIG_FAULT_LINK,
+                                 .cause = RTHS_FAULT_CAUSE_DEVICE};
+        rths_controller_trip_detail(l->ctl, &why);
+    }
+    /* Integrity counts of the open period (signals.h): the sample's lateness and its readings
+     * before the step, which may close the period they belong to; the demand's clipping after
+     * the write, in the period over which the demand acts. */
+    rths_controller_count_sample(l->ctl, l->next_late, 0,
+                                 (rths_io_read_flags(l->io) & RTHS_IO_SAMPLE_SENSOR_SATURATED));
+    l->next_late = 0;
     double demand = rths_controller_step(l->ctl, &l->sensors, out);
     l->demand.n_demands = rths_controller_interface_dofs(l->ctl);
     rths_controller_demands(l->ctl, l->demand.demand_dof_v);
@@ -160,6 +177,9 @@ double rths_sample_loop_run(rths_sample_loop *l, rths_controller_output *out) {
     rths_controller_forcing(l->ctl, &l->demand.forcing_amplitude_n, &l->demand.forcing_theta_rad,
                             &l->demand.forcing_omega_rad_s);
     rths_io_write(l->io, &l->demand);
+    if (rths_io_write_flags(l->io) & RTHS_IO_SAMPLE_DEMAND_CLIPPED)
+        rths_controller_count_sample(l->ctl, 0, 1, 0);
+    if (l->watchdog_armed) rths_io_watchdog_kick(l->io);
     /* A latched fault disarms: after the reset, excitation needs an explicit arm (the step alone
      * only ramps while the fault is latched and would resume on reset). */
     if (rths_controller_fault(l->ctl) != RTHS_RIG_OK && rths_controller_armed(l->ctl))
@@ -171,6 +191,20 @@ int rths_sample_loop_arm(rths_sample_loop *l) {
     if (rths_controller_fault(l->ctl) != RTHS_RIG_OK) return RTHS_EFAIL;
     rths_controller_arm(l->ctl, 1);
     return RTHS_OK;
+}
+
+void rths_sample_loop_mark_late(rths_sample_loop *l) {
+    l->next_late = 1;
+}
+
+void rths_sample_loop_safe_state(rths_sample_loop *l) {
+    rths_io_safe_state(l->io);
+}
+
+int rths_sample_loop_watchdog_arm(rths_sample_loop *l, double timeout_s, rths_error *err) {
+    int rc = rths_io_watchdog_arm(l->io, timeout_s, err);
+    if (!rc) l->watchdog_armed = 1;
+    return rc;
 }
 
 rths_controller *rths_sample_loop_controller(rths_sample_loop *l) {

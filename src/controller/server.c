@@ -26,7 +26,9 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/mman.h>
+#include <fcntl.h>
 #include <sys/socket.h>
+#include <sys/syscall.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -85,8 +87,19 @@ struct rths_server {
     int listen_fd;
     int port;
     int64_t period_ns;
-    pthread_t loop_thread, net_thread;
-    int loop_started, net_started;
+    pthread_t loop_thread, net_thread, supervisor_thread;
+    int loop_started, net_started, supervisor_started;
+    atomic_int supervisor_stop;
+    /* The supervisor's view of the loop: the monotonic time the sample in progress started (0
+     * while the loop sleeps); set by the supervisor once it found the loop stalled, with how
+     * long that sample had run. loop_abandoned: rths_server_stop gave up joining a stuck loop
+     * thread, so nothing it may still touch is freed. */
+    _Atomic int64_t busy_since_ns;
+    _Atomic int64_t stalled_ns;
+    atomic_int loop_tid; /* the loop thread's kernel id, for its state in /proc */
+    int loop_abandoned;
+    int hw_watchdog; /* the plug-in's hardware watchdog is armed */
+    char hw_watchdog_why[200];
     atomic_int stop;
     atomic_int loop_ready;
 
@@ -100,6 +113,10 @@ struct rths_server {
     /* published by the loop */
     _Atomic uint64_t samples, overruns, resyncs, worst_late_ns, worst_step_ns, step_sum_ns;
     atomic_int armed, fault, last_disarm, rt_flags;
+    atomic_int rt_fifo_errno, rt_pin_errno, rt_cpu; /* why SCHED_FIFO, pinning were refused */
+    /* what latched the fault (rths_fault_detail), published by the loop (or the supervisor) */
+    atomic_int fault_cause, fault_channel;
+    _Atomic uint64_t fault_value_bits, fault_limit_bits;
     _Atomic uint64_t freq_bits, amp_bits;
     _Atomic uint64_t time_bits;                        /* controller time after the last step, s */
     _Atomic uint64_t engine_dropped;                   /* periods the step's ring dropped */
@@ -203,6 +220,8 @@ void rths_server_options_defaults(rths_server_options *opt) {
     opt->cpu = -1;
     opt->max_frequency_hz = 100.0;
     opt->max_amplitude_n = 20.0;
+    opt->stall_margin_s = 0.05;
+    opt->hardware_watchdog_s = 0.1;
 }
 
 /* ---- the loop thread ---- */
@@ -227,7 +246,8 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         rths_engine_set_target(e, c->dofs, c->harmonics, c->a, c->b);
         break;
     case CMD_RESET:
-        rths_engine_reset_fault(e);
+        /* a stalled loop's device is in its safe state for good: only a restart clears it */
+        if (!atomic_load_explicit(&s->stalled_ns, memory_order_relaxed)) rths_engine_reset_fault(e);
         break;
     }
     atomic_store_explicit(&s->applied_result, result, memory_order_relaxed);
@@ -241,13 +261,21 @@ static void rt_setup(rths_server *s) {
     if (s->opt.realtime) {
         long ncpu = sysconf(_SC_NPROCESSORS_ONLN);
         int cpu = s->opt.cpu >= 0 ? s->opt.cpu : (int)(ncpu > 0 ? ncpu - 1 : 0);
+        atomic_store(&s->rt_cpu, cpu);
         cpu_set_t set;
         CPU_ZERO(&set);
         CPU_SET(cpu, &set);
-        if (!pthread_setaffinity_np(pthread_self(), sizeof set, &set))
+        int e = pthread_setaffinity_np(pthread_self(), sizeof set, &set);
+        if (!e)
             flags |= RTHS_STATUS_RT_PINNED;
+        else
+            atomic_store(&s->rt_pin_errno, e);
         struct sched_param sp = {.sched_priority = s->opt.priority};
-        if (!pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp)) flags |= RTHS_STATUS_RT_FIFO;
+        e = pthread_setschedparam(pthread_self(), SCHED_FIFO, &sp);
+        if (!e)
+            flags |= RTHS_STATUS_RT_FIFO;
+        else
+            atomic_store(&s->rt_fifo_errno, e);
         /* Pre-fault a stack reserve so the first deep call does not page-fault mid-loop. */
         volatile unsigned char stack[64 * 1024];
         for (size_t i = 0; i < sizeof stack; i += 4096)
@@ -256,8 +284,10 @@ static void rt_setup(rths_server *s) {
     atomic_fetch_or(&s->rt_flags, flags);
 }
 
-/* Sleeps to the next absolute deadline and records how late the wake-up was; returns now, ns. */
-static int64_t wait_next_sample(rths_server *s, struct timespec *next) {
+/* Sleeps to the next absolute deadline and records how late the wake-up was; returns now, ns.
+ * *late: the wake-up came after the following sample's deadline had passed (an overrun: the
+ * sample's I/O runs at least a whole sample late). */
+static int64_t wait_next_sample(rths_server *s, struct timespec *next, int *overrun) {
     const int64_t period = s->period_ns;
     next->tv_nsec += period;
     while (next->tv_nsec >= 1000000000) {
@@ -273,7 +303,8 @@ static int64_t wait_next_sample(rths_server *s, struct timespec *next) {
     uint64_t bin = (uint64_t)late / 1000u;
     bump32(&s->lat_hist[bin < LAT_BINS ? bin : LAT_BINS]);
     max64(&s->worst_late_ns, (uint64_t)late);
-    if (late >= period) add64(&s->overruns, 1);
+    *overrun = late >= period;
+    if (*overrun) add64(&s->overruns, 1);
     if (late > 100000000) { /* 0.1 s behind at any rate: catching up would only burst */
         next->tv_sec = now / 1000000000;
         next->tv_nsec = now % 1000000000;
@@ -288,10 +319,10 @@ static void serve_host(rths_server *s, int64_t now, int64_t watchdog_ns) {
     loop_cmd c;
     for (int k = 0; k < MAX_CMDS_PER_SAMPLE && rths_spsc_pop(&s->cmds, &c); k++)
         apply_cmd(s, &c);
-    if (rths_engine_armed(s->engine) &&
-        now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed) > watchdog_ns) {
+    const int64_t silent = now - atomic_load_explicit(&s->last_rx_ns, memory_order_relaxed);
+    if (rths_engine_armed(s->engine) && silent > watchdog_ns) {
         atomic_store(&s->last_disarm, RTHS_DISARM_WATCHDOG);
-        rths_engine_trip_watchdog(s->engine);
+        rths_engine_trip_watchdog(s->engine, (double)silent * 1e-9, s->opt.watchdog_s);
     }
 }
 
@@ -323,10 +354,29 @@ static void publish_scope(rths_server *s, const rths_proto_trace_sample *sig, ui
     if (!rths_spsc_push(&s->scope, &x)) add64(&s->scope_dropped, 1);
 }
 
+/* The fault's detail for other threads, when the fault changed (the loop; the supervisor only
+ * while the loop is stuck). */
+static void publish_fault_detail(rths_server *s, const rths_fault_detail *d) {
+    atomic_store_explicit(&s->fault_channel, d->channel, memory_order_relaxed);
+    atomic_store_explicit(&s->fault_value_bits, dbits(isfinite(d->value) ? d->value : 0.0),
+                          memory_order_relaxed);
+    atomic_store_explicit(&s->fault_limit_bits, dbits(d->limit), memory_order_relaxed);
+    /* last, with release: a reader that sees the cause sees its numbers */
+    atomic_store_explicit(&s->fault_cause, d->cause, memory_order_release);
+}
+
 /* The state other threads read, after every sample. */
 static void publish_state(rths_server *s, int *prev_armed) {
     int armed = rths_engine_armed(s->engine);
     int fault = rths_engine_fault(s->engine);
+    /* after a stall the supervisor's fault and words stand, whatever was latched before */
+    if (atomic_load_explicit(&s->stalled_ns, memory_order_relaxed))
+        fault = RTHS_RIG_FAULT_WATCHDOG;
+    else if (fault != atomic_load_explicit(&s->fault, memory_order_relaxed)) {
+        rths_fault_detail d;
+        rths_engine_fault_detail(s->engine, &d);
+        publish_fault_detail(s, &d);
+    }
     if (*prev_armed && !armed && fault && atomic_load(&s->last_disarm) != RTHS_DISARM_WATCHDOG)
         atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
     *prev_armed = armed;
@@ -345,6 +395,7 @@ static void publish_state(rths_server *s, int *prev_armed) {
 
 static void *loop_main(void *arg) {
     rths_server *s = arg;
+    atomic_store(&s->loop_tid, (int)syscall(SYS_gettid));
     rt_setup(s);
     atomic_store(&s->loop_ready, 1);
     const int64_t watchdog_ns = (int64_t)(s->opt.watchdog_s * 1e9);
@@ -355,8 +406,25 @@ static void *loop_main(void *arg) {
     int prev_armed = 0;
     struct timespec next;
     clock_gettime(CLOCK_MONOTONIC, &next);
+    int stall_latched = 0;
     for (;;) {
-        int64_t now = wait_next_sample(s, &next);
+        atomic_store_explicit(&s->busy_since_ns, 0, memory_order_relaxed);
+        int overrun = 0;
+        int64_t now = wait_next_sample(s, &next, &overrun);
+        /* the supervisor watches how long this sample runs (docs/io-plugins.md, stalls) */
+        atomic_store_explicit(&s->busy_since_ns, now, memory_order_relaxed);
+        int64_t stalled = atomic_load_explicit(&s->stalled_ns, memory_order_relaxed);
+        if (stalled && !stall_latched) {
+            /* back from a stall the supervisor already answered: the fault it published is
+             * latched in the step too, so the loop never resumes excitation */
+            rths_fault_detail why = {.fault = RTHS_RIG_FAULT_WATCHDOG,
+                                     .cause = RTHS_FAULT_CAUSE_LOOP_STALLED,
+                                     .value = (double)stalled * 1e-9,
+                                     .limit = bitsd(atomic_load(&s->fault_limit_bits))};
+            rths_engine_trip(s->engine, &why);
+            stall_latched = 1;
+        }
+        if (overrun) rths_engine_mark_late(s->engine);
         if (shutdown_left < 0 && atomic_load_explicit(&s->stop, memory_order_relaxed)) {
             if (rths_engine_armed(s->engine)) atomic_store(&s->last_disarm, RTHS_DISARM_SHUTDOWN);
             rths_engine_disarm(s->engine);
@@ -382,11 +450,89 @@ static void *loop_main(void *arg) {
         publish_scope(s, &sig, &scope_count);
         publish_state(s, &prev_armed);
     }
+    atomic_store_explicit(&s->busy_since_ns, 0, memory_order_relaxed);
     atomic_store(&s->armed, 0);
     return NULL;
 }
 
+/* ---- the supervisor thread ---- */
+
+/* The loop thread's scheduling state from /proc/self/task/TID/stat: 'R' running or runnable,
+ * 'S' or 'D' waiting (inside a blocking call), ...; '?' when it cannot be read. */
+static char thread_state(int tid) {
+    char path[64], buf[512];
+    snprintf(path, sizeof path, "/proc/self/task/%d/stat", tid);
+    int fd = open(path, O_RDONLY | O_CLOEXEC);
+    if (fd < 0) return '?';
+    ssize_t n = read(fd, buf, sizeof buf - 1);
+    close(fd);
+    if (n <= 0) return '?';
+    buf[n] = '\0';
+    const char *close_paren = strrchr(buf, ')'); /* the name may hold spaces and parentheses */
+    return close_paren && close_paren[1] == ' ' && close_paren[2] ? close_paren[2] : '?';
+}
+
+static int64_t thread_cpu_ns(clockid_t cid) {
+    struct timespec ts;
+    if (clock_gettime(cid, &ts)) return -1;
+    return (int64_t)ts.tv_sec * 1000000000 + ts.tv_nsec;
+}
+
+/* Watches the loop from outside: when one sample has run longer than its sample period plus
+ * server.stall_margin_s (a plug-in blocked in read or write, or spinning in them), it drives
+ * the device's safe state itself, latches the watchdog fault naming the stall, and tells the
+ * operator (through the network thread). Checks every fifth of the margin (at most 5 ms), so a
+ * blocked loop's safe state follows the missed deadline within 1.2 margins. A loop thread that
+ * is runnable but not running (preempted on a loaded machine without real-time priority) is not
+ * stuck in the device: it is given time (its samples are late, and counted so), unless it also
+ * uses the CPU for a whole margin (a device spinning) or stays behind by a second more. The
+ * loop's lateness between samples is never a stall: those samples are counted late. */
+static void *supervisor_main(void *arg) {
+    rths_server *s = arg;
+    const int64_t margin = (int64_t)(s->opt.stall_margin_s * 1e9);
+    const int64_t allowed = s->period_ns + margin;
+    int64_t poll_ns = margin / 5;
+    if (poll_ns > 5000000) poll_ns = 5000000;
+    if (poll_ns < 100000) poll_ns = 100000;
+    clockid_t cpu_clock;
+    int have_cpu_clock = !pthread_getcpuclockid(s->loop_thread, &cpu_clock);
+    int64_t watched_since = 0, watch_start = 0, cpu_at_start = 0;
+    while (!atomic_load(&s->supervisor_stop)) {
+        struct timespec ts = {0, (long)poll_ns};
+        nanosleep(&ts, NULL);
+        if (atomic_load_explicit(&s->stalled_ns, memory_order_relaxed)) continue;
+        int64_t since = atomic_load_explicit(&s->busy_since_ns, memory_order_relaxed);
+        int64_t now = mono_ns(), ran = since ? now - since : 0;
+        if (ran <= allowed) continue;
+        if (thread_state(atomic_load(&s->loop_tid)) == 'R' && have_cpu_clock) {
+            /* running or preempted: stuck only if it spins (CPU for half the time watched) */
+            int64_t cpu = thread_cpu_ns(cpu_clock);
+            if (watched_since != since) {
+                watched_since = since, watch_start = now, cpu_at_start = cpu;
+                continue;
+            }
+            int spinning = now - watch_start >= margin && cpu >= 0 &&
+                           2 * (cpu - cpu_at_start) >= now - watch_start;
+            if (!spinning && ran <= allowed + 1000000000) continue;
+        }
+        rths_engine_safe_state(s->engine);
+        rths_fault_detail why = {.fault = RTHS_RIG_FAULT_WATCHDOG,
+                                 .cause = RTHS_FAULT_CAUSE_LOOP_STALLED,
+                                 .value = (double)ran * 1e-9,
+                                 .limit = (double)allowed * 1e-9};
+        /* the loop thread is stuck and publishes nothing: the supervisor does, once */
+        publish_fault_detail(s, &why);
+        if (atomic_load(&s->armed)) atomic_store(&s->last_disarm, RTHS_DISARM_FAULT);
+        atomic_store(&s->fault, RTHS_RIG_FAULT_WATCHDOG);
+        atomic_store(&s->armed, 0);
+        atomic_store_explicit(&s->stalled_ns, ran, memory_order_release);
+    }
+    return NULL;
+}
+
 /* ---- the network thread ---- */
+
+static void fault_text(rths_server *s, int fault, char *out, size_t cap);
 
 static double ctl_time(rths_server *s) {
     return bitsd(atomic_load_explicit(&s->time_bits, memory_order_relaxed));
@@ -448,6 +594,7 @@ static int flush_tx(rths_server *s) {
 /* Posts a command and waits (a few samples) for the loop to apply it. */
 static int run_cmd(rths_server *s, loop_cmd *cmd, double *applied_time) {
     cmd->id = ++s->next_cmd_id;
+    if (atomic_load(&s->stalled_ns)) return RTHS_PROTO_ESTATE; /* a stuck loop applies nothing */
     int64_t give_up = mono_ns() + 2000000000;
     while (!rths_spsc_push(&s->cmds, cmd)) {
         if (mono_ns() > give_up) return RTHS_PROTO_ESTATE;
@@ -486,6 +633,7 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
             bin++;
         st->latency_hist[bin] += atomic_load_explicit(&s->lat_hist[i], memory_order_relaxed);
     }
+    fault_text(s, st->fault, st->fault_detail, sizeof st->fault_detail);
     st->demand_v.n = s->info.interface_dofs;
     for (int d = 0; d < s->info.interface_dofs; d++)
         st->demand_v.v[d] = bitsd(atomic_load_explicit(&s->demand_bits[d], memory_order_relaxed));
@@ -494,6 +642,18 @@ static void fill_status(rths_server *s, rths_proto_status_msg *st) {
 /* The shared names (signals.h), with "no" for none as the controller page's API has it. */
 static const char *fault_name(int f) {
     return f == RTHS_RIG_OK ? "no" : rths_rig_fault_name((rths_rig_fault)f);
+}
+
+/* The latched fault's text naming the channel, the value and the limit (empty without one). */
+static void fault_text(rths_server *s, int fault, char *out, size_t cap) {
+    out[0] = '\0';
+    if (!fault) return;
+    rths_fault_detail d = {.fault = fault};
+    d.cause = atomic_load_explicit(&s->fault_cause, memory_order_acquire);
+    d.channel = atomic_load_explicit(&s->fault_channel, memory_order_relaxed);
+    d.value = bitsd(atomic_load_explicit(&s->fault_value_bits, memory_order_relaxed));
+    d.limit = bitsd(atomic_load_explicit(&s->fault_limit_bits, memory_order_relaxed));
+    rths_fault_detail_format(&d, out, cap);
 }
 
 static void reply_ack(rths_server *s, const rths_msg *req, double t) {
@@ -524,7 +684,11 @@ static void handle_hello(rths_server *s, const rths_msg *m) {
     r.u.hello_reply.noise_level_m = s->info.noise_level_m;
     snprintf(r.u.hello_reply.name, sizeof r.u.hello_reply.name, "%s", s->info.description);
     queue_frame(s, &r, 1);
-    notice(s, "client %s says hello (%s)", c->peer, m->u.hello.name);
+    /* the client names itself: shown to the operator only as printable text (a newline would
+     * forge a console line, an escape reach the terminal) */
+    char name[64 + 4];
+    rths_proto_printable(m->u.hello.name, 64, name, sizeof name);
+    notice(s, "client %s says hello (%s)", c->peer, name);
 }
 
 /* SET_FORCING and SET_TARGET within the configured limits, else ERROR 10 naming the keys; an
@@ -637,8 +801,11 @@ static void handle(rths_server *s, const rths_msg *m) {
     case RTHS_MSG_ARM:
         cmd.type = CMD_ARM;
         if ((rc = run_cmd(s, &cmd, &t))) {
-            snprintf(msg, sizeof msg, "cannot arm: %s fault latched; send RESET_FAULT first",
-                     fault_name(atomic_load(&s->fault)));
+            char why[RTHS_PROTO_MAX_TEXT + 1];
+            fault_text(s, atomic_load(&s->fault), why, sizeof why);
+            snprintf(msg, sizeof msg, "cannot arm: fault latched (%.120s); %s", why,
+                     atomic_load(&s->stalled_ns) ? "restart the controller"
+                                                 : "send RESET_FAULT first");
             send_error(s, m->seq, rc, m->type, msg);
             return;
         }
@@ -847,11 +1014,20 @@ static void announce(rths_server *s) {
     int armed = atomic_load(&s->armed), fault = atomic_load(&s->fault);
     if (s->opt.quiet || (armed == s->note_armed && fault == s->note_fault)) return;
     double ramp = s->info.ramp_time_s;
-    if (fault && fault != s->note_fault)
-        fprintf(stderr,
-                "rths controller: t = %.3f s: %s fault latched; demand, forcing and target ramp "
-                "to zero over %g s (RESET_FAULT, then ARM, to resume)\n",
-                ctl_time(s), fault_name(fault), ramp);
+    if (fault && fault != s->note_fault) {
+        char why[RTHS_PROTO_MAX_TEXT + 1];
+        fault_text(s, fault, why, sizeof why);
+        if (atomic_load(&s->stalled_ns))
+            fprintf(stderr,
+                    "rths controller: t = %.3f s: fault latched: %s; the loop does not resume "
+                    "(restart the controller)\n",
+                    ctl_time(s), why);
+        else
+            fprintf(stderr,
+                    "rths controller: t = %.3f s: fault latched: %s; demand, forcing and target "
+                    "ramp to zero over %g s (RESET_FAULT, then ARM, to resume)\n",
+                    ctl_time(s), why, ramp);
+    }
     if (armed && !s->note_armed)
         fprintf(stderr, "rths controller: t = %.3f s: armed by %s\n", ctl_time(s), s->c.peer);
     if (!armed && s->note_armed)
@@ -979,6 +1155,38 @@ double rths_server_ramp_time_s(const rths_server *s) {
     return s->info.ramp_time_s;
 }
 
+/* What the real-time set-up asked for and what it got, one plain line each (stderr). */
+static void report_realtime(rths_server *s, int mlocked, const char *mlock_why) {
+    int f = atomic_load(&s->rt_flags);
+    if (!s->opt.realtime) {
+        fprintf(stderr, "rths controller: notice: real-time features off (server.realtime: "
+                        "false); loop timing is best effort\n");
+        return;
+    }
+    if (f & RTHS_STATUS_RT_FIFO)
+        fprintf(stderr, "rths controller: real time: SCHED_FIFO priority %d granted\n",
+                s->opt.priority);
+    else
+        fprintf(stderr,
+                "rths controller: real time: SCHED_FIFO priority %d NOT granted (%s); the loop "
+                "runs at normal priority, timing best effort (needs CAP_SYS_NICE or an rtprio "
+                "limit, e.g. ulimit -r 99)\n",
+                s->opt.priority, strerror(atomic_load(&s->rt_fifo_errno)));
+    if (mlocked)
+        fprintf(stderr, "rths controller: real time: memory locked (mlockall) granted\n");
+    else
+        fprintf(stderr,
+                "rths controller: real time: memory locking NOT granted (%s); page faults may "
+                "delay the loop (needs CAP_IPC_LOCK or ulimit -l unlimited)\n",
+                mlock_why);
+    if (f & RTHS_STATUS_RT_PINNED)
+        fprintf(stderr, "rths controller: real time: loop thread pinned to CPU %d granted\n",
+                atomic_load(&s->rt_cpu));
+    else
+        fprintf(stderr, "rths controller: real time: pinning to CPU %d NOT granted (%s)\n",
+                atomic_load(&s->rt_cpu), strerror(atomic_load(&s->rt_pin_errno)));
+}
+
 int rths_server_start(rths_server *s, rths_error *err) {
     if (s->loop_started) return RTHS_OK;
     int mlocked = 0;
@@ -995,6 +1203,11 @@ int rths_server_start(rths_server *s, rths_error *err) {
     }
     if (mlocked) atomic_fetch_or(&s->rt_flags, RTHS_STATUS_RT_MLOCK);
     atomic_store(&s->last_rx_ns, mono_ns());
+    /* the plug-in's hardware watchdog, when it has one: armed before the loop kicks it */
+    rths_error werr;
+    rths_error_clear(&werr);
+    s->hw_watchdog = !rths_engine_watchdog_arm(s->engine, s->opt.hardware_watchdog_s, &werr);
+    snprintf(s->hw_watchdog_why, sizeof s->hw_watchdog_why, "%.150s", werr.msg);
     int e = pthread_create(&s->loop_thread, NULL, loop_main, s);
     if (e) return rths_error_set(err, RTHS_EFAIL, "cannot start the loop thread: %s", strerror(e));
     s->loop_started = 1;
@@ -1002,30 +1215,27 @@ int rths_server_start(rths_server *s, rths_error *err) {
         struct timespec ts = {0, 100000};
         nanosleep(&ts, NULL);
     }
+    if ((e = pthread_create(&s->supervisor_thread, NULL, supervisor_main, s))) {
+        rths_server_stop(s);
+        return rths_error_set(err, RTHS_EFAIL, "cannot start the supervisor thread: %s",
+                              strerror(e));
+    }
+    s->supervisor_started = 1;
     if ((e = pthread_create(&s->net_thread, NULL, net_main, s))) {
         rths_server_stop(s);
         return rths_error_set(err, RTHS_EFAIL, "cannot start the network thread: %s", strerror(e));
     }
     s->net_started = 1;
     if (!s->opt.quiet) {
-        int f = atomic_load(&s->rt_flags);
-        if (!s->opt.realtime)
-            fprintf(stderr, "rths controller: notice: real-time features off (server.realtime: "
-                            "false); loop timing is best effort\n");
-        else {
-            if (!(f & RTHS_STATUS_RT_FIFO))
-                fprintf(stderr,
-                        "rths controller: notice: SCHED_FIFO priority %d not permitted; "
-                        "the loop runs at normal priority (timing best effort)\n",
-                        s->opt.priority);
-            if (!mlocked)
-                fprintf(stderr,
-                        "rths controller: notice: memory not locked (%s); page faults "
-                        "may delay the loop\n",
-                        mlock_why);
-            if (!(f & RTHS_STATUS_RT_PINNED))
-                fprintf(stderr, "rths controller: notice: loop thread not pinned to a CPU\n");
-        }
+        report_realtime(s, mlocked, mlock_why);
+        if (s->hw_watchdog)
+            fprintf(stderr,
+                    "rths controller: hardware watchdog armed: the device goes to its safe state "
+                    "by itself %g s after the loop's last kick\n",
+                    s->opt.hardware_watchdog_s);
+        else
+            fprintf(stderr, "rths controller: notice: no hardware watchdog: %s\n",
+                    s->hw_watchdog_why);
     }
     return RTHS_OK;
 }
@@ -1034,16 +1244,45 @@ void rths_server_stop(rths_server *s) {
     if (!s) return;
     atomic_store(&s->stop, 1);
     if (s->net_started) pthread_join(s->net_thread, NULL);
-    if (s->loop_started) pthread_join(s->loop_thread, NULL);
-    s->net_started = s->loop_started = 0;
-    if (atomic_load(&s->rt_flags) & RTHS_STATUS_RT_MLOCK) munlockall();
+    if (s->loop_started) {
+        /* The loop ramps down and ends by itself; a loop stuck in the device never does. Once the
+         * supervisor has found it stalled (and driven the safe state) the thread is abandoned:
+         * the process can still stop, on SIGTERM too. */
+        while (pthread_tryjoin_np(s->loop_thread, NULL) == EBUSY) {
+            if (atomic_load(&s->stalled_ns) && !s->loop_abandoned) {
+                s->loop_abandoned = 1;
+                break;
+            }
+            struct timespec ts = {0, 1000000};
+            nanosleep(&ts, NULL);
+        }
+    }
+    atomic_store(&s->supervisor_stop, 1);
+    if (s->supervisor_started) pthread_join(s->supervisor_thread, NULL);
+    s->net_started = s->loop_started = s->supervisor_started = 0;
+    if (!s->loop_abandoned && (atomic_load(&s->rt_flags) & RTHS_STATUS_RT_MLOCK)) munlockall();
 }
+
+int rths_server_loop_stalled(rths_server *s, double *ran_s) {
+    int64_t ran = atomic_load(&s->stalled_ns);
+    if (ran_s) *ran_s = (double)ran * 1e-9;
+    return ran != 0;
+}
+
+/* A server whose loop thread was abandoned (stuck in the device), kept reachable until exit. */
+static rths_server *abandoned;
 
 void rths_server_destroy(rths_server *s) {
     if (!s) return;
     rths_server_stop(s);
     if (s->c.fd >= 0) close(s->c.fd);
     if (s->listen_fd >= 0) close(s->listen_fd);
+    /* an abandoned loop thread may still return into the engine and the rings: they stay (the
+     * process is ending; closing the device under a thread inside it is not safe) */
+    if (s->loop_abandoned) {
+        abandoned = s; /* still referenced: what the stuck thread may touch is not a leak */
+        return;
+    }
     rths_engine_destroy(s->engine);
     free(s->c.tx);
     free(s->lat_hist);
@@ -1141,4 +1380,73 @@ const char *rths_server_fault_name(int fault) {
 
 const char *rths_server_disarm_reason_name(int reason) {
     return disarm_reason_name(reason);
+}
+
+/* ---- the latency test (rths controller --latency-test) ---- */
+
+typedef struct {
+    rths_server *s;
+    uint64_t samples;
+} latency_run;
+
+static void *latency_main(void *arg) {
+    latency_run *run = arg;
+    rths_server *s = run->s;
+    rt_setup(s);
+    struct timespec next;
+    clock_gettime(CLOCK_MONOTONIC, &next);
+    for (uint64_t k = 0; k < run->samples; k++) {
+        int overrun;
+        wait_next_sample(s, &next, &overrun);
+        add64(&s->samples, 1);
+    }
+    return NULL;
+}
+
+int rths_server_latency_test(const rths_server_options *opt, double rate_hz, double seconds,
+                             rths_server_stats *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    if (!(rate_hz >= 1 && rate_hz <= 1e6) || !(seconds > 0 && seconds <= 1e6))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "latency test: %g Hz for %g s; the rate must be in [1, 1e6] Hz and "
+                              "the duration in (0, 1e6] s",
+                              rate_hz, seconds);
+    /* a server with only what the pacing touches: options, histograms, counters */
+    rths_server *s = calloc(1, sizeof *s);
+    if (!s) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    s->opt = *opt;
+    s->period_ns = (int64_t)llround(1e9 / rate_hz);
+    s->lat_hist = calloc(LAT_BINS + 1, sizeof *s->lat_hist);
+    s->step_hist = calloc(STEP_BINS + 1, sizeof *s->step_hist);
+    if (!s->lat_hist || !s->step_hist) {
+        free(s->lat_hist), free(s->step_hist), free(s);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    int mlocked = 0;
+    char mlock_why[160] = "";
+    if (s->opt.realtime) {
+#ifdef RTHS_ASAN
+        snprintf(mlock_why, sizeof mlock_why, "not with AddressSanitizer (its shadow memory)");
+#else
+        if (!mlockall(MCL_CURRENT | MCL_FUTURE))
+            mlocked = 1;
+        else
+            snprintf(mlock_why, sizeof mlock_why, "%s", strerror(errno));
+#endif
+    }
+    if (mlocked) atomic_fetch_or(&s->rt_flags, RTHS_STATUS_RT_MLOCK);
+    latency_run run = {s, (uint64_t)llround(seconds * rate_hz)};
+    pthread_t th;
+    int e = pthread_create(&th, NULL, latency_main, &run);
+    int rc = RTHS_OK;
+    if (e)
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot start the loop thread: %s", strerror(e));
+    else {
+        pthread_join(th, NULL);
+        if (!s->opt.quiet) report_realtime(s, mlocked, mlock_why);
+        rths_server_get_stats(s, out);
+    }
+    if (mlocked) munlockall();
+    free(s->lat_hist), free(s->step_hist), free(s);
+    return rc;
 }

@@ -42,7 +42,8 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     int rc = rths_setup_read(cfg, &e->setup, err);
     if (!rc) e->have_setup = 1;
     if (!rc) rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
-    /* protocol version 2 carries every interface DoF's target and records, up to its maximum */
+    /* the protocol (version 2 on) carries every interface DoF's target and records, up to its
+     * maximum */
     if (!rc && e->setup.split.n_int > RTHS_PROTO_MAX_DOFS)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "this split has %d interface DoFs; the controller link carries at "
@@ -65,9 +66,12 @@ int rths_engine_create(rths_config *cfg, rths_engine **out, rths_engine_info *in
     info->ramp_time_s = copt.ramp_time_s;
     info->min_frequency_hz = copt.min_frequency_hz;
     info->displacement_limit_m = copt.displacement_limit_m;
+    /* the plug-in's own words reach the host's console: printable text only */
+    char device_text[120 + 4];
+    rths_proto_printable(device->description, 120, device_text, sizeof device_text);
     snprintf(info->description, sizeof info->description,
-             "rths controller: %d DoF assembly, %d interface DoF(s), %.0f Hz; %.120s",
-             e->setup.assembly.n, info->interface_dofs, copt.sample_rate_hz, device->description);
+             "rths controller: %d DoF assembly, %d interface DoF(s), %.0f Hz; %s",
+             e->setup.assembly.n, info->interface_dofs, copt.sample_rate_hz, device_text);
     *out = e;
     return RTHS_OK;
 }
@@ -106,9 +110,33 @@ void rths_engine_disarm(rths_engine *e) {
     rths_controller_arm(e->ctl, 0);
 }
 
-void rths_engine_trip_watchdog(rths_engine *e) {
-    rths_controller_trip(e->ctl, RTHS_RIG_FAULT_WATCHDOG);
+void rths_engine_trip_watchdog(rths_engine *e, double silence_s, double watchdog_s) {
+    rths_fault_detail why = {.fault = RTHS_RIG_FAULT_WATCHDOG,
+                             .cause = RTHS_FAULT_CAUSE_HOST_SILENT,
+                             .value = silence_s,
+                             .limit = watchdog_s};
+    rths_engine_trip(e, &why);
+}
+
+void rths_engine_trip(rths_engine *e, const rths_fault_detail *detail) {
+    rths_controller_trip_detail(e->ctl, detail);
     rths_controller_arm(e->ctl, 0);
+}
+
+void rths_engine_fault_detail(const rths_engine *e, rths_fault_detail *out) {
+    rths_controller_fault_detail(e->ctl, out);
+}
+
+void rths_engine_mark_late(rths_engine *e) {
+    rths_sample_loop_mark_late(e->loop);
+}
+
+void rths_engine_safe_state(rths_engine *e) {
+    rths_sample_loop_safe_state(e->loop);
+}
+
+int rths_engine_watchdog_arm(rths_engine *e, double timeout_s, rths_error *err) {
+    return rths_sample_loop_watchdog_arm(e->loop, timeout_s, err);
 }
 
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n) {
@@ -165,6 +193,9 @@ int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
     e->last_end_s = p.end_time_s;
     e->have_last_end = 1;
     out->samples = (uint32_t)p.samples;
+    out->late_samples = (uint32_t)p.late_samples;
+    out->clipped_demand_samples = (uint32_t)p.clipped_demand_samples;
+    out->saturated_sensor_samples = (uint32_t)p.saturated_sensor_samples;
     copy_fourier(&p.phys, &out->phys);
     copy_fourier(&p.num, &out->num);
     copy_fourier(&p.force, &out->force);

@@ -6,6 +6,7 @@
 #define RTHS_SERVER_ENGINE_H
 
 #include "rths/config.h"
+#include "rths/controller.h"
 #include "rths/protocol.h"
 
 typedef struct rths_engine rths_engine;
@@ -31,8 +32,20 @@ void rths_engine_destroy(rths_engine *e);
 void rths_engine_step(rths_engine *e, rths_proto_trace_sample *sig);
 /* loop: 0 when armed, RTHS_PROTO_ESTATE when a latched fault forbids it. */
 int rths_engine_arm(rths_engine *e);
-void rths_engine_disarm(rths_engine *e);        /* loop: ramp excitation and target to zero */
-void rths_engine_trip_watchdog(rths_engine *e); /* loop: latch the watchdog fault + disarm */
+void rths_engine_disarm(rths_engine *e); /* loop: ramp excitation and target to zero */
+/* loop: latch the watchdog fault + disarm; silence_s and watchdog_s name it */
+void rths_engine_trip_watchdog(rths_engine *e, double silence_s, double watchdog_s);
+/* loop: latch the fault the supervisor found (a stalled loop) + disarm */
+void rths_engine_trip(rths_engine *e, const rths_fault_detail *detail);
+/* loop: what latched the fault (cause NONE without one) */
+void rths_engine_fault_detail(const rths_engine *e, rths_fault_detail *out);
+/* loop: the next step's sample started after its deadline (counted late in its period) */
+void rths_engine_mark_late(rths_engine *e);
+/* any thread: drives the device's safe state (the supervisor, while the loop may be stuck) */
+void rths_engine_safe_state(rths_engine *e);
+/* before the loop starts: arms the device's hardware watchdog (io.h); RTHS_EFAIL when it has
+ * none or refused, err says which */
+int rths_engine_watchdog_arm(rths_engine *e, double timeout_s, rths_error *err);
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
 /* loop: targets of every interface DoF, DoF d's coefficients at a[d * harmonics + k - 1] */
 void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,

@@ -69,6 +69,12 @@ struct rths_controller {
     double target_a[MAX_IFACE][RTHS_MAX_HARMONICS], target_b[MAX_IFACE][RTHS_MAX_HARMONICS];
     int feedback, armed;
     rths_rig_fault fault;
+    rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
+    int sensed_dof[RTHS_MAX_SENSED_DOFS]; /* assembly DoF (1-based) of each laser, sensor order */
+    int int_dof[MAX_IFACE];               /* assembly DoF (1-based) of each interface DoF */
+    /* the open period's integrity counts (rths_period): late, clipped-demand and
+       saturated-sensor samples, from rths_controller_count_sample */
+    int late_samples, clipped_demand_samples, saturated_sensor_samples;
     double ramp;        /* 0..1: scales demand, forcing and target */
     double ramp_step;   /* the ramp's change per sample, h / ramp_time_s (1 without a ramp) */
     double forcing_now; /* forcing amplitude of the last step (ramp included), N */
@@ -104,6 +110,9 @@ struct rths_controller {
     atomic_long dropped;
 };
 
+static void latch_detail(rths_controller *c, rths_rig_fault f, rths_fault_cause cause, int channel,
+                         double value, double limit);
+
 void rths_controller_defaults(rths_controller_options *opt) {
     opt->sample_rate_hz = 10000.0;
     opt->scheme = RTHS_SCHEME_DEFAULT;
@@ -126,6 +135,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->min_frequency_hz = 0.1;
     opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
+    opt->max_overrun_share = 0.0;
     opt->gain_matrix_rows = opt->gain_matrix_cols = 0;
     memset(opt->kp_matrix, 0, sizeof opt->kp_matrix);
     memset(opt->kd_matrix, 0, sizeof opt->kd_matrix);
@@ -398,6 +408,10 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         free(c);
         return rc;
     }
+    for (int i = 0; i < c->np && i < RTHS_MAX_SENSED_DOFS; i++)
+        c->sensed_dof[i] = 1 + (i < s->n_phys ? s->phys_dofs[i] : s->int_dofs[i - s->n_phys]);
+    for (int d = 0; d < c->ni; d++)
+        c->int_dof[d] = 1 + s->int_dofs[d];
     c->forcing_index = forcing_interface > 0 ? forcing_interface : 0;
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
@@ -482,10 +496,25 @@ rths_rig_fault rths_controller_fault(const rths_controller *c) {
     return c->fault;
 }
 void rths_controller_trip(rths_controller *c, rths_rig_fault fault) {
-    if (!c->fault) c->fault = fault;
+    latch_detail(c, fault, RTHS_FAULT_CAUSE_EXTERNAL, 0, 0, 0);
+}
+void rths_controller_trip_detail(rths_controller *c, const rths_fault_detail *detail) {
+    latch_detail(c, (rths_rig_fault)detail->fault, (rths_fault_cause)detail->cause, detail->channel,
+                 detail->value, detail->limit);
 }
 void rths_controller_reset_fault(rths_controller *c) {
     c->fault = RTHS_RIG_OK;
+    c->fault_detail = (rths_fault_detail){0};
+}
+void rths_controller_fault_detail(const rths_controller *c, rths_fault_detail *out) {
+    *out = c->fault_detail;
+}
+void rths_controller_count_sample(rths_controller *c, int late, int clipped_demand,
+                                  int saturated_sensor) {
+    if (!(c->omega > 0)) return; /* no period is open: nothing to count into */
+    c->late_samples += late != 0;
+    c->clipped_demand_samples += clipped_demand != 0;
+    c->saturated_sensor_samples += saturated_sensor != 0;
 }
 double rths_controller_time_s(const rths_controller *c) {
     return c->time_s;
@@ -529,6 +558,7 @@ static void clear_sums(rths_controller *c) {
     memset(c->acc_num, 0, sizeof c->acc_num);
     memset(c->acc_force, 0, sizeof c->acc_force);
     c->period_samples = 0;
+    c->late_samples = c->clipped_demand_samples = c->saturated_sensor_samples = 0;
     c->left_weight = 0; /* the point at theta opens the period */
 }
 
@@ -538,6 +568,13 @@ static void publish(rths_controller *c, double end_time) {
     p.frequency_hz = c->omega / (2 * M_PI);
     p.end_time_s = end_time;
     p.samples = c->period_samples;
+    /* at most the period's samples (a demand counted after the step that opened the period
+     * belongs to it, and is one of its samples) */
+    p.late_samples = c->late_samples < p.samples ? c->late_samples : p.samples;
+    p.clipped_demand_samples =
+        c->clipped_demand_samples < p.samples ? c->clipped_demand_samples : p.samples;
+    p.saturated_sensor_samples =
+        c->saturated_sensor_samples < p.samples ? c->saturated_sensor_samples : p.samples;
     p.interface_dofs = c->ni;
     for (int d = 0; d < c->ni; d++) {
         sums_to_fourier(&c->acc_phys[d], &p.phys_dof[d]);
@@ -584,8 +621,17 @@ static void clamp_target(const rths_controller *c, double *target, double *targe
     }
 }
 
-static void latch(rths_controller *c, rths_rig_fault f) {
-    if (!c->fault) c->fault = f;
+/* Latches fault f with what caused it (the first fault stays, with its own detail). */
+static void latch_detail(rths_controller *c, rths_rig_fault f, rths_fault_cause cause, int channel,
+                         double value, double limit) {
+    if (c->fault) return;
+    c->fault = f;
+    c->fault_detail = (rths_fault_detail){.fault = f,
+                                          .cause = cause,
+                                          .channel = channel,
+                                          .value = value,
+                                          .limit = limit,
+                                          .time_s = c->time_s};
 }
 
 /* ramp: up to 1 while armed and healthy, down to 0 otherwise */
@@ -629,21 +675,35 @@ static void read_sensors(rths_controller *c, const rths_sensor_sample *in, measu
                     : d == 0 ? in->interface_acceleration_m_s2
                              : NAN;
         m->f_lc[d] = arrays ? in->interface_force_dof_n[d] : d == 0 ? in->interface_force_n : NAN;
+        /* the first non-finite reading names the fault (the laser's below) */
+        if (!isfinite(m->acc[d]))
+            latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_ACCELEROMETER,
+                         d + 1, m->acc[d], 0);
+        if (!isfinite(m->f_lc[d]))
+            latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_LOAD_CELL, d + 1,
+                         m->f_lc[d], 0);
         finite &= isfinite(m->x[d]) && isfinite(m->acc[d]) && isfinite(m->f_lc[d]);
     }
     for (int i = 0; i < in->n && i < RTHS_MAX_SENSED_DOFS; i++) {
-        finite &= isfinite(in->displacement_m[i]);
-        if (fabs(in->displacement_m[i]) > c->opt.displacement_limit_m)
-            latch(c, RTHS_RIG_FAULT_DISPLACEMENT);
+        const double x = in->displacement_m[i];
+        if (!isfinite(x))
+            latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_LASER,
+                         c->sensed_dof[i], x, 0);
+        finite &= isfinite(x);
+        if (fabs(x) > c->opt.displacement_limit_m)
+            latch_detail(c, RTHS_RIG_FAULT_DISPLACEMENT, RTHS_FAULT_CAUSE_DISPLACEMENT_LIMIT,
+                         c->sensed_dof[i], x, c->opt.displacement_limit_m);
     }
     if (!finite) {
-        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_LASER, 0, NAN, 0);
         memset(m, 0, sizeof *m);
         c->ramp = 0;
     }
     /* the force limit is each load cell's */
     for (int d = 0; d < c->ni; d++)
-        if (fabs(m->f_lc[d]) > c->opt.force_limit_n) latch(c, RTHS_RIG_FAULT_FORCE);
+        if (fabs(m->f_lc[d]) > c->opt.force_limit_n)
+            latch_detail(c, RTHS_RIG_FAULT_FORCE, RTHS_FAULT_CAUSE_FORCE_LIMIT, d + 1, m->f_lc[d],
+                         c->opt.force_limit_n);
     if (c->transformed) {
         measured raw = *m;
         untransform(c, &raw, m);
@@ -697,14 +757,16 @@ static void advance_numerical(rths_controller *c, const double *u, double *xi, d
         c->z[i] = next[i];
     for (int j = 0; j < n_in; j++)
         c->u_prev[j] = u[j];
-    int finite = 1;
+    int finite = 1, first_bad = 0;
     for (int d = 0; d < c->ni; d++) {
         xi[d] = c->z[d];
         xi_dot[d] = c->z[c->nn + d];
+        if (finite && !isfinite(xi[d])) first_bad = d;
         finite &= isfinite(xi[d]);
     }
     if (!finite) {
-        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_NUMERICAL,
+                     c->int_dof[first_bad], xi[first_bad], 0);
         memset(c->z, 0, sizeof c->z);
         memset(c->u_prev, 0, sizeof c->u_prev);
         for (int d = 0; d < c->ni; d++)
@@ -738,20 +800,23 @@ static void control_target(const rths_controller *c, int d, const harmonic_table
     *target_dot = t_dot;
 }
 
-/* A demand against the limits: non-finite or beyond demand_v latches; after a trip it ramps to
- * zero. */
-static double limited_demand(rths_controller *c, double demand) {
+/* Actuator a's demand against the limits: non-finite or beyond demand_v latches; after a trip
+ * it ramps to zero. */
+static double limited_demand(rths_controller *c, int a, double demand) {
     if (!isfinite(demand)) {
-        latch(c, RTHS_RIG_FAULT_NONFINITE);
+        latch_detail(c, RTHS_RIG_FAULT_NONFINITE, RTHS_FAULT_CAUSE_NONFINITE_DEMAND, a + 1, demand,
+                     0);
         demand = 0;
     }
-    if (fabs(demand) > c->opt.demand_limit_v) latch(c, RTHS_RIG_FAULT_DEMAND);
+    if (fabs(demand) > c->opt.demand_limit_v)
+        latch_detail(c, RTHS_RIG_FAULT_DEMAND, RTHS_FAULT_CAUSE_DEMAND_LIMIT, a + 1, demand,
+                     c->opt.demand_limit_v);
     if (c->fault) demand *= c->ramp; /* ramps to zero after a trip, then holds zero */
     return demand;
 }
 
 static double pd_demand(rths_controller *c, int d, double target, double target_dot, double x) {
-    return limited_demand(c, c->kp[d] * (target - x) + c->kd[d] * (target_dot - c->v_est[d]));
+    return limited_demand(c, d, c->kp[d] * (target - x) + c->kd[d] * (target_dot - c->v_est[d]));
 }
 
 /* The actuators' demands from every interface DoF's error through the gain matrices. */
@@ -766,7 +831,7 @@ static void transformed_demands(rths_controller *c, const double *target, const 
         double demand = 0;
         for (int d = 0; d < c->ni; d++)
             demand += c->gp[a + d * MAX_IFACE] * e[d] + c->gd[a + d * MAX_IFACE] * e_dot[d];
-        c->demand[a] = limited_demand(c, demand);
+        c->demand[a] = limited_demand(c, a, demand);
     }
 }
 

@@ -5,13 +5,25 @@
 #include "rths/io.h"
 
 #include <math.h>
+#include <stdatomic.h>
 #include <stdio.h>
 #include <stdlib.h>
 
 typedef struct {
     rths_plant *plant; /* first: rths_io_virtual_plant reads it through the device pointer */
-    int safe;          /* safe state: the demand written is ignored, zero is applied */
+    /* safe state: the demand written is ignored, zero is applied. Atomic: the controller
+     * process's supervisor may set it while the loop thread is inside write. */
+    atomic_int safe;
+    int force_clip;          /* the actuator clips its force command (rig.actuator.limits) */
+    long force_clipped_seen; /* the plant's count of clipped samples at the last write */
+    unsigned flags;          /* this sample's RTHS_IO_SAMPLE_* from the plant's own limits */
 } virtual_device;
+
+/* An ADC's full scale in engineering units, as plant.c's converter clips: +-range_v volts times
+ * units_per_v; none without a converter (bits 0: the reading is continuous, never clipped). */
+static double adc_full_scale(const rths_adc_spec *adc) {
+    return adc->bits > 0 ? adc->range_v * adc->units_per_v : 0.0;
+}
 
 static uint32_t virtual_abi_version(void) {
     return RTHS_IO_ABI_VERSION;
@@ -31,6 +43,12 @@ static int device_create(const rths_setup *setup, const rths_plant_options *popt
              popt->noise ? "on" : "off");
     info->displacement_noise_m = rths_plant_noise_level_m(d->plant);
     info->applies_internal_forcing = 1; /* rths_plant_set_forcing, in continuous time */
+    /* the converters' ranges, so the seam counts saturated readings and clipped demands */
+    info->displacement_full_scale_m = adc_full_scale(&popt->laser_adc);
+    info->acceleration_full_scale_m_s2 = adc_full_scale(&popt->accelerometer_adc);
+    info->force_full_scale_n = adc_full_scale(&popt->load_cell_adc);
+    info->demand_full_scale_v = popt->actuator.dac_bits > 0 ? popt->actuator.dac_range_v : 0.0;
+    d->force_clip = popt->actuator.force_clip && popt->actuator.force_limit_n > 0;
     *device = d;
     return RTHS_OK;
 }
@@ -76,16 +94,30 @@ static void virtual_write(void *device, const rths_io_demand *demand) {
     rths_plant_set_forcing(d->plant, demand->forcing_amplitude_n, demand->forcing_theta_rad,
                            demand->forcing_omega_rad_s);
     double safe[RTHS_MAX_INTERFACE_DOFS] = {0};
+    const int is_safe = atomic_load_explicit(&d->safe, memory_order_relaxed);
     if (demand->n_demands > 1)
-        rths_plant_advance_dofs(d->plant, d->safe ? safe : demand->demand_dof_v);
+        rths_plant_advance_dofs(d->plant, is_safe ? safe : demand->demand_dof_v);
     else
-        rths_plant_advance(d->plant, d->safe ? 0.0 : demand->demand_v);
+        rths_plant_advance(d->plant, is_safe ? 0.0 : demand->demand_v);
+    /* the actuator's force clip (rig.actuator.limits.force_action: clip) is a clamped command */
+    d->flags = 0;
+    if (d->force_clip) {
+        rths_actuator_status st;
+        rths_plant_actuator_status(d->plant, &st);
+        if (st.force_clipped_samples != d->force_clipped_seen)
+            d->flags |= RTHS_IO_SAMPLE_DEMAND_CLIPPED;
+        d->force_clipped_seen = st.force_clipped_samples;
+    }
+}
+
+static unsigned virtual_sample_flags(void *device) {
+    return ((virtual_device *)device)->flags;
 }
 
 /* The simulated actuator's safe state: no demand from now on (what a lab's amplifier-off does);
  * the structure keeps moving freely. Cleared by nothing: a stopped loop does not restart. */
 static void virtual_safe_state(void *device) {
-    ((virtual_device *)device)->safe = 1;
+    atomic_store_explicit(&((virtual_device *)device)->safe, 1, memory_order_relaxed);
 }
 
 const rths_io_plugin rths_io_virtual_plugin = {
@@ -95,6 +127,7 @@ const rths_io_plugin rths_io_virtual_plugin = {
     .read = virtual_read,
     .write = virtual_write,
     .safe_state = virtual_safe_state,
+    .sample_flags = virtual_sample_flags,
 };
 
 int rths_io_open_virtual(const rths_setup *setup, const rths_plant_options *popt,

@@ -132,6 +132,9 @@ int rths_io_plugin_open(const rths_io_open_args *args, void **device, rths_io_de
              path, comedi_get_board_name(d->card), d->n);
     info->displacement_noise_m = noise;
     info->applies_internal_forcing = 0; /* one actuator: a forcing must be on the numerical side */
+    /* ABI 2: the output range, so the controller counts the demands comedi_from_phys clips (the
+     * inputs need no full scale: a reading at a range's end is NaN, above) */
+    info->demand_full_scale_v = d->demand.range->max;
     *device = d;
     rths_io_plugin_safe_state(d);
     return RTHS_OK;

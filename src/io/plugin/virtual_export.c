@@ -21,3 +21,6 @@ void rths_io_plugin_write(void *device, const rths_io_demand *demand) {
 void rths_io_plugin_safe_state(void *device) {
     rths_io_virtual_plugin.safe_state(device);
 }
+unsigned rths_io_plugin_sample_flags(void *device) {
+    return rths_io_virtual_plugin.sample_flags(device);
+}
