@@ -16,12 +16,23 @@
 /* Entries beyond this magnitude (kg, N s/m, N/m) are no structure, and K - w^2 M would overflow
  * (a 1e308 kg storey gave NaN rows). */
 #define MAX_ENTRY 1e15
+/* The smallest storey mass and leg stiffness taken (kg, N/m): below them a chain is no lab's
+ * structure, and its modes leave every range the analysis resolves (a 1e-300 kg storey had a mode
+ * at 5e151 Hz and NaN in the outputs). */
+#define MIN_STOREY_MASS_KG 1e-6
+#define MIN_STOREY_STIFFNESS_N_PER_M 1e-6
+/* The smallest diagonal entry of a given mass matrix: kg on a displacement, kg m^2 on a rotation
+ * (a millimetre beam element's rotary inertia is ~1e-10 kg m^2). */
+#define MIN_DIAGONAL_MASS 1e-12
 
 static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_STOREYS ".mass_kg", K_STOREYS ".damping_n_s_per_m",
                                         K_STOREYS ".stiffness_n_per_m"};
-    /* damping may be zero (an undamped leg); mass and stiffness must be positive */
+    /* damping may be zero (an undamped leg); mass and stiffness must be positive, and above a
+     * floor a lab's structure is far from */
     static const int must_be_positive[3] = {1, 0, 1};
+    static const double floor_of[3] = {MIN_STOREY_MASS_KG, 0, MIN_STOREY_STIFFNESS_N_PER_M};
+    static const char *const unit_of[3] = {"kg", "N s/m", "N/m"};
     double *v[3] = {NULL, NULL, NULL};
     int count[3] = {0, 0, 0};
     int rc = RTHS_OK;
@@ -35,10 +46,14 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
         else if (count[k] < 1)
             rc = rths_config_error_at(cfg, keys[k], err, "needs at least one storey");
         for (int i = 0; i < count[k] && !rc; i++) {
-            if ((must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0)) || !(v[k][i] <= MAX_ENTRY))
+            if ((must_be_positive[k] ? !(v[k][i] >= floor_of[k]) : !(v[k][i] >= 0)) ||
+                !(v[k][i] <= MAX_ENTRY)) {
+                char lower[32];
+                snprintf(lower, sizeof lower, must_be_positive[k] ? ">= %g" : ">= 0", floor_of[k]);
                 rc = rths_config_error_at(cfg, keys[k], err,
-                                          "storey %d: must be %s and <= %g (got %g)", i + 1,
-                                          must_be_positive[k] ? "> 0" : ">= 0", MAX_ENTRY, v[k][i]);
+                                          "storey %d: must be %s %s and <= %g %s (got %g)", i + 1,
+                                          lower, unit_of[k], MAX_ENTRY, unit_of[k], v[k][i]);
+            }
         }
     }
     if (!rc) rc = rths_assembly_from_chain(count[0], v[0], v[1], v[2], &s->assembly, err);
@@ -95,6 +110,13 @@ static int check_physical(rths_config *cfg, const char *const *keys, double *con
         if (!rths_mat_is_symmetric(m[k], n, 1e-12))
             return rths_config_error_at(cfg, keys[k], err, "must be symmetric");
     }
+    for (int i = 0; i < n; i++)
+        if (!(RTHS_AT(m[0], n, i, i) >= MIN_DIAGONAL_MASS))
+            return rths_config_error_at(cfg, keys[0], err,
+                                        "diagonal entry (%d, %d) = %g is below %g (kg, or kg m^2 "
+                                        "on a rotation): no lab's structure is that light, and "
+                                        "its modes would leave every frequency range analysed",
+                                        i + 1, i + 1, RTHS_AT(m[0], n, i, i), MIN_DIAGONAL_MASS);
     if (!rths_mat_is_spd(m[0], n))
         return rths_config_error_at(cfg, keys[0], err,
                                     "must be positive definite (a mass matrix with a zero or "
