@@ -186,13 +186,13 @@ static void test_physical_sense(void **state) {
     (void)state;
     const char *seed = "examples/four_storey.yaml", *mtx = "tests/data/mtx/seed_matrices.yaml";
     expect_refused(seed, "structure.storeys.mass_kg=[5.37, 5.37, 1e308, 10.74]",
-                   "storey 3: must be >= 1e-06 kg and <= 1e+15 kg (got 1e+308)");
+                   "storey 3: must be > 0 and <= 1e+15 kg, at least 1e-06 kg (got 1e+308)");
     /* lower bounds: a 1e-300 kg storey had a mode at 5e151 Hz and NaN output with exit 0 */
     expect_refused(seed, "structure.storeys.mass_kg=[1e-300, 5.37, 5.37, 10.74]",
-                   "key 'structure.storeys.mass_kg': storey 1: must be >= 1e-06 kg and <= 1e+15 kg "
-                   "(got 1e-300)");
+                   "key 'structure.storeys.mass_kg': storey 1: must be > 0 and <= 1e+15 kg, at "
+                   "least 1e-06 kg (got 1e-300)");
     expect_refused(seed, "structure.storeys.stiffness_n_per_m=[45052, 1e-300, 45052, 45052]",
-                   "storey 2: must be >= 1e-06 N/m and <= 1e+15 N/m (got 1e-300)");
+                   "storey 2: must be > 0 and <= 1e+15 N/m, at least 1e-06 N/m (got 1e-300)");
     expect_refused(mtx,
                    "structure.matrices.mass_kg=[[1, 0, 0, 0], [0, 1e-300, 0, 0], [0, 0, 1, 0], "
                    "[0, 0, 0, 1]]",

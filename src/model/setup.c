@@ -48,11 +48,14 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
         for (int i = 0; i < count[k] && !rc; i++) {
             if ((must_be_positive[k] ? !(v[k][i] >= floor_of[k]) : !(v[k][i] >= 0)) ||
                 !(v[k][i] <= MAX_ENTRY)) {
-                char lower[32];
-                snprintf(lower, sizeof lower, must_be_positive[k] ? ">= %g" : ">= 0", floor_of[k]);
+                char floor_text[48] = "";
+                if (must_be_positive[k])
+                    snprintf(floor_text, sizeof floor_text, ", at least %g %s", floor_of[k],
+                             unit_of[k]);
                 rc = rths_config_error_at(cfg, keys[k], err,
-                                          "storey %d: must be %s %s and <= %g %s (got %g)", i + 1,
-                                          lower, unit_of[k], MAX_ENTRY, unit_of[k], v[k][i]);
+                                          "storey %d: must be %s and <= %g %s%s (got %g)", i + 1,
+                                          must_be_positive[k] ? "> 0" : ">= 0", MAX_ENTRY,
+                                          unit_of[k], floor_text, v[k][i]);
             }
         }
     }
