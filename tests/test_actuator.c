@@ -412,6 +412,37 @@ static void test_actuator_config(void **state) {
     assert_int_equal(po.actuator.displacement_output, 1);
     assert_close(po.actuator.connection_stiffness_n_per_m, 2e6, 0);
     rths_config_free(cfg);
+    /* the velocity path as a polynomial (issue 23.2), highest power first */
+    const char *poly[] = {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1.65e7]",
+                          "rig.actuator.denominator=[1, 455, 112750, 3e6]",
+                          "rig.actuator.velocity_feedback=[4e4, 1.7e7, 4e9]"};
+    cfg = seed_config(poly, 4);
+    rths_plant_defaults(&po);
+    if (rths_plant_config_read(cfg, &po, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(po.actuator.velocity_feedback_count, 3);
+    assert_close(po.actuator.velocity_feedback_poly[0], 4e4, 0);
+    assert_close(po.actuator.velocity_feedback_poly[2], 4e9, 0);
+    rths_config_free(cfg);
+    /* of the denominator's degree: refused with the key and both degrees */
+    const char *too_high[] = {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1]",
+                              "rig.actuator.denominator=[1, 30]",
+                              "rig.actuator.velocity_feedback=[1, 2]"};
+    cfg = seed_config(too_high, 4);
+    rths_plant_defaults(&po);
+    assert_int_equal(rths_plant_config_read(cfg, &po, &err), RTHS_EINPUT);
+    if (!strstr(err.msg, "rig.actuator.velocity_feedback") ||
+        !strstr(err.msg, "degree 1; over the denominator's degree 1 it must be at most 0"))
+        fail_msg("%s", err.msg);
+    rths_config_free(cfg);
+    const char *bad_entry[] = {"rig.actuator.model=transfer_function", "rig.actuator.numerator=[1]",
+                               "rig.actuator.denominator=[1, 30, 2]",
+                               "rig.actuator.velocity_feedback=[1e300, 2]"};
+    cfg = seed_config(bad_entry, 4);
+    rths_plant_defaults(&po);
+    assert_int_equal(rths_plant_config_read(cfg, &po, &err), RTHS_EINPUT);
+    if (!strstr(err.msg, "entry 1: must be a finite number within +-1e15 (got 1e+300)"))
+        fail_msg("%s", err.msg);
+    rths_config_free(cfg);
 }
 
 /* examples/frame_servo_hydraulic.yaml, noise off: the hybrid test at its matched target, below,

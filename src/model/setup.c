@@ -653,6 +653,34 @@ static int read_transforms(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+static int read_interface_mass(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const modes[] = {"full", "physical_share", NULL};
+    int mode = RTHS_INTERFACE_MASS_FULL;
+    /* read only when given: a read key of `rig` makes a command the section's reader (config.c,
+     * setup_subsections), and `rths model` ignores the rest of `rig` */
+    s->interface_mass = RTHS_INTERFACE_MASS_FULL;
+    if (!rths_config_has(cfg, "rig.interface_mass")) return RTHS_OK;
+    int rc = rths_config_get_choice(cfg, "rig.interface_mass", 0, mode, modes, &mode, err);
+    s->interface_mass = (rths_interface_mass)mode;
+    return rc;
+}
+
+const char *rths_interface_mass_name(rths_interface_mass mode) {
+    return mode == RTHS_INTERFACE_MASS_PHYSICAL_SHARE ? "physical_share" : "full";
+}
+
+double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e) {
+    const rths_split *sp = &s->split;
+    if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE)
+        return RTHS_AT(sp->mass_phys, sp->np, sp->n_phys + d, sp->n_phys + e);
+    return RTHS_AT(s->assembly.mass, s->assembly.n, sp->int_dofs[d], sp->int_dofs[e]);
+}
+
+double rths_setup_compensation_mass(const rths_setup *s, int d, int e) {
+    if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE) return 0.0;
+    return RTHS_AT(s->split.mass_num, s->split.nn, d, e);
+}
+
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
@@ -662,6 +690,7 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     if (!rc) rc = read_frf_range(cfg, out, err);
     if (!rc) rc = read_numerical_solver(cfg, out, err);
     if (!rc) rc = read_transforms(cfg, out, err);
+    if (!rc) rc = read_interface_mass(cfg, out, err);
     if (rc) rths_setup_free(out);
     return rc;
 }
