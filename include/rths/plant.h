@@ -1,8 +1,9 @@
 /* rths plant: the virtual laboratory (docs/method.md, "The virtual
  * rig") behind the per-sample I/O seam (rths_sensor_sample).
  *
- * The physical substructure with the interface storey's FULL mass (the rig's storey; the mass
- * ratio is emulated by the controller's inertial compensation), optionally the bilinear leg with
+ * The physical substructure with the interface mass the rig carries (rig.interface_mass, setup.h:
+ * the storey's FULL mass, the mass ratio emulated by the controller's inertial compensation, or
+ * only the physical share (1 - p) M_II of a light specimen), optionally the bilinear leg with
  * its static preload; an electrodynamic shaker in current mode (force = gain x demand through a
  * pure transport delay and a first-order lag, armature mass moving with the interface storey),
  * or an actuator given as a transfer function with the specimen's velocity fed back (a
