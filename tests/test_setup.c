@@ -199,6 +199,11 @@ static void test_physical_sense(void **state) {
                    "[0, 0, 0, 1]]",
                    "key 'structure.matrices.mass_kg': diagonal entry (2, 2) = 1e-300 is below "
                    "1e-12");
+    expect_refused(mtx,
+                   "structure.matrices.stiffness_n_per_m=[[1e-300, 0, 0, 0], [0, 1, 0, 0], [0, 0, "
+                   "1, 0], [0, 0, 0, 1]]",
+                   "key 'structure.matrices.stiffness_n_per_m': diagonal entry (1, 1) = 1e-300 is "
+                   "below 1e-12");
     expect_refused(seed, "forcing.amplitude_n=1e300", "forcing.amplitude_n");
     /* eigenvalues 3 and -1 */
     expect_refused(mtx,

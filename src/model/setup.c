@@ -24,6 +24,9 @@
 /* The smallest diagonal entry of a given mass matrix: kg on a displacement, kg m^2 on a rotation
  * (a millimetre beam element's rotary inertia is ~1e-10 kg m^2). */
 #define MIN_DIAGONAL_MASS 1e-12
+/* ... and of a given stiffness matrix (N/m, or N m/rad on a rotation): a 1e-300 N/m support makes
+ * a mode at 1e-150 Hz and a static response of 1e300 m */
+#define MIN_DIAGONAL_STIFFNESS 1e-12
 
 static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_STOREYS ".mass_kg", K_STOREYS ".damping_n_s_per_m",
@@ -120,6 +123,14 @@ static int check_physical(rths_config *cfg, const char *const *keys, double *con
                                         "on a rotation): no lab's structure is that light, and "
                                         "its modes would leave every frequency range analysed",
                                         i + 1, i + 1, RTHS_AT(m[0], n, i, i), MIN_DIAGONAL_MASS);
+    for (int i = 0; i < n; i++)
+        if (!(RTHS_AT(m[2], n, i, i) >= MIN_DIAGONAL_STIFFNESS))
+            return rths_config_error_at(cfg, keys[2], err,
+                                        "diagonal entry (%d, %d) = %g is below %g (N/m, or N m/rad "
+                                        "on a rotation): a support that soft has a mode near 0 Hz "
+                                        "and a static response beyond any rig",
+                                        i + 1, i + 1, RTHS_AT(m[2], n, i, i),
+                                        MIN_DIAGONAL_STIFFNESS);
     if (!rths_mat_is_spd(m[0], n))
         return rths_config_error_at(cfg, keys[0], err,
                                     "must be positive definite (a mass matrix with a zero or "
