@@ -746,11 +746,53 @@ static int teardown_chart(void **state) {
     return 0;
 }
 
+/* rig.interface_mass (issue 23.1): the chart of a light specimen (physical_share: the rig carries
+ * (1 - p) M_II, nothing compensated) and of the seed's lab (full: the rig carries M_II, the
+ * controller compensates p M_II from the delayed measured acceleration) is one and the same
+ * neutral equation: M_tau's interface block (1 - p) m3 in both, every other block the split's;
+ * the neutral chain at Re lambda tau = ln((1 - p) / p) (the seed's p = 1/2 limit) for both. */
+static void test_interface_mass_modes_share_the_dde(void **state) {
+    (void)state;
+    const char *modes[2] = {"rig.interface_mass=full", "rig.interface_mass=physical_share"};
+    const double p = 0.6;
+    for (int m = 0; m < 2; m++) {
+        const char *ov[] = {modes[m], "split.mass_ratio=0.6"};
+        rths_config *cfg;
+        rths_setup s;
+        rths_error err;
+        if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), ov, 2, &cfg,
+                             &err) ||
+            rths_setup_read(cfg, &s, &err))
+            fail_msg("%s", err.msg);
+        assert_int_equal(s.interface_mass,
+                         m == 0 ? RTHS_INTERFACE_MASS_FULL : RTHS_INTERFACE_MASS_PHYSICAL_SHARE);
+        rths_dde d, split;
+        assert_int_equal(rths_dde_from_setup(&s, &d, &err), RTHS_OK);
+        assert_int_equal(rths_dde_from_split(&s.assembly, &s.split, &split, &err), RTHS_OK);
+        const double *a[6] = {d.m0, d.mt, d.c0, d.ct, d.k0, d.kt},
+                     *b[6] = {split.m0, split.mt, split.c0, split.ct, split.k0, split.kt};
+        for (int k = 0; k < 6; k++)
+            for (int e = 0; e < 16; e++)
+                assert_close(a[k][e], b[k][e], 1e-12 * (1 + fabs(b[k][e])));
+        assert_close(RTHS_AT(d.mt, 4, 2, 2), (1 - p) * 5.37, 1e-12);
+        assert_close(RTHS_AT(d.m0, 4, 2, 2), p * 5.37, 1e-12);
+        double rate;
+        int nz = 0;
+        assert_int_equal(rths_dde_essential(&d, &rate, NULL, &nz, &err), RTHS_OK);
+        assert_close(rate, log((1 - p) / p), 1e-9);
+        rths_dde_free(&d);
+        rths_dde_free(&split);
+        rths_setup_free(&s);
+        rths_config_free(cfg);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_hopf_pi_over_2),
         cmocka_unit_test(test_critical_delay_closed_form),
         cmocka_unit_test(test_hayes),
+        cmocka_unit_test(test_interface_mass_modes_share_the_dde),
         cmocka_unit_test(test_neutral_scalar_chain),
         cmocka_unit_test(test_delayed_oscillator_mdbm),
         cmocka_unit_test(test_seed_structure),

@@ -35,6 +35,7 @@
 #include "rths/config.h"
 #include "rths/core.h"
 #include "rths/model.h"
+#include "rths/setup.h"
 
 #include <complex.h>
 
@@ -54,6 +55,14 @@ int rths_dde_from_matrices(int n, const double *m0, const double *mt, const doub
 /* The delayed-feedback test of split s of assembly a (see the header comment). */
 int rths_dde_from_split(const rths_assembly *a, const rths_split *s, rths_dde *out,
                         rths_error *err);
+/* The delayed-feedback test of a configured setup, honouring rig.interface_mass (setup.h): the
+ * rig's interface mass acts on the delayed interface, x_i(t) = xi_i(t - tau), and so does the
+ * controller's inertial compensation, which multiplies the measured (physical, hence delayed)
+ * acceleration, with the opposite sign: M_tau's interface block is M_rig - M_comp. full:
+ * M_II - p M_II; physical_share: (1 - p) M_II - 0. Both are the split's (1 - p) M_II, so the two
+ * labs share one chart (docs/method.md, "The interface mass on the rig"); the armature moves
+ * inside the actuator, behind the load cell, and is no part of this equation. */
+int rths_dde_from_setup(const rths_setup *s, rths_dde *out, rths_error *err);
 void rths_dde_free(rths_dde *d);
 
 /* Characteristic matrix A(lambda) = lambda^2 (M_0 + e M_tau) + lambda (C_0 + e C_tau) + K_0 +

@@ -84,6 +84,18 @@ int rths_dde_from_split(const rths_assembly *a, const rths_split *s, rths_dde *o
     return RTHS_OK;
 }
 
+int rths_dde_from_setup(const rths_setup *s, rths_dde *out, rths_error *err) {
+    int rc = rths_dde_from_split(&s->assembly, &s->split, out, err);
+    if (rc) return rc;
+    const rths_split *sp = &s->split;
+    int n = s->assembly.n;
+    for (int d = 0; d < sp->n_int; d++)
+        for (int e = 0; e < sp->n_int; e++)
+            RTHS_AT(out->mt, n, sp->int_dofs[d], sp->int_dofs[e]) =
+                rths_setup_rig_interface_mass(s, d, e) - rths_setup_compensation_mass(s, d, e);
+    return RTHS_OK;
+}
+
 /* ---- small dense complex LU (n is a handful of DoFs; LAPACK call overhead would dominate) ---- */
 
 /* In place, partial pivoting. Returns the determinant; 0 when a pivot vanishes exactly. */
