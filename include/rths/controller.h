@@ -6,8 +6,10 @@
  *   Phi cos(theta) on its DoF when that DoF is numerical,
  * (for base excitation, forcing.type base: the inertial load -M 1 a_g cos(theta) on every
  * numerical DoF and the interface's whole share, the plant taking its internal DoFs'),
- * with inertial compensation F_comp = p m_int x''_measured (docs/method.md, "Errata of the seed
- * paper", erratum 2: the rig's interface storey carries its full mass) and grounding control F_ctrl
+ * with inertial compensation F_comp = p m_int x''_measured when the rig carries the interface's
+ * full mass (rig.interface_mass: full, the seed's lab: docs/method.md, "Errata of the seed paper",
+ * erratum 2), none when it carries only its physical share (physical_share: docs/method.md, "The
+ * interface mass on the rig"), and grounding control F_ctrl
  * = kp^ (x - xi) + kd^ (x' - xi') (erratum 8); the actuator demand is the PD law U = kp (x* - x) +
  * kd (x*' - x') towards the periodic target x*(theta) (or, in feedback mode, towards the numerical
  * interface itself: the conventional real-time hybrid test); running Fourier sums of the physical
@@ -18,8 +20,8 @@
  * rths_controller_create. The command functions (set_forcing, set_target, arm, ...) must be
  * called from the thread that runs the step; only rths_controller_pop_period may run on another
  * thread. Several interface DoFs (1 to RTHS_MAX_INTERFACE_DOFS) are driven by one actuator each:
- * PD control, grounding control, inertial compensation (the numerical interface mass block
- * times the measured accelerations) and Fourier sums per DoF. */
+ * PD control, grounding control, inertial compensation (the compensated mass block times the
+ * measured accelerations) and Fourier sums per DoF. */
 #ifndef RTHS_CONTROLLER_H
 #define RTHS_CONTROLLER_H
 

@@ -47,7 +47,8 @@ struct rths_controller {
     int ni, n_inputs;   /* interface DoFs (one actuator each), numerical model inputs ni + 1 */
     int forcing_index;  /* forcing DoF in the numerical substructure's order */
     int host_numerical; /* split.numerical_solver: frequency: no numerical model here */
-    /* inertial compensation mass p M_int: the numerical interface block, ni x ni, kg */
+    /* inertial compensation mass, ni x ni, kg: the numerical interface block p M_int when the rig
+     * carries the full interface mass, zero when it carries only its physical share */
     double m_comp[MAX_IFACE * MAX_IFACE];
     double kp[MAX_IFACE], kd[MAX_IFACE];   /* PD gains per interface DoF */
     double gkp[MAX_IFACE], gkd[MAX_IFACE]; /* grounding gains per interface DoF */
@@ -227,7 +228,7 @@ static int numerical_stiffness_definite(const rths_split *s, rths_error *err) {
     double ratio = rths_cmat_hermitian_eigen_ratio(n, k);
     free(k);
     /* rounding leaves a singular (free-floating) part at |ratio| ~ 1e-16 */
-    if (ratio < -1e-9)
+    if (ratio < -1e-9 && rths_mat_max_abs(s->stiffness_num, n, n) > 0)
         return rths_error_set(err, RTHS_EINPUT,
                               "the numerical substructure's stiffness is indefinite (smallest to "
                               "largest eigenvalue %.3g): the split's interface block does not suit "
@@ -395,7 +396,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->n_inputs = s->n_int + 1;
     for (int d = 0; d < c->ni; d++) {
         for (int e = 0; e < c->ni; e++)
-            c->m_comp[d + e * MAX_IFACE] = RTHS_AT(s->mass_num, s->nn, d, e);
+            c->m_comp[d + e * MAX_IFACE] = rths_setup_compensation_mass(setup, d, e);
         c->kp[d] = opt->kp_dof_v_per_m[d] > 0 ? opt->kp_dof_v_per_m[d] : opt->kp_v_per_m;
         c->kd[d] = opt->kd_dof_v_s_per_m[d] > 0 ? opt->kd_dof_v_s_per_m[d] : opt->kd_v_s_per_m;
         c->gkp[d] =

@@ -1279,7 +1279,8 @@ int rths_config_write(const rths_config *cfg, const char *path, rths_error *err)
 /* Sub-sections every command's setup reads (rths_setup_read: the actuator and sensor transforms,
  * docs/config/rig.md): reading them does not make a command the owner of their section, so
  * `rths model` still ignores the rest of `rig`. */
-static const char *const setup_subsections[] = {"rig.actuators.", "rig.lasers.", NULL};
+static const char *const setup_subsections[] = {"rig.actuators.", "rig.lasers.",
+                                                "rig.interface_mass", NULL};
 
 /* Whether a key of section was asked for, not counting the setup's sub-sections. */
 static int section_read_by_command(const rths_config *cfg, const char *section) {

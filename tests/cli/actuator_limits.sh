@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A test that reaches its actuator's force limit (examples/frame_servo_hydraulic.yaml, limit 9 N
+# A test that reaches its actuator's force limit (examples/frame_servo_hydraulic_storey.yaml, limit 9 N
 # while the sweep needs more): with force_action fault the run ends with exit 1, every point
 # accepted before the trip saved in frf.csv and summary.json naming the limit; with clip it runs
 # on and summary.json counts the clipped samples. summary.json's "actuator" reports the peaks.
@@ -7,7 +7,7 @@ set -u
 bin=$1
 src=$2
 . "$src/tests/cli/lib/common.sh"
-cfg="$src/examples/frame_servo_hydraulic.yaml"
+cfg="$src/examples/frame_servo_hydraulic_storey.yaml"
 
 "$bin" frf "$cfg" --out "$work/trip" --quiet --set rig.actuator.limits.force_n=9 2>"$work/trip.err"
 rc=$?
