@@ -84,4 +84,9 @@ refused model "singular stiffness" "rigid-body motion" "$src/tests/data/mtx/seed
 refused model "negative-definite damping" "damping_n_s_per_m': must be positive semi-definite" \
     "$src/tests/data/mtx/seed_matrices.yaml" \
     --set 'structure.matrices.damping_n_s_per_m=[[-1, 0, 0, 0], [0, -1, 0, 0], [0, 0, -1, 0], [0, 0, 0, -1]]'
+# a few bytes declaring 12000 x 12000: refused from the entries at once (was 80 s and 4.5 GB)
+printf '%%%%MatrixMarket matrix coordinate real symmetric\n12000 12000 1\n1 1 5.37\n' >"$work/huge_mass.mtx"
+refused model "declared size far beyond the entries" \
+    "key 'structure.matrices.mass_kg': .*huge_mass.mtx: diagonal entry \(2,2\) is zero or missing" \
+    "$src/tests/data/mtx/seed_matrices.yaml" --set structure.matrices.mass_kg="$work/huge_mass.mtx"
 exit $((failures > 0))
