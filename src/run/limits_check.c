@@ -9,6 +9,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 /* The truth curve's range: the run's, with a margin (the last step may pass end_hz, the first
  * correction move below start_hz), so every accepted point lies inside the curve it is judged
@@ -106,6 +107,35 @@ static int refuse_or_warn(frf_state *st, const char *what, const char *advice, r
     return RTHS_OK;
 }
 
+/* A sweep with no mode in its range measures a quasi-static or mass-line response: legal, but
+ * more often a range typed for another structure (or units off by a factor) than a plan. Says so
+ * before arming, naming the nearest mode; a warning on stderr and in run.log. */
+static int warn_if_no_mode_in_range(frf_state *st, double f_lo, double f_hi, rths_error *err) {
+    rths_modes modes = {0};
+    int rc = rths_modal_analysis(&st->setup->assembly, &modes, err);
+    if (rc) return rc;
+    int nearest = -1, inside = 0;
+    double gap = INFINITY;
+    for (int r = 0; r < modes.n; r++) {
+        double f = modes.frequency_hz[r], d = f < f_lo ? f_lo - f : f > f_hi ? f - f_hi : 0;
+        inside |= d == 0;
+        if (d < gap) gap = d, nearest = r;
+    }
+    if (!inside && nearest >= 0) {
+        char what[256];
+        snprintf(what, sizeof what,
+                 "no mode of the true assembly lies in the sweep [%g, %g] Hz (nearest: mode %d "
+                 "at %.4g Hz): the test measures the response away from resonance",
+                 f_lo, f_hi, nearest + 1, modes.frequency_hz[nearest]);
+        fprintf(stderr, "rths frf: warning: %s\n", what);
+        size_t used = strlen(st->limit_warning);
+        snprintf(st->limit_warning + used, sizeof st->limit_warning - used, "%s%s",
+                 used ? "; " : "", what);
+    }
+    rths_modes_free(&modes);
+    return RTHS_OK;
+}
+
 int frf_plan_within_limits(frf_state *st, rths_error *err) {
     double lo, hi;
     truth_range(st, &lo, &hi);
@@ -153,5 +183,5 @@ int frf_plan_within_limits(frf_state *st, rths_error *err) {
         if (!st->limit_warning[0])
             snprintf(st->limit_warning, sizeof st->limit_warning, "%s", what);
     }
-    return RTHS_OK;
+    return warn_if_no_mode_in_range(st, f_lo, f_hi, err);
 }
