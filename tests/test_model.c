@@ -79,6 +79,44 @@ static void test_one_dof_frf(void **state) {
     }
 }
 
+/* One DoF, M = 5 kg, C = 1 N s/m, K = 40000 N/m (issue 24.8: the banded eigensolver's zero
+ * shape gave mode 1 at 0 Hz and an all-zero FRF): w = sqrt(K / M), the shape 1 / sqrt(M), zeta =
+ * C / (2 sqrt(K M)), and the sweep's response F / (K - M w^2 + i C w) at and off resonance. */
+static void test_one_dof_modes(void **state) {
+    (void)state;
+    double m = 5.0, c = 1.0, k = 40000.0, f = 1.0;
+    rths_assembly a;
+    rths_modes modes;
+    rths_error err;
+    assert_int_equal(rths_assembly_from_matrices(1, &m, &c, &k, &a, &err), RTHS_OK);
+    assert_int_equal(rths_modal_analysis(&a, &modes, &err), RTHS_OK);
+    double w = sqrt(k / m);
+    assert_close(modes.omega_rad_s[0], w, 1e-12 * w);
+    assert_close(modes.frequency_hz[0], 14.2353, 1e-4); /* the issue's truth, 14.24 Hz */
+    assert_close(modes.shapes[0], 1 / sqrt(m), 1e-15);
+    assert_close(modes.damping_ratio[0], c / (2 * sqrt(k * m)), 1e-15);
+    int out_dof = 0;
+    rths_frf_sweep *sw;
+    assert_int_equal(rths_frf_sweep_create(&a, &modes, &f, 1, &out_dof, &sw, &err), RTHS_OK);
+    double ws[3] = {0.0, w, 1.7 * w};
+    for (int i = 0; i < 3; i++) {
+        double complex x, expect = f / (k - m * ws[i] * ws[i] + I * c * ws[i]);
+        assert_int_equal(rths_frf_sweep_eval(sw, ws[i], &x, &err), RTHS_OK);
+        assert_close(creal(x), creal(expect), 1e-12 * cabs(expect));
+        assert_close(cimag(x), cimag(expect), 1e-12 * cabs(expect));
+    }
+    rths_frf_sweep_destroy(sw);
+    rths_modes_free(&modes);
+    /* a mode beyond any analysed range (1e-300 kg: 5e151 Hz) is refused by name, not reported */
+    double tiny = 1e-300;
+    rths_assembly b;
+    assert_int_equal(rths_assembly_from_matrices(1, &tiny, &c, &k, &b, &err), RTHS_OK);
+    assert_int_equal(rths_modal_analysis(&b, &modes, &err), RTHS_EINPUT);
+    if (!strstr(err.msg, "mode 1's natural frequency is")) fail_msg("%s", err.msg);
+    rths_assembly_free(&b);
+    rths_assembly_free(&a);
+}
+
 /* 2-DoF chain with equal m and k: w^2 = (k/m)(3 -+ sqrt 5)/2, shapes (1, (1+-sqrt5)/2)... and
  * the FRF by the explicit 2x2 inverse. */
 static void test_two_dof_modes_and_frf(void **state) {
@@ -520,6 +558,7 @@ int main(void) {
         cmocka_unit_test(test_seed_natural_frequencies),
         cmocka_unit_test(test_seed_storey3_peak),
         cmocka_unit_test(test_one_dof_frf),
+        cmocka_unit_test(test_one_dof_modes),
         cmocka_unit_test(test_two_dof_modes_and_frf),
         cmocka_unit_test(test_assembly_validation),
         cmocka_unit_test(test_split_recombine_random),

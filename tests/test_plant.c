@@ -226,6 +226,100 @@ static void test_transfer_function_actuator(void **state) {
     rths_config_free(cfg);
 }
 
+/* rig.interface_mass: physical_share (issue 23.1): the rig carries (1 - p) of the interface
+ * storey's 5.37 kg plus the armature, no more. The forced response through the ideal shaker's
+ * linear hold equals the analytic FRF of the physical substructure with that interface mass to
+ * 1e-7 (as for the full mass), and differs from the full-mass plant's by far more. */
+static void test_physical_share_mass(void **state) {
+    (void)state;
+    const char *ov[] = {"structure.storeys.damping_n_s_per_m=[400, 400, 400, 3.7421]",
+                        "rig.interface_mass=physical_share", "split.mass_ratio=0.7"};
+    rths_config *cfg;
+    rths_setup s;
+    load(ov, 3, &cfg, &s);
+    assert_int_equal(s.interface_mass, RTHS_INTERFACE_MASS_PHYSICAL_SHARE);
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    rths_plant_ideal(&po);
+    po.armature_mass_kg = 0.4;
+    const double f = 12.5, w = 2 * M_PI * f, sinc = sin(w * H / 2) / (w * H / 2);
+    /* the full-mass FRF with the mass difference taken off: (1 - p) 5.37 + 0.4 on the rig */
+    double full_kg = 5.37, rig_kg = (1 - 0.7) * full_kg + po.armature_mass_kg;
+    double complex expect = 2.0 * rig_frf(&s, rig_kg - full_kg, w) * sinc * sinc * cexp(-I * w * H);
+    double complex full =
+        2.0 * rig_frf(&s, po.armature_mass_kg, w) * sinc * sinc * cexp(-I * w * H);
+    rths_plant *p = make(&s, &po);
+    double complex x, force;
+    forced(p, &po, f, 2.0, 3.0, &x, &force);
+    print_message("physical share: plant %.9e%+.9ei, analytic %.9e%+.9ei, rel err %.2e; full mass "
+                  "%.9e%+.9ei\n",
+                  creal(x), cimag(x), creal(expect), cimag(expect), cabs(x - expect) / cabs(expect),
+                  creal(full), cimag(full));
+    assert_true(cabs(x - expect) <= 1e-7 * cabs(expect));
+    assert_true(cabs(full - expect) > 1e-2 * cabs(expect));
+    rths_plant_destroy(p);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* The servo-hydraulic actuator with a second-order servo-valve and control-structure interaction
+ * (issue 23.2): F = a1 b0 / ((s^2 + b1 s + b2)(s + a3)) u - a2 s / (s + a3) x, written as one
+ * denominator D = (s^2 + b1 s + b2)(s + a3) with the velocity path a polynomial, V(s) =
+ * a2 (s^2 + b1 s + b2), F = (N U - V x') / D. The truth from the transfer functions: X = H F
+ * => X = H N U_held / (D + V i w H) (H the rig's analytic FRF, U_held the DAC step's sinc and
+ * half-sample delay), at 1e-6 as for the first-order actuator; the load cell reads F itself (no
+ * armature) = N U_held / D - V i w X / D; the CSI term must matter (the open loop differs by far
+ * more than the tolerance). */
+static void test_servo_valve_velocity_polynomial(void **state) {
+    (void)state;
+    const char *ov[] = {"structure.storeys.damping_n_s_per_m=[400, 400, 400, 3.7421]"};
+    rths_config *cfg;
+    rths_setup s;
+    load(ov, 1, &cfg, &s);
+    rths_plant_options po;
+    rths_plant_defaults(&po);
+    po.noise = 0;
+    po.delay_s = 0;
+    po.linear_hold = 0;
+    po.armature_mass_kg = 0;
+    /* valve 50 Hz-ish (b2 = 1e5 rad^2/s^2, b1 = 425 rad/s), a3 = 30 rad/s, a2 = 4e4 N/m, static
+     * gain a1 b0 / (b2 a3) = 50 N/V */
+    const double b1 = 425, b2 = 1e5, a3 = 30, a2 = 4e4, a1b0 = 50.0 * b2 * a3;
+    po.actuator = (rths_actuator_options){.model = RTHS_ACTUATOR_TRANSFER_FUNCTION,
+                                          .numerator = {a1b0},
+                                          .numerator_count = 1,
+                                          .denominator = {1.0, b1 + a3, b2 + b1 * a3, b2 * a3},
+                                          .denominator_count = 4,
+                                          .velocity_feedback_poly = {a2, a2 * b1, a2 * b2},
+                                          .velocity_feedback_count = 3};
+    const double f = 12.5, w = 2 * M_PI * f, u = 2.0 / po.gain_n_per_v;
+    double complex iw = I * w, held = sin(w * H / 2) / (w * H / 2) * cexp(-iw * H / 2), x, force;
+    double complex d = (iw * iw + b1 * iw + b2) * (iw + a3), v = a2 * (iw * iw + b1 * iw + b2);
+    double complex hs = rig_frf(&s, 0, w);
+    double complex expect = hs * a1b0 * u * held / (d + v * iw * hs);
+    double complex expect_force = a1b0 * u * held / d - v * iw * expect / d;
+    double complex open_loop = hs * a1b0 * u * held / d;
+    rths_plant *p = make(&s, &po);
+    forced(p, &po, f, 2.0, 3.0, &x, &force);
+    print_message("servo-valve CSI: plant %.9e%+.9ei, analytic %.9e%+.9ei, rel err %.2e; force "
+                  "rel err %.2e; without the CSI %.9e%+.9ei\n",
+                  creal(x), cimag(x), creal(expect), cimag(expect), cabs(x - expect) / cabs(expect),
+                  cabs(force - expect_force) / cabs(expect_force), creal(open_loop),
+                  cimag(open_loop));
+    assert_true(cabs(x - expect) <= 1e-6 * cabs(expect));
+    assert_true(cabs(force - expect_force) <= 1e-5 * cabs(expect_force));
+    assert_true(cabs(open_loop - expect) > 1e-2 * cabs(expect));
+    rths_plant_destroy(p);
+    /* V of D's degree would feed the velocity through: refused by name */
+    po.actuator.velocity_feedback_poly[3] = 1.0;
+    po.actuator.velocity_feedback_count = 4;
+    rths_error err;
+    assert_int_equal(rths_plant_create(&s, &po, 1.0 / H, &p, &err), RTHS_EINPUT);
+    if (!strstr(err.msg, "velocity feedback V(s) has degree 3")) fail_msg("%s", err.msg);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 /* Transfer-function actuator with displacement output: the piston follows y = G(s) U with
  * G = g w_a / (s + w_a) (a displacement-controlled actuator of 50 Hz bandwidth) and pushes the
  * interface storey through a connection of stiffness k_c, F = k_c (y - x). The truth: the rig's
@@ -678,6 +772,8 @@ int main(void) {
         cmocka_unit_test(test_integrator_config),
         cmocka_unit_test(test_transforms),
         cmocka_unit_test(test_transfer_function_actuator),
+        cmocka_unit_test(test_servo_valve_velocity_polynomial),
+        cmocka_unit_test(test_physical_share_mass),
         cmocka_unit_test(test_displacement_output_actuator),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

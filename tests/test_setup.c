@@ -8,6 +8,7 @@
 
 #include "rths/setup.h"
 
+#include <complex.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -186,7 +187,18 @@ static void test_physical_sense(void **state) {
     (void)state;
     const char *seed = "examples/four_storey.yaml", *mtx = "tests/data/mtx/seed_matrices.yaml";
     expect_refused(seed, "structure.storeys.mass_kg=[5.37, 5.37, 1e308, 10.74]",
-                   "storey 3: must be > 0 and <= 1e+15");
+                   "storey 3: must be > 0 and <= 1e+15 kg, at least 1e-06 kg (got 1e+308)");
+    /* lower bounds: a 1e-300 kg storey had a mode at 5e151 Hz and NaN output with exit 0 */
+    expect_refused(seed, "structure.storeys.mass_kg=[1e-300, 5.37, 5.37, 10.74]",
+                   "key 'structure.storeys.mass_kg': storey 1: must be > 0 and <= 1e+15 kg, at "
+                   "least 1e-06 kg (got 1e-300)");
+    expect_refused(seed, "structure.storeys.stiffness_n_per_m=[45052, 1e-300, 45052, 45052]",
+                   "storey 2: must be > 0 and <= 1e+15 N/m, at least 1e-06 N/m (got 1e-300)");
+    expect_refused(mtx,
+                   "structure.matrices.mass_kg=[[1, 0, 0, 0], [0, 1e-300, 0, 0], [0, 0, 1, 0], "
+                   "[0, 0, 0, 1]]",
+                   "key 'structure.matrices.mass_kg': diagonal entry (2, 2) = 1e-300 is below "
+                   "1e-12");
     expect_refused(seed, "forcing.amplitude_n=1e300", "forcing.amplitude_n");
     /* eigenvalues 3 and -1 */
     expect_refused(mtx,
@@ -215,6 +227,90 @@ static void test_physical_sense(void **state) {
     if (load_file(mtx, ok, 1, &cfg, &s, &err)) fail_msg("%s", err.msg);
     rths_setup_free(&s);
     rths_config_free(cfg);
+}
+
+/* rig.interface_mass (issue 23.1). The hybrid test's steady state at a perfect match, in closed
+ * form: the rig's physical substructure (its interface block carrying the rig's interface mass)
+ * obeys Z_rig x_p = F_LC e_I + f_p, the numerical one Z_num x_n = -w^2 M_comp x_I - F_LC e_I + f_n
+ * (the inertial compensation of the measured acceleration); with x_I shared, adding the interface
+ * rows eliminates F_LC: (Z_rig + Z_num + w^2 M_comp) x = f, which must be the true assembly's
+ * (K - w^2 M + i w C) x = f for both modes (full: rig M_II, compensation p M_II; physical_share:
+ * rig (1 - p) M_II, none) at the issue's p = 0.971, to rounding (1e-12). The unknown key value
+ * is refused by name. */
+static void hybrid_match_case(const char *mode, double p) {
+    char ov_mode[64], ov_p[64];
+    snprintf(ov_mode, sizeof ov_mode, "rig.interface_mass=%s", mode);
+    snprintf(ov_p, sizeof ov_p, "split.mass_ratio=%g", p);
+    const char *ov[] = {ov_mode, ov_p};
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    if (load_file("examples/four_storey_linear.yaml", ov, 2, &cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    const rths_split *sp = &s.split;
+    int n = s.assembly.n, np = sp->np, nn = sp->nn, ni = sp->n_int;
+    double complex *z = calloc((size_t)(n * n), sizeof *z), *x = calloc((size_t)n, sizeof *x),
+                   *truth = calloc((size_t)n, sizeof *truth);
+    int phys_of[16], num_of[16];
+    for (int i = 0; i < np; i++)
+        phys_of[i] = i < sp->n_phys ? sp->phys_dofs[i] : sp->int_dofs[i - sp->n_phys];
+    for (int i = 0; i < nn; i++)
+        num_of[i] = i < ni ? sp->int_dofs[i] : sp->num_dofs[i - ni];
+    for (double hz = 0.5; hz < 30; hz *= 1.37) {
+        double w = 2 * M_PI * hz;
+        memset(z, 0, sizeof *z * (size_t)(n * n));
+        for (int i = 0; i < np; i++)
+            for (int j = 0; j < np; j++) {
+                double m = RTHS_AT(sp->mass_phys, np, i, j);
+                if (i >= sp->n_phys && j >= sp->n_phys)
+                    m = rths_setup_rig_interface_mass(&s, i - sp->n_phys, j - sp->n_phys);
+                z[phys_of[i] + n * phys_of[j]] += RTHS_AT(sp->stiffness_phys, np, i, j) -
+                                                  w * w * m +
+                                                  I * w * RTHS_AT(sp->damping_phys, np, i, j);
+            }
+        for (int i = 0; i < nn; i++)
+            for (int j = 0; j < nn; j++)
+                z[num_of[i] + n * num_of[j]] += RTHS_AT(sp->stiffness_num, nn, i, j) -
+                                                w * w * RTHS_AT(sp->mass_num, nn, i, j) +
+                                                I * w * RTHS_AT(sp->damping_num, nn, i, j);
+        for (int d = 0; d < ni; d++)
+            for (int e = 0; e < ni; e++)
+                z[sp->int_dofs[d] + n * sp->int_dofs[e]] +=
+                    w * w * rths_setup_compensation_mass(&s, d, e);
+        for (int i = 0; i < n; i++)
+            x[i] = s.force[i];
+        assert_int_equal(rths_cmat_solve(n, 1, z, x), 0);
+        assert_int_equal(rths_frf(n, s.assembly.mass, s.assembly.damping, s.assembly.stiffness,
+                                  s.force, w, truth, &err),
+                         RTHS_OK);
+        for (int i = 0; i < n; i++)
+            if (cabs(x[i] - truth[i]) > 1e-12 * cabs(truth[i]))
+                fail_msg("%s p %g, %g Hz, DoF %d: hybrid %g%+gi, truth %g%+gi", mode, p, hz, i + 1,
+                         creal(x[i]), cimag(x[i]), creal(truth[i]), cimag(truth[i]));
+    }
+    /* what the rig carries: the whole block, or the physical share */
+    double m_ii = RTHS_AT(s.assembly.mass, n, sp->int_dofs[0], sp->int_dofs[0]);
+    int share = !strcmp(mode, "physical_share");
+    assert_close(rths_setup_rig_interface_mass(&s, 0, 0), share ? (1 - p) * m_ii : m_ii,
+                 1e-12 * m_ii);
+    assert_close(rths_setup_compensation_mass(&s, 0, 0), share ? 0.0 : p * m_ii, 1e-12 * m_ii);
+    free(z), free(x), free(truth);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+static void test_interface_mass_modes(void **state) {
+    (void)state;
+    hybrid_match_case("full", 0.971);
+    hybrid_match_case("physical_share", 0.971);
+    hybrid_match_case("physical_share", 0.33);
+    rths_config *cfg;
+    rths_setup s;
+    load_seed(NULL, 0, &cfg, &s);
+    assert_int_equal(s.interface_mass, RTHS_INTERFACE_MASS_FULL); /* the default: the seed's */
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    expect_refused("examples/four_storey.yaml", "rig.interface_mass=half", "rig.interface_mass");
 }
 
 /* examples/cantilever_two_shakers.yaml with p = [0.3, 0.6]: the physical share of the cut's
@@ -288,6 +384,7 @@ int main(void) {
         cmocka_unit_test(test_matrix_market_bad_file),
         cmocka_unit_test(test_physical_sense),
         cmocka_unit_test(test_beam_element_split),
+        cmocka_unit_test(test_interface_mass_modes),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

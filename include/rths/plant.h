@@ -54,7 +54,8 @@ typedef enum {
 #define RTHS_ACTUATOR_MAX_ORDER 8
 
 /* The actuator between the demand (V) and the interface storey. transfer_function: the force
- * F(s) = (N(s) U(s) - velocity_feedback V(s)) / D(s), V the interface storey's velocity: with
+ * F(s) = (N(s) U(s) - velocity_feedback V(s)) / D(s), V the interface storey's velocity (the
+ * feedback a constant or a polynomial in s, velocity_feedback_poly): with
  * D(s) = s + a and velocity_feedback = 2 beta A^2 / V_oil this is the servo-hydraulic actuator
  * whose oil column feeds the specimen's velocity back into its force (control-structure
  * interaction; docs/config/rig.md). Coefficients in descending powers of s, deg N <= deg D <=
@@ -67,9 +68,15 @@ typedef struct rths_actuator_options {
     double numerator[RTHS_ACTUATOR_MAX_ORDER + 1];   /* N/V, descending powers of s */
     double denominator[RTHS_ACTUATOR_MAX_ORDER + 1]; /* descending powers of s */
     double velocity_feedback; /* N/(m/s) times the unit of D(s): N/m for a first-order D */
-    int displacement_output;  /* 0: N(s)/D(s) gives the force (N/V); 1: the piston's
-                                 displacement y (m/V), which pushes the interface storey through
-                                 the connection spring: F = k_c (y - x_interface) */
+    /* V(s) as a polynomial, descending powers of s, when velocity_feedback_count > 0 (it then
+     * replaces the constant velocity_feedback): F = (N U - V(s) x') / D, deg V < deg D. The
+     * servo-hydraulic model with a second-order valve, F = a1 b0 / ((s^2 + b1 s + b2)(s + a3)) u
+     * - a2 s / (s + a3) x, is V = a2 (s^2 + b1 s + b2) over D = (s^2 + b1 s + b2)(s + a3). */
+    int velocity_feedback_count;
+    double velocity_feedback_poly[RTHS_ACTUATOR_MAX_ORDER];
+    int displacement_output;             /* 0: N(s)/D(s) gives the force (N/V); 1: the piston's
+                                            displacement y (m/V), which pushes the interface storey through
+                                            the connection spring: F = k_c (y - x_interface) */
     double connection_stiffness_n_per_m; /* k_c (displacement output): rod, load cell, clevis */
     double force_limit_n;  /* |actuator force| beyond: fault, or clip of the force command */
     double stroke_limit_m; /* |interface displacement| beyond: fault, or flagged */

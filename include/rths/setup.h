@@ -16,6 +16,8 @@
  *                acceleration: every DoF is driven through its inertia, -M 1 a_g(t), and
  *                displacements are relative to the ground)
  *   model:       frf {start_hz, end_hz, points} for the analytic FRF (default resolves every mode)
+ *   rig.interface_mass: full (default) | physical_share: what the rig carries of the interface
+ *                mass block (rths_interface_mass)
  *   rig.actuators, rig.lasers: where the actuators push and the lasers read, as offsets from the
  *                cut of a beam or as transform matrices (docs/config/rig.md, "Actuator and
  *                sensor transforms"); absent: one of each per interface DoF, acting on and
@@ -36,6 +38,17 @@ typedef enum {
     RTHS_NUMERICAL_REALTIME = 0, /* integrated by the controller, sample by sample */
     RTHS_NUMERICAL_FREQUENCY = 1 /* on the host, per harmonic (periodic tests, linear model) */
 } rths_numerical_solver;
+
+/* What the rig carries of the interface mass block (rig.interface_mass; docs/method.md, "The
+ * interface mass on the rig"). */
+typedef enum {
+    /* the seed's lab: the rig's interface storey is the assembly's whole M_II; the controller
+     * compensates the numerical share p M_II from the measured accelerations */
+    RTHS_INTERFACE_MASS_FULL = 0,
+    /* a light specimen: the rig carries (1 - p) M_II (plus the actuator's moving mass), the
+     * numerical side's p M_II is its own mass and nothing is compensated */
+    RTHS_INTERFACE_MASS_PHYSICAL_SHARE = 1
+} rths_interface_mass;
 
 typedef struct rths_setup {
     rths_assembly assembly;
@@ -65,6 +78,7 @@ typedef struct rths_setup {
      * laser s reads sum_d S(s, d) q_d (m). Both invertible (checked at read). */
     double *actuator_transform;
     double *sensor_transform;
+    rths_interface_mass interface_mass; /* rig.interface_mass: full (default) | physical_share */
 } rths_setup;
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
@@ -83,6 +97,16 @@ void rths_setup_forcing_text(const rths_setup *s, char *buf, size_t size);
 /* 1 when assembly DoF dof (0-based) is a rotation (a beam node's theta: its amplitudes are in
  * rad, its efforts in N m), 0 for a displacement (m). */
 int rths_setup_dof_is_rotation(const rths_setup *s, int dof);
+
+/* The interface mass block the rig carries, element (d, e) over the split's interface order, kg
+ * (kg m or kg m^2 on rotations), the actuators' moving mass not included: the assembly's M_II
+ * (full) or the physical share (1 - p) M_II (physical_share). */
+double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e);
+/* The inertial compensation the controller applies to the measured interface accelerations,
+ * element (d, e), kg: the numerical share p M_II (full), 0 (physical_share). Whatever the mode,
+ * rig + numerical - compensated = M_II: the hybrid test's interface mass is the assembly's. */
+double rths_setup_compensation_mass(const rths_setup *s, int d, int e);
+const char *rths_interface_mass_name(rths_interface_mass mode);
 
 /* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
 int *rths_setup_output_dofs(const rths_setup *s, int *count);

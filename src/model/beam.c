@@ -131,8 +131,9 @@ static int check_segments(const rths_beam_spec *spec, beam_fault *f) {
                          BEAM_MAX_ELEMENTS);
         if (!(g->ei_n_m2 > 0) || !isfinite(g->ei_n_m2))
             return fault(f, F_SEG_EI, "segment %d: must be > 0 N m^2 (got %g)", s + 1, g->ei_n_m2);
-        if (!(g->mass_per_length_kg_per_m > 0) || !isfinite(g->mass_per_length_kg_per_m))
-            return fault(f, F_SEG_MASS, "segment %d: must be > 0 kg/m (got %g)", s + 1,
+        /* a floor far below any beam a rig holds (a 1e-300 kg/m segment's modes overflow) */
+        if (!(g->mass_per_length_kg_per_m >= 1e-6) || !isfinite(g->mass_per_length_kg_per_m))
+            return fault(f, F_SEG_MASS, "segment %d: must be >= 1e-06 kg/m (got %g)", s + 1,
                          g->mass_per_length_kg_per_m);
     }
     return RTHS_OK;

@@ -404,9 +404,11 @@ int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err
      * (the same reduction as dsygv, divide and conquer on the tridiagonal: several times faster
      * for large n) */
     int band = rths_assembly_half_bandwidth(a);
-    lapack_int info = band <= n / 8 ? banded_eigen(a, band, out->shapes, out->omega_rad_s)
-                                    : LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes,
-                                                     n, mass, n, out->omega_rad_s);
+    /* dsbgvd returns a zero eigenvector for n = 1 (measured, OpenBLAS LAPACK): the dense path */
+    lapack_int info = n > 1 && band <= n / 8
+                          ? banded_eigen(a, band, out->shapes, out->omega_rad_s)
+                          : LAPACKE_dsygvd(LAPACK_COL_MAJOR, 1, 'V', 'L', n, out->shapes, n, mass,
+                                           n, out->omega_rad_s);
     rths_mat_free(mass);
     if (info != 0) {
         rths_modes_free(out);
@@ -419,6 +421,17 @@ int rths_modal_analysis(const rths_assembly *a, rths_modes *out, rths_error *err
         rths_modes_free(out);
         return rths_error_set(err, RTHS_EFAIL, "out of memory in modal analysis");
     }
+    /* a mode no frequency range can hold (entries of wildly different scales): refused here, so
+     * no NaN or overflowing grid reaches an output */
+    for (int r = 0; r < n; r++)
+        if (!(isfinite(out->frequency_hz[r]) && out->frequency_hz[r] < 1e12)) {
+            double f = out->frequency_hz[r];
+            rths_modes_free(out);
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "mode %d's natural frequency is %g Hz (at most 1e12 Hz is "
+                                  "analysed): are the masses and stiffnesses in kg and N/m?",
+                                  r + 1, f);
+        }
     return RTHS_OK;
 }
 

@@ -16,12 +16,23 @@
 /* Entries beyond this magnitude (kg, N s/m, N/m) are no structure, and K - w^2 M would overflow
  * (a 1e308 kg storey gave NaN rows). */
 #define MAX_ENTRY 1e15
+/* The smallest storey mass and leg stiffness taken (kg, N/m): below them a chain is no lab's
+ * structure, and its modes leave every range the analysis resolves (a 1e-300 kg storey had a mode
+ * at 5e151 Hz and NaN in the outputs). */
+#define MIN_STOREY_MASS_KG 1e-6
+#define MIN_STOREY_STIFFNESS_N_PER_M 1e-6
+/* The smallest diagonal entry of a given mass matrix: kg on a displacement, kg m^2 on a rotation
+ * (a millimetre beam element's rotary inertia is ~1e-10 kg m^2). */
+#define MIN_DIAGONAL_MASS 1e-12
 
 static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_STOREYS ".mass_kg", K_STOREYS ".damping_n_s_per_m",
                                         K_STOREYS ".stiffness_n_per_m"};
-    /* damping may be zero (an undamped leg); mass and stiffness must be positive */
+    /* damping may be zero (an undamped leg); mass and stiffness must be positive, and above a
+     * floor a lab's structure is far from */
     static const int must_be_positive[3] = {1, 0, 1};
+    static const double floor_of[3] = {MIN_STOREY_MASS_KG, 0, MIN_STOREY_STIFFNESS_N_PER_M};
+    static const char *const unit_of[3] = {"kg", "N s/m", "N/m"};
     double *v[3] = {NULL, NULL, NULL};
     int count[3] = {0, 0, 0};
     int rc = RTHS_OK;
@@ -35,10 +46,17 @@ static int read_chain(rths_config *cfg, rths_setup *s, rths_error *err) {
         else if (count[k] < 1)
             rc = rths_config_error_at(cfg, keys[k], err, "needs at least one storey");
         for (int i = 0; i < count[k] && !rc; i++) {
-            if ((must_be_positive[k] ? !(v[k][i] > 0) : !(v[k][i] >= 0)) || !(v[k][i] <= MAX_ENTRY))
+            if ((must_be_positive[k] ? !(v[k][i] >= floor_of[k]) : !(v[k][i] >= 0)) ||
+                !(v[k][i] <= MAX_ENTRY)) {
+                char floor_text[48] = "";
+                if (must_be_positive[k])
+                    snprintf(floor_text, sizeof floor_text, ", at least %g %s", floor_of[k],
+                             unit_of[k]);
                 rc = rths_config_error_at(cfg, keys[k], err,
-                                          "storey %d: must be %s and <= %g (got %g)", i + 1,
-                                          must_be_positive[k] ? "> 0" : ">= 0", MAX_ENTRY, v[k][i]);
+                                          "storey %d: must be %s and <= %g %s%s (got %g)", i + 1,
+                                          must_be_positive[k] ? "> 0" : ">= 0", MAX_ENTRY,
+                                          unit_of[k], floor_text, v[k][i]);
+            }
         }
     }
     if (!rc) rc = rths_assembly_from_chain(count[0], v[0], v[1], v[2], &s->assembly, err);
@@ -95,6 +113,13 @@ static int check_physical(rths_config *cfg, const char *const *keys, double *con
         if (!rths_mat_is_symmetric(m[k], n, 1e-12))
             return rths_config_error_at(cfg, keys[k], err, "must be symmetric");
     }
+    for (int i = 0; i < n; i++)
+        if (!(RTHS_AT(m[0], n, i, i) >= MIN_DIAGONAL_MASS))
+            return rths_config_error_at(cfg, keys[0], err,
+                                        "diagonal entry (%d, %d) = %g is below %g (kg, or kg m^2 "
+                                        "on a rotation): no lab's structure is that light, and "
+                                        "its modes would leave every frequency range analysed",
+                                        i + 1, i + 1, RTHS_AT(m[0], n, i, i), MIN_DIAGONAL_MASS);
     if (!rths_mat_is_spd(m[0], n))
         return rths_config_error_at(cfg, keys[0], err,
                                     "must be positive definite (a mass matrix with a zero or "
@@ -628,6 +653,34 @@ static int read_transforms(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+static int read_interface_mass(rths_config *cfg, rths_setup *s, rths_error *err) {
+    static const char *const modes[] = {"full", "physical_share", NULL};
+    int mode = RTHS_INTERFACE_MASS_FULL;
+    /* read only when given: a read key of `rig` makes a command the section's reader (config.c,
+     * setup_subsections), and `rths model` ignores the rest of `rig` */
+    s->interface_mass = RTHS_INTERFACE_MASS_FULL;
+    if (!rths_config_has(cfg, "rig.interface_mass")) return RTHS_OK;
+    int rc = rths_config_get_choice(cfg, "rig.interface_mass", 0, mode, modes, &mode, err);
+    s->interface_mass = (rths_interface_mass)mode;
+    return rc;
+}
+
+const char *rths_interface_mass_name(rths_interface_mass mode) {
+    return mode == RTHS_INTERFACE_MASS_PHYSICAL_SHARE ? "physical_share" : "full";
+}
+
+double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e) {
+    const rths_split *sp = &s->split;
+    if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE)
+        return RTHS_AT(sp->mass_phys, sp->np, sp->n_phys + d, sp->n_phys + e);
+    return RTHS_AT(s->assembly.mass, s->assembly.n, sp->int_dofs[d], sp->int_dofs[e]);
+}
+
+double rths_setup_compensation_mass(const rths_setup *s, int d, int e) {
+    if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE) return 0.0;
+    return RTHS_AT(s->split.mass_num, s->split.nn, d, e);
+}
+
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
@@ -637,6 +690,7 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     if (!rc) rc = read_frf_range(cfg, out, err);
     if (!rc) rc = read_numerical_solver(cfg, out, err);
     if (!rc) rc = read_transforms(cfg, out, err);
+    if (!rc) rc = read_interface_mass(cfg, out, err);
     if (rc) rths_setup_free(out);
     return rc;
 }

@@ -308,7 +308,13 @@ static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_
         return RTHS_OK;
     }
     int nd = a->denominator_count, nn = a->numerator_count, order = nd - 1;
-    int finite = isfinite(a->velocity_feedback);
+    /* the velocity path V(s): the polynomial, or the constant as one of degree 0 */
+    int nv = a->velocity_feedback_count > 0 ? a->velocity_feedback_count : 1;
+    const double *vpoly =
+        a->velocity_feedback_count > 0 ? a->velocity_feedback_poly : &a->velocity_feedback;
+    int finite = nv <= RTHS_ACTUATOR_MAX_ORDER;
+    for (int i = 0; finite && i < nv; i++)
+        finite &= isfinite(vpoly[i]);
     for (int i = 0; i < nd && i <= RTHS_ACTUATOR_MAX_ORDER; i++)
         finite &= isfinite(a->denominator[i]);
     for (int i = 0; i < nn && i <= RTHS_ACTUATOR_MAX_ORDER; i++)
@@ -320,10 +326,20 @@ static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_
                               "coefficients; needs 1 <= numerator <= denominator <= %d, finite, "
                               "a nonzero leading denominator coefficient",
                               nn, nd, RTHS_ACTUATOR_MAX_ORDER + 1);
-    if (order == 0 && a->velocity_feedback != 0)
+    int velocity_nonzero = 0;
+    for (int i = 0; i < nv; i++)
+        velocity_nonzero |= vpoly[i] != 0;
+    if (order == 0 && velocity_nonzero)
         return rths_error_set(err, RTHS_EINPUT,
                               "transfer_function actuator: velocity feedback needs a denominator "
                               "of order 1 or more");
+    /* strictly proper: a velocity term through D's degree would feed the velocity straight into
+     * the force, outside the observer form's states */
+    if (velocity_nonzero && nv > order)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator: the velocity feedback V(s) has degree "
+                              "%d; over a denominator of degree %d it must be at most %d",
+                              nv - 1, order, order - 1);
     p->tf = 1;
     p->na = order;
     p->lag_rate = 0;
@@ -355,7 +371,9 @@ static int actuator_realise(rths_plant *p, const rths_actuator_options *a, rths_
         p->act_a[i + (order - 1) * order] = -dk[i];
         p->act_bu[i] = nk[i] - dk[i] * p->act_d;
     }
-    p->act_bv[0] = order > 0 ? -a->velocity_feedback / lead : 0.0;
+    /* V's coefficients, ascending, enter like N's: b_v[i] = -v_i / lead (V strictly proper) */
+    for (int i = 0; velocity_nonzero && i < nv; i++)
+        p->act_bv[i] = -vpoly[nv - 1 - i] / lead;
     if (a->force_clip) {
         /* the force command is the static gain N(0) / D(0) times the demand */
         double g0 = dk[0] != 0 ? nk[0] / dk[0] : INFINITY;
@@ -413,7 +431,8 @@ static int static_start(rths_plant *p) {
 }
 
 /* Matrices of the physical substructure in physical order (internal physical DoFs, then the
- * interface), the interface storey with the assembly's FULL mass plus the armature. */
+ * interface), the interface block with the mass the rig carries (rig.interface_mass: the
+ * assembly's full M_II, or the physical share (1 - p) M_II) plus the armature. */
 static int plant_matrices(rths_plant *p, const rths_setup *setup) {
     const rths_split *s = &setup->split;
     int n = p->n, ni = p->ni;
@@ -425,8 +444,8 @@ static int plant_matrices(rths_plant *p, const rths_setup *setup) {
             p->c[i + j * n] = RTHS_AT(s->damping_phys, n, i, j);
             p->k[i + j * n] = RTHS_AT(s->stiffness_phys, n, i, j);
         }
-    /* the interface block carries the assembly's full mass, each actuator its armature: on its
-     * DoF, or at its point through the transform, T diag(armature) T^T */
+    /* the interface block carries the rig's interface mass (setup.h), each actuator its
+     * armature: on its DoF, or at its point through the transform, T diag(armature) T^T */
     for (int d = 0; d < ni; d++)
         for (int e = 0; e < ni; e++) {
             double arm = d == e ? p->opt.armature_mass_kg : 0.0;
@@ -435,9 +454,7 @@ static int plant_matrices(rths_plant *p, const rths_setup *setup) {
                 for (int a = 0; a < ni; a++)
                     arm += p->act_t[d + a * ni] * p->act_t[e + a * ni] * p->opt.armature_mass_kg;
             }
-            m[(n - ni + d) + (n - ni + e) * n] =
-                RTHS_AT(setup->assembly.mass, setup->assembly.n, s->int_dofs[d], s->int_dofs[e]) +
-                arm;
+            m[(n - ni + d) + (n - ni + e) * n] = rths_setup_rig_interface_mass(setup, d, e) + arm;
         }
     int rc = rths_mat_inverse(n, m, p->minv);
     rths_mat_free(m);
@@ -1122,6 +1139,48 @@ static int actuator_limits_read(rths_config *cfg, rths_actuator_options *a, rths
     return RTHS_OK;
 }
 
+/* rig.actuator.velocity_feedback: a number k_v (V(s) = k_v) or a list, V(s) in descending
+ * powers of s (plant.h), each coefficient within +-1e15. */
+static int velocity_feedback_read(rths_config *cfg, rths_actuator_options *a, rths_error *err) {
+    static const char *const key = "rig.actuator.velocity_feedback";
+    double *list = NULL;
+    int count = 0;
+    rths_error local;
+    int rc = rths_config_get_double_list(cfg, key, 0, &list, &count, &local);
+    if (rc != RTHS_OK || count == 0) {
+        free(list);
+        /* a list with a bad entry: its own message, not the scalar reader's "got a list" */
+        if (rc != RTHS_OK && !strstr(local.msg, "expected a list")) {
+            *err = local;
+            return rc;
+        }
+        a->velocity_feedback_count = 0;
+        return rths_config_get_double(cfg, key, 0, 0, -1e15, 1e15, &a->velocity_feedback, err);
+    }
+    if (count > RTHS_ACTUATOR_MAX_ORDER) rc = RTHS_EINPUT;
+    for (int i = 0; !rc && i < count; i++)
+        if (!(fabs(list[i]) <= 1e15)) {
+            rc = rths_config_error_at(cfg, key, err,
+                                      "entry %d: must be a finite number within +-1e15 (got %g)",
+                                      i + 1, list[i]);
+            free(list);
+            return rc;
+        }
+    if (rc) {
+        free(list);
+        return rths_config_error_at(cfg, key, err,
+                                    "%d coefficients; at most %d (degree below the denominator's, "
+                                    "at most %d)",
+                                    count, RTHS_ACTUATOR_MAX_ORDER, RTHS_ACTUATOR_MAX_ORDER);
+    }
+    for (int i = 0; i < count; i++)
+        a->velocity_feedback_poly[i] = list[i];
+    a->velocity_feedback_count = count;
+    a->velocity_feedback = 0;
+    free(list);
+    return RTHS_OK;
+}
+
 /* rig.actuator: the model and, for transfer_function, its coefficients, delay and hold. */
 static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_error *err) {
     static const char *const models[] = {"shaker", "transfer_function", NULL};
@@ -1153,8 +1212,7 @@ static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_
                                 err)) ||
         (rc = coefficients_read(cfg, "rig.actuator.denominator", 1, a->denominator,
                                 &a->denominator_count, err)) ||
-        (rc = rths_config_get_double(cfg, "rig.actuator.velocity_feedback", 0, 0, -1e15, 1e15,
-                                     &a->velocity_feedback, err)) ||
+        (rc = velocity_feedback_read(cfg, a, err)) ||
         (rc = rths_config_get_choice(cfg, "rig.actuator.output", 0, 0, outputs, &output, err)) ||
         (rc = rths_config_get_double(cfg, "rig.actuator.delay_s", 0, 0, 0, 0.1, &opt->delay_s,
                                      err)) ||
@@ -1183,6 +1241,12 @@ static int actuator_config_read(rths_config *cfg, rths_plant_options *opt, rths_
     if (a->denominator[0] == 0)
         return rths_config_error_at(cfg, "rig.actuator.denominator", err,
                                     "the leading coefficient must be nonzero");
+    if (a->velocity_feedback_count >= a->denominator_count)
+        return rths_config_error_at(
+            cfg, "rig.actuator.velocity_feedback", err,
+            "degree %d; over the denominator's degree %d it must be at most "
+            "%d (V(s) x' / D(s) strictly proper)",
+            a->velocity_feedback_count - 1, a->denominator_count - 1, a->denominator_count - 2);
     return RTHS_OK;
 }
 
