@@ -26,12 +26,12 @@ int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_optio
     const rths_split *s = &setup->split;
     if (s->n_int != 1)
         return rths_error_set(err, RTHS_EINPUT,
-                              "rths tune models one interface DoF; this split has %d "
+                              "the gain tuning models one interface DoF; this split has %d "
                               "(split.interface)",
                               s->n_int);
     if (setup->actuator_transform || setup->sensor_transform)
         return rths_error_set(err, RTHS_EINPUT,
-                              "rths tune does not model actuator or sensor transforms "
+                              "the gain tuning does not model actuator or sensor transforms "
                               "(rig.actuators, rig.lasers); remove them to tune");
     int n = s->np;
     double *m = malloc(sizeof(double) * (size_t)n * (size_t)n);
@@ -244,7 +244,7 @@ int rths_tune(const rths_setup *setup, const rths_controller_options *copt,
     if (setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         return rths_error_set(err, RTHS_EINPUT,
                               "split.numerical_solver: frequency has no grounding loop to tune; "
-                              "rths tune needs the controller's own numerical substructure");
+                              "the gain tuning needs the controller's own numerical substructure");
     rths_pd_loop *loop = NULL;
     int rc = rths_pd_loop_from_setup(setup, copt, popt, &loop, err);
     if (rc) return rc;
