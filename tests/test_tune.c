@@ -246,21 +246,31 @@ static void test_gain_margin_is_the_radius_boundary(void **state) {
 }
 
 /* End to end on the virtual rig itself (plant.c and step.c, not this module's model): with rig
- * noise on and the target at rest, gains 5 % beyond the loop's boundary (both scaled) grow until
- * a limit trips, 5 % inside stay quiet for 3 s. */
-static void test_virtual_rig_agrees(void **state) {
-    (void)state;
+ * noise on and the target at rest, the configured PD gains scaled together to 5 % beyond the
+ * loop's boundary grow until a limit trips, 5 % inside stay quiet for 30000 samples. The seed's
+ * shaker (3-sample delay, lag, armature, linear hold) and the servo-hydraulic light specimen
+ * (transfer function with the polynomial velocity path, physical_share, step hold, 4096 Hz; its
+ * DAC off, so that the loop is linear). */
+static void rig_agrees(const char *example, const char *const *sets, int n_sets) {
     rths_config *cfg;
     rths_setup s;
     rths_controller_options copt;
     rths_plant_options popt;
-    seed(NULL, 0, &cfg, &s, &copt, &popt);
-    rths_pd_loop *loop;
     rths_error err;
+    if (rths_config_load(rths_test_source_path(example), sets, n_sets, &cfg, &err) ||
+        rths_setup_read(cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    rths_controller_defaults(&copt);
+    rths_plant_defaults(&popt);
+    if (rths_sample_loop_config_read(cfg, &copt, &popt, &err)) fail_msg("%s", err.msg);
+    popt.actuator.dac_bits = 0;
+    rths_pd_loop *loop;
     if (rths_pd_loop_from_setup(&s, &copt, &popt, &loop, &err)) fail_msg("%s", err.msg);
-    const double kp0 = 891.251, kd0 = 100;
-    double lo = 1, hi = 100;
-    for (int it = 0; it < 60; it++) {
+    const double kp0 = copt.kp_v_per_m, kd0 = copt.kd_v_s_per_m;
+    double lo = 1e-3, hi = 1e4;
+    assert_true(rths_pd_loop_radius(loop, lo * kp0, lo * kd0) < 1);
+    assert_true(rths_pd_loop_radius(loop, hi * kp0, hi * kd0) > 1);
+    for (int it = 0; it < 80; it++) {
         double mid = sqrt(lo * hi);
         if (rths_pd_loop_radius(loop, mid * kp0, mid * kd0) < 1)
             lo = mid;
@@ -268,7 +278,7 @@ static void test_virtual_rig_agrees(void **state) {
             hi = mid;
     }
     rths_pd_loop_destroy(loop);
-    print_message("seed rig: boundary at %.4f x (kp %.6g, kd %.6g)\n", lo, lo * kp0, lo * kd0);
+    print_message("%s: boundary at %.4f x (kp %.6g, kd %.6g)\n", example, lo, lo * kp0, lo * kd0);
     for (int outside = 0; outside <= 1; outside++) {
         double f = (outside ? 1.05 : 0.95) * lo;
         rths_controller_options o = copt;
@@ -289,7 +299,7 @@ static void test_virtual_rig_agrees(void **state) {
             if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK)
                 tripped_at = k;
         }
-        print_message("%s the boundary (x%.3f): %s\n", outside ? "outside" : "inside", f,
+        print_message("  %s the boundary (x%.3f): %s\n", outside ? "outside" : "inside", f,
                       tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
         if (outside)
             assert_true(tripped_at >= 0);
@@ -299,6 +309,13 @@ static void test_virtual_rig_agrees(void **state) {
     }
     rths_setup_free(&s);
     rths_config_free(cfg);
+}
+
+static void test_virtual_rig_agrees(void **state) {
+    (void)state;
+    const char *seed_sets[] = {"controller.kp_v_per_m=891.251", "controller.kd_v_s_per_m=100"};
+    rig_agrees("examples/four_storey.yaml", seed_sets, 2);
+    rig_agrees("examples/frame_servo_hydraulic.yaml", NULL, 0);
 }
 
 /* The grounding check repeats step.c's: rths_controller_create accepts exactly the gains whose
