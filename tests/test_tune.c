@@ -93,44 +93,59 @@ static void test_free_mass_matches_jury(void **state) {
 }
 
 /* Growth of the same discrete loop simulated step by step from its definition (not through the
- * module's matrices): the free mass integrated exactly over each sample under a force that ramps
- * from the previous command to this one (linear hold) or holds it (step), the demand through a
- * D-sample delay line, the velocity by the filtered backward difference. Returns
- * log(|x| at the end / |x| at the start of the second half) per sample. */
-static double simulated_growth(double m, double g, double h, double alpha, int delay, int linear,
-                               double kp, double kd, int steps) {
-    double x = 1e-3, v = 0, x_prev = x, v_est = 0, line[64] = {0}, f_prev = 0;
-    double peak_mid = 0, peak_end = 0;
+ * module's matrices): the free mass integrated exactly under a force that is piecewise linear in
+ * time. The demand u_j becomes the command w_j = g u_j; before the fractional delay, sample j's
+ * command ramps from w_{j-D-1} to w_{j-D} (linear hold) or holds w_{j-D} (step); the fraction
+ * f h shifts that signal, so sample k sees the last f h of sample k - 1's segment, then the first
+ * (1 - f) h of its own. The velocity by the filtered backward difference. Returns the log growth
+ * per sample of the peak |x| between the middle and the end. */
+static double segment(const double *w, int j, int delay, int linear, double t_over_h) {
+    double end = j - delay >= 0 ? w[j - delay] : 0,
+           start = j - delay - 1 >= 0 ? w[j - delay - 1] : 0;
+    return linear ? start + (end - start) * t_over_h : end;
+}
+
+static void mass_advance(double m, double length, double f0, double f1, double *x, double *v) {
+    *x += *v * length + length * length * (f0 / 2 + (f1 - f0) / 6) / m;
+    *v += length * (f0 + f1) / 2 / m;
+}
+
+static double simulated_growth(double m, double g, double h, double alpha, int delay,
+                               double fraction, int linear, double kp, double kd, int steps) {
+    double *w = calloc((size_t)steps, sizeof(double));
+    assert_non_null(w);
+    double x = 1e-3, v = 0, x_prev = x, v_est = 0, peak_mid = 0, peak_end = 0;
     for (int k = 0; k < steps; k++) {
-        double v_raw = (x - x_prev) / h;
-        v_est = alpha * v_est + (1 - alpha) * v_raw;
+        v_est = alpha * v_est + (1 - alpha) * (x - x_prev) / h;
         x_prev = x;
-        double u = -kp * x - kd * v_est;
-        double delayed = delay > 0 ? line[k % delay] : u;
-        if (delay > 0) line[k % delay] = u;
-        double f1 = g * delayed, f0 = linear ? f_prev : f1;
-        f_prev = f1;
-        /* a(t) = (f0 + (f1 - f0) t / h) / m over the sample */
-        x += v * h + h * h * (f0 / 2 + (f1 - f0) / 6) / m;
-        v += h * (f0 + f1) / 2 / m;
+        w[k] = g * (-kp * x - kd * v_est);
+        if (fraction > 0)
+            mass_advance(m, fraction * h, segment(w, k - 1, delay, linear, 1 - fraction),
+                         segment(w, k - 1, delay, linear, 1), &x, &v);
+        mass_advance(m, (1 - fraction) * h, segment(w, k, delay, linear, 0),
+                     segment(w, k, delay, linear, 1 - fraction), &x, &v);
         if (k >= steps / 2 && k < steps / 2 + 200) peak_mid = fmax(peak_mid, fabs(x));
         if (k >= steps - 200) peak_end = fmax(peak_end, fabs(x));
     }
+    free(w);
     return log(peak_end / peak_mid) / (steps / 2.0);
 }
 
-/* With a transport delay, a linear hold and the filtered differentiator, the boundary (both gains
- * scaled together) found from the spectral radius separates decaying from growing simulations:
- * 3 % inside decays, 3 % outside grows. */
+/* With a transport delay of whole samples and a fraction, a linear or step hold and the filtered
+ * differentiator, the boundary (both gains scaled together) found from the spectral radius
+ * separates decaying from growing simulations: 3 % inside decays, 3 % outside grows. */
 static void test_delayed_loop_matches_simulation(void **state) {
     (void)state;
     const double m = 5.0, g = 20.0, rate = 4096.0, h = 1.0 / rate, cutoff = 600.0;
     const double alpha = exp(-2 * M_PI * cutoff * h);
-    const int delays[3] = {0, 2, 7};
-    for (int c = 0; c < 3; c++)
+    const double delays[5] = {0, 0.3, 2, 2.5, 7.8};
+    for (int c = 0; c < 5; c++)
         for (int linear = 0; linear <= 1; linear++) {
-            rths_pd_loop *loop = free_mass_loop(m, g, rate, cutoff, (delays[c] + 0.2) * h, linear);
-            assert_int_equal(rths_pd_loop_delay_samples(loop), delays[c]);
+            rths_pd_loop *loop = free_mass_loop(m, g, rate, cutoff, delays[c] * h, linear);
+            int whole = (int)floor(delays[c]);
+            double fraction = delays[c] - whole;
+            assert_int_equal(rths_pd_loop_delay_samples(loop), whole);
+            assert_close(rths_pd_loop_delay_fraction(loop), fraction, 1e-9);
             /* kd / kp = 0.05 s: a PD that stabilises the mass at low gain */
             double lo = 1e-3, hi = 1e9;
             assert_true(rths_pd_loop_radius(loop, lo, 0.05 * lo) < 1);
@@ -142,12 +157,12 @@ static void test_delayed_loop_matches_simulation(void **state) {
                 else
                     hi = mid;
             }
-            double in = simulated_growth(m, g, h, alpha, delays[c], linear, 0.97 * lo,
+            double in = simulated_growth(m, g, h, alpha, whole, fraction, linear, 0.97 * lo,
                                          0.05 * 0.97 * lo, 60000);
-            double out = simulated_growth(m, g, h, alpha, delays[c], linear, 1.03 * lo,
+            double out = simulated_growth(m, g, h, alpha, whole, fraction, linear, 1.03 * lo,
                                           0.05 * 1.03 * lo, 60000);
-            print_message("delay %d, %s hold: boundary kp %.6g V/m; growth per sample %.3g "
-                          "inside, %.3g outside\n",
+            print_message("delay %.1f samples, %s hold: boundary kp %.6g V/m; growth per sample "
+                          "%.3g inside, %.3g outside\n",
                           delays[c], linear ? "linear" : "step", lo, in, out);
             assert_true(in < 0);
             assert_true(out > 0);
@@ -155,8 +170,6 @@ static void test_delayed_loop_matches_simulation(void **state) {
         }
 }
 
-/* A lagged shaker and the same lag written as a transfer-function actuator g / (s / w_c + 1)
- * give the same loop (two realisations: the lag state and the observer form). */
 static void test_lag_equals_transfer_function(void **state) {
     (void)state;
     double mass[4] = {3, 0, 0, 1.5}, damp[4] = {12, -4, -4, 4}, stiff[4] = {3e4, -1e4, -1e4, 1e4};
@@ -222,7 +235,7 @@ static void test_gain_margin_is_the_radius_boundary(void **state) {
     seed(NULL, 0, &cfg, &s, &copt, &popt);
     rths_pd_loop *loop;
     rths_error err;
-    if (rths_pd_loop_from_setup(&s, &copt, &popt, &loop, &err)) fail_msg("%s", err.msg);
+    if (rths_pd_loop_from_setup(&s, &copt, &popt, -1, &loop, &err)) fail_msg("%s", err.msg);
     assert_int_equal(rths_pd_loop_delay_samples(loop), 3); /* 2.5e-4 s at 10 kHz, rounded */
     const double pairs[3][2] = {{100, 10}, {891.251, 100}, {2000, 30}};
     for (int i = 0; i < 3; i++) {
@@ -265,7 +278,7 @@ static void rig_agrees(const char *example, const char *const *sets, int n_sets)
     if (rths_sample_loop_config_read(cfg, &copt, &popt, &err)) fail_msg("%s", err.msg);
     popt.actuator.dac_bits = 0;
     rths_pd_loop *loop;
-    if (rths_pd_loop_from_setup(&s, &copt, &popt, &loop, &err)) fail_msg("%s", err.msg);
+    if (rths_pd_loop_from_setup(&s, &copt, &popt, -1, &loop, &err)) fail_msg("%s", err.msg);
     const double kp0 = copt.kp_v_per_m, kd0 = copt.kd_v_s_per_m;
     double lo = 1e-3, hi = 1e4;
     assert_true(rths_pd_loop_radius(loop, lo * kp0, lo * kd0) < 1);
@@ -376,7 +389,7 @@ static void test_tune_seed(void **state) {
     assert_true(r.tuned.stable && r.tuned.spectral_radius < 1);
     assert_true(r.tuned.gain_margin_db >= 6 && r.tuned.phase_margin_deg >= 45);
     rths_pd_loop *loop;
-    if (rths_pd_loop_from_setup(&s, &copt, &popt, &loop, &err)) fail_msg("%s", err.msg);
+    if (rths_pd_loop_from_setup(&s, &copt, &popt, -1, &loop, &err)) fail_msg("%s", err.msg);
     assert_true(rths_pd_loop_radius(loop, 1.9 * r.kp_v_per_m, 1.9 * r.kd_v_s_per_m) < 1);
     rths_pd_loop_destroy(loop);
     double kp2 = 2 * r.grounding_kp[0], kd2 = 2 * r.grounding_kd[0];

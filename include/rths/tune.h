@@ -47,12 +47,17 @@ typedef struct rths_loop_margins {
 
 int rths_pd_loop_create(const rths_pd_loop_spec *spec, rths_pd_loop **out, rths_error *err);
 /* The loop of a setup's physical substructure (one interface DoF, no actuator or sensor
- * transform) on the configured rig and controller. */
+ * transform) on the configured rig and controller. delay_s < 0: the rig's delay as the virtual
+ * rig holds it (rounded to whole samples); otherwise this delay, s, with its fraction of a
+ * sample (a lab's measured delay). */
 int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_options *copt,
-                            const rths_plant_options *popt, rths_pd_loop **out, rths_error *err);
+                            const rths_plant_options *popt, double delay_s, rths_pd_loop **out,
+                            rths_error *err);
 void rths_pd_loop_destroy(rths_pd_loop *loop);
-/* The transport delay the loop holds, whole samples (as the plant rounds it). */
+/* The transport delay the loop holds: whole samples, and the fraction of a sample beyond them
+ * (spec->rig->delay_s as given: [0, 1)). */
 int rths_pd_loop_delay_samples(const rths_pd_loop *loop);
+double rths_pd_loop_delay_fraction(const rths_pd_loop *loop);
 /* Spectral radius of the closed loop with gains kp (V/m) and kd (V s/m); -1 on failure. */
 double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd);
 int rths_pd_loop_margins(const rths_pd_loop *loop, double kp, double kd, rths_loop_margins *out,
@@ -71,6 +76,8 @@ typedef struct rths_tune_rule {
     double grounding_gain_factor;    /* 2: the grounding gains times this must still be stable */
     double grounding_max_radius;     /* 0.99 at those gains */
     double grounding_decay_fraction; /* 0.9: of the fastest decay of the numerical side found */
+    double delay_s; /* < 0 (default): the rig's delay as the virtual rig holds it, whole samples;
+                       else the physical loop's transport delay, s (fraction of a sample kept) */
 } rths_tune_rule;
 
 void rths_tune_rule_defaults(rths_tune_rule *rule);
@@ -80,6 +87,7 @@ typedef struct rths_tune_result {
     rths_loop_margins tuned, current; /* current: the configured gains' */
     double current_kp_v_per_m, current_kd_v_s_per_m;
     int delay_samples;
+    double delay_fraction; /* of a sample, beyond delay_samples */
     int n_int;
     double grounding_kp[RTHS_MAX_INTERFACE_DOFS], grounding_kd[RTHS_MAX_INTERFACE_DOFS];
     double grounding_frequency_hz;     /* sqrt(kp^ / m) of the chosen gains */

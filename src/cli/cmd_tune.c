@@ -12,7 +12,7 @@
 #include <string.h>
 
 static const char usage[] =
-    "Usage: rths tune CONFIG [--out DIR] [--set KEY=VALUE]... [--quiet]\n"
+    "Usage: rths tune CONFIG [--out DIR] [--delay S] [--set KEY=VALUE]... [--quiet]\n"
     "\n"
     "Gains for the controller from the model (docs/method.md, \"Tuning the gains\"):\n"
     "  - the physical PD (controller.kp_v_per_m, kd_v_s_per_m): the physical substructure on the\n"
@@ -35,6 +35,9 @@ static const char usage[] =
     "\n"
     "Options:\n"
     "  --out DIR          output folder (created)\n"
+    "  --delay S          the physical loop's transport delay, s, in [0, 0.1], a fraction of a\n"
+    "                     sample included (a lab's measured delay); default: the configured\n"
+    "                     delay as the virtual rig holds it, rounded to whole samples\n"
     "  --set KEY=VALUE    override a configuration key (repeatable)\n"
     "  --quiet            print nothing on success\n"
     "  --help             this text\n"
@@ -65,26 +68,26 @@ static char *fragment(const rths_tune_result *r, const rths_tune_rule *rule) {
     size_t len = 0;
     FILE *f = open_memstream(&text, &len);
     if (!f) return NULL;
-    fprintf(f,
-            "# rths tune (docs/method.md, \"Tuning the gains\"); physical loop with a %d-sample "
-            "delay\n"
-            "# configured kp %g V/m, kd %g V s/m: %s\n"
-            "# tuned (gain margin >= %g dB, phase margin >= %g deg, widest bandwidth): %s\n"
-            "# grounding: configured spectral radius %.9f per sample%s; tuned %.9f, at %g x the "
-            "gains %.9f (a tie at %.3g Hz, damping ratio %g; slowest transient decays at %.3g /s, "
-            "the fastest found %.3g /s; lowest mode %.3g Hz)\n"
-            "controller:\n"
-            "  kp_v_per_m: %.6g\n"
-            "  kd_v_s_per_m: %.6g\n"
-            "  grounding_kp_n_per_m: %.6g\n"
-            "  grounding_kd_n_s_per_m: %.6g\n",
-            r->delay_samples, r->current_kp_v_per_m, r->current_kd_v_s_per_m, cur,
-            rule->min_gain_margin_db, rule->min_phase_margin_deg, tuned,
-            r->grounding_radius_current, r->grounding_radius_current < 1 ? "" : " (UNSTABLE)",
-            r->grounding_radius, rule->grounding_gain_factor, r->grounding_radius_margin,
-            r->grounding_frequency_hz, r->grounding_damping_ratio, r->grounding_decay_per_s,
-            r->grounding_best_decay_per_s, r->lowest_mode_hz, r->kp_v_per_m, r->kd_v_s_per_m,
-            r->grounding_kp[0], r->grounding_kd[0]);
+    fprintf(
+        f,
+        "# rths tune (docs/method.md, \"Tuning the gains\"); physical loop with a delay of %.6g "
+        "samples\n"
+        "# configured kp %g V/m, kd %g V s/m: %s\n"
+        "# tuned (gain margin >= %g dB, phase margin >= %g deg, widest bandwidth): %s\n"
+        "# grounding: configured spectral radius %.9f per sample%s; tuned %.9f, at %g x the "
+        "gains %.9f (a tie at %.3g Hz, damping ratio %g; slowest transient decays at %.3g /s, "
+        "the fastest found %.3g /s; lowest mode %.3g Hz)\n"
+        "controller:\n"
+        "  kp_v_per_m: %.6g\n"
+        "  kd_v_s_per_m: %.6g\n"
+        "  grounding_kp_n_per_m: %.6g\n"
+        "  grounding_kd_n_s_per_m: %.6g\n",
+        r->delay_samples + r->delay_fraction, r->current_kp_v_per_m, r->current_kd_v_s_per_m, cur,
+        rule->min_gain_margin_db, rule->min_phase_margin_deg, tuned, r->grounding_radius_current,
+        r->grounding_radius_current < 1 ? "" : " (UNSTABLE)", r->grounding_radius,
+        rule->grounding_gain_factor, r->grounding_radius_margin, r->grounding_frequency_hz,
+        r->grounding_damping_ratio, r->grounding_decay_per_s, r->grounding_best_decay_per_s,
+        r->lowest_mode_hz, r->kp_v_per_m, r->kd_v_s_per_m, r->grounding_kp[0], r->grounding_kd[0]);
     fclose(f);
     return text;
 }
@@ -127,7 +130,8 @@ static int write_outputs(const rths_cli *cli, rths_report *rep, const rths_tune_
     json_object_object_add(rl, "grounding_decay_fraction",
                            json_object_new_double(rule->grounding_decay_fraction));
     json_object_object_add(root, "rule", rl);
-    json_object_object_add(root, "delay_samples", json_object_new_int(r->delay_samples));
+    json_object_object_add(root, "delay_samples",
+                           json_object_new_double(r->delay_samples + r->delay_fraction));
     json_object *cur = margins_json(&r->current), *tun = margins_json(&r->tuned);
     json_object_object_add(cur, "kp_v_per_m", json_object_new_double(r->current_kp_v_per_m));
     json_object_object_add(cur, "kd_v_s_per_m", json_object_new_double(r->current_kd_v_s_per_m));
@@ -157,12 +161,17 @@ static int write_outputs(const rths_cli *cli, rths_report *rep, const rths_tune_
 }
 
 int rths_cmd_tune(int argc, char **argv) {
-    rths_cli_opt opts[] = {{"--out", "DIR", NULL}};
+    rths_cli_opt opts[] = {{"--out", "DIR", NULL}, {"--delay", "S", NULL}};
     rths_cli cli;
-    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG, usage, opts, 1);
+    int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG, usage, opts, 2);
     if (rc || cli.help) return rc;
     cli.out_dir = opts[0].value;
     rths_error err = {0};
+    rths_tune_rule rule;
+    rths_tune_rule_defaults(&rule);
+    if (opts[1].value &&
+        (rc = rths_cli_double("--delay", opts[1].value, 0, 0.1, &rule.delay_s, &err)))
+        return rths_cli_fail(&cli, rc, &err);
     rths_config *cfg = NULL;
     rths_setup setup = {0};
     rths_report *rep = NULL;
@@ -173,8 +182,6 @@ int rths_cmd_tune(int argc, char **argv) {
     rths_plant_options popt;
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
-    rths_tune_rule rule;
-    rths_tune_rule_defaults(&rule);
     rths_tune_result result;
     rc = rths_sample_loop_config_read(cfg, &copt, &popt, &err);
     if (!rc) rc = rths_cli_check_config(cfg, &err);

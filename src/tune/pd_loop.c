@@ -18,13 +18,15 @@
 struct rths_pd_loop {
     int nz;            /* continuous state: q, v, actuator states */
     int iface;         /* index of the interface displacement in the state */
-    int delay;         /* whole samples */
+    int delay;         /* whole samples of the transport delay */
+    double fraction;   /* and the fraction of a sample beyond them, [0, 1) */
     int linear_hold;   /* the force command ramps from the last sample's value */
     double h, alpha;   /* sample period; the differentiator's low-pass pole */
     double input_gain; /* command per demand volt: the shaker's gain, 1 for a transfer function */
     double *phi;       /* nz x nz: e^{A h} */
-    double *g_const;   /* nz: response to a unit command held over the sample */
-    double *g_ramp;    /* nz: response to a command ramping 0 -> 1 over the sample */
+    /* z_{k+1} = phi z_k + e[0] w_{k-D} + e[1] w_{k-D-1} + e[2] w_{k-D-2}, w_j = g u_j: the
+     * command's samples that act during sample k through the hold and the fractional delay */
+    double *e[3];
     /* the open loop's frequency response P(e^{i theta}), demand to interface displacement */
     double theta[GRID_POINTS];
     double complex p[GRID_POINTS];
@@ -34,12 +36,16 @@ struct rths_pd_loop {
 
 void rths_pd_loop_destroy(rths_pd_loop *loop) {
     if (!loop) return;
-    free(loop->phi), free(loop->g_const), free(loop->g_ramp);
+    free(loop->phi), free(loop->e[0]), free(loop->e[1]), free(loop->e[2]);
     free(loop);
 }
 
 int rths_pd_loop_delay_samples(const rths_pd_loop *loop) {
     return loop->delay;
+}
+
+double rths_pd_loop_delay_fraction(const rths_pd_loop *loop) {
+    return loop->fraction;
 }
 
 /* The actuator's continuous states (plant.c's actuator_realise for one actuator): a shaker's
@@ -91,36 +97,80 @@ static int actuator_model_of(const rths_plant_options *o, actuator_model *m, rth
     return RTHS_OK;
 }
 
-/* e^{A h} and the hold integrals from one exponential of [[A, B, 0], [0, 0, 1], [0, 0, 0]] h
- * (Van Loan): column nz is int_0^h e^{A s} B ds, column nz + 1 the ramp's integral times h. */
-static int discretise(rths_pd_loop *loop, int nz, const double *a, const double *b) {
+/* Over a length L: e^{A L}, G(L) = int_0^L e^{A (L - s)} B ds and J(L) = int_0^L e^{A (L - s)} B s
+ * ds from one exponential of [[A, B, 0], [0, 0, 1], [0, 0, 0]] L (Van Loan). */
+static int hold_integrals(int nz, const double *a, const double *b, double length, double *phi,
+                          double *g, double *j_out) {
     int N = nz + 2;
     double *aug = rths_mat_new(N, N), *e = rths_mat_new(N, N);
     int rc = aug && e ? 0 : -1;
     if (!rc) {
         for (int j = 0; j < nz; j++)
             for (int i = 0; i < nz; i++)
-                RTHS_AT(aug, N, i, j) = a[i + (size_t)j * nz] * loop->h;
+                RTHS_AT(aug, N, i, j) = a[i + (size_t)j * nz] * length;
         for (int i = 0; i < nz; i++)
-            RTHS_AT(aug, N, i, nz) = b[i] * loop->h;
-        RTHS_AT(aug, N, nz, nz + 1) = loop->h;
+            RTHS_AT(aug, N, i, nz) = b[i] * length;
+        RTHS_AT(aug, N, nz, nz + 1) = length;
         rc = rths_expm(N, aug, e);
     }
     if (!rc) {
         for (int j = 0; j < nz; j++)
             for (int i = 0; i < nz; i++)
-                loop->phi[i + (size_t)j * nz] = RTHS_AT(e, N, i, j);
+                phi[i + (size_t)j * nz] = RTHS_AT(e, N, i, j);
         for (int i = 0; i < nz; i++) {
-            loop->g_const[i] = RTHS_AT(e, N, i, nz);
-            loop->g_ramp[i] = RTHS_AT(e, N, i, nz + 1) / loop->h;
+            g[i] = RTHS_AT(e, N, i, nz);
+            j_out[i] = RTHS_AT(e, N, i, nz + 1);
         }
     }
     rths_mat_free(aug), rths_mat_free(e);
     return rc;
 }
 
-/* P(z) = e_x^T (z I - Phi)^{-1} [hold(z)] g z^-D, the hold (G0 - G1) z^-1 + G1 for the linear
- * one (the command ramps from the previous sample's), G0 for the step. */
+/* The command before the fractional delay is, over sample j, a ramp from w_{j-D-1} to w_{j-D}
+ * (linear hold) or w_{j-D} held (step). Delayed by f h more, sample k sees over [f h, h] the
+ * first (1 - f) h of its own segment and over [0, f h] the last f h of the previous one, each
+ * integrated exactly: a linear piece c0 + (c1 - c0) s / h over a part of length L contributes
+ * G(L) c0 + J(L) (c1 - c0) / h, the first part carried to the sample's end by e^{A (1 - f) h}. */
+static int discretise(rths_pd_loop *loop, int nz, const double *a, const double *b) {
+    const double h = loop->h, f = loop->fraction, l2 = (1 - f) * h, l1 = f * h;
+    double *phi2 = calloc((size_t)nz * (size_t)nz, sizeof(double)),
+           *tmp = calloc((size_t)nz * (size_t)nz, sizeof(double)),
+           *g = calloc((size_t)nz, sizeof(double)), *jj = calloc((size_t)nz, sizeof(double)),
+           *part = calloc((size_t)nz, sizeof(double));
+    int rc = phi2 && tmp && g && jj && part ? 0 : -1;
+    if (!rc) rc = hold_integrals(nz, a, b, h, loop->phi, g, jj);
+    if (!rc) rc = hold_integrals(nz, a, b, l2, phi2, g, jj);
+    for (int i = 0; !rc && i < nz; i++) {
+        if (loop->linear_hold) {
+            /* ramp from w_{k-D-1} to w_{k-D}, its first (1 - f) h */
+            loop->e[0][i] += jj[i] / h;
+            loop->e[1][i] += g[i] - jj[i] / h;
+        } else {
+            loop->e[0][i] += g[i];
+        }
+    }
+    if (!rc && l1 > 0) {
+        rc = hold_integrals(nz, a, b, l1, tmp, g, jj);
+        /* the previous segment's last f h: a ramp from f w_{k-D-2} + (1 - f) w_{k-D-1} by
+         * (w_{k-D-1} - w_{k-D-2}) s / h (linear), or w_{k-D-1} held (step) */
+        for (int w = 1; !rc && w <= 2; w++) {
+            for (int i = 0; i < nz; i++)
+                part[i] = !loop->linear_hold ? (w == 1 ? g[i] : 0.0)
+                          : w == 1           ? (1 - f) * g[i] + jj[i] / h
+                                             : f * g[i] - jj[i] / h;
+            for (int i = 0; i < nz; i++) {
+                double sum = 0;
+                for (int k = 0; k < nz; k++)
+                    sum += phi2[i + (size_t)k * nz] * part[k];
+                loop->e[w][i] += sum;
+            }
+        }
+    }
+    free(phi2), free(tmp), free(g), free(jj), free(part);
+    return rc;
+}
+
+/* P(z) = e_x^T (z I - Phi)^{-1} (E0 + E1 z^-1 + E2 z^-2) g z^-D */
 static int frequency_response(rths_pd_loop *loop) {
     int nz = loop->nz;
     double complex *m = malloc(sizeof *m * (size_t)nz * (size_t)nz),
@@ -135,8 +185,7 @@ static int frequency_response(rths_pd_loop *loop) {
             for (int i = 0; i < nz; i++)
                 m[i + (size_t)j * nz] = (i == j ? z : 0) - loop->phi[i + (size_t)j * nz];
         for (int i = 0; i < nz; i++)
-            rhs[i] = loop->linear_hold ? (loop->g_const[i] - loop->g_ramp[i]) * zi + loop->g_ramp[i]
-                                       : loop->g_const[i];
+            rhs[i] = loop->e[0][i] + (loop->e[1][i] + loop->e[2][i] * zi) * zi;
         if (rths_cmat_solve(nz, 1, m, rhs)) {
             rc = -1;
             break;
@@ -167,17 +216,20 @@ int rths_pd_loop_create(const rths_pd_loop_spec *spec, rths_pd_loop **out, rths_
     loop->h = 1.0 / spec->sample_rate_hz;
     loop->alpha =
         spec->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * spec->velocity_cutoff_hz * loop->h) : 0.0;
-    loop->delay = (int)lround(o->delay_s * spec->sample_rate_hz);
+    /* whole samples and a fraction; a fraction within 1e-9 of a whole sample is none */
+    double samples = o->delay_s * spec->sample_rate_hz;
+    loop->delay = (int)floor(samples + 1e-9);
+    loop->fraction = samples - loop->delay > 1e-9 ? samples - loop->delay : 0.0;
     loop->linear_hold = o->linear_hold;
     loop->input_gain = act.tf ? 1.0 : o->gain_n_per_v;
     loop->iface = n - 1;
     int nz = loop->nz = 2 * n + act.na;
     loop->phi = calloc((size_t)nz * (size_t)nz, sizeof(double));
-    loop->g_const = calloc((size_t)nz, sizeof(double));
-    loop->g_ramp = calloc((size_t)nz, sizeof(double));
+    for (int k = 0; k < 3; k++)
+        loop->e[k] = calloc((size_t)nz, sizeof(double));
     double *minv = rths_mat_new(n, n), *mm = rths_mat_new(n, n), *a = rths_mat_new(nz, nz),
            *b = calloc((size_t)nz, sizeof(double));
-    if (!loop->phi || !loop->g_const || !loop->g_ramp || !minv || !mm || !a || !b) {
+    if (!loop->phi || !loop->e[0] || !loop->e[1] || !loop->e[2] || !minv || !mm || !a || !b) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
     }
@@ -231,17 +283,18 @@ done:
     return RTHS_OK;
 }
 
-/* Closed loop, state X_k = [z_k; u_{k-1} .. u_{k-D-1}; x_{k-1}; v_{k-1}]: the controller reads
+/* Closed loop, state X_k = [z_k; u_{k-1} .. u_{k-D-2}; x_{k-1}; v_{k-1}]: the controller reads
  * x_k = q_iface, v_k = alpha v_{k-1} + (1 - alpha)(x_k - x_{k-1}) / h, demands
  * u_k = -kp x_k - kd v_k (the target's terms are inputs, not states); the plant takes the
- * command g u_{k-D} at the sample's end, g u_{k-D-1} at its start (linear hold) or the end's
- * throughout (step), as plant.c's rths_plant_advance. */
+ * commands g u_{k-D}, g u_{k-D-1}, g u_{k-D-2} through E0, E1, E2 (discretise), as plant.c's
+ * rths_plant_advance for a whole-sample delay. */
 double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd) {
-    const int nz = loop->nz, D = loop->delay, hist = nz, xprev = nz + D + 1, vprev = xprev + 1,
+    const int nz = loop->nz, D = loop->delay, hist = nz, xprev = nz + D + 2, vprev = xprev + 1,
               N = vprev + 1;
-    double *w = rths_mat_new(N, N), *r = calloc((size_t)N, sizeof(double));
-    if (!w || !r) {
-        rths_mat_free(w), free(r);
+    double *w = rths_mat_new(N, N), *r = calloc((size_t)N, sizeof(double)),
+           *cmd = calloc(3 * (size_t)N, sizeof(double));
+    if (!w || !r || !cmd) {
+        rths_mat_free(w), free(r), free(cmd);
         return -1;
     }
     const double rate = 1.0 / loop->h, a = loop->alpha;
@@ -251,39 +304,32 @@ double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd) {
     r[loop->iface] = -kp - kd * v_x;
     r[xprev] = -kd * v_xprev;
     r[vprev] = -kd * v_v;
-    /* the command at the sample's end and start, as rows over X */
-    double *cmd_end = calloc((size_t)N, sizeof(double)),
-           *cmd_start = calloc((size_t)N, sizeof(double));
-    if (!cmd_end || !cmd_start) {
-        rths_mat_free(w), free(r), free(cmd_end), free(cmd_start);
-        return -1;
+    /* the commands g u_{k-D-j}, j = 0, 1, 2, as rows over X: u_k itself or a history entry */
+    for (int j = 0; j < 3; j++) {
+        double *row = cmd + (size_t)j * N;
+        if (D + j == 0)
+            for (int c = 0; c < N; c++)
+                row[c] = loop->input_gain * r[c];
+        else
+            row[hist + D + j - 1] = loop->input_gain;
     }
-    if (D == 0)
-        for (int j = 0; j < N; j++)
-            cmd_end[j] = loop->input_gain * r[j];
-    else
-        cmd_end[hist + D - 1] = loop->input_gain;
-    if (loop->linear_hold)
-        cmd_start[hist + D] = loop->input_gain;
-    else
-        memcpy(cmd_start, cmd_end, sizeof(double) * (size_t)N);
     for (int i = 0; i < nz; i++) {
         for (int j = 0; j < nz; j++)
             RTHS_AT(w, N, i, j) = loop->phi[i + (size_t)j * nz];
-        double g0 = loop->g_const[i], g1 = loop->g_ramp[i];
-        for (int j = 0; j < N; j++)
-            RTHS_AT(w, N, i, j) += (g0 - g1) * cmd_start[j] + g1 * cmd_end[j];
+        for (int j = 0; j < 3; j++)
+            for (int c = 0; c < N; c++)
+                RTHS_AT(w, N, i, c) += loop->e[j][i] * cmd[(size_t)j * N + c];
     }
-    for (int j = 0; j < N; j++)
-        RTHS_AT(w, N, hist, j) = r[j];
-    for (int k = 1; k <= D; k++)
+    for (int c = 0; c < N; c++)
+        RTHS_AT(w, N, hist, c) = r[c];
+    for (int k = 1; k <= D + 1; k++)
         RTHS_AT(w, N, hist + k, hist + k - 1) = 1.0;
     RTHS_AT(w, N, xprev, loop->iface) = 1.0;
     RTHS_AT(w, N, vprev, loop->iface) = v_x;
     RTHS_AT(w, N, vprev, xprev) = v_xprev;
     RTHS_AT(w, N, vprev, vprev) = v_v;
     double radius = rths_spectral_radius(N, w);
-    rths_mat_free(w), free(r), free(cmd_end), free(cmd_start);
+    rths_mat_free(w), free(r), free(cmd);
     return radius;
 }
 

@@ -16,12 +16,14 @@ void rths_tune_rule_defaults(rths_tune_rule *rule) {
     rule->grounding_gain_factor = 2.0;
     rule->grounding_max_radius = 1.0;
     rule->grounding_decay_fraction = 0.9;
+    rule->delay_s = -1;
 }
 
 /* The setup's physical substructure on the rig: the interface element the rig's mass
  * (rig.interface_mass, setup.h). */
 int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_options *copt,
-                            const rths_plant_options *popt, rths_pd_loop **out, rths_error *err) {
+                            const rths_plant_options *popt, double delay_s, rths_pd_loop **out,
+                            rths_error *err) {
     *out = NULL;
     const rths_split *s = &setup->split;
     if (s->n_int != 1)
@@ -38,13 +40,18 @@ int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_optio
     if (!m) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     memcpy(m, s->mass_phys, sizeof(double) * (size_t)n * (size_t)n);
     RTHS_AT(m, n, n - 1, n - 1) = rths_setup_rig_interface_mass(setup, 0, 0);
+    /* the virtual rig's delay line holds whole samples (plant.c: rounded) */
+    rths_plant_options rig = *popt;
+    rig.delay_s = delay_s >= 0
+                      ? delay_s
+                      : lround(popt->delay_s * copt->sample_rate_hz) / copt->sample_rate_hz;
     rths_pd_loop_spec spec = {.n = n,
                               .mass = m,
                               .damping = s->damping_phys,
                               .stiffness = s->stiffness_phys,
                               .sample_rate_hz = copt->sample_rate_hz,
                               .velocity_cutoff_hz = copt->velocity_cutoff_hz,
-                              .rig = popt};
+                              .rig = &rig};
     int rc = rths_pd_loop_create(&spec, out, err);
     free(m);
     return rc;
@@ -246,10 +253,11 @@ int rths_tune(const rths_setup *setup, const rths_controller_options *copt,
                               "split.numerical_solver: frequency has no grounding loop to tune; "
                               "the gain tuning needs the controller's own numerical substructure");
     rths_pd_loop *loop = NULL;
-    int rc = rths_pd_loop_from_setup(setup, copt, popt, &loop, err);
+    int rc = rths_pd_loop_from_setup(setup, copt, popt, rule->delay_s, &loop, err);
     if (rc) return rc;
     out->n_int = setup->split.n_int;
     out->delay_samples = rths_pd_loop_delay_samples(loop);
+    out->delay_fraction = rths_pd_loop_delay_fraction(loop);
     double gkp, gkd;
     configured_gains(copt, 0, &out->current_kp_v_per_m, &out->current_kd_v_s_per_m, &gkp, &gkd);
     rc = rths_pd_loop_margins(loop, out->current_kp_v_per_m, out->current_kd_v_s_per_m,

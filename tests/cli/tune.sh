@@ -5,7 +5,8 @@
 # short `rths frf` with the pasted keys converges every point within 1 % of the analytic FRF; a
 # deliberately bad configured kp (1e5 V/m) is reported UNSTABLE with a spectral radius above 1
 # (exit 0: the tuned gains are still given); two interface DoFs and a misspelt key are refused
-# with exit 2 and nothing written.
+# with exit 2 and nothing written; --delay 2.5e-4 (a lab's measured delay) keeps its half sample;
+# a --delay out of range is refused.
 set -u
 bin=$1
 src=$2
@@ -64,6 +65,17 @@ print("ok   bad kp reported unstable: spectral radius %.4f" % c["spectral_radius
 PY
 "$bin" tune "$seed" --quiet >"$work/qstdout" 2>&1 || fail "--quiet: exit status $?"
 [ -s "$work/qstdout" ] && fail "--quiet printed: $(head -n 1 "$work/qstdout")"
+"$bin" tune "$seed" --delay 2.5e-4 --out "$work/d" --quiet || fail "--delay: exit status $?"
+/usr/bin/python3 - "$work/d" <<'PY' || fail "--delay 2.5e-4: summary.json wrong"
+import json, sys
+s = json.load(open(sys.argv[1] + "/summary.json"))
+t = s["tuned"]
+assert abs(s["delay_samples"] - 2.5) < 1e-9, s["delay_samples"]
+assert t["stable"] and t["gain_margin_db"] >= 6 and t["phase_margin_deg"] >= 45, t
+print("ok   --delay 2.5e-4: 2.5 samples, tuned %.2f dB, %.1f deg" % (t["gain_margin_db"],
+                                                                  t["phase_margin_deg"]))
+PY
+refused tune "delay out of range" "option --delay: must be in \[0, 0.1\] \(got 2\)" "$seed" --delay 2
 refused tune "two interface DoFs" "the gain tuning models one interface DoF; this split has 2 \(split.interface\)" \
     "$src/examples/two_interface_storeys.yaml"
 refused tune "misspelt key" "controller.kp_v_per_mm" "$seed" --set controller.kp_v_per_mm=3
