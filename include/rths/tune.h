@@ -20,6 +20,8 @@
 #include "rths/plant.h"
 #include "rths/setup.h"
 
+#include <complex.h>
+
 /* One physical interface DoF's loop, the interface the last of the n DoFs. */
 typedef struct rths_pd_loop_spec {
     int n;                   /* physical DoFs (internal ones first, the interface last) */
@@ -62,6 +64,12 @@ double rths_pd_loop_delay_fraction(const rths_pd_loop *loop);
 double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd);
 int rths_pd_loop_margins(const rths_pd_loop *loop, double kp, double kd, rths_loop_margins *out,
                          rths_error *err);
+/* The frequencies the margins are read on (log-spaced up to Nyquist): their count, and the
+ * loop L = K P at each, broken at the demand, for gains kp and kd (frequency_hz and l hold
+ * rths_pd_loop_points() entries). */
+int rths_pd_loop_points(void);
+void rths_pd_loop_response(const rths_pd_loop *loop, double kp, double kd, double *frequency_hz,
+                           double complex *l);
 
 /* Spectral radius per sample of the numerical substructure under grounding control with gains
  * gkp, gkd per interface DoF (N/m, N s/m), the controller's scheme and sample rate. -1 with err

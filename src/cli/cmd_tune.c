@@ -31,7 +31,9 @@ static const char usage[] =
     "transforms.\n"
     "\n"
     "Prints the keys to paste as a YAML fragment on stdout (comments say the margins). With\n"
-    "--out DIR also writes DIR/tuned.yaml (the fragment), summary.json, config.yaml, run.log.\n"
+    "--out DIR also writes DIR/tuned.yaml (the fragment), summary.json, loop.csv (the configured\n"
+    "and the tuned loop's gain, phase and sensitivity over frequency) and its figure loop.png,\n"
+    ".svg, .gp, config.yaml, run.log.\n"
     "\n"
     "Options:\n"
     "  --out DIR          output folder (created)\n"
@@ -113,6 +115,71 @@ static json_object *margins_json(const rths_loop_margins *m) {
     return o;
 }
 
+/* loop.csv: the configured and the tuned loop L = K P and sensitivity S = 1 / (1 + L) over the
+ * margins' frequencies; loop.png/.svg: their Bode plots. */
+static int write_loop(rths_report *rep, const rths_setup *setup,
+                      const rths_controller_options *copt, const rths_plant_options *popt,
+                      const rths_tune_rule *rule, const rths_tune_result *r, rths_error *err) {
+    rths_pd_loop *loop = NULL;
+    int rc = rths_pd_loop_from_setup(setup, copt, popt, rule->delay_s, &loop, err);
+    if (rc) return rc;
+    int n = rths_pd_loop_points();
+    double *f = malloc(sizeof *f * (size_t)n);
+    double complex *lc = malloc(sizeof *lc * (size_t)n), *lt = malloc(sizeof *lt * (size_t)n);
+    if (!f || !lc || !lt) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    static const char *const header[] = {"frequency_hz",
+                                         "configured_loop_gain_db",
+                                         "configured_loop_phase_deg",
+                                         "configured_sensitivity_db",
+                                         "tuned_loop_gain_db",
+                                         "tuned_loop_phase_deg",
+                                         "tuned_sensitivity_db"};
+    char path[4096];
+    rths_csv *csv = NULL;
+    if (!rc) {
+        rths_pd_loop_response(loop, r->current_kp_v_per_m, r->current_kd_v_s_per_m, f, lc);
+        rths_pd_loop_response(loop, r->kp_v_per_m, r->kd_v_s_per_m, f, lt);
+        snprintf(path, sizeof path, "%s/loop.csv", rths_report_dir(rep));
+        rc = rths_csv_open(path, 7, header, &csv, err);
+    }
+    for (int g = 0; !rc && g < n; g++) {
+        double row[7] = {f[g],
+                         20 * log10(cabs(lc[g])),
+                         carg(lc[g]) * 180 / M_PI,
+                         -20 * log10(cabs(1 + lc[g])),
+                         20 * log10(cabs(lt[g])),
+                         carg(lt[g]) * 180 / M_PI,
+                         -20 * log10(cabs(1 + lt[g]))};
+        rc = rths_csv_row(csv, row);
+        if (rc) rths_error_set(err, RTHS_EFAIL, "%s: write failed", path);
+    }
+    if (csv) rc = rths_csv_finish(csv, rc, err);
+    free(f), free(lc), free(lt);
+    rths_pd_loop_destroy(loop);
+    if (rc) return rc;
+    char body[2048];
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set multiplot layout 2,1 title 'PD loop L = K P broken at the demand: configured "
+             "(kp %g, kd %g) and tuned (kp %g, kd %g)'\n"
+             "set grid\n"
+             "set logscale x\n"
+             "set xlabel 'frequency (Hz)'\n"
+             "set ylabel 'gain (dB)'\n"
+             "set key bottom left\n"
+             "plot 'loop.csv' skip 1 using 1:2 with lines lw 2 title '|L| configured', \\\n"
+             "  '' skip 1 using 1:5 with lines lw 2 title '|L| tuned', \\\n"
+             "  '' skip 1 using 1:7 with lines dt 2 title '|S| tuned', 0 with lines lc rgb "
+             "'gray50' notitle\n"
+             "set ylabel 'phase (deg)'\n"
+             "set yrange [-180:180]\n"
+             "plot 'loop.csv' skip 1 using 1:3 with lines lw 2 title 'configured', \\\n"
+             "  '' skip 1 using 1:6 with lines lw 2 title 'tuned'\n"
+             "unset multiplot\n",
+             r->current_kp_v_per_m, r->current_kd_v_s_per_m, r->kp_v_per_m, r->kd_v_s_per_m);
+    return rths_plot(rep, rths_report_dir(rep), "loop", 1200, 900, body, err);
+}
+
 static int write_outputs(const rths_cli *cli, rths_report *rep, const rths_tune_result *r,
                          const rths_tune_rule *rule, const char *text, rths_error *err) {
     char path[4096];
@@ -191,6 +258,7 @@ int rths_cmd_tune(int argc, char **argv) {
     if (!rc && cli.out_dir) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
     if (!rc) rths_cli_print(&cli, "%s", text);
     if (!rc && rep) rc = write_outputs(&cli, rep, &result, &rule, text, &err);
+    if (!rc && rep) rc = write_loop(rep, &setup, &copt, &popt, &rule, &result, &err);
     if (rep)
         rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);

@@ -333,6 +333,18 @@ double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd) {
     return radius;
 }
 
+int rths_pd_loop_points(void) {
+    return GRID_POINTS;
+}
+
+void rths_pd_loop_response(const rths_pd_loop *loop, double kp, double kd, double *frequency_hz,
+                           double complex *l) {
+    for (int g = 0; g < GRID_POINTS; g++) {
+        frequency_hz[g] = loop->theta[g] / (2 * M_PI * loop->h);
+        l[g] = (kp + kd * loop->dterm[g]) * loop->p[g];
+    }
+}
+
 /* the phase of L + pi, wrapped to (-pi, pi]: 0 where L is on the negative real axis */
 static double phase_from_minus_one(double complex l) {
     return carg(-l);

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # rths tune (docs/method.md, "Tuning the gains") on the seed building: exit 0, the YAML fragment on
 # stdout equals DIR/tuned.yaml and parses to the four controller keys, summary.json states the
-# tuned margins (>= 6 dB, >= 45 deg, stable) and the configured gains' (the seed's stable); a
+# tuned margins (>= 6 dB, >= 45 deg, stable) and the configured gains' (the seed's stable),
+# loop.csv's tuned gain at the phase crossover is minus the gain margin; a
 # short `rths frf` with the pasted keys converges every point within 1 % of the analytic FRF; a
 # deliberately bad configured kp (1e5 V/m) is reported UNSTABLE with a spectral radius above 1
 # (exit 0: the tuned gains are still given); two interface DoFs and a misspelt key are refused
@@ -31,6 +32,14 @@ assert t["grounding_spectral_radius"] < 1 and t["grounding_spectral_radius_at_fa
 assert abs(t["kp_v_per_m"] - keys["kp_v_per_m"]) <= 1e-5 * keys["kp_v_per_m"]
 assert c["stable"] and c["kp_v_per_m"] == 100 and c["kd_v_s_per_m"] == 10, c
 assert s["delay_samples"] == 3, s["delay_samples"]
+# loop.csv: |L| at the phase crossover is minus the gain margin (the grid's interpolation: 0.1 dB)
+import csv, bisect
+rows = list(csv.DictReader(open(out + "/loop.csv")))
+assert len(rows) == 3000, len(rows)
+f = [float(r["frequency_hz"]) for r in rows]
+i = bisect.bisect(f, t["gain_margin_hz"])
+g = [float(rows[j]["tuned_loop_gain_db"]) for j in (i - 1, i)]
+assert min(g) - 0.1 <= -t["gain_margin_db"] <= max(g) + 0.1, (g, t["gain_margin_db"])
 for k, v in keys.items():
     print("controller.%s=%r" % (k, v))
 print("ok   seed tuned: kp %g kd %g, %.2f dB, %.1f deg; seed's gains %.2f dB, %.1f deg"
