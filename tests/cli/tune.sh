@@ -85,6 +85,11 @@ print("ok   --delay 2.5e-4: 2.5 samples, tuned %.2f dB, %.1f deg" % (t["gain_mar
                                                                   t["phase_margin_deg"]))
 PY
 refused tune "delay out of range" "option --delay: must be in \[0, 0.1\] \(got 2\)" "$seed" --delay 2
+python3 -c "import sys; n = 60000; open(sys.argv[1], 'w').write('x: ' + '[' * n + ']' * n + '\n')" \
+    "$work/deep_list.yaml"
+refused tune "deep list" "deep_list.yaml:1:67: nested deeper than 64 levels" "$work/deep_list.yaml"
+refused tune "--out twice" "option --out given twice" "$seed" --out "$work/first_out"
+[ -e "$work/first_out" ] && fail "--out twice: the first folder was created"
 refused tune "two interface DoFs" "the gain tuning models one interface DoF; this split has 2 \(split.interface\)" \
     "$src/examples/two_interface_storeys.yaml"
 refused tune "misspelt key" "controller.kp_v_per_mm" "$seed" --set controller.kp_v_per_mm=3
