@@ -3,8 +3,9 @@
  *
  * The physical loop: the physical substructure as the virtual rig models it (plant.h: the
  * interface mass the rig carries, the shaker's gain, lag and armature or the transfer-function
- * actuator with its velocity path, the transport delay in whole samples, the linear or step hold
- * of the demand), discretised exactly over one controller sample, closed by the controller's own
+ * actuator with its velocity path, the transport delay (whole samples as the virtual rig holds
+ * it, or any delay with its fraction of a sample), the linear or step hold of the demand),
+ * discretised exactly over one controller sample, closed by the controller's own
  * discrete PD (backward difference through its first-order low-pass at velocity_cutoff_hz).
  * Stability is the closed loop's spectral radius < 1; the margins come from the discrete loop's
  * frequency response L(e^{i w h}) = K(e^{i w h}) P(e^{i w h}), the loop broken at the demand.

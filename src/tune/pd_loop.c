@@ -2,7 +2,7 @@
  * actuator and delay, closed by the controller's discrete PD. The continuous model repeats
  * plant.c's (side_state_matrix, actuator_realise, build_side) for the linear side, one actuator,
  * no transforms: the plant keeps those static, and a public entry point there would let both
- * share one copy (reported for the lead). */
+ * share one copy. tests/test_tune.c checks the copy against the virtual rig itself. */
 #include "rths/tune.h"
 
 #include "tune/tune_internal.h"
