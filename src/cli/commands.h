@@ -10,6 +10,7 @@ int rths_cmd_simulate(int argc, char **argv) __attribute__((weak));
 int rths_cmd_fidelity(int argc, char **argv) __attribute__((weak));
 int rths_cmd_frf(int argc, char **argv) __attribute__((weak));
 int rths_cmd_chart(int argc, char **argv) __attribute__((weak));
+int rths_cmd_tune(int argc, char **argv) __attribute__((weak));
 int rths_cmd_controller(int argc, char **argv) __attribute__((weak));
 int rths_cmd_view(int argc, char **argv) __attribute__((weak));
 

@@ -36,6 +36,7 @@ int main(int argc, char **argv) {
         {"fidelity", rths_cmd_fidelity, "integration-scheme error of the numerical substructure"},
         {"frf", rths_cmd_frf, "iterative hybrid test with continuation: the frequency response"},
         {"chart", rths_cmd_chart, "stability chart of the delayed-feedback hybrid test"},
+        {"tune", rths_cmd_tune, "PD and grounding gains from the model, with their margins"},
         {"controller", rths_cmd_controller, "the real-time controller process"},
         {"view", rths_cmd_view, "live web page of a run folder, finished or in progress"},
     };

@@ -1,0 +1,443 @@
+/* The physical loop of docs/method.md, "Tuning the gains": the sampled physical substructure,
+ * actuator and delay, closed by the controller's discrete PD. The continuous model repeats
+ * plant.c's (side_state_matrix, actuator_realise, build_side) for the linear side, one actuator,
+ * no transforms: the plant keeps those static, and a public entry point there would let both
+ * share one copy. tests/test_tune.c checks the copy against the virtual rig itself. */
+#include "rths/tune.h"
+
+#include "tune/tune_internal.h"
+
+#include <complex.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* frequency grid of the margins: log-spaced up to Nyquist */
+#define GRID_POINTS 3000
+
+struct rths_pd_loop {
+    int nz;            /* continuous state: q, v, actuator states */
+    int iface;         /* index of the interface displacement in the state */
+    int delay;         /* whole samples of the transport delay */
+    double fraction;   /* and the fraction of a sample beyond them, [0, 1) */
+    int linear_hold;   /* the force command ramps from the last sample's value */
+    double h, alpha;   /* sample period; the differentiator's low-pass pole */
+    double input_gain; /* command per demand volt: the shaker's gain, 1 for a transfer function */
+    double *phi;       /* nz x nz: e^{A h} */
+    /* z_{k+1} = phi z_k + e[0] w_{k-D} + e[1] w_{k-D-1} + e[2] w_{k-D-2}, w_j = g u_j: the
+     * command's samples that act during sample k through the hold and the fractional delay */
+    double *e[3];
+    /* the open loop's frequency response P(e^{i theta}), demand to interface displacement */
+    double theta[GRID_POINTS];
+    double complex p[GRID_POINTS];
+    /* the PD's derivative path per kd: (1 - alpha)(1 - z^-1) / (h (1 - alpha z^-1)) */
+    double complex dterm[GRID_POINTS];
+};
+
+void rths_pd_loop_destroy(rths_pd_loop *loop) {
+    if (!loop) return;
+    free(loop->phi), free(loop->e[0]), free(loop->e[1]), free(loop->e[2]);
+    free(loop);
+}
+
+int rths_pd_loop_delay_samples(const rths_pd_loop *loop) {
+    return loop->delay;
+}
+
+double rths_pd_loop_delay_fraction(const rths_pd_loop *loop) {
+    return loop->fraction;
+}
+
+/* The actuator's continuous states (plant.c's actuator_realise for one actuator): a shaker's
+ * lag (na 1) or none; a transfer function F = (N U - V(s) x') / D in observer canonical form. */
+typedef struct {
+    int na, tf;
+    double lag_rate, out, spring, d;
+    double a[RTHS_ACTUATOR_MAX_ORDER * RTHS_ACTUATOR_MAX_ORDER];
+    double bu[RTHS_ACTUATOR_MAX_ORDER], bv[RTHS_ACTUATOR_MAX_ORDER];
+} actuator_model;
+
+static int actuator_model_of(const rths_plant_options *o, actuator_model *m, rths_error *err) {
+    memset(m, 0, sizeof *m);
+    const rths_actuator_options *a = &o->actuator;
+    if (a->model != RTHS_ACTUATOR_TRANSFER_FUNCTION) {
+        m->lag_rate = o->lag_cutoff_hz > 0 ? 2 * M_PI * o->lag_cutoff_hz : 0;
+        m->na = m->lag_rate > 0;
+        m->out = 1;
+        return RTHS_OK;
+    }
+    int nd = a->denominator_count, nn = a->numerator_count, order = nd - 1;
+    int nv = a->velocity_feedback_count > 0 ? a->velocity_feedback_count : 1;
+    const double *vpoly =
+        a->velocity_feedback_count > 0 ? a->velocity_feedback_poly : &a->velocity_feedback;
+    if (nd < 1 || nd > RTHS_ACTUATOR_MAX_ORDER + 1 || nn < 1 || nn > nd || a->denominator[0] == 0 ||
+        (order > 0 && nv > order))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "transfer_function actuator: %d numerator, %d denominator and %d "
+                              "velocity coefficients are outside what the plant realises",
+                              nn, nd, nv);
+    m->tf = 1;
+    m->na = order;
+    m->spring = a->displacement_output ? a->connection_stiffness_n_per_m : 0.0;
+    m->out = a->displacement_output ? a->connection_stiffness_n_per_m : 1.0;
+    double lead = a->denominator[0], dk[RTHS_ACTUATOR_MAX_ORDER + 1],
+           nk[RTHS_ACTUATOR_MAX_ORDER + 1] = {0};
+    for (int k = 0; k <= order; k++)
+        dk[k] = a->denominator[order - k] / lead;
+    for (int k = 0; k < nn; k++)
+        nk[k] = a->numerator[nn - 1 - k] / lead;
+    m->d = nk[order];
+    for (int i = 0; i < order; i++) {
+        if (i > 0) m->a[i + (i - 1) * order] = 1.0;
+        m->a[i + (order - 1) * order] = -dk[i];
+        m->bu[i] = nk[i] - dk[i] * m->d;
+    }
+    for (int i = 0; order > 0 && i < nv; i++)
+        m->bv[i] = -vpoly[nv - 1 - i] / lead;
+    return RTHS_OK;
+}
+
+/* Over a length L: e^{A L}, G(L) = int_0^L e^{A (L - s)} B ds and J(L) = int_0^L e^{A (L - s)} B s
+ * ds from one exponential of [[A, B, 0], [0, 0, 1], [0, 0, 0]] L (Van Loan). */
+static int hold_integrals(int nz, const double *a, const double *b, double length, double *phi,
+                          double *g, double *j_out) {
+    int N = nz + 2;
+    double *aug = rths_mat_new(N, N), *e = rths_mat_new(N, N);
+    int rc = aug && e ? 0 : -1;
+    if (!rc) {
+        for (int j = 0; j < nz; j++)
+            for (int i = 0; i < nz; i++)
+                RTHS_AT(aug, N, i, j) = a[i + (size_t)j * nz] * length;
+        for (int i = 0; i < nz; i++)
+            RTHS_AT(aug, N, i, nz) = b[i] * length;
+        RTHS_AT(aug, N, nz, nz + 1) = length;
+        rc = rths_expm(N, aug, e);
+    }
+    if (!rc) {
+        for (int j = 0; j < nz; j++)
+            for (int i = 0; i < nz; i++)
+                phi[i + (size_t)j * nz] = RTHS_AT(e, N, i, j);
+        for (int i = 0; i < nz; i++) {
+            g[i] = RTHS_AT(e, N, i, nz);
+            j_out[i] = RTHS_AT(e, N, i, nz + 1);
+        }
+    }
+    rths_mat_free(aug), rths_mat_free(e);
+    return rc;
+}
+
+/* The command before the fractional delay is, over sample j, a ramp from w_{j-D-1} to w_{j-D}
+ * (linear hold) or w_{j-D} held (step). Delayed by f h more, sample k sees over [f h, h] the
+ * first (1 - f) h of its own segment and over [0, f h] the last f h of the previous one, each
+ * integrated exactly: a linear piece c0 + (c1 - c0) s / h over a part of length L contributes
+ * G(L) c0 + J(L) (c1 - c0) / h, the first part carried to the sample's end by e^{A (1 - f) h}. */
+static int discretise(rths_pd_loop *loop, int nz, const double *a, const double *b) {
+    const double h = loop->h, f = loop->fraction, l2 = (1 - f) * h, l1 = f * h;
+    double *phi2 = calloc((size_t)nz * (size_t)nz, sizeof(double)),
+           *tmp = calloc((size_t)nz * (size_t)nz, sizeof(double)),
+           *g = calloc((size_t)nz, sizeof(double)), *jj = calloc((size_t)nz, sizeof(double)),
+           *part = calloc((size_t)nz, sizeof(double));
+    int rc = phi2 && tmp && g && jj && part ? 0 : -1;
+    if (!rc) rc = hold_integrals(nz, a, b, h, loop->phi, g, jj);
+    if (!rc) rc = hold_integrals(nz, a, b, l2, phi2, g, jj);
+    for (int i = 0; !rc && i < nz; i++) {
+        if (loop->linear_hold) {
+            /* ramp from w_{k-D-1} to w_{k-D}, its first (1 - f) h */
+            loop->e[0][i] += jj[i] / h;
+            loop->e[1][i] += g[i] - jj[i] / h;
+        } else {
+            loop->e[0][i] += g[i];
+        }
+    }
+    if (!rc && l1 > 0) {
+        rc = hold_integrals(nz, a, b, l1, tmp, g, jj);
+        /* the previous segment's last f h: a ramp from f w_{k-D-2} + (1 - f) w_{k-D-1} by
+         * (w_{k-D-1} - w_{k-D-2}) s / h (linear), or w_{k-D-1} held (step) */
+        for (int w = 1; !rc && w <= 2; w++) {
+            for (int i = 0; i < nz; i++)
+                part[i] = !loop->linear_hold ? (w == 1 ? g[i] : 0.0)
+                          : w == 1           ? (1 - f) * g[i] + jj[i] / h
+                                             : f * g[i] - jj[i] / h;
+            for (int i = 0; i < nz; i++) {
+                double sum = 0;
+                for (int k = 0; k < nz; k++)
+                    sum += phi2[i + (size_t)k * nz] * part[k];
+                loop->e[w][i] += sum;
+            }
+        }
+    }
+    free(phi2), free(tmp), free(g), free(jj), free(part);
+    return rc;
+}
+
+/* P(z) = e_x^T (z I - Phi)^{-1} (E0 + E1 z^-1 + E2 z^-2) g z^-D */
+static int frequency_response(rths_pd_loop *loop) {
+    int nz = loop->nz;
+    double complex *m = malloc(sizeof *m * (size_t)nz * (size_t)nz),
+                   *rhs = malloc(sizeof *rhs * (size_t)nz);
+    int rc = m && rhs ? 0 : -1;
+    double theta_min = 1e-6 * M_PI;
+    for (int g = 0; !rc && g < GRID_POINTS; g++) {
+        double th = theta_min * pow(M_PI / theta_min, (double)g / (GRID_POINTS - 1));
+        if (g == GRID_POINTS - 1) th = M_PI;
+        double complex z = cexp(I * th), zi = 1.0 / z;
+        for (int j = 0; j < nz; j++)
+            for (int i = 0; i < nz; i++)
+                m[i + (size_t)j * nz] = (i == j ? z : 0) - loop->phi[i + (size_t)j * nz];
+        for (int i = 0; i < nz; i++)
+            rhs[i] = loop->e[0][i] + (loop->e[1][i] + loop->e[2][i] * zi) * zi;
+        if (rths_cmat_solve(nz, 1, m, rhs)) {
+            rc = -1;
+            break;
+        }
+        loop->theta[g] = th;
+        loop->dterm[g] = (1 - loop->alpha) * (1 - zi) / (loop->h * (1 - loop->alpha * zi));
+        loop->p[g] = rhs[loop->iface] * loop->input_gain * cpow(zi, loop->delay);
+    }
+    free(m), free(rhs);
+    return rc;
+}
+
+int rths_pd_loop_create(const rths_pd_loop_spec *spec, rths_pd_loop **out, rths_error *err) {
+    *out = NULL;
+    const rths_plant_options *o = spec->rig;
+    int n = spec->n;
+    if (n < 1 || !(spec->sample_rate_hz > 0) || spec->velocity_cutoff_hz < 0 ||
+        !(spec->velocity_cutoff_hz < 0.5 * spec->sample_rate_hz))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "PD loop: %d DoFs, sample rate %g Hz, velocity cut-off %g Hz "
+                              "(needs >= 1 DoF, a positive rate, a cut-off in [0, rate / 2))",
+                              n, spec->sample_rate_hz, spec->velocity_cutoff_hz);
+    actuator_model act;
+    int rc = actuator_model_of(o, &act, err);
+    if (rc) return rc;
+    rths_pd_loop *loop = calloc(1, sizeof *loop);
+    if (!loop) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    loop->h = 1.0 / spec->sample_rate_hz;
+    loop->alpha =
+        spec->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * spec->velocity_cutoff_hz * loop->h) : 0.0;
+    /* whole samples and a fraction; a fraction within 1e-9 of a whole sample is none */
+    double samples = o->delay_s * spec->sample_rate_hz;
+    loop->delay = (int)floor(samples + 1e-9);
+    loop->fraction = samples - loop->delay > 1e-9 ? samples - loop->delay : 0.0;
+    loop->linear_hold = o->linear_hold;
+    loop->input_gain = act.tf ? 1.0 : o->gain_n_per_v;
+    loop->iface = n - 1;
+    int nz = loop->nz = 2 * n + act.na;
+    loop->phi = calloc((size_t)nz * (size_t)nz, sizeof(double));
+    for (int k = 0; k < 3; k++)
+        loop->e[k] = calloc((size_t)nz, sizeof(double));
+    double *minv = rths_mat_new(n, n), *mm = rths_mat_new(n, n), *a = rths_mat_new(nz, nz),
+           *b = calloc((size_t)nz, sizeof(double));
+    if (!loop->phi || !loop->e[0] || !loop->e[1] || !loop->e[2] || !minv || !mm || !a || !b) {
+        rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        goto done;
+    }
+    /* the shaker's armature moves with the interface; a transfer function's mass is the
+     * structure's (plant.c) */
+    memcpy(mm, spec->mass, sizeof(double) * (size_t)n * (size_t)n);
+    if (!act.tf) RTHS_AT(mm, n, n - 1, n - 1) += o->armature_mass_kg;
+    if (rths_mat_inverse(n, mm, minv)) {
+        rc = rths_error_set(err, RTHS_EINPUT, "PD loop: the physical mass matrix is singular");
+        goto done;
+    }
+    for (int i = 0; i < n; i++) {
+        RTHS_AT(a, nz, i, n + i) = 1.0;
+        for (int j = 0; j < n; j++) {
+            double mk = 0, mc = 0;
+            for (int l = 0; l < n; l++) {
+                mk += RTHS_AT(minv, n, i, l) * RTHS_AT(spec->stiffness, n, l, j);
+                mc += RTHS_AT(minv, n, i, l) * RTHS_AT(spec->damping, n, l, j);
+            }
+            RTHS_AT(a, nz, n + i, j) = -mk;
+            RTHS_AT(a, nz, n + i, n + j) = -mc;
+        }
+        double to_iface = RTHS_AT(minv, n, i, n - 1);
+        if (act.lag_rate > 0) RTHS_AT(a, nz, n + i, 2 * n) = to_iface;
+        if (act.tf && act.na > 0) RTHS_AT(a, nz, n + i, 2 * n + act.na - 1) = to_iface * act.out;
+        if (act.tf && act.spring > 0) RTHS_AT(a, nz, n + i, n - 1) -= to_iface * act.spring;
+        /* the command's direct path: the unlagged shaker's force, a transfer function's
+         * feedthrough */
+        if (!act.tf && act.lag_rate <= 0) b[n + i] = to_iface;
+        if (act.tf) b[n + i] = to_iface * act.out * act.d;
+    }
+    if (act.lag_rate > 0) {
+        RTHS_AT(a, nz, 2 * n, 2 * n) = -act.lag_rate;
+        b[2 * n] = act.lag_rate;
+    }
+    for (int i = 0; act.tf && i < act.na; i++) {
+        for (int j = 0; j < act.na; j++)
+            RTHS_AT(a, nz, 2 * n + i, 2 * n + j) = act.a[i + j * act.na];
+        RTHS_AT(a, nz, 2 * n + i, 2 * n - 1) = act.bv[i];
+        b[2 * n + i] = act.bu[i];
+    }
+    if (discretise(loop, nz, a, b) || frequency_response(loop))
+        rc = rths_error_set(err, RTHS_EFAIL, "PD loop: the sampled model could not be formed");
+done:
+    rths_mat_free(minv), rths_mat_free(mm), rths_mat_free(a), free(b);
+    if (rc) {
+        rths_pd_loop_destroy(loop);
+        return rc;
+    }
+    *out = loop;
+    return RTHS_OK;
+}
+
+/* Closed loop, state X_k = [z_k; u_{k-1} .. u_{k-D-2}; x_{k-1}; v_{k-1}]: the controller reads
+ * x_k = q_iface, v_k = alpha v_{k-1} + (1 - alpha)(x_k - x_{k-1}) / h, demands
+ * u_k = -kp x_k - kd v_k (the target's terms are inputs, not states); the plant takes the
+ * commands g u_{k-D}, g u_{k-D-1}, g u_{k-D-2} through E0, E1, E2 (discretise), as plant.c's
+ * rths_plant_advance for a whole-sample delay. */
+double rths_pd_loop_radius(const rths_pd_loop *loop, double kp, double kd) {
+    const int nz = loop->nz, D = loop->delay, hist = nz, xprev = nz + D + 2, vprev = xprev + 1,
+              N = vprev + 1;
+    double *w = rths_mat_new(N, N), *r = calloc((size_t)N, sizeof(double)),
+           *cmd = calloc(3 * (size_t)N, sizeof(double));
+    if (!w || !r || !cmd) {
+        rths_mat_free(w), free(r), free(cmd);
+        return -1;
+    }
+    const double rate = 1.0 / loop->h, a = loop->alpha;
+    /* v_k as a row over X */
+    double v_x = (1 - a) * rate, v_xprev = -(1 - a) * rate, v_v = a;
+    /* u_k = -kp x_k - kd v_k */
+    r[loop->iface] = -kp - kd * v_x;
+    r[xprev] = -kd * v_xprev;
+    r[vprev] = -kd * v_v;
+    /* the commands g u_{k-D-j}, j = 0, 1, 2, as rows over X: u_k itself or a history entry */
+    for (int j = 0; j < 3; j++) {
+        double *row = cmd + (size_t)j * N;
+        if (D + j == 0)
+            for (int c = 0; c < N; c++)
+                row[c] = loop->input_gain * r[c];
+        else
+            row[hist + D + j - 1] = loop->input_gain;
+    }
+    for (int i = 0; i < nz; i++) {
+        for (int j = 0; j < nz; j++)
+            RTHS_AT(w, N, i, j) = loop->phi[i + (size_t)j * nz];
+        for (int j = 0; j < 3; j++)
+            for (int c = 0; c < N; c++)
+                RTHS_AT(w, N, i, c) += loop->e[j][i] * cmd[(size_t)j * N + c];
+    }
+    for (int c = 0; c < N; c++)
+        RTHS_AT(w, N, hist, c) = r[c];
+    for (int k = 1; k <= D + 1; k++)
+        RTHS_AT(w, N, hist + k, hist + k - 1) = 1.0;
+    RTHS_AT(w, N, xprev, loop->iface) = 1.0;
+    RTHS_AT(w, N, vprev, loop->iface) = v_x;
+    RTHS_AT(w, N, vprev, xprev) = v_xprev;
+    RTHS_AT(w, N, vprev, vprev) = v_v;
+    double radius = rths_spectral_radius(N, w);
+    rths_mat_free(w), free(r), free(cmd);
+    return radius;
+}
+
+int rths_pd_loop_points(void) {
+    return GRID_POINTS;
+}
+
+void rths_pd_loop_response(const rths_pd_loop *loop, double kp, double kd, double *frequency_hz,
+                           double complex *l) {
+    for (int g = 0; g < GRID_POINTS; g++) {
+        frequency_hz[g] = loop->theta[g] / (2 * M_PI * loop->h);
+        l[g] = (kp + kd * loop->dterm[g]) * loop->p[g];
+    }
+}
+
+/* the phase of L + pi, wrapped to (-pi, pi]: 0 where L is on the negative real axis */
+static double phase_from_minus_one(double complex l) {
+    return carg(-l);
+}
+
+/* The margins from the frequency response on the grid, crossings interpolated linearly between
+ * grid points (0.5 % of a decade apart); the spectral radius is not touched. */
+static void frequency_margins(const rths_pd_loop *loop, double kp, double kd,
+                              rths_loop_margins *out) {
+    double to_hz = 1.0 / (2 * M_PI * loop->h);
+    double gm = INFINITY, gm_theta = NAN, pm = INFINITY, pm_theta = NAN, bw = NAN;
+    double complex prev = 0;
+    for (int g = 0; g < GRID_POINTS; g++) {
+        double th = loop->theta[g];
+        double complex l = (kp + kd * loop->dterm[g]) * loop->p[g];
+        if (isnan(bw) && cabs(1.0 / (1.0 + l)) > M_SQRT1_2) bw = g == 0 ? 0 : loop->theta[g - 1];
+        if (g > 0) {
+            double th0 = loop->theta[g - 1];
+            /* phase crossover: L crosses the negative real axis */
+            if (cimag(prev) * cimag(l) <= 0 && (creal(prev) < 0 || creal(l) < 0) &&
+                cimag(prev) != cimag(l)) {
+                double t = cimag(prev) / (cimag(prev) - cimag(l));
+                double re = creal(prev) + t * (creal(l) - creal(prev));
+                if (re < 0 && re > -1) {
+                    double margin = -20 * log10(-re);
+                    if (margin < gm) gm = margin, gm_theta = th0 + t * (th - th0);
+                }
+            }
+            /* gain crossover: |L| crosses 1 */
+            double a0 = cabs(prev) - 1, a1 = cabs(l) - 1;
+            if (a0 * a1 <= 0 && a0 != a1) {
+                double t = a0 / (a0 - a1);
+                double complex lc = prev + t * (l - prev);
+                double margin = fabs(phase_from_minus_one(lc)) * 180 / M_PI;
+                if (margin < pm) pm = margin, pm_theta = th0 + t * (th - th0);
+            }
+        }
+        prev = l;
+    }
+    if (isnan(bw)) bw = M_PI;
+    out->gain_margin_db = gm;
+    out->gain_margin_hz = gm_theta * to_hz;
+    out->phase_margin_deg = pm;
+    out->crossover_hz = pm_theta * to_hz;
+    out->bandwidth_hz = bw * to_hz;
+}
+
+int rths_pd_loop_margins(const rths_pd_loop *loop, double kp, double kd, rths_loop_margins *out,
+                         rths_error *err) {
+    frequency_margins(loop, kp, kd, out);
+    out->spectral_radius = rths_pd_loop_radius(loop, kp, kd);
+    if (out->spectral_radius < 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the eigenvalues of the closed PD loop could not be computed");
+    out->stable = out->spectral_radius < 1;
+    return RTHS_OK;
+}
+
+/* The rule of docs/method.md, "Tuning the gains": over kd in {0} and 1e-4 .. 1e7 V s/m (4 per
+ * decade) and kp in 1e-2 .. 1e9 V/m (20 per decade), the pair whose closed loop is stable with
+ * both margins met and whose bandwidth is the largest (ties: the larger kp, then the first kd). */
+int rths_pd_loop_best(const rths_pd_loop *loop, double min_gm_db, double min_pm_deg, double *kp,
+                      double *kd, rths_loop_margins *best, rths_error *err) {
+    int found = 0;
+    double best_bw = -1, best_kp = 0;
+    for (int i = -1; i <= 44; i++) {
+        double kd_try = i < 0 ? 0.0 : pow(10.0, -4 + 0.25 * i);
+        for (int j = 0; j <= 220; j++) {
+            double kp_try = pow(10.0, -2 + 0.05 * j);
+            rths_loop_margins m;
+            frequency_margins(loop, kp_try, kd_try, &m);
+            if (!(m.gain_margin_db >= min_gm_db && m.phase_margin_deg >= min_pm_deg)) continue;
+            int better = m.bandwidth_hz > best_bw * (1 + 1e-9) ||
+                         (m.bandwidth_hz >= best_bw * (1 - 1e-9) && kp_try > best_kp);
+            if (!better) continue;
+            m.spectral_radius = rths_pd_loop_radius(loop, kp_try, kd_try);
+            if (m.spectral_radius < 0)
+                return rths_error_set(err, RTHS_EFAIL,
+                                      "the eigenvalues of the closed PD loop could not be "
+                                      "computed");
+            if (!(m.spectral_radius < 1)) continue;
+            m.stable = 1;
+            *best = m;
+            *kp = kp_try, *kd = kd_try;
+            best_bw = m.bandwidth_hz, best_kp = kp_try;
+            found = 1;
+        }
+    }
+    if (!found)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "no PD gains (kp 1e-2 .. 1e9 V/m, kd 0 .. 1e7 V s/m) keep the "
+                              "sampled physical loop stable with a gain margin of %g dB and a "
+                              "phase margin of %g deg",
+                              min_gm_db, min_pm_deg);
+    return RTHS_OK;
+}
