@@ -315,6 +315,7 @@ static void test_noise_floor(void **state) {
  * 1e-3 x 1e-6 rad: not converged until the corrector has fixed it. */
 typedef struct two_dofs {
     double root[4];
+    double se[2]; /* standard error of each side's coefficients per DoF (0: exact) */
     int evaluations;
 } two_dofs;
 
@@ -329,7 +330,11 @@ static int two_dofs_eval(void *ctx, const double *u, double omega, rths_residual
         out->phi[i] = u[i] - t->root[i];
         out->response[i] = u[i];
         out->reference[i] = t->root[i];
+        /* entries: DoF 1 cos, DoF 2 cos, DoF 1 sin, DoF 2 sin */
+        out->response_se[i] = out->reference_se[i] = t->se[i % 2];
+        out->phi_se[i] = hypot(t->se[i % 2], t->se[i % 2]);
     }
+    out->samples = 4;
     t->evaluations++;
     return RTHS_OK;
 }
@@ -365,6 +370,41 @@ static void test_tolerance_per_dof(void **state) {
     rths_corrector_destroy(c);
 }
 
+/* The floor with two interface DoFs: the interface stands out of the noise when its
+ * best-resolved DoF does. A rotation of 1e-9 rad under 1e-8 rad of noise (its own antiresonance,
+ * say) beside a translation of 1e-3 m under the same noise is a measured point (reported with
+ * its standard error); both DoFs at 1e-9 under 1e-8 is not. */
+static void test_noise_floor_two_dofs(void **state) {
+    (void)state;
+    for (int both = 0; both < 2; both++) {
+        two_dofs t = {.root = {both ? 1e-9 : 1e-3, 1e-9, 0, 0}, .se = {1e-8, 1e-8}};
+        rths_zero_problem problem = {
+            .n = 4, .harmonics = 2, .interface_dofs = 2, .eval = two_dofs_eval, .ctx = &t};
+        rths_newton_options nw;
+        rths_newton_defaults(&nw, 0);
+        nw.report_matched = 0;
+        rths_corrector *c;
+        rths_error err;
+        assert_int_equal(rths_corrector_create(&problem, &nw, &c, &err), RTHS_OK);
+        double u[4];
+        memcpy(u, t.root, sizeof u);
+        int rc = rths_corrector_solve(c, u, 1.0, NULL, &err);
+        const rths_solution *sol = rths_corrector_solution(c);
+        if (both) {
+            assert_int_equal(rc, RTHS_EFAIL);
+            assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_BELOW_NOISE);
+            assert_true(sol->snr < 1);
+        } else {
+            assert_int_equal(rc, RTHS_OK);
+            assert_int_equal(sol->below_noise_floor, 0);
+            assert_int_equal(sol->snr_dof, 0);
+            /* 1e-3 m over the per-coefficient mismatch error sqrt(2) 1e-8 m */
+            assert_rel(sol->snr, 1e-3 / (sqrt(2.0) * 1e-8), 1e-9);
+        }
+        rths_corrector_destroy(c);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_clip_in_transient_is_remeasured),
@@ -373,6 +413,7 @@ int main(void) {
         cmocka_unit_test(test_noise_model_measured),
         cmocka_unit_test(test_noise_floor),
         cmocka_unit_test(test_tolerance_per_dof),
+        cmocka_unit_test(test_noise_floor_two_dofs),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

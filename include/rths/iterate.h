@@ -130,7 +130,7 @@ typedef struct rths_newton_options {
      * natural sweeps test for it */
     int rig_lti;
     /* The signal-to-noise floor (docs/method.md, "One evaluation"): a converged point is accepted
-     * only if every interface DoF's fundamental response amplitude is at least min_snr times the
+     * only if some interface DoF's fundamental response amplitude is at least min_snr times the
      * measured standard error of its mismatch (per coefficient); 0: no floor. Below it the
      * corrector stops with RTHS_CORRECTOR_BELOW_NOISE, unless accept_below_noise (--force), which
      * accepts the point and flags it (rths_solution.below_noise_floor). */
@@ -275,11 +275,11 @@ typedef struct rths_solution {
     /* the largest over interface DoFs of ||Phi_d|| / tolerance_d: < 1 for every accepted point */
     double residual_to_tolerance;
     int converged;
-    /* Signal-to-noise floor (rths_newton_options.min_snr), set once converged: the smallest over
-     * interface DoFs of the fundamental response amplitude over its mismatch's measured standard
-     * error (INFINITY without noise), that DoF (0-based), its amplitude and min_snr times the
-     * error (the floor), in its own unit; below_noise_floor = 1 when the point was accepted below
-     * the floor (accept_below_noise). */
+    /* Signal-to-noise floor (rths_newton_options.min_snr), set once within tolerance: the
+     * largest over interface DoFs of the fundamental response amplitude over its mismatch's
+     * measured standard error (INFINITY without noise), that DoF (0-based), its amplitude and
+     * min_snr times the error (the floor), in its own unit; below_noise_floor = 1 when the point
+     * was accepted below the floor (accept_below_noise). */
     double snr;
     int snr_dof;
     double snr_amplitude_m, noise_floor_m;
