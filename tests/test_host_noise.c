@@ -201,6 +201,64 @@ static void test_late_share(void **state) {
     rths_rig_destroy(rig);
 }
 
+/* A line-search trial whose measurement is refused is a step too far, as one whose residual grew:
+ * a shorter step is tried, not the correction abandoned. The zero problem Phi = g (z - root)
+ * refuses every target beyond 1.45 mm (a rig clipping there). A Jacobian carried from a point of
+ * gain 0.1 meets gain 1: its Newton step is ten times too long, the trials at 1, 1/2 and 1/4 of
+ * it lie beyond the limit, 1/8 of it is inside and reduces the residual; the correction then
+ * converges. Before the fix the first refused trial ended the correction with an error. */
+typedef struct clipping_problem {
+    double gain, root_m, limit_m;
+    int refused;
+} clipping_problem;
+
+static int clipping_eval(void *ctx, const double *u, double omega, rths_residual *out,
+                         rths_error *err) {
+    (void)omega;
+    clipping_problem *cp = ctx;
+    memset(out, 0, sizeof *out);
+    if (hypot(u[0], u[1]) > cp->limit_m) {
+        cp->refused++;
+        out->eval.refused = 1;
+        return rths_error_set(err, RTHS_EFAIL, "refused: clipped demand");
+    }
+    out->n = 2;
+    double root[2] = {cp->root_m, 0};
+    for (int i = 0; i < 2; i++) {
+        out->phi[i] = cp->gain * (u[i] - root[i]);
+        out->response[i] = u[i];
+        out->reference[i] = u[i] - out->phi[i];
+    }
+    return RTHS_OK;
+}
+
+static void test_refused_trial_is_a_step_too_far(void **state) {
+    (void)state;
+    clipping_problem cp = {.gain = 0.1, .root_m = 1e-3, .limit_m = 1.45e-3};
+    rths_zero_problem problem = {.n = 2, .harmonics = 1, .eval = clipping_eval, .ctx = &cp};
+    rths_newton_options nw;
+    rths_newton_defaults(&nw, 0);
+    nw.report_matched = 0;
+    nw.step_limit = 0;
+    nw.trust_growth = 0;
+    nw.rel_tolerance = 1e-6;
+    nw.abs_tolerance_m = 0;
+    rths_corrector *c;
+    rths_error err;
+    assert_int_equal(rths_corrector_create(&problem, &nw, &c, &err), RTHS_OK);
+    rths_corrector_set_scales(c, 1e-3, 1.0);
+    double u[2] = {0.5e-3, 0};
+    assert_int_equal(rths_corrector_solve(c, u, 1.0, NULL, &err), RTHS_OK);
+    assert_int_equal(cp.refused, 0);
+    cp.gain = 1.0;
+    cp.root_m = 1.2e-3;
+    u[0] = 1e-3;
+    assert_int_equal(rths_corrector_solve(c, u, 1.0, NULL, &err), RTHS_OK);
+    assert_int_equal(cp.refused, 3);
+    assert_close(rths_corrector_solution(c)->target_a[0], 1.2e-3, 1e-6 * 1.2e-3);
+    rths_corrector_destroy(c);
+}
+
 /* ---- the noise model ---- */
 
 /* Noise the rig does not declare (converter noise, real hardware): per-period coefficient noise
@@ -410,6 +468,7 @@ int main(void) {
         cmocka_unit_test(test_clip_in_transient_is_remeasured),
         cmocka_unit_test(test_persistent_clip_is_refused),
         cmocka_unit_test(test_late_share),
+        cmocka_unit_test(test_refused_trial_is_a_step_too_far),
         cmocka_unit_test(test_noise_model_measured),
         cmocka_unit_test(test_noise_floor),
         cmocka_unit_test(test_tolerance_per_dof),

@@ -35,7 +35,9 @@ typedef struct rths_settle_options {
     double rel_tolerance;
     double noise_factor;
     /* Integrity (docs/method.md, "One evaluation"): the share of an evaluation's controller
-     * samples that may be late (controller.max_overrun_share; 0: none). Any clipped demand or
+     * samples that may be late (0, the default: none). The caller that reads the controller's
+     * configuration fills it from controller.max_overrun_share (rths_iterate_config_read does
+     * not read controller keys: with --rig the controller process owns them). Any clipped demand or
      * saturated converter sample, or late samples beyond this share, make the evaluation
      * re-measure once; if the re-measurement is corrupted too, the evaluation fails. */
     double max_late_share;
