@@ -173,6 +173,15 @@ static void test_persistent_clip_is_refused(void **state) {
     assert_int_equal(rths_corrector_solve(c, u, 2 * M_PI * 10.0, NULL, &err), RTHS_EFAIL);
     assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_REFUSED);
     assert_non_null(strstr(err.msg, "clipped"));
+    /* the correction's sums: its one (refused) evaluation, both measurements */
+    long clipped, saturated, read;
+    int remeasured, refused;
+    rths_corrector_integrity(c, NULL, &clipped, &saturated, &read, &remeasured, &refused);
+    assert_int_equal(refused, 1);
+    assert_int_equal(remeasured, 1);
+    assert_int_equal(clipped, 7 * (read / SAMPLES));
+    assert_int_equal(saturated, 2 * (read / SAMPLES));
+    assert_true(read > 0);
     rths_corrector_destroy(c);
     rths_rig_destroy(rig);
 }

@@ -385,6 +385,13 @@ void rths_corrector_counters(const rths_corrector *c, int *evaluations, int *ite
 /* Set + iterate until done. RTHS_OK when converged; RTHS_EFAIL with the reason otherwise. */
 int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s,
                          const rths_arclength *arc, rths_error *err);
+/* The integrity counts of every evaluation of the current correction summed (rths_evaluation:
+ * late, clipped-demand and saturated-sensor samples, samples read, evaluations that were
+ * re-measured and that were refused), refused ones and line-search trials included: what a run
+ * log and summary report per point. Any pointer may be NULL. */
+void rths_corrector_integrity(const rths_corrector *c, long *late_samples,
+                              long *clipped_demand_samples, long *saturated_sensor_samples,
+                              long *samples_read, int *remeasured, int *refused);
 /* Drops the carried Jacobians: the next set() measures fresh ones. */
 void rths_corrector_forget_jacobian(rths_corrector *c);
 

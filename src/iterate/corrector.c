@@ -151,6 +151,8 @@ static void begin(rths_corrector *c, const rths_arclength *arc) {
     c->trust_actions = 0;
     c->refused = 0;
     c->refused_trials = 0;
+    c->late_samples = c->clipped_samples = c->saturated_samples = c->samples_read = 0;
+    c->remeasured = c->refused_evaluations = 0;
     c->trust_radius = c->trust_anchor_m > 0 && c->opt.trust_growth > 0
                           ? c->opt.trust_growth * c->trust_anchor_m / amp_scale
                           : INFINITY;
@@ -437,6 +439,17 @@ int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s
         "(residual %.3g m, tolerance %.3g m) after %d iterations%s",
         s->omega_rad_s / (2 * M_PI), s->residual_to_tolerance, s->residual_norm_m, s->tolerance_m,
         c->iterations, trials);
+}
+
+void rths_corrector_integrity(const rths_corrector *c, long *late_samples,
+                              long *clipped_demand_samples, long *saturated_sensor_samples,
+                              long *samples_read, int *remeasured, int *refused) {
+    if (late_samples) *late_samples = c->late_samples;
+    if (clipped_demand_samples) *clipped_demand_samples = c->clipped_samples;
+    if (saturated_sensor_samples) *saturated_sensor_samples = c->saturated_samples;
+    if (samples_read) *samples_read = c->samples_read;
+    if (remeasured) *remeasured = c->remeasured;
+    if (refused) *refused = c->refused_evaluations;
 }
 
 void rths_corrector_forget_jacobian(rths_corrector *c) {

@@ -74,6 +74,9 @@ struct rths_corrector {
     rths_corrector_outcome status;
     int refused;        /* the last evaluation failed as refused (rths_evaluation.refused) */
     int refused_trials; /* line-search trials set aside this correction for being refused */
+    /* this correction's evaluations' integrity counts, summed (rths_corrector_integrity) */
+    long late_samples, clipped_samples, saturated_samples, samples_read;
+    int remeasured, refused_evaluations;
     corrector_point cur;
     /* trust region of the targets: the anchor (m), this correction's radius (scaled units,
      * INFINITY without an anchor) and how often it acted */

@@ -564,6 +564,12 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
      * not a numerical failure: the corrector reports it as such (RTHS_CORRECTOR_REFUSED) */
     c->refused = rc != RTHS_OK && p->rec.eval.refused;
     c->evaluations++;
+    c->late_samples += p->rec.eval.late_samples;
+    c->clipped_samples += p->rec.eval.clipped_demand_samples;
+    c->saturated_samples += p->rec.eval.saturated_sensor_samples;
+    c->samples_read += p->rec.eval.samples_read;
+    c->remeasured += p->rec.eval.remeasured;
+    c->refused_evaluations += p->rec.eval.refused;
     c->rig_time_s += p->rec.rig_time_s;
     for (int k = 0; k < c->harmonics; k++) {
         p->sol.target_a[k] = target[k];
