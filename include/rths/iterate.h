@@ -34,7 +34,27 @@ typedef struct rths_settle_options {
     double abs_tolerance_m;
     double rel_tolerance;
     double noise_factor;
+    /* Integrity (docs/method.md, "One evaluation"): the share of an evaluation's controller
+     * samples that may be late (0, the default: none). The caller that reads the controller's
+     * configuration fills it from controller.max_overrun_share (rths_iterate_config_read does
+     * not read controller keys: with --rig the controller process owns them). Any clipped demand or
+     * saturated converter sample, or late samples beyond this share, make the evaluation
+     * re-measure once; if the re-measurement is corrupted too, the evaluation fails. */
+    double max_late_share;
 } rths_settle_options;
+
+/* The host's noise model (docs/method.md, "One evaluation"): the period-to-period scatter of
+ * every coefficient the steady-state test compares (physical and numerical, per interface DoF and
+ * matched harmonic, in that order), measured from the averaged periods of the evaluations so far,
+ * never from what the configuration or the rig declares. Stored as each coefficient's per-period
+ * variance times the samples in the period (white noise scales as 1 / samples, so the model
+ * carries across frequencies), pooled with its degrees of freedom. Zeroed: nothing measured yet. */
+#define RTHS_NOISE_COEFFICIENTS (4 * RTHS_MAX_HARMONICS * RTHS_MAX_INTERFACE_DOFS)
+typedef struct rths_noise_model {
+    int coefficients; /* entries in use; 0: nothing measured yet */
+    double variance_x_samples[RTHS_NOISE_COEFFICIENTS]; /* m^2 x samples per period */
+    double dof; /* degrees of freedom of the pooled estimate */
+} rths_noise_model;
 
 typedef struct rths_evaluation {
     int harmonics;
@@ -52,6 +72,12 @@ typedef struct rths_evaluation {
     /* the periods' integrity counts (rths_period) summed over every period this evaluation
      * read, waiting and averaging, and the controller samples those periods held */
     long late_samples, clipped_demand_samples, saturated_sensor_samples, samples_read;
+    /* 1: the first measurement held clipped, saturated or too many late samples, so the
+     * evaluation waited for steady state again and measured again (the counts above hold both) */
+    int remeasured;
+    /* 1: the re-measurement was corrupted too and the evaluation failed (its error names the
+     * counts); the corrector then stops with RTHS_CORRECTOR_REFUSED */
+    int refused;
 } rths_evaluation;
 
 /* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */
@@ -60,10 +86,19 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, 
                   rths_evaluation *out, rths_error *err);
 
 /* The same for `dofs` interface DoFs (the rig's rths_rig_interface_dofs), DoF d's target at
- * target_a[d * harmonics + k - 1], target_b[...]; dofs 1 is rths_evaluate. */
+ * target_a[d * harmonics + k - 1], target_b[...]; dofs 1 is rths_evaluate. Without a noise model
+ * carried in (these two), the steady-state test knows no noise until it has averaged: noise
+ * larger than the relative tolerance then makes it wait up to max_wait_periods. */
 int rths_evaluate_dofs(rths_rig *rig, const rths_settle_options *opt, int harmonics, int dofs,
                        double frequency_hz, double amplitude_n, const double *target_a,
                        const double *target_b, rths_evaluation *out, rths_error *err);
+/* The same with the caller's noise model (may be NULL): the steady-state test judges changes
+ * against it, and a clean evaluation's averaged periods join it. The rig-backed zero problem
+ * carries one across its evaluations. */
+int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
+                        int harmonics, int dofs, double frequency_hz, double amplitude_n,
+                        const double *target_a, const double *target_b, rths_evaluation *out,
+                        rths_error *err);
 
 /* Residual Phi (length 2N: cos terms then sin terms) and its standard error per entry. With
  * several interface DoFs, one such block of 2N per DoF in the interface order. */
@@ -96,6 +131,13 @@ typedef struct rths_newton_options {
      * runs, whose frequency unknown otherwise keeps the corrector from looking for it; 0: only
      * natural sweeps test for it */
     int rig_lti;
+    /* The signal-to-noise floor (docs/method.md, "One evaluation"): a converged point is accepted
+     * only if some interface DoF's fundamental response amplitude is at least min_snr times the
+     * measured standard error of its mismatch (per coefficient); 0: no floor. Below it the
+     * corrector stops with RTHS_CORRECTOR_BELOW_NOISE, unless accept_below_noise (--force), which
+     * accepts the point and flags it (rths_solution.below_noise_floor). */
+    double min_snr;
+    int accept_below_noise;
 } rths_newton_options;
 
 /* ---- the zero problem: Phi(u; omega) = 0 ----
@@ -148,7 +190,8 @@ typedef struct rths_rig_problem {
     const rths_settle_options *settle;
     int harmonics;
     double amplitude_n;
-    int interface_dofs; /* 1, or several: 2 N unknowns per DoF, DoF by DoF */
+    int interface_dofs;     /* 1, or several: 2 N unknowns per DoF, DoF by DoF */
+    rths_noise_model noise; /* measured by its evaluations, carried across them */
 } rths_rig_problem;
 
 /* Fills *problem to evaluate through *ctx (which must outlive it). */
@@ -222,9 +265,27 @@ typedef struct rths_solution {
     double target_a[RTHS_MAX_HARMONICS], target_b[RTHS_MAX_HARMONICS]; /* m */
     double omega_rad_s;
     rths_evaluation eval; /* the measurement at the solution */
+    /* Euclidean norm of Phi over every entry, m (it adds radians to metres when an interface DoF
+     * is a rotation: residual_rel and residual_to_tolerance are the unit-consistent measures) */
     double residual_norm_m;
+    /* sqrt of the sum over interface DoFs of each DoF's tolerance squared, each
+     * max(rel_tolerance x its numerical response, abs_tolerance_m, noise_factor x its mismatch's
+     * standard error) in the DoF's own unit (m, or rad for a rotation); one DoF: its tolerance */
     double tolerance_m;
+    /* the largest over interface DoFs of ||Phi_d|| / ||numerical response_d|| (dimensionless) */
+    double residual_rel;
+    /* the largest over interface DoFs of ||Phi_d|| / tolerance_d: < 1 for every accepted point */
+    double residual_to_tolerance;
     int converged;
+    /* Signal-to-noise floor (rths_newton_options.min_snr), set once within tolerance: the
+     * largest over interface DoFs of the fundamental response amplitude over its mismatch's
+     * measured standard error (INFINITY without noise), that DoF (0-based), its amplitude and
+     * min_snr times the error (the floor), in its own unit; below_noise_floor = 1 when the point
+     * was accepted below the floor (accept_below_noise). */
+    double snr;
+    int snr_dof;
+    double snr_amplitude_m, noise_floor_m;
+    int below_noise_floor;
     /* The physical interface response at zero mismatch, estimated by one linearised Newton step
      * from the accepted measurement: x* = x - R J^-1 Phi, with J = dPhi/d(target) and
      * R = d(physical coefficients)/d(target) from the corrector (on an arclength run the step
@@ -269,7 +330,13 @@ typedef enum {
     RTHS_CORRECTOR_CONVERGED = 1, /* ||Phi|| below tolerance (and the arclength row satisfied) */
     RTHS_CORRECTOR_STUCK = 2,     /* a fresh Jacobian's step could not reduce the residual */
     RTHS_CORRECTOR_MAX_ITER = 3,  /* max_iterations used up */
-    RTHS_CORRECTOR_SINGULAR = 4   /* a freshly measured Jacobian is singular */
+    RTHS_CORRECTOR_SINGULAR = 4,  /* a freshly measured Jacobian is singular */
+    /* the converged point's response is not clearly above the measured noise (min_snr): the
+       run must stop (exit 1) with rths_corrector_solve's message, which names both numbers */
+    RTHS_CORRECTOR_BELOW_NOISE = 5,
+    /* an evaluation was corrupted twice (clipped demand, saturated converter, late samples;
+       rths_evaluation.refused): the run must stop with the evaluation's message */
+    RTHS_CORRECTOR_REFUSED = 6
 } rths_corrector_outcome;
 
 /* What save() gives: a versioned flat record (layout in docs/journal.md, "Corrector state").
@@ -318,6 +385,13 @@ void rths_corrector_counters(const rths_corrector *c, int *evaluations, int *ite
 /* Set + iterate until done. RTHS_OK when converged; RTHS_EFAIL with the reason otherwise. */
 int rths_corrector_solve(rths_corrector *c, const double *u0, double omega_rad_s,
                          const rths_arclength *arc, rths_error *err);
+/* The integrity counts of every evaluation of the current correction summed (rths_evaluation:
+ * late, clipped-demand and saturated-sensor samples, samples read, evaluations that were
+ * re-measured and that were refused), refused ones and line-search trials included: what a run
+ * log and summary report per point. Any pointer may be NULL. */
+void rths_corrector_integrity(const rths_corrector *c, long *late_samples,
+                              long *clipped_demand_samples, long *saturated_sensor_samples,
+                              long *samples_read, int *remeasured, int *refused);
 /* Drops the carried Jacobians: the next set() measures fresh ones. */
 void rths_corrector_forget_jacobian(rths_corrector *c);
 

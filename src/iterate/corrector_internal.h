@@ -50,6 +50,7 @@ typedef struct corrector_memory {
  * response, the extended residual norm, its record and the solution view of it. */
 typedef struct corrector_point {
     double u[LD], phi[LD], resp[LD], ext;
+    int within; /* every interface DoF's mismatch below its tolerance (evaluate.c, describe) */
     rths_residual rec;
     rths_solution sol;
 } corrector_point;
@@ -71,6 +72,11 @@ struct rths_corrector {
     int jacobian_here; /* the Jacobians were measured or secant-updated at this point */
     int fresh;         /* the Jacobians were just measured */
     rths_corrector_outcome status;
+    int refused;        /* the last evaluation failed as refused (rths_evaluation.refused) */
+    int refused_trials; /* line-search trials set aside this correction for being refused */
+    /* this correction's evaluations' integrity counts, summed (rths_corrector_integrity) */
+    long late_samples, clipped_samples, saturated_samples, samples_read;
+    int remeasured, refused_evaluations;
     corrector_point cur;
     /* trust region of the targets: the anchor (m), this correction's radius (scaled units,
      * INFINITY without an anchor) and how often it acted */
@@ -132,6 +138,9 @@ int solve_small(int m, double *a, int lda, double *b);
 /* matched.c: the converged point's report; on a natural sweep of an LTI rig it may evaluate
  * once more (the fundamental's local gain), so it can return a rig error */
 int corrector_finish(rths_corrector *c, rths_error *err);
+/* The signal-to-noise floor of the current point (rths_newton_options.min_snr): fills the
+ * solution's snr fields; returns 1 when some interface DoF's response lies below the floor. */
+int corrector_below_noise_floor(rths_corrector *c);
 
 /* both parts finite */
 static inline int finite_complex(double complex z) {

@@ -34,25 +34,77 @@ static double vec_norm(const double *v, int n) {
     return sqrt(s);
 }
 
+/* The integrity counts of the periods one measurement read (rths_period). */
+typedef struct integrity_counts {
+    long late, clipped, saturated, samples;
+} integrity_counts;
+
+static void count_period(integrity_counts *cnt, const rths_period *p) {
+    cnt->late += p->late_samples;
+    cnt->clipped += p->clipped_demand_samples;
+    cnt->saturated += p->saturated_sensor_samples;
+    cnt->samples += p->samples;
+}
+
+/* Expected norm of the change of the m coefficients between two periods of `samples` samples
+ * under the measured noise alone (independent periods: each coefficient's change has twice its
+ * per-period variance); 0 while nothing is measured. */
+static double noise_change_norm(const rths_noise_model *noise, int m, int samples) {
+    if (!noise || noise->coefficients != m || !(noise->dof > 0) || samples <= 0) return 0.0;
+    double var = 0;
+    for (int i = 0; i < m; i++)
+        var += noise->variance_x_samples[i];
+    return sqrt(2.0 * var / samples);
+}
+
+/* Before the host has measured any noise (the first evaluation of a problem): whether the changes
+ * have stopped shrinking, the mean squared change of the last W periods against the W before
+ * (sq: a ring of the last 2 W squared changes, newest at index `at` - 1). A geometric transient
+ * of ratio r shrinks it to r^(2 W); noise alone keeps it near 1 (with 4 coefficients over 8
+ * periods, 32 squared terms a window, the ratio's logarithm scatters by about 0.35). Below 0.7 the
+ * stream is still settling: a transient faster than r = 0.7^(1 / 2 W) (0.978 per period for
+ * W = 8) is waited out down to the noise, whatever its level, which is what the noise test would
+ * do with a known level; a slower one is left to the remaining-transient test as before. */
+static const double STATIONARY_RATIO = 0.7;
+enum { STATIONARY_MAX_WINDOW = 32 };
+
+static int changes_stationary(const double *sq, int window, int at) {
+    double older = 0, newer = 0;
+    for (int j = 0; j < window; j++) {
+        newer += sq[(at - 1 - j + 2 * window) % (2 * window)];
+        older += sq[(at - 1 - window - j + 2 * window) % (2 * window)];
+    }
+    return older > 0 && newer >= STATIONARY_RATIO * older;
+}
+
 /* Runs periods until the coefficient stream is steady (or the fixed wait elapses); *waited and
- * *steady say how it went. */
-static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmonics, int *waited,
-                       int *steady, rths_error *err) {
-    enum { NC = 4 * RTHS_MAX_HARMONICS * RTHS_MAX_INTERFACE_DOFS };
+ * *steady say how it went. The noise the changes are judged against is the host's own model
+ * (rths_noise_model), never the rig's declared level; while it has none, the changes' own
+ * stationarity (changes_stationary) stands in for the noise test. */
+static int wait_steady(rths_rig *rig, const rths_settle_options *opt, const rths_noise_model *noise,
+                       int harmonics, int *waited, int *steady, integrity_counts *cnt,
+                       rths_error *err) {
+    enum { NC = RTHS_NOISE_COEFFICIENTS };
     double prev[NC], cur[NC], change_prev = -1;
     rths_period p;
     int rc, m = 0;
     *waited = 0;
     *steady = 0;
     if (opt->fixed_wait_periods > 0) {
-        for (; *waited < opt->fixed_wait_periods; (*waited)++)
+        for (; *waited < opt->fixed_wait_periods; (*waited)++) {
             if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+            count_period(cnt, &p);
+        }
         *steady = 1;
         return RTHS_OK;
     }
-    double noise_m = rths_rig_noise_level_m(rig);
+    int window = opt->min_wait_periods < STATIONARY_MAX_WINDOW ? opt->min_wait_periods
+                                                               : STATIONARY_MAX_WINDOW;
+    double change_sq[2 * STATIONARY_MAX_WINDOW];
+    int changes = 0;
     while (*waited < opt->max_wait_periods) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+        count_period(cnt, &p);
         (*waited)++;
         m = coefficient_vector(&p, harmonics, cur);
         if (*waited > 1) {
@@ -60,10 +112,14 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmon
             for (int i = 0; i < m; i++)
                 d[i] = cur[i] - prev[i];
             double change = vec_norm(d, m);
-            /* White noise of std s on S samples gives each per-period coefficient a std of
-             * s sqrt(2/S); the change of m of them between periods, sqrt(2 m) times that. */
-            double noise_change =
-                p.samples > 0 ? noise_m * sqrt(2.0 / p.samples) * sqrt(2.0 * m) : 0.0;
+            double noise_change = noise_change_norm(noise, m, p.samples);
+            change_sq[changes++ % (2 * window)] = change * change;
+            int noise_known = noise_change > 0 || (noise && noise->coefficients == m &&
+                                                   noise->dof > 0); /* measured: zero noise */
+            int floor_reached =
+                noise_known ? change < opt->noise_factor * noise_change
+                            : changes >= 2 * window &&
+                                  changes_stationary(change_sq, window, changes % (2 * window));
             double threshold = fmax(opt->abs_tolerance_m, opt->rel_tolerance * vec_norm(cur, m));
             /* A geometric transient with ratio r per period still owes change * r / (1 - r);
              * r is estimated from the last two changes (clamped so a noisy estimate near 1
@@ -77,8 +133,7 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, int harmon
             } else {
                 remaining = INFINITY;
             }
-            if (*waited >= opt->min_wait_periods &&
-                (remaining < threshold || change < opt->noise_factor * noise_change)) {
+            if (*waited >= opt->min_wait_periods && (remaining < threshold || floor_reached)) {
                 *steady = 1;
                 break;
             }
@@ -107,10 +162,47 @@ static void mean_and_error(int n_avg, double sum[2][2][RTHS_MAX_HARMONICS + 1],
             }
 }
 
+/* The noise in an averaging's periods, per coefficient [DoF][harmonic][side][cos, sin]: the sum
+ * of each term's estimate of the per-period variance, and the number of terms. The terms are the
+ * periods' second differences, (c_{q+1} - 2 c_q + c_{q-1})^2 / 6 (first differences,
+ * (c_{q+1} - c_q)^2 / 2, over two periods), not the deviations from the mean: white noise gives
+ * each the per-period variance, while a transient left over from the wait, a slow trend across
+ * the averaged periods, cancels to (1 - r)^2 of itself (r its ratio per period; 0.5 % for a
+ * mode of 1 % damping). Deviations from the mean would count that tail as noise, and the noise
+ * test would then accept the next evaluations with ever larger tails (a noise-free cantilever
+ * sweep drifted to 2.4 % errors so). */
+typedef struct average_scatter {
+    int dofs;
+    double samples; /* mean samples per period */
+    double terms;
+    double var_sum[RTHS_MAX_INTERFACE_DOFS][RTHS_MAX_HARMONICS + 1][2][2];
+} average_scatter;
+
+/* One period's coefficients into the running differences (last: the previous two periods'). */
+static void scatter_add(average_scatter *sc, int q, int n_avg, int d, const rths_fourier *side[2],
+                        double last[RTHS_MAX_INTERFACE_DOFS][RTHS_MAX_HARMONICS + 1][2][2][2]) {
+    for (int k = 1; k <= RTHS_MAX_HARMONICS; k++)
+        for (int s = 0; s < 2; s++)
+            for (int c = 0; c < 2; c++) {
+                double v = c ? side[s]->b[k] : side[s]->a[k];
+                double *l = last[d][k][s][c]; /* l[0]: period q - 1, l[1]: q - 2 */
+                if (n_avg >= 3 && q >= 2) {
+                    double dd = v - 2 * l[0] + l[1];
+                    sc->var_sum[d][k][s][c] += dd * dd / 6.0;
+                } else if (n_avg == 2 && q == 1) {
+                    double dd = v - l[0];
+                    sc->var_sum[d][k][s][c] += dd * dd / 2.0;
+                }
+                l[1] = l[0];
+                l[0] = v;
+            }
+}
+
 /* Averages n_avg whole periods: mean and standard error of the mean of every coefficient the rig
  * measures, not only the matched ones (the report shows the higher harmonics' error too), of
  * every interface DoF the periods carry. */
-static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_error *err) {
+static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, integrity_counts *cnt,
+                           average_scatter *scatter, rths_error *err) {
     enum { H = RTHS_MAX_HARMONICS + 1, D = RTHS_MAX_INTERFACE_DOFS };
     static const double zero[2][2][H];
     double sum[D][2][2][H], sum2[D][2][2][H];
@@ -118,11 +210,21 @@ static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_
         memcpy(sum[d], zero, sizeof zero);
         memcpy(sum2[d], zero, sizeof zero);
     }
+    double last[D][H][2][2][2] = {{{{{0}}}}}; /* scatter_add's memory of the last two periods */
+    memset(scatter, 0, sizeof *scatter);
     rths_period p;
     int rc, dofs = 1;
+    long samples = 0;
     for (int q = 0; q < n_avg; q++) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
+        count_period(cnt, &p);
+        samples += p.samples;
         dofs = p.interface_dofs > 1 ? p.interface_dofs : 1;
+        for (int d = 0; d < dofs; d++) {
+            const rths_fourier *sides[2] = {d ? &p.phys_dof[d] : &p.phys,
+                                            d ? &p.num_dof[d] : &p.num};
+            scatter_add(scatter, q, n_avg, d, sides, last);
+        }
         for (int d = 1; d < dofs; d++) {
             const rths_fourier *side[2] = {&p.phys_dof[d], &p.num_dof[d]};
             for (int s = 0; s < 2; s++)
@@ -154,6 +256,9 @@ static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, rths_
                      *se_d[2] = {&out->phys_dof_se[d], &out->num_dof_se[d]};
         mean_and_error(n_avg, sum[d], sum2[d], mean_d, se_d);
     }
+    scatter->samples = n_avg > 0 ? (double)samples / n_avg : 0.0;
+    scatter->dofs = dofs;
+    scatter->terms = n_avg >= 3 ? n_avg - 2 : n_avg == 2 ? 1 : 0;
     return RTHS_OK;
 }
 
@@ -167,6 +272,47 @@ int rths_evaluate(rths_rig *rig, const rths_settle_options *opt, int harmonics, 
 int rths_evaluate_dofs(rths_rig *rig, const rths_settle_options *opt, int harmonics, int dofs,
                        double frequency_hz, double amplitude_n, const double *target_a,
                        const double *target_b, rths_evaluation *out, rths_error *err) {
+    return rths_evaluate_noise(rig, opt, NULL, harmonics, dofs, frequency_hz, amplitude_n, target_a,
+                               target_b, out, err);
+}
+
+/* The noise model's memory: 16 difference terms, 8 evaluations of 4 averaged periods. Its
+ * standard deviation is then good to about 20 %, and a noise that changes along a sweep (a
+ * resonance's numerical side) is followed within as many evaluations. */
+static const double NOISE_MEMORY_TERMS = 16.0;
+
+/* A clean averaging's scatter joins the noise model (restarted if the coefficients changed). */
+static void noise_model_add(rths_noise_model *noise, const average_scatter *sc, int harmonics) {
+    int m = 4 * harmonics * sc->dofs;
+    if (!(sc->terms > 0) || !(sc->samples > 0) || m > RTHS_NOISE_COEFFICIENTS) return;
+    if (noise->coefficients != m) memset(noise, 0, sizeof *noise);
+    noise->coefficients = m;
+    double keep = 1.0;
+    if (noise->dof + sc->terms > NOISE_MEMORY_TERMS)
+        keep = noise->dof > 0 ? fmax(NOISE_MEMORY_TERMS - sc->terms, 0.0) / noise->dof : 0.0;
+    double dof = noise->dof * keep + sc->terms;
+    int i = 0;
+    for (int d = 0; d < sc->dofs; d++)
+        for (int k = 1; k <= harmonics; k++)
+            for (int side = 0; side < 2; side++)
+                for (int c = 0; c < 2; c++, i++) {
+                    double old_sum = noise->variance_x_samples[i] * noise->dof;
+                    noise->variance_x_samples[i] =
+                        (old_sum * keep + sc->var_sum[d][k][side][c] * sc->samples) / dof;
+                }
+    noise->dof = dof;
+}
+
+/* Whether a measurement's samples were all good enough for the coupling to hold. */
+static int integrity_ok(const integrity_counts *cnt, const rths_settle_options *opt) {
+    return cnt->clipped == 0 && cnt->saturated == 0 &&
+           (double)cnt->late <= opt->max_late_share * (double)cnt->samples;
+}
+
+int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
+                        int harmonics, int dofs, double frequency_hz, double amplitude_n,
+                        const double *target_a, const double *target_b, rths_evaluation *out,
+                        rths_error *err) {
     memset(out, 0, sizeof *out);
     out->harmonics = harmonics;
     out->frequency_hz = frequency_hz;
@@ -180,18 +326,49 @@ int rths_evaluate_dofs(rths_rig *rig, const rths_settle_options *opt, int harmon
     int rc = rths_rig_set_forcing(rig, frequency_hz, amplitude_n, err);
     if (!rc) rc = rths_rig_set_target_dofs(rig, dofs, harmonics, target_a, target_b, err);
     if (rc) return rc;
-    int waited = 0, steady = 0;
-    if ((rc = wait_steady(rig, opt, harmonics, &waited, &steady, err))) return rc;
+    /* without a caller's model, one for this evaluation alone (a re-measurement uses the first
+     * measurement's scatter only if that was clean, which it was not: so nothing) */
+    rths_noise_model local = {0};
+    if (!noise) noise = &local;
     int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
-    if ((rc = average_periods(rig, n_avg, out, err))) return rc;
-    out->wait_periods = waited;
-    out->average_periods = n_avg;
-    out->steady = steady;
-    out->rig_time_s = rths_rig_time_s(rig) - t0;
-    if (rths_rig_get_fault(rig) != RTHS_RIG_OK)
-        return rths_error_set(err, RTHS_EFAIL, "rig fault during evaluation at %.6g Hz: %s",
-                              frequency_hz, rths_rig_fault_name(rths_rig_get_fault(rig)));
-    return RTHS_OK;
+    integrity_counts cnt = {0};
+    /* a corrupted measurement (clipping, saturation, late samples) is measured once more after
+     * a new wait for steady state: a transient's brief clip (a large step of the target) is gone
+     * by then; one that persists is the rig's state at this target and fails the evaluation */
+    for (int attempt = 0; attempt < 2; attempt++) {
+        int waited = 0, steady = 0;
+        average_scatter scatter = {0};
+        cnt = (integrity_counts){0};
+        rc = wait_steady(rig, opt, noise, harmonics, &waited, &steady, &cnt, err);
+        if (!rc) rc = average_periods(rig, n_avg, out, &cnt, &scatter, err);
+        out->wait_periods += waited;
+        out->average_periods = n_avg;
+        out->steady = steady;
+        out->late_samples += cnt.late;
+        out->clipped_demand_samples += cnt.clipped;
+        out->saturated_sensor_samples += cnt.saturated;
+        out->samples_read += cnt.samples;
+        out->rig_time_s = rths_rig_time_s(rig) - t0;
+        if (rc) return rc;
+        if (rths_rig_get_fault(rig) != RTHS_RIG_OK)
+            return rths_error_set(err, RTHS_EFAIL, "rig fault during evaluation at %.6g Hz: %s",
+                                  frequency_hz, rths_rig_fault_name(rths_rig_get_fault(rig)));
+        if (integrity_ok(&cnt, opt)) {
+            noise_model_add(noise, &scatter, harmonics);
+            return RTHS_OK;
+        }
+        if (attempt == 0) out->remeasured = 1;
+    }
+    out->refused = 1;
+    return rths_error_set(
+        err, RTHS_EFAIL,
+        "evaluation at %.6g Hz refused: measured twice and both times corrupted; in the second, "
+        "of %ld controller samples %ld had an actuator demand clipped (demand limit or DAC "
+        "range), %ld a converter reading at full scale, %ld were late (share %.3g, "
+        "controller.max_overrun_share %.3g): the coupling does not hold there (lower the "
+        "forcing, narrow the range, or widen the converter or demand ranges)",
+        frequency_hz, cnt.samples, cnt.clipped, cnt.saturated, cnt.late,
+        cnt.samples > 0 ? (double)cnt.late / (double)cnt.samples : 0.0, opt->max_late_share);
 }
 
 /* Interface DoF d's physical and numerical means and standard errors. */
@@ -248,7 +425,7 @@ void rths_residual_from_evaluation(const rths_evaluation *ev, rths_residual *out
 
 static int rig_problem_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
                             rths_error *err) {
-    const rths_rig_problem *rp = ctx;
+    rths_rig_problem *rp = ctx;
     int N = rp->harmonics, dofs = rp->interface_dofs > 1 ? rp->interface_dofs : 1, M = N * dofs;
     double a[RTHS_MAX_UNKNOWNS], b[RTHS_MAX_UNKNOWNS];
     for (int j = 0; j < M; j++) { /* pair j = (DoF j / N, harmonic j % N + 1) */
@@ -256,8 +433,8 @@ static int rig_problem_eval(void *ctx, const double *u, double omega_rad_s, rths
         b[j] = u[M + j];
     }
     rths_evaluation ev;
-    int rc = rths_evaluate_dofs(rp->rig, rp->settle, N, dofs, omega_rad_s / (2 * M_PI),
-                                rp->amplitude_n, a, b, &ev, err);
+    int rc = rths_evaluate_noise(rp->rig, rp->settle, &rp->noise, N, dofs, omega_rad_s / (2 * M_PI),
+                                 rp->amplitude_n, a, b, &ev, err);
     memset(out, 0, sizeof *out);
     if (rc) {
         out->rig_time_s = ev.rig_time_s;
@@ -332,26 +509,44 @@ static void remember_evaluation(corrector_memory *mem, const double *target, dou
     if (mem->history_count < RTHS_LTI_HISTORY) mem->history_count++;
 }
 
-/* The solution view of an iterate (its targets were set by corrector_evaluate): the norm of Phi and
- * the tolerance max(rel * ||reference||, abs, noise_factor * ||standard error of Phi||). Returns
- * ||Phi||^2. */
+/* The solution view of an iterate (its targets were set by corrector_evaluate): per interface DoF
+ * d, in its own unit (m, or rad for a rotation), ||Phi_d|| against its tolerance
+ * max(rel * ||reference_d||, abs, noise_factor * ||standard error of Phi_d||); the point is within
+ * tolerance when every DoF is (p->within). A problem without Fourier structure is one group.
+ * Returns ||Phi||^2 over every entry (the line search's measure, in the corrector's scale). */
 static double describe(const rths_corrector *c, corrector_point *p) {
     const rths_residual *r = &p->rec;
-    int N = c->harmonics, n = c->n;
+    int P = c->harmonics, n = c->n, groups = P > 0 ? c->dofs : 1, N = P > 0 ? P / groups : 0;
     p->sol.eval = r->eval;
-    double sq = 0, ref_sq = 0, se_sq = 0;
-    for (int i = 0; i < n; i++) {
+    double sq = 0, tol_sq = 0, single_tol = 0, worst_rel = 0, worst_ratio = 0;
+    int within = 1;
+    for (int i = 0; i < n; i++)
         sq += r->phi[i] * r->phi[i];
-        se_sq += r->phi_se[i] * r->phi_se[i];
-    }
-    for (int k = 0; k < N; k++)
-        ref_sq += r->reference[k] * r->reference[k] + r->reference[N + k] * r->reference[N + k];
-    if (!N)
-        for (int i = 0; i < n; i++)
+    for (int d = 0; d < groups; d++) {
+        double phi_sq = 0, ref_sq = 0, se_sq = 0;
+        /* DoF d's entries: cos terms d N .. d N + N - 1, sin terms P + the same */
+        for (int e = 0; e < (P > 0 ? 2 * N : n); e++) {
+            int i = P > 0 ? (e < N ? d * N + e : P + d * N + e - N) : e;
+            phi_sq += r->phi[i] * r->phi[i];
             ref_sq += r->reference[i] * r->reference[i];
+            se_sq += r->phi_se[i] * r->phi_se[i];
+        }
+        double tol = fmax(fmax(c->opt.rel_tolerance * sqrt(ref_sq), c->opt.abs_tolerance_m),
+                          c->opt.noise_factor * sqrt(se_sq));
+        double phi_norm = sqrt(phi_sq);
+        within = within && phi_norm < tol;
+        tol_sq += tol * tol;
+        single_tol = tol;
+        worst_rel = fmax(worst_rel, ref_sq > 0     ? phi_norm / sqrt(ref_sq)
+                                    : phi_norm > 0 ? INFINITY
+                                                   : 0.0);
+        worst_ratio = fmax(worst_ratio, tol > 0 ? phi_norm / tol : phi_norm > 0 ? INFINITY : 0.0);
+    }
+    p->within = within;
     p->sol.residual_norm_m = sqrt(sq);
-    p->sol.tolerance_m = fmax(fmax(c->opt.rel_tolerance * sqrt(ref_sq), c->opt.abs_tolerance_m),
-                              c->opt.noise_factor * sqrt(se_sq));
+    p->sol.tolerance_m = groups == 1 ? single_tol : sqrt(tol_sq);
+    p->sol.residual_rel = worst_rel;
+    p->sol.residual_to_tolerance = worst_ratio;
     return sq;
 }
 
@@ -365,7 +560,16 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
     p->sol.omega_rad_s = u[n] * c->scale[n];
     memcpy(p->u, u, sizeof p->u);
     int rc = c->problem.eval(c->problem.ctx, target, p->sol.omega_rad_s, &p->rec, err);
+    /* a measurement corrupted twice (rths_evaluation.refused) is the rig's state at this target,
+     * not a numerical failure: the corrector reports it as such (RTHS_CORRECTOR_REFUSED) */
+    c->refused = rc != RTHS_OK && p->rec.eval.refused;
     c->evaluations++;
+    c->late_samples += p->rec.eval.late_samples;
+    c->clipped_samples += p->rec.eval.clipped_demand_samples;
+    c->saturated_samples += p->rec.eval.saturated_sensor_samples;
+    c->samples_read += p->rec.eval.samples_read;
+    c->remeasured += p->rec.eval.remeasured;
+    c->refused_evaluations += p->rec.eval.refused;
     c->rig_time_s += p->rec.rig_time_s;
     for (int k = 0; k < c->harmonics; k++) {
         p->sol.target_a[k] = target[k];

@@ -73,7 +73,9 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                                      settle->abs_tolerance_m, 0.0, 1.0, &settle->abs_tolerance_m,
                                      err)) ||
         (rc = rths_config_get_double(cfg, "iteration.settle.noise_factor", 0, settle->noise_factor,
-                                     0.0, 100.0, &settle->noise_factor, err)))
+                                     0.0, 100.0, &settle->noise_factor, err)) ||
+        (rc = rths_config_get_double(cfg, "iteration.min_snr", 0, newton->min_snr, 0.0, 1e6,
+                                     &newton->min_snr, err)))
         return rc;
     return RTHS_OK;
 }

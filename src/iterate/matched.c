@@ -341,6 +341,44 @@ static double measured_amplitude(const rths_corrector *c, int p0, const double *
     return amp;
 }
 
+/* docs/method.md, "One evaluation": each interface DoF's fundamental response amplitude |x_d|
+ * against the measured standard error of its mismatch per coefficient,
+ * s_d = sqrt((s_cos^2 + s_sin^2) / 2) with s^2 = s_phys^2 + s_num^2 (the pooled noise). The
+ * mismatch's error, not only the response's, because it is what the tolerance and the step to
+ * zero mismatch are judged against: a response resolved while its numerical partner is buried in
+ * noise gives a mismatch that cannot be told from zero (a tolerance wider than the response).
+ * The point is below the floor when even its best-resolved DoF is below min_snr s_d: the
+ * interface as a whole does not stand out of the noise. One DoF near its own antiresonance while
+ * another moves clearly is a measured point, its small amplitude reported with its standard
+ * error. The solution names the best-resolved DoF. */
+int corrector_below_noise_floor(rths_corrector *c) {
+    rths_solution *sol = &c->cur.sol;
+    int P = c->harmonics, N = P > 0 ? P / c->dofs : 0;
+    sol->snr = INFINITY;
+    sol->snr_dof = 0;
+    sol->snr_amplitude_m = 0;
+    sol->noise_floor_m = 0;
+    sol->below_noise_floor = 0;
+    if (P == 0) return 0;
+    double sp[LD], sn[LD];
+    entry_noise(c, sp, sn);
+    const double *x = c->cur.rec.response;
+    for (int d = 0; d < c->dofs; d++) {
+        int c0 = d * N, s0 = P + d * N;
+        double amplitude = hypot(x[c0], x[s0]);
+        double se =
+            sqrt(0.5 * (sp[c0] * sp[c0] + sn[c0] * sn[c0] + sp[s0] * sp[s0] + sn[s0] * sn[s0]));
+        double snr = se > 0 ? amplitude / se : INFINITY;
+        if (d == 0 || snr > sol->snr) {
+            sol->snr = snr;
+            sol->snr_dof = d;
+            sol->snr_amplitude_m = amplitude;
+            sol->noise_floor_m = c->opt.min_snr * se;
+        }
+    }
+    return c->opt.min_snr > 0 && !(sol->snr >= c->opt.min_snr);
+}
+
 /* The reported amplitude and its standard error, with every known source: the noise, the
  * remaining mismatch times the response's sensitivity to it (the step to zero mismatch), and the
  * uncertainty of that sensitivity (a fitted model's scatter, else the whole step). When no
