@@ -54,6 +54,10 @@ typedef struct rths_point {
     /* how often the targets' trust region acted on the way to this point (failed attempts
      * included): a model's prediction set aside, a prediction or corrector step shortened */
     int trust_actions;
+    /* 1: measured by a run that resumed the journal (--resume): its rig started again from rest
+     * with a fresh noise stream, so it is not the point the uninterrupted run would have
+     * measured (docs/journal.md, "What a resume restores") */
+    int resumed;
 } rths_point;
 
 typedef struct rths_fold {
