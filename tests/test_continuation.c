@@ -1089,6 +1089,24 @@ static void test_journal_refuses_wrong_types(void **state) {
     rmdir(dir);
 }
 
+/* A journal write that fails names the journal and the cause with its errno text (issue 24.16:
+ * the run reported only "stopped by the point handler"); /dev/full fails every write with
+ * ENOSPC, as a full disk does. */
+static void test_journal_write_failure_named(void **state) {
+    (void)state;
+    rths_journal *j;
+    rths_error err = {0};
+    if (access("/dev/full", W_OK) != 0) skip();
+    assert_int_equal(rths_journal_open("/dev/full", "default", &j, &err), RTHS_OK);
+    rths_point pt;
+    memset(&pt, 0, sizeof pt);
+    pt.sol.harmonics = pt.sol.eval.harmonics = 1;
+    assert_int_equal(rths_journal_append(j, &pt, 0, &err), RTHS_EFAIL);
+    rths_journal_close(j);
+    if (!strstr(err.msg, "cannot write journal /dev/full: No space left on device"))
+        fail_msg("%s", err.msg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_evaluate_waits_for_steady_state),
@@ -1104,6 +1122,7 @@ int main(void) {
         cmocka_unit_test(test_standard_error_coverage_duffing),
         cmocka_unit_test(test_journal_resume),
         cmocka_unit_test(test_journal_refuses_wrong_types),
+        cmocka_unit_test(test_journal_write_failure_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -20,8 +20,10 @@ static const char *const sets[] = {"rig.noise=false", "continuation.start_hz=12.
 
 typedef struct {
     int points, updates, cancel_after;
+    int fail_at; /* > 0: the callback stops the run at this point index with status 7 */
     double max_error;
     const rths_setup *setup;
+    const char *extra[4]; /* further overrides after sets */
 } watcher;
 
 static int watch_point(void *user, const rths_point *pt, int is_update) {
@@ -31,6 +33,7 @@ static int watch_point(void *user, const rths_point *pt, int is_update) {
         return RTHS_OK;
     }
     assert_int_equal(pt->index, w->points);
+    if (w->fail_at > 0 && pt->index == w->fail_at) return 7;
     w->points++;
     double truth = rths_truth_linear_amplitude_m(w->setup, pt->sol.frequency_hz);
     w->max_error = fmax(w->max_error, fabs(pt->sol.amplitude_m - truth) / truth);
@@ -46,8 +49,14 @@ static int run_once(const char *out, int resume, const char *strategy, watcher *
                     rths_run_frf_result *r, rths_error *err) {
     rths_config *cfg;
     rths_setup setup;
-    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), sets, 3, &cfg,
-                         err) ||
+    const char *all[8];
+    int n_sets = 0;
+    for (int i = 0; i < 3; i++)
+        all[n_sets++] = sets[i];
+    for (int i = 0; i < 4 && w->extra[i]; i++)
+        all[n_sets++] = w->extra[i];
+    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), all, n_sets,
+                         &cfg, err) ||
         rths_setup_read(cfg, &setup, err))
         fail_msg("%s", err->msg);
     w->setup = &setup;
@@ -56,8 +65,8 @@ static int run_once(const char *out, int resume, const char *strategy, watcher *
                                 .out_dir = out,
                                 .strategy = strategy,
                                 .resume = resume,
-                                .overrides = sets,
-                                .n_overrides = 3};
+                                .overrides = all,
+                                .n_overrides = n_sets};
     rths_run_callbacks cb = {.on_point = watch_point, .should_cancel = cancel_now, .user = w};
     int rc = rths_run_frf(&opt, &cb, r, err);
     rths_setup_free(&setup);
@@ -122,6 +131,8 @@ static void test_completed(void **state) {
     assert_true(r.max_relative_error_vs_truth < 5e-3);
     assert_true(exists(out, "summary.json") && exists(out, "truth.csv") &&
                 exists(out, "journal.jsonl") && exists(out, "config.yaml"));
+    /* the run released the folder: no stale run.lock (issue 24.16) */
+    assert_false(exists(out, "run.lock"));
     remove_tree(dir);
 }
 
@@ -138,8 +149,13 @@ static void test_cancel_and_resume(void **state) {
     assert_int_equal(r.status, RTHS_RUN_CANCELLED);
     assert_int_equal(r.points, 3);
     assert_int_equal(csv_rows(out), 3);
-    assert_true(file_has(out, "summary.json", "cancelled by the caller after 3 points"));
+    /* the user stopped it, and the log says so with the status the command exits with (issue
+     * 24.16: it said "cancelled by the caller" and "finished with status 0") */
+    assert_true(file_has(out, "summary.json", "stopped by the user after 3 points"));
+    assert_true(file_has(out, "run.log", "finished: stopped by the user (exit 130)"));
+    assert_false(file_has(out, "run.log", "finished with status 0"));
     assert_false(exists(out, "trace.csv")); /* no rig time spent after a cancel */
+    assert_false(exists(out, "run.lock"));
 
     watcher again = {.points = 3}; /* the new points' indices follow the journal's */
     assert_int_equal(run_once(out, 1, NULL, &again, &r, &err), RTHS_OK);
@@ -179,11 +195,56 @@ static void test_bad_input_writes_nothing(void **state) {
     remove_tree(dir);
 }
 
+/* The point handler stopping the run: the stop reason says what failed (here the caller's
+ * callback; a failed journal write takes the same path with its errno text), not "stopped by the
+ * point handler" (issue 24.16). */
+static void test_handler_failure_named(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_run_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char out[600];
+    snprintf(out, sizeof out, "%s/run", dir);
+    watcher w = {.fail_at = 2};
+    rths_run_frf_result r;
+    rths_error err = {0};
+    assert_int_equal(run_once(out, 0, NULL, &w, &r, &err), 7); /* the callback's status */
+    assert_non_null(strstr(err.msg, "the point callback stopped the run (status 7)"));
+    assert_int_equal(r.status, RTHS_RUN_FAILED);
+    assert_non_null(strstr(r.stop_reason, "the point callback stopped the run (status 7)"));
+    assert_true(file_has(out, "summary.json", "the point callback stopped the run (status 7)"));
+    assert_false(file_has(out, "summary.json", "stopped by the point handler"));
+    assert_false(exists(out, "run.lock"));
+    remove_tree(dir);
+}
+
+/* A sweep the controller would refuse to force (below controller.min_frequency_hz) is bad input
+ * before anything is written (issue 24.16: it failed at run time with status 1). */
+static void test_range_below_controller_minimum(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_run_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char out[600];
+    snprintf(out, sizeof out, "%s/run", dir);
+    watcher w = {.extra = {"continuation.start_hz=0.001"}};
+    rths_run_frf_result r;
+    rths_error err = {0};
+    assert_int_equal(run_once(out, 0, NULL, &w, &r, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "continuation.start_hz"));
+    assert_non_null(strstr(err.msg, "controller.min_frequency_hz (0.1 Hz)"));
+    watcher high = {.extra = {"controller.sample_rate_hz=100", "continuation.end_hz=30"}};
+    assert_int_equal(run_once(out, 0, NULL, &high, &r, &err), RTHS_EINPUT);
+    if (!strstr(err.msg, "continuation.end_hz")) fail_msg("%s", err.msg);
+    assert_false(exists(dir, "run"));
+    remove_tree(dir);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_completed),
         cmocka_unit_test(test_cancel_and_resume),
         cmocka_unit_test(test_bad_input_writes_nothing),
+        cmocka_unit_test(test_handler_failure_named),
+        cmocka_unit_test(test_range_below_controller_minimum),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -32,16 +32,29 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
     if (!line) return rths_error_set(err, RTHS_EFAIL, "out of memory writing the journal");
     memcpy(line, text, len);
     line[len] = '\n';
-    ssize_t w = write(j->fd, line, len + 1);
+    /* one write(2) per record; a short one (the disk or the file size limit reached mid-record)
+     * is continued, which either completes the record or fails with the errno that names the
+     * cause (ENOSPC, EFBIG); the reader ignores the torn last line that leaves */
+    size_t done = 0;
+    int e = 0;
+    while (done < len + 1) {
+        ssize_t w = write(j->fd, line + done, len + 1 - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) {
+            e = w < 0 ? errno : EIO;
+            break;
+        }
+        done += (size_t)w;
+    }
     free(line);
-    if (w < 0 || fsync(j->fd) != 0)
-        return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path,
-                              strerror(errno));
-    if (w != (ssize_t)(len + 1)) /* no errno for a short write */
+    if (!e && fsync(j->fd) != 0) e = errno;
+    if (e && done > 0 && done < len + 1)
         return rths_error_set(err, RTHS_EFAIL,
-                              "cannot write journal %s: short write (%zd of %zu bytes: disk full "
-                              "or file size limit?)",
-                              j->path, w, len + 1);
+                              "cannot write journal %s: %s (the record was cut after %zu of %zu "
+                              "bytes)",
+                              j->path, strerror(e), done, len + 1);
+    if (e)
+        return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path, strerror(e));
     return RTHS_OK;
 }
 

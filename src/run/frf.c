@@ -25,6 +25,32 @@ const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_eule
 /* A private status the point handler returns to end the continuation on cancellation. */
 enum { FRF_CANCELLED = 100 };
 
+/* The sweep lies where the controller accepts a forcing: from controller.min_frequency_hz to
+ * below a quarter of controller.sample_rate_hz (what the rigs refuse at run time, src/rig), so a
+ * range the controller would refuse is bad input (exit 2) before anything is written. With a
+ * controller process the host's configuration stands for the controller's. */
+static int check_sweep_range(frf_state *st, rths_error *err) {
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    int rc = rths_controller_config_read(st->opt->cfg, &copt, err);
+    static const char *const keys[2] = {"continuation.start_hz", "continuation.end_hz"};
+    double f[2] = {st->cont.start_hz, st->cont.end_hz}, high = 0.25 * copt.sample_rate_hz;
+    for (int i = 0; i < 2 && !rc; i++) {
+        if (f[i] < copt.min_frequency_hz)
+            rc = rths_config_error_at(st->opt->cfg, keys[i], err,
+                                      "%g Hz is below controller.min_frequency_hz (%g Hz), the "
+                                      "lowest forcing frequency the controller accepts",
+                                      f[i], copt.min_frequency_hz);
+        else if (f[i] >= high)
+            rc = rths_config_error_at(st->opt->cfg, keys[i], err,
+                                      "%g Hz is not below a quarter of controller.sample_rate_hz "
+                                      "(%g Hz), the highest forcing frequency the controller "
+                                      "accepts",
+                                      f[i], high);
+    }
+    return rc;
+}
+
 /* Strategy defaults, then the iteration, continuation and output sections over them. */
 static int read_options(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
@@ -46,6 +72,7 @@ static int read_options(frf_state *st, rths_error *err) {
     int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
+    if (!rc) rc = check_sweep_range(st, err);
     /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
      * part may be nonlinear whatever the model says) */
     st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
@@ -190,7 +217,14 @@ static int check_journal(frf_state *st, rths_error *err) {
  * folder is locked before its journal is looked at (create 0: a missing one is left alone); a new
  * one is created and locked once the input is checked (create 1), so a refused run leaves
  * nothing, and its journal check is repeated under the lock because another run may have started
- * the folder meanwhile. */
+ * the folder meanwhile.
+ *
+ * The run removes run.lock when it releases the folder (release_folder: unlink while still
+ * holding the lock, then close), so a finished folder holds no stale lock file. A run that
+ * opened the old file just before the unlink may then lock an inode no longer in the folder,
+ * while a third run creates and locks a new run.lock: both would own the folder. So a lock
+ * counts only while the path still names the locked inode; otherwise it is dropped and taken
+ * again on the new file. */
 static int lock_folder(frf_state *st, int create, rths_error *err) {
     const char *dir = st->opt->out_dir;
     struct stat sb;
@@ -201,22 +235,37 @@ static int lock_folder(frf_state *st, int create, rths_error *err) {
     char *path = malloc(len);
     if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     snprintf(path, len, "%s/run.lock", dir);
-    st->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     int rc = RTHS_OK;
-    if (st->lock_fd < 0) {
-        rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
-    } else if (flock(st->lock_fd, LOCK_EX | LOCK_NB) != 0) {
-        char pid[32] = "?";
-        ssize_t n = pread(st->lock_fd, pid, sizeof pid - 1, 0);
-        pid[n > 0 ? n : 1] = 0;
-        pid[strcspn(pid, "\n")] = 0;
-        rc =
-            rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir, pid);
-    } else {
+    for (int attempt = 0; attempt < 100 && st->lock_fd < 0 && !rc; attempt++) {
+        int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        struct stat held, named;
+        if (fd < 0) {
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
+        } else if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+            char pid[32] = "?";
+            ssize_t n = pread(fd, pid, sizeof pid - 1, 0);
+            pid[n > 0 ? n : 1] = 0;
+            pid[strcspn(pid, "\n")] = 0;
+            rc = rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir,
+                                pid);
+            close(fd);
+        } else if (fstat(fd, &held) != 0 || stat(path, &named) != 0 ||
+                   held.st_dev != named.st_dev || held.st_ino != named.st_ino) {
+            close(fd); /* the run that held it removed it meanwhile: lock the new file */
+        } else {
+            st->lock_fd = fd;
+            st->lock_path = path;
+            path = NULL;
+        }
+    }
+    if (!rc && st->lock_fd < 0)
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot lock %s: it keeps being replaced", path);
+    if (!rc) {
         char pid[32];
         int n = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
         if (ftruncate(st->lock_fd, 0) != 0 || pwrite(st->lock_fd, pid, (size_t)n, 0) != n)
-            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", st->lock_path,
+                                strerror(errno));
     }
     free(path);
     if (!rc && !st->opt->resume && st->journal_path && stat(st->journal_path, &sb) == 0)
@@ -225,6 +274,16 @@ static int lock_folder(frf_state *st, int create, rths_error *err) {
                             "or choose another --out",
                             dir);
     return rc;
+}
+
+/* Gives the folder up: run.lock removed while still locked (see lock_folder), then unlocked. */
+static void release_folder(frf_state *st) {
+    if (st->lock_fd < 0) return;
+    if (st->lock_path) unlink(st->lock_path);
+    close(st->lock_fd);
+    st->lock_fd = -1;
+    free(st->lock_path);
+    st->lock_path = NULL;
 }
 
 /* Opens the output folder (run.log, config.yaml) and writes the truth curve. */
@@ -375,13 +434,18 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
                                        on_point, on_progress, st, &st->result, run_err);
-    if (run_rc && !run_err->msg[0] && st->point_err.msg[0]) *run_err = st->point_err;
+    /* the point handler stopped the run: say what failed (the journal write, with its errno
+     * text, or the caller's callback), not only that the handler stopped it */
+    if (run_rc && st->point_err.msg[0]) {
+        *run_err = st->point_err;
+        snprintf(st->result.stop_reason, sizeof st->result.stop_reason, "%s", st->point_err.msg);
+    }
     rths_live_close(st->live); /* "state": "ended"; the rig now only forwards */
     st->live = NULL;
     if (st->cancelled) {
         run_rc = RTHS_OK;
         snprintf(st->result.stop_reason, sizeof st->result.stop_reason,
-                 "cancelled by the caller after %d points", st->n);
+                 "stopped by the user after %d points", st->n);
     }
     rths_report_log(st->rep, "continuation ended: %s%s%s", st->result.stop_reason,
                     run_rc ? "; " : "", run_rc ? run_err->msg : "");
@@ -441,7 +505,7 @@ static void release(frf_state *st) {
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
     rths_report_close(st->rep);
-    if (st->lock_fd >= 0) close(st->lock_fd); /* releases the folder */
+    release_folder(st);
 }
 
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
@@ -479,7 +543,12 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
         *err = run_err;
         rc = run_rc;
     }
-    if (st.rep) rths_report_log(st.rep, "finished with status %d", rc);
+    /* the status the command exits with: a cancellation is the user's Ctrl-C (130, as the shell
+     * reports an interrupt; src/cli/cmd_frf.c) */
+    if (st.rep && !rc && st.cancelled)
+        rths_report_log(st.rep, "finished: stopped by the user (exit 130)");
+    else if (st.rep)
+        rths_report_log(st.rep, "finished with status %d", rc);
     release(&st);
     return rc;
 }

@@ -50,7 +50,8 @@ typedef struct frf_state {
     rths_truth_curve truth;
     rths_continuation_result result;
     int cancelled;
-    int lock_fd; /* DIR/run.lock, flock'ed while the run owns the folder */
+    int lock_fd;     /* DIR/run.lock, flock'ed while the run owns the folder */
+    char *lock_path; /* its path, removed when the run releases the folder */
     /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */
     char changes[8][256];
     int n_changes;
