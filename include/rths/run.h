@@ -9,8 +9,9 @@
  *
  * Bad input (configuration, a journal of another run, an occupied folder) is refused with
  * RTHS_EINPUT before anything is written. Once the run started, everything accepted is saved
- * however it ends: normally, stopped early (too many failures), cancelled through should_cancel
- * (RTHS_OK, r.status RTHS_RUN_CANCELLED), or by a rig fault or I/O error (RTHS_EFAIL). */
+ * however it ends: normally, at the point limit, cancelled through should_cancel (RTHS_OK,
+ * r.status RTHS_RUN_CANCELLED), short of its end by failed corrections (RTHS_EFAIL, r.status
+ * RTHS_RUN_STOPPED, the error naming the cause), or by a rig fault or I/O error (RTHS_EFAIL). */
 #ifndef RTHS_RUN_H
 #define RTHS_RUN_H
 
@@ -57,7 +58,10 @@ typedef struct rths_run_callbacks {
 
 typedef enum {
     RTHS_RUN_COMPLETED = 0, /* reached the end frequency */
-    RTHS_RUN_STOPPED = 1,   /* ended early but normally: point limit, failures, step limit */
+    /* ended early: the point limit (rths_run_frf returns RTHS_OK), or short of the end
+     * frequency by failed corrections, the step limit or the branch leaving the range
+     * (RTHS_EFAIL, the error naming the cause) */
+    RTHS_RUN_STOPPED = 1,
     RTHS_RUN_CANCELLED = 2, /* should_cancel asked for it */
     RTHS_RUN_FAILED = 3     /* rig fault, I/O error, or the point callback stopped it */
 } rths_run_status;

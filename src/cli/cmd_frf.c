@@ -56,11 +56,12 @@ static const char usage[] =
     "Ctrl-C (SIGINT) or SIGTERM stops after the point in progress and writes everything\n"
     "accepted (exit 130); a second Ctrl-C kills at once (the journal still resumes).\n"
     "\n"
-    "Exit status: 0 the run ended normally (also when it stopped early after\n"
-    "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault,\n"
-    "I/O failure, or no point accepted at all (everything accepted so far is saved); 2 bad\n"
-    "usage or configuration, a journal of another configuration, or DIR in use by another run;\n"
-    "130 interrupted (everything accepted saved).\n";
+    "Exit status: 0 the run reached continuation.end_hz (or continuation.max_points); 1 rig\n"
+    "fault, I/O failure, no point accepted at all, or the sweep stopped short of its end\n"
+    "(failed corrections, the step below continuation.min_step: the message names the most\n"
+    "frequent cause, e.g. a limit; everything accepted so far is saved); 2 bad usage or\n"
+    "configuration, a journal of another configuration, or DIR in use by another run; 130\n"
+    "interrupted (everything accepted saved).\n";
 
 /* Ctrl-C (or SIGTERM) ends the run cleanly after the point in progress: everything accepted is
  * written out (frf.csv, summary.json, figures) and --resume continues it. A second signal kills at

@@ -489,7 +489,8 @@ static void fill_result(const frf_state *st, int run_rc, rths_run_frf_result *r)
     }
     snprintf(r->stop_reason, sizeof r->stop_reason, "%s", st->result.stop_reason);
     r->outputs_written = 1;
-    r->status = run_rc                   ? RTHS_RUN_FAILED
+    r->status = st->stopped_short        ? RTHS_RUN_STOPPED
+                : run_rc                 ? RTHS_RUN_FAILED
                 : st->cancelled          ? RTHS_RUN_CANCELLED
                 : st->result.reached_end ? RTHS_RUN_COMPLETED
                                          : RTHS_RUN_STOPPED;
@@ -537,6 +538,15 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     if (!rc && !run_rc && st.n == 0 && !st.cancelled)
         run_rc = rths_error_set(&run_err, RTHS_EFAIL, "no point was accepted: %s",
                                 st.result.stop_reason);
+    /* A sweep that ended short of its end for a reason of its own (failed corrections, the
+     * branch leaving the range; not the user, not max_points) did not measure what was asked:
+     * a failure naming the cause (issue 24.15), everything accepted still written. */
+    else if (!rc && !run_rc && !st.cancelled && st.result.stopped_short) {
+        st.stopped_short = 1;
+        run_rc = rths_error_set(
+            &run_err, RTHS_EFAIL, "the sweep stopped at %.6g Hz, short of its end %.6g Hz: %s",
+            st.pts[st.n - 1].sol.frequency_hz, st.cont.end_hz, st.result.stop_reason);
+    }
     if (!rc) rc = write_outputs(&st, run_rc, err);
     if (!rc) fill_result(&st, run_rc, result);
     if (!rc && run_rc) {
@@ -548,7 +558,8 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     if (st.rep && !rc && st.cancelled)
         rths_report_log(st.rep, "finished: stopped by the user (exit 130)");
     else if (st.rep)
-        rths_report_log(st.rep, "finished with status %d", rc);
+        rths_report_log(st.rep, "finished with status %d%s%s", rc, rc ? ": " : "",
+                        rc ? err->msg : "");
     release(&st);
     return rc;
 }

@@ -50,6 +50,7 @@ typedef struct frf_state {
     rths_truth_curve truth;
     rths_continuation_result result;
     int cancelled;
+    int stopped_short; /* ended short of end_hz by failures or the range: a failure (exit 1) */
     int lock_fd;     /* DIR/run.lock, flock'ed while the run owns the folder */
     char *lock_path; /* its path, removed when the run releases the folder */
     /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */

@@ -740,6 +740,8 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     if (plant) json_object_object_add(root, "actuator", actuator_summary(plant));
     json_object_object_add(root, "failed_corrections", json_object_new_int(res->failures));
     json_object_object_add(root, "reached_end", json_object_new_boolean(res->reached_end));
+    /* short of the end by failures or the range (the run failed, exit 1; stop_reason says why) */
+    json_object_object_add(root, "stopped_short", json_object_new_boolean(res->stopped_short));
     json_object_object_add(root, "stop_reason", json_object_new_string(res->stop_reason));
     json_object_object_add(root, "folds", folds_json(run));
     json_object_object_add(root, "max_interface_error_h1_m", json_object_new_double(max_h[1]));
