@@ -43,6 +43,10 @@ typedef struct rths_run_frf_options {
     int n_overrides;
     int argc;
     char **argv;
+    /* a rig of the caller's to measure on instead of creating one (rig_uri NULL): the run takes
+     * it over and destroys it when it ends, also on error; treated like a real rig (its physical
+     * part may be nonlinear whatever the model says). NULL: the virtual rig or rig_uri */
+    rths_rig *rig;
 } rths_run_frf_options;
 
 typedef struct rths_run_callbacks {

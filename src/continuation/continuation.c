@@ -133,6 +133,9 @@ static int run_resume(cont_run *run, const rths_point *resume, int n_resume, rth
     int n = run->n;
     res->points = res->converged_points = n;
     if (n == 0) return RTHS_OK;
+    /* every point from here on is measured by a rig that started again from rest, with its own
+     * noise stream: marked (docs/journal.md, "What a resume restores") */
+    run->resumed_run = 1;
     int rc = rths_corrector_load(run->corr, &run->pts[n - 1].corrector, err);
     if (rc) return rc;
     /* the state saved with point n - 1 is in the scale its correction used */
@@ -271,6 +274,7 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     pt->iterations = iters;
     pt->rig_time_s += rig_time;
     pt->step = pr->step_used;
+    pt->resumed = run->resumed_run;
     rths_corrector_save(run->corr, &pt->corrector);
     if (n > 0) pt->secant_omega = sol->omega_rad_s - run->pts[n - 1].sol.omega_rad_s;
     int status = cont_fold_track(run, n, 1);

@@ -64,6 +64,7 @@ typedef struct cont_run {
     void *user;
     cont_failure recent[CONT_RECENT_FAILURES]; /* ring of the last failures' messages */
     int n_recent_total;                        /* failures remembered so far */
+    int resumed_run; /* resumed after journaled points: new points carry rths_point.resumed */
 } cont_run;
 
 /* predict.c: the predictors */

@@ -8,6 +8,7 @@ struct rths_rig {
     const rths_rig_ops *ops;
     void *self;
     char description[256];
+    rths_rig_integrity integrity; /* sums over every period run_periods delivered */
 };
 
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description) {
@@ -63,7 +64,26 @@ int rths_rig_set_target_dofs(rths_rig *rig, int dofs, int harmonics, const doubl
 }
 
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err) {
-    return rig->ops->run_periods(rig->self, count, out, err);
+    int rc = rig->ops->run_periods(rig->self, count, out, err);
+    if (rc) return rc;
+    rths_rig_integrity *t = &rig->integrity;
+    for (int i = 0; i < count; i++) {
+        t->periods++;
+        t->samples += out[i].samples;
+        t->late_samples += out[i].late_samples;
+        t->clipped_demand_samples += out[i].clipped_demand_samples;
+        t->saturated_sensor_samples += out[i].saturated_sensor_samples;
+    }
+    return RTHS_OK;
+}
+
+void rths_rig_integrity_totals(const rths_rig *rig, rths_rig_integrity *out) {
+    *out = rig->integrity;
+}
+
+int rths_rig_disarm(rths_rig *rig, rths_error *err) {
+    if (!rig->ops->disarm) return RTHS_OK;
+    return rig->ops->disarm(rig->self, err);
 }
 
 int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,

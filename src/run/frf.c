@@ -75,14 +75,14 @@ static int read_options(frf_state *st, rths_error *err) {
     if (!rc) rc = check_sweep_range(st, err);
     /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
      * part may be nonlinear whatever the model says) */
-    st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
+    st->cont.monotonic = !opt->rig_uri && !opt->rig && !st->setup->has_bilinear;
     st->newton.rig_lti = st->cont.monotonic;
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
     rths_floquet_measure_defaults(&st->floquet);
     if (!rc) rc = rths_floquet_measure_config_read(opt->cfg, &st->floquet, err);
-    if (!rc && st->floquet.enabled && opt->rig_uri)
+    if (!rc && st->floquet.enabled && (opt->rig_uri || opt->rig))
         rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
                                   "needs the virtual rig: the remote rig's protocol cannot inject "
                                   "a demand perturbation");
@@ -102,16 +102,18 @@ static int read_options(frf_state *st, rths_error *err) {
 static int create_rig(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
     int rc = RTHS_OK;
-    if (!opt->rig_uri)
+    if (!opt->rig_uri && !opt->rig)
         rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
-    if (!rc && !opt->rig_uri) st->virtual_rig = st->rig;
+    if (!rc && !opt->rig_uri && !opt->rig) st->virtual_rig = st->rig;
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
-    if (!rc && opt->rig_uri && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
+    st->inner_rig = st->rig;
+    if (!rc && !st->virtual_rig && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
         rc = rths_error_set(err, RTHS_EINPUT,
-                            "controller %s drives %d interface DoF(s); this configuration's "
-                            "split.interface has %d",
-                            opt->rig_uri, rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
+                            "%s drives %d interface DoF(s); this configuration's split.interface "
+                            "has %d",
+                            opt->rig_uri ? opt->rig_uri : rths_rig_description(st->rig),
+                            rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
     int dofs = st->setup->split.n_int;
     if (!rc && dofs > 1 && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         rc = rths_error_set(err, RTHS_EINPUT,
@@ -452,19 +454,44 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
     return run_rc;
 }
 
-/* frf.csv, the Lissajous trace (not after a rig fault or a cancellation), summary.json, the
- * figures. */
+/* The rig's safe state as soon as measuring is over (issue 24.3: it stayed armed while the
+ * figures were drawn, long enough for the controller's watchdog to latch): excitation and target
+ * ramped to zero before anything is written. A failed disarm is logged; the controller also
+ * disarms itself when the host disconnects. */
+static void disarm_rig(frf_state *st) {
+    rths_error err = {0};
+    if (!st->inner_rig) return;
+    if (rths_rig_disarm(st->inner_rig, &err))
+        rths_report_log(st->rep, "warning: disarming the rig failed: %s", err.msg);
+    else if (st->opt->rig_uri)
+        rths_report_log(st->rep, "rig disarmed (excitation ramped to zero) before the outputs");
+    st->disarmed = 1;
+}
+
+/* The Lissajous trace (not after a rig fault or a cancellation) is recorded while the rig still
+ * runs; then the rig is disarmed; then frf.csv, trace.csv, summary.json, the figures. */
 static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
+    int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
+    frf_trace trace = {0};
+    if (pick >= 0) {
+        rths_error trace_err;
+        if (frf_trace_record(st->rig, &st->settle, st->harmonics, st->setup->forcing_amplitude_n,
+                             &st->pts[pick], &trace, &trace_err)) {
+            rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);
+            pick = -1;
+        }
+        st->trace_rig_time_s = trace.rig_time_s;
+    }
+    disarm_rig(st);
+    frf_log_integrity(st);
     int rc = frf_write_frf_csv(st->rep, st, err);
     if (!rc && st->setup->base_excitation) rc = frf_write_absolute_csv(st->rep, st, err);
-    int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
     if (!rc && pick >= 0) {
         rths_error trace_err;
-        if (frf_trace_point(st->rep, st->rig, st->setup, &st->settle, st->harmonics,
-                            st->setup->forcing_amplitude_n, &st->pts[pick], &st->trace_rig_time_s,
-                            &trace_err))
+        if (frf_trace_write(st->rep, st->setup, &trace, &trace_err))
             rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);
     }
+    frf_trace_free(&trace);
     if (!rc) rc = frf_write_summary(st, err);
     if (!rc && st->n > 0) {
         char title[256];
@@ -511,7 +538,8 @@ static void release(frf_state *st) {
 
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
                  rths_run_frf_result *result, rths_error *err) {
-    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1};
+    /* a caller's rig is the run's from here on, destroyed when it ends however it ends */
+    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1, .rig = opt->rig};
     if (opt->has_seed)
         snprintf(st.seed_buf, sizeof st.seed_buf, "%llu", (unsigned long long)opt->seed);
     st.seed_text = opt->has_seed ? st.seed_buf : NULL;
@@ -547,6 +575,7 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
             &run_err, RTHS_EFAIL, "the sweep stopped at %.6g Hz, short of its end %.6g Hz: %s",
             st.pts[st.n - 1].sol.frequency_hz, st.cont.end_hz, st.result.stop_reason);
     }
+    if (!rc && run_rc) frf_integrity_to_error(&st, &run_err);
     if (!rc) rc = write_outputs(&st, run_rc, err);
     if (!rc) fill_result(&st, run_rc, result);
     if (!rc && run_rc) {

@@ -133,7 +133,24 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
  * run without it writes frf.csv as before, byte for byte). */
 static const char *const floquet_columns[] = {"floquet_max_abs_experimental", "floquet_max_abs_se",
                                               "stable_experimental", "floquet_trustworthy"};
-enum { FRF_FLOQUET_COLUMNS = 4, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
+/* Always last, after every optional block, so the columns before them keep their places: the
+ * accepted evaluation's integrity counts (rths_period, summed by the evaluation) and whether a
+ * resumed run measured the point (docs/journal.md, "What a resume restores"). */
+static const char *const tail_columns[] = {"late_samples", "clipped_demand_samples",
+                                           "saturated_sensor_samples", "resumed"};
+enum {
+    FRF_FLOQUET_COLUMNS = 4,
+    FRF_TAIL_COLUMNS = 4,
+    FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS + FRF_TAIL_COLUMNS
+};
+
+static void tail_row(const rths_point *pt, double *out) {
+    const rths_evaluation *e = &pt->residual.eval;
+    out[0] = (double)e->late_samples;
+    out[1] = (double)e->clipped_demand_samples;
+    out[2] = (double)e->saturated_sensor_samples;
+    out[3] = pt->resumed;
+}
 
 /* The experimental Floquet estimate of point i, NULL where it was not measured. */
 static const frf_floquet_point *floquet_point(const frf_state *run, int i) {
@@ -161,12 +178,16 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     if (run->floquet.enabled)
         for (int k = 0; k < FRF_FLOQUET_COLUMNS; k++)
             names[columns++] = floquet_columns[k];
+    int tail = columns;
+    for (int k = 0; k < FRF_TAIL_COLUMNS; k++)
+        names[columns++] = tail_columns[k];
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
         double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         if (run->floquet.enabled) floquet_row(run, i, row + fixed);
+        tail_row(&run->pts[i], row + tail);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -384,9 +405,9 @@ static int lissajous_row(char *out, size_t size, const rths_setup *setup, int d,
 
 /* Fig. 8 of the seed: time traces and the phase (Lissajous) plot of the physical against the
  * numerical interface displacement at one converged point; a row per interface DoF. */
-int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
-                    const rths_settle_options *settle, int harmonics, double amplitude_n,
-                    const rths_point *pt, double *trace_rig_time_s, rths_error *err) {
+int frf_trace_record(rths_rig *rig, const rths_settle_options *settle, int harmonics,
+                     double amplitude_n, const rths_point *pt, frf_trace *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
     double t0 = rths_rig_time_s(rig);
     rths_evaluation ev;
     double f_hz = pt->sol.omega_rad_s / (2 * M_PI);
@@ -395,14 +416,29 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
     int rc = rths_evaluate_dofs(rig, settle, harmonics, dofs, f_hz, amplitude_n, pt->sol.target_a,
                                 pt->sol.target_b, &ev, err);
     enum { MAX_SAMPLES = 4000 };
-    rths_trace_sample *tr = calloc(MAX_SAMPLES, sizeof *tr);
-    int n = 0;
-    if (!rc && !tr) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, tr, &n, err);
-    *trace_rig_time_s = rths_rig_time_s(rig) - t0;
+    out->samples = calloc(MAX_SAMPLES, sizeof *out->samples);
+    if (!rc && !out->samples) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, out->samples, &out->n, err);
+    out->rig_time_s = rths_rig_time_s(rig) - t0;
+    out->dofs = dofs;
+    out->point = pt->index;
+    out->frequency_hz = f_hz;
+    if (rc) frf_trace_free(out);
+    return rc;
+}
+
+void frf_trace_free(frf_trace *t) {
+    free(t->samples);
+    t->samples = NULL;
+    t->n = 0;
+}
+
+int frf_trace_write(rths_report *rep, const rths_setup *setup, const frf_trace *t,
+                    rths_error *err) {
+    int dofs = t->dofs, n = t->n;
+    const rths_trace_sample *tr = t->samples;
     int several = dofs > 1 && n > 0 && tr[0].dofs == dofs;
-    if (!rc) rc = write_trace_csv(rep, tr, n, dofs, err);
-    free(tr);
+    int rc = write_trace_csv(rep, tr, n, dofs, err);
     if (rc) return rc;
     char body[8192];
     int used = snprintf(body, sizeof body,
@@ -410,7 +446,7 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
                         "set multiplot layout %d,2 title 'Converged point %d at %.4f Hz: "
                         "interface motions'\n"
                         "set grid\n",
-                        several ? dofs : 1, pt->index, f_hz);
+                        several ? dofs : 1, t->point, t->frequency_hz);
     for (int d = 0; d < (several ? dofs : 1) && used < (int)sizeof body; d++) {
         /* DoF 0 alone: columns 2-4; several: dof<d>_* at 7 + 4 d */
         int c0 = several ? 7 + 4 * d : 2;
@@ -429,6 +465,10 @@ static int compare_int(const void *a, const void *b) {
 
 typedef struct {
     int converged, evaluations, within_se[4], honest, compared;
+    int measured_after_resume; /* points with the resumed mark (frf.csv's resumed column) */
+    /* the accepted evaluations' integrity counts, summed, and the points with any */
+    long late, clipped, saturated, samples_read;
+    int points_late, points_clipped, points_saturated;
     /* points farther than FAR_FROM_FOLD_HZ from a fold of the truth, and those within 3 SE */
     int far, far_within_3se;
     /* points farther than STABLE_FOLD_HZ from a fold: labelled, and agreeing with the truth */
@@ -608,6 +648,15 @@ static void point_statistics(frf_state *run, point_stats *ps) {
     for (int i = 0; i < run->n; i++) {
         const rths_point *pt = &run->pts[i];
         ps->converged += pt->sol.converged;
+        ps->measured_after_resume += pt->resumed;
+        const rths_evaluation *acc = &pt->residual.eval;
+        ps->late += acc->late_samples;
+        ps->clipped += acc->clipped_demand_samples;
+        ps->saturated += acc->saturated_sensor_samples;
+        ps->samples_read += acc->samples_read;
+        ps->points_late += acc->late_samples > 0;
+        ps->points_clipped += acc->clipped_demand_samples > 0;
+        ps->points_saturated += acc->saturated_sensor_samples > 0;
         ps->evaluations += pt->evaluations;
         ps->rig_time += pt->rig_time_s;
         if (evals) evals[i] = pt->evaluations;
@@ -686,6 +735,63 @@ static void add_truth_comparison(json_object *root, const point_stats *ps) {
                            json_object_new_int(ps->stable_agree));
 }
 
+/* The integrity counts: every period the rig delivered in this process (refused evaluations,
+ * failed corrections and the trace's settling included; a resume counts its own), and the
+ * accepted evaluations' (journaled, so resumed points included). */
+static json_object *integrity_json(const frf_state *run, const point_stats *ps) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    json_object *o = json_object_new_object(), *rig = json_object_new_object(),
+                *acc = json_object_new_object();
+    json_object_object_add(rig, "periods", json_object_new_int64(t.periods));
+    json_object_object_add(rig, "samples", json_object_new_int64(t.samples));
+    json_object_object_add(rig, "late_samples", json_object_new_int64(t.late_samples));
+    json_object_object_add(rig, "clipped_demand_samples",
+                           json_object_new_int64(t.clipped_demand_samples));
+    json_object_object_add(rig, "saturated_sensor_samples",
+                           json_object_new_int64(t.saturated_sensor_samples));
+    json_object_object_add(o, "rig_this_run", rig);
+    json_object_object_add(acc, "samples_read", json_object_new_int64(ps->samples_read));
+    json_object_object_add(acc, "late_samples", json_object_new_int64(ps->late));
+    json_object_object_add(acc, "clipped_demand_samples", json_object_new_int64(ps->clipped));
+    json_object_object_add(acc, "saturated_sensor_samples", json_object_new_int64(ps->saturated));
+    json_object_object_add(acc, "points_with_late_samples", json_object_new_int(ps->points_late));
+    json_object_object_add(acc, "points_with_clipped_demand",
+                           json_object_new_int(ps->points_clipped));
+    json_object_object_add(acc, "points_with_saturated_sensors",
+                           json_object_new_int(ps->points_saturated));
+    json_object_object_add(o, "accepted_points", acc);
+    return o;
+}
+
+void frf_log_integrity(frf_state *run) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    long late = 0, clipped = 0, saturated = 0;
+    for (int i = 0; i < run->n; i++) {
+        late += run->pts[i].residual.eval.late_samples;
+        clipped += run->pts[i].residual.eval.clipped_demand_samples;
+        saturated += run->pts[i].residual.eval.saturated_sensor_samples;
+    }
+    rths_report_log(run->rep,
+                    "integrity: the rig ran %ld periods (%ld samples) in this run: %ld late, %ld "
+                    "with a clipped demand, %ld with a saturated sensor; the accepted points' "
+                    "evaluations: %ld late, %ld clipped-demand, %ld saturated-sensor samples",
+                    t.periods, t.samples, t.late_samples, t.clipped_demand_samples,
+                    t.saturated_sensor_samples, late, clipped, saturated);
+}
+
+void frf_integrity_to_error(frf_state *run, rths_error *err) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    if (!t.late_samples && !t.clipped_demand_samples && !t.saturated_sensor_samples) return;
+    size_t len = strlen(err->msg);
+    snprintf(err->msg + len, sizeof err->msg - len,
+             "; the rig reported %ld late, %ld clipped-demand and %ld saturated-sensor samples "
+             "of %ld in this run (an evaluation with clipping or overruns is refused)",
+             t.late_samples, t.clipped_demand_samples, t.saturated_sensor_samples, t.samples);
+}
+
 /* What the virtual rig's actuator limits saw over the run (rig.actuator.limits): samples clipped
  * or flagged, and the peaks, so a test that ran near its limits says so. */
 static json_object *actuator_summary(const rths_plant *plant) {
@@ -724,6 +830,9 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "points", json_object_new_int(run->n));
     json_object_object_add(root, "converged_points", json_object_new_int(converged));
     json_object_object_add(root, "resumed_points", json_object_new_int(facts->n_resume));
+    json_object_object_add(root, "points_measured_after_resume",
+                           json_object_new_int(ps.measured_after_resume));
+    json_object_object_add(root, "integrity", integrity_json(run, &ps));
     /* Totals over the accepted points (journal included on --resume); failed attempts are in
      * their point's counts, since a point's counters include its retries. */
     json_object_object_add(root, "evaluations_total", json_object_new_int(evaluations));
