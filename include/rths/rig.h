@@ -103,6 +103,10 @@ int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rth
 double rths_rig_time_s(rths_rig *rig);
 rths_rig_fault rths_rig_get_fault(rths_rig *rig);
 int rths_rig_reset_fault(rths_rig *rig, rths_error *err);
+/* What `--reset-fault` does: resets the rig's latched fault (RESET_FAULT to a controller), then
+ * looks again after 0.2 s; RTHS_EFAIL with the rig's answer when it refused the reset or latched
+ * the fault again (its cause persists). note (cap bytes) receives what was done, for run.log. */
+int rths_rig_clear_fault(rths_rig *rig, char *note, size_t cap, rths_error *err);
 double rths_rig_noise_level_m(rths_rig *rig);
 /* The perturbed record above; RTHS_EINPUT naming the rig when it cannot record one. Periods that
  * the record spans are delivered to nobody (the next evaluation waits for steady state anew). */

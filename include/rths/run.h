@@ -47,6 +47,9 @@ typedef struct rths_run_frf_options {
      * it over and destroys it when it ends, also on error; treated like a real rig (its physical
      * part may be nonlinear whatever the model says). NULL: the virtual rig or rig_uri */
     rths_rig *rig;
+    /* with rig_uri: reset the controller's latched fault before the run (rths_rig_clear_fault,
+     * logged in run.log); RTHS_EFAIL with the controller's answer when it refuses */
+    int reset_fault;
 } rths_run_frf_options;
 
 typedef struct rths_run_callbacks {

@@ -17,9 +17,8 @@
 static const char usage[] =
     "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...][;...] "
     "--periods N --out DIR\n"
-    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] [--pace F] "
-    "[--set KEY=VALUE]... "
-    "[--quiet]\n"
+    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT [--reset-fault]]\n"
+    "                     [--pace F] [--set KEY=VALUE]... [--quiet]\n"
     "       rths simulate CONFIG --mode feedback [--delay TAU] --frequency F "
     "--periods N --out DIR\n"
     "                     [--seed S] [--set KEY=VALUE]... [--quiet]\n"
@@ -67,6 +66,9 @@ static const char usage[] =
     "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
     "controller)\n"
     "                       instead of the in-process virtual rig (iterative mode)\n"
+    "  --reset-fault        with --rig: reset the controller's latched fault (RESET_FAULT)\n"
+    "                       first, logged in run.log; refused (exit 1, the controller's\n"
+    "                       answer) while its cause persists\n"
     "  --pace F             run the virtual rig at F x real time (1: real time); results are\n"
     "                       the same (rig.pace; default unpaced)\n"
     "  --trace-periods K    periods in the recorded trace (iterative mode; "
@@ -93,6 +95,7 @@ enum {
     OPT_DELAY,
     OPT_RIG,
     OPT_PACE,
+    OPT_RESET_FAULT,
     OPT_COUNT
 };
 
@@ -734,10 +737,15 @@ static void add_run_summary(json_object *summary, const rths_cli *cli, const rth
 
 int rths_cmd_simulate(int argc, char **argv) {
     rths_cli_opt opts[OPT_COUNT] = {
-        [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
-        [OPT_PERIODS] = {"--periods", "N", NULL}, [OPT_TRACE] = {"--trace-periods", "K", NULL},
-        [OPT_MODE] = {"--mode", "MODE", NULL},    [OPT_DELAY] = {"--delay", "TAU", NULL},
-        [OPT_RIG] = {"--rig", "URI", NULL},       [OPT_PACE] = {"--pace", "F", NULL},
+        [OPT_FREQ] = {"--frequency", "F", NULL},
+        [OPT_TARGET] = {"--target", "LIST", NULL},
+        [OPT_PERIODS] = {"--periods", "N", NULL},
+        [OPT_TRACE] = {"--trace-periods", "K", NULL},
+        [OPT_MODE] = {"--mode", "MODE", NULL},
+        [OPT_DELAY] = {"--delay", "TAU", NULL},
+        [OPT_RIG] = {"--rig", "URI", NULL},
+        [OPT_PACE] = {"--pace", "F", NULL},
+        [OPT_RESET_FAULT] = {"--reset-fault", NULL, NULL},
     };
     rths_cli cli;
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
@@ -763,6 +771,13 @@ int rths_cmd_simulate(int argc, char **argv) {
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
     int pure_delay = a.feedback && a.has_delay;
     const char *rig_uri = opts[OPT_RIG].value;
+    char reset_note[700] = "";
+    if (opts[OPT_RESET_FAULT].value && !rig_uri) {
+        rc = rths_error_set(&err, RTHS_EINPUT,
+                            "option --reset-fault needs --rig tcp://HOST:PORT (a virtual rig "
+                            "starts without a fault)");
+        goto done;
+    }
     if (rig_uri && a.feedback) {
         rc = rths_error_set(&err, RTHS_EINPUT,
                             "option --rig: feedback mode runs only on the in-process virtual rig");
@@ -771,6 +786,9 @@ int rths_cmd_simulate(int argc, char **argv) {
     if (rig_uri) {
         /* a controller process: its own rig and controller sections apply there */
         if ((rc = rths_remote_rig_create(rig_uri, NULL, &rig, &err))) goto done;
+        if (opts[OPT_RESET_FAULT].value &&
+            (rc = rths_rig_clear_fault(rig, reset_note, sizeof reset_note, &err)))
+            goto done;
         if (rths_rig_interface_dofs(rig) != setup.split.n_int) {
             rc = rths_error_set(&err, RTHS_EINPUT,
                                 "controller %s drives %d interface DoF(s); this configuration's "
@@ -788,6 +806,7 @@ int rths_cmd_simulate(int argc, char **argv) {
     if ((rc = rths_cli_check_config_own(cfg, rig && !rig_uri ? rig_sections : NULL, &err)))
         goto done;
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
+    if (reset_note[0]) rths_report_log(rep, "%s", reset_note);
     rths_report_log(rep, "simulate: mode %s, %g Hz, %ld periods",
                     a.feedback ? "feedback" : "iterative", a.frequency_hz, a.periods);
 
@@ -799,6 +818,11 @@ int rths_cmd_simulate(int argc, char **argv) {
     else
         rc = run_feedback_rig(rig, &setup, &a, &r, &err);
     if (rc) goto done;
+    /* measuring is over: the rig to its safe state before the outputs are written (a slow
+     * figure must not keep a controller's actuator excited; docs/protocol.md, DISARM) */
+    rths_error disarm_err = {0};
+    if (rig && rths_rig_disarm(rig, &disarm_err))
+        rths_report_log(rep, "warning: disarming the rig failed: %s", disarm_err.msg);
     if (a.feedback && r.n_trace > 0 && !r.periods &&
         (rc = periods_from_trace(r.trace, r.n_trace, a.frequency_hz, harmonics, &r.periods,
                                  &r.n_periods, &err)))

@@ -108,6 +108,12 @@ static int create_rig(frf_state *st, rths_error *err) {
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
     st->inner_rig = st->rig;
+    if (!rc && opt->reset_fault && !opt->rig_uri)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "--reset-fault needs --rig tcp://HOST:PORT: a virtual rig starts "
+                            "without a fault");
+    if (!rc && opt->reset_fault)
+        rc = rths_rig_clear_fault(st->rig, st->reset_note, sizeof st->reset_note, err);
     if (!rc && !st->virtual_rig && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "%s drives %d interface DoF(s); this configuration's split.interface "
@@ -293,6 +299,7 @@ static int open_outputs(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
     int rc = rths_report_open(opt->out_dir, "frf", opt->argc, opt->argv, &st->rep, err);
     if (rc) return rc;
+    if (st->reset_note[0]) rths_report_log(st->rep, "%s", st->reset_note);
     char *path = rths_report_path(st->rep, "config.yaml");
     rc = path ? rths_config_write(opt->cfg, path, err)
               : rths_error_set(err, RTHS_EFAIL, "out of memory");

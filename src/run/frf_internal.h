@@ -37,8 +37,9 @@ typedef struct frf_state {
     rths_rig *rig;
     rths_rig
         *virtual_rig; /* the in-process rig behind the observing one (NULL: remote), owned by rig */
-    rths_rig *inner_rig; /* the rig behind the observing one (virtual, remote or the caller's) */
-    int disarmed;        /* the rig was brought to its safe state after the last point */
+    rths_rig *inner_rig;  /* the rig behind the observing one (virtual, remote or the caller's) */
+    int disarmed;         /* the rig was brought to its safe state after the last point */
+    char reset_note[700]; /* --reset-fault: what was reset, logged once run.log exists */
     rths_report *rep;
     rths_journal *journal;
     rths_error point_err;    /* why the point handler stopped the run (journal, callback) */
