@@ -190,6 +190,47 @@ static void remove_tree(const char *dir) {
     assert_int_equal(system(cmd), 0);
 }
 
+/* frf.csv's column `name` as numbers (rows rows at most); returns the rows read */
+static int csv_column(const char *dir, const char *name, double *values, int rows) {
+    char path[1024];
+    static char line[1 << 16];
+    snprintf(path, sizeof path, "%s/frf.csv", dir);
+    FILE *f = fopen(path, "r");
+    if (!f || !fgets(line, sizeof line, f)) fail_msg("cannot read %s", path);
+    int col = -1, c = 0;
+    for (char *tok = strtok(line, ",\n"); tok; tok = strtok(NULL, ",\n"), c++)
+        if (!strcmp(tok, name)) col = c;
+    if (col < 0) fail_msg("frf.csv has no column %s", name);
+    int n = 0;
+    while (n < rows && fgets(line, sizeof line, f)) {
+        char *p = line;
+        for (int k = 0; k < col; k++)
+            p = strchr(p, ',') + 1;
+        values[n++] = strtod(p, NULL);
+    }
+    fclose(f);
+    return n;
+}
+
+/* A JSON integer "key": N after the first occurrence of `after` in summary.json */
+static long summary_long(const char *dir, const char *after, const char *key) {
+    char path[1024];
+    static char buf[1 << 20];
+    snprintf(path, sizeof path, "%s/summary.json", dir);
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    buf[n] = 0;
+    fclose(f);
+    const char *p = strstr(buf, after);
+    assert_non_null(p);
+    char pattern[128];
+    snprintf(pattern, sizeof pattern, "\"%s\": ", key);
+    p = strstr(p, pattern);
+    assert_non_null(p);
+    return strtol(p + strlen(pattern), NULL, 10);
+}
+
 static void test_completed(void **state) {
     (void)state;
     char dir[] = "/tmp/rths_run_XXXXXX";
@@ -243,6 +284,22 @@ static void test_cancel_and_resume(void **state) {
     assert_true(r.points > 3);
     assert_int_equal(again.points, r.points); /* on_point saw every new point */
     assert_int_equal(csv_rows(out), r.points);
+    /* the points measured after the resume are marked (issue 24.10: the resumed rig starts from
+     * rest with a fresh noise stream; docs/journal.md, "What a resume restores"), the journal's
+     * are not, and summary.json counts them */
+    double resumed[64];
+    assert_int_equal(csv_column(out, "resumed", resumed, 64), r.points);
+    for (int i = 0; i < r.points && i < 64; i++)
+        assert_true(resumed[i] == (i >= 3 ? 1.0 : 0.0));
+    assert_int_equal(summary_long(out, "\"resumed_points\"", "points_measured_after_resume"),
+                     r.points - 3);
+    /* the mark survives a further resume (kept in the journal) */
+    watcher third = {.points = r.points};
+    int before = r.points;
+    assert_int_equal(run_once(out, 1, NULL, &third, &r, &err), RTHS_OK);
+    assert_int_equal(r.points, before);
+    assert_int_equal(summary_long(out, "\"resumed_points\"", "points_measured_after_resume"),
+                     before - 3);
     remove_tree(dir);
 }
 
@@ -315,47 +372,6 @@ static void test_range_below_controller_minimum(void **state) {
     if (!strstr(err.msg, "continuation.end_hz")) fail_msg("%s", err.msg);
     assert_false(exists(dir, "run"));
     remove_tree(dir);
-}
-
-/* frf.csv's column `name` as numbers (rows rows at most); returns the rows read */
-static int csv_column(const char *dir, const char *name, double *values, int rows) {
-    char path[1024];
-    static char line[1 << 16];
-    snprintf(path, sizeof path, "%s/frf.csv", dir);
-    FILE *f = fopen(path, "r");
-    if (!f || !fgets(line, sizeof line, f)) fail_msg("cannot read %s", path);
-    int col = -1, c = 0;
-    for (char *tok = strtok(line, ",\n"); tok; tok = strtok(NULL, ",\n"), c++)
-        if (!strcmp(tok, name)) col = c;
-    if (col < 0) fail_msg("frf.csv has no column %s", name);
-    int n = 0;
-    while (n < rows && fgets(line, sizeof line, f)) {
-        char *p = line;
-        for (int k = 0; k < col; k++)
-            p = strchr(p, ',') + 1;
-        values[n++] = strtod(p, NULL);
-    }
-    fclose(f);
-    return n;
-}
-
-/* A JSON integer "key": N after the first occurrence of `after` in summary.json */
-static long summary_long(const char *dir, const char *after, const char *key) {
-    char path[1024];
-    static char buf[1 << 20];
-    snprintf(path, sizeof path, "%s/summary.json", dir);
-    FILE *f = fopen(path, "r");
-    assert_non_null(f);
-    size_t n = fread(buf, 1, sizeof buf - 1, f);
-    buf[n] = 0;
-    fclose(f);
-    const char *p = strstr(buf, after);
-    assert_non_null(p);
-    char pattern[128];
-    snprintf(pattern, sizeof pattern, "\"%s\": ", key);
-    p = strstr(p, pattern);
-    assert_non_null(p);
-    return strtol(p + strlen(pattern), NULL, 10);
 }
 
 /* Integrity counts from the rig (issue 24.1): a rig whose periods 5..14 report 2 late, 1
