@@ -6,7 +6,8 @@
 # 3. with --reset-fault (and a forcing of 0.1 N, within the limit) the fault is reset, run.log
 #    says which fault was cleared, the run completes, and the rig is disarmed (DISARM, excitation
 #    ramped to zero) before any output is written (run.log: before "wrote summary.json");
-# 4. --reset-fault without --rig is bad usage (exit 2).
+# 4. while the fault's cause persists the reset is refused (exit 1) naming it, nothing written;
+# 5. --reset-fault without --rig is bad usage (exit 2).
 set -u
 bin=$1
 src=$2
@@ -54,6 +55,30 @@ written=$(grep -n "wrote summary.json" "$log" | cut -d: -f1)
 [ -n "$disarm" ] && [ -n "$written" ] && [ "$disarm" -lt "$written" ] ||
     fail "the rig was not disarmed before the outputs: $(cat "$log")"
 [ "$failures" -eq 0 ] && echo "ok   --reset-fault clears it (logged); disarmed before the outputs"
+
+# 4. a cause that persists: a second controller whose displacement limit (1e-9 m) its own sensor
+# noise exceeds latches the fault again right after the reset; --reset-fault is refused naming it
+kill "$pid" 2>/dev/null
+wait "$pid" 2>/dev/null
+"$bin" controller --config "$cfg" --listen 127.0.0.1:0 --set server.realtime=false \
+    --set controller.limits.displacement_m=1e-9 >"$work/ctl2.out" 2>"$work/ctl2.err" &
+pid=$!
+port=
+for _ in $(seq 1 400); do
+    port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/ctl2.out")
+    [ -n "$port" ] && break
+    kill -0 "$pid" 2>/dev/null || break
+    sleep 0.05
+done
+[ -n "$port" ] || { fail "the second controller did not start: $(cat "$work/ctl2.err")"; exit 1; }
+"$bin" frf "$cfg" --out "$work/persists" --rig "tcp://127.0.0.1:$port" "${host[@]}" --reset-fault \
+    2>"$work/persists.err"
+rc=$?
+[ "$rc" -eq 1 ] || fail "--reset-fault while the cause persists: exit $rc, expected 1"
+grep -q "RESET_FAULT refused: .* latched its 'displacement limit' fault again right after the reset; its cause persists" \
+    "$work/persists.err" || fail "the refusal does not say the cause persists: $(cat "$work/persists.err")"
+[ -e "$work/persists" ] && fail "a refused reset created the output folder"
+[ "$failures" -eq 0 ] && echo "ok   --reset-fault refused while the cause persists"
 
 refused frf "--reset-fault without --rig" "--reset-fault needs --rig" "$cfg" --reset-fault
 [ "$failures" -eq 0 ] && echo ok
