@@ -456,8 +456,9 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
         snprintf(st->result.stop_reason, sizeof st->result.stop_reason,
                  "stopped by the user after %d points", st->n);
     }
+    int same = !strcmp(run_err->msg, st->result.stop_reason); /* said once */
     rths_report_log(st->rep, "continuation ended: %s%s%s", st->result.stop_reason,
-                    run_rc ? "; " : "", run_rc ? run_err->msg : "");
+                    run_rc && !same ? "; " : "", run_rc && !same ? run_err->msg : "");
     return run_rc;
 }
 
