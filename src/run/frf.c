@@ -62,6 +62,9 @@ static int read_options(frf_state *st, rths_error *err) {
     if (opt->harmonics < 0 || opt->harmonics > RTHS_MAX_HARMONICS)
         return rths_error_set(err, RTHS_EINPUT, "harmonics %d is not in 1..%d", opt->harmonics,
                               RTHS_MAX_HARMONICS);
+    if (opt->rig_uri && opt->rig)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "both a rig and a rig URI (%s) given: measure on one", opt->rig_uri);
     if (opt->rig_uri && strncmp(opt->rig_uri, "tcp://", 6))
         return rths_error_set(err, RTHS_EINPUT, "rig '%s' is not tcp://HOST:PORT", opt->rig_uri);
     st->harmonics = 1;
