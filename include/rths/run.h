@@ -82,16 +82,23 @@ typedef struct rths_run_frf_result {
     int outputs_written; /* 1: frf.csv and summary.json were written (the counts are valid) */
 } rths_run_frf_result;
 
-/* frf.csv's columns, and an accepted point's row as frf.csv has it (what a point callback of the
- * C API receives). */
-enum { RTHS_RUN_FRF_COLUMNS = 24 };
+/* frf.csv's columns of a one-DoF run, and an accepted point's row as frf.csv has it (what a point
+ * callback of the C API receives): the RTHS_RUN_FRF_LEADING_COLUMNS from "point" to "stable",
+ * then the RTHS_RUN_FRF_TAIL_COLUMNS that always end a row (late_samples,
+ * clipped_demand_samples, saturated_sensor_samples: the accepted evaluation's integrity counts;
+ * resumed: 1 when a resumed run measured the point), after any per-DoF or optional columns. */
+enum {
+    RTHS_RUN_FRF_LEADING_COLUMNS = 24,
+    RTHS_RUN_FRF_TAIL_COLUMNS = 4,
+    RTHS_RUN_FRF_COLUMNS = RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_TAIL_COLUMNS
+};
 extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
 void rths_run_frf_row(const rths_point *pt, double *row);
 /* With several interface DoFs (n > 1) frf.csv adds, for every interface DoF d = 1..n (the split's
  * interface order), dof<d>_amplitude_m (the matched estimate when the strategy reports it, else
  * the measurement), dof<d>_numerical_amplitude_m, dof<d>_phase_rad, dof<d>_interface_error_m
  * and dof<d>_amplitude_se_m (the standard error of dof<d>_amplitude_m) of the fundamental after
- * the columns above; one DoF keeps the columns above alone. */
+ * the leading columns, before the tail; one DoF keeps the columns above alone. */
 enum {
     RTHS_RUN_FRF_DOF_COLUMNS = 5,
     RTHS_RUN_FRF_MAX_COLUMNS =

@@ -62,10 +62,15 @@ const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS] = {"point",
                                                                 "amplitude_se_m",
                                                                 "measured_amplitude_m",
                                                                 "se_honest",
-                                                                "stable"};
+                                                                "stable",
+                                                                "late_samples",
+                                                                "clipped_demand_samples",
+                                                                "saturated_sensor_samples",
+                                                                "resumed"};
 
 void rths_run_frf_row(const rths_point *pt, double *row) {
     const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
+    const rths_evaluation *acc = &pt->residual.eval; /* the accepted evaluation */
     const double values[RTHS_RUN_FRF_COLUMNS] = {
         /* amplitude_m: what the strategy reports (the response extrapolated to zero
          * mismatch by default, the measurement for paper); measured_amplitude_m: the
@@ -77,7 +82,10 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
         pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
         pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold, pt->segment,
         pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1]), pt->sol.amplitude_se_honest,
-        rths_point_stable(pt)};
+        rths_point_stable(pt),
+        /* the tail (run.h) */
+        (double)acc->late_samples, (double)acc->clipped_demand_samples,
+        (double)acc->saturated_sensor_samples, pt->resumed};
     memcpy(row, values, sizeof values);
 }
 
@@ -99,10 +107,14 @@ int rths_run_frf_column_count(int interface_dofs) {
     return RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dof_columns(interface_dofs);
 }
 
+/* Leading columns, the per-DoF block, the tail (run.h). */
 const char *rths_run_frf_column_name(int interface_dofs, int i) {
-    if (i < 0 || i >= rths_run_frf_column_count(interface_dofs)) return NULL;
-    if (i < RTHS_RUN_FRF_COLUMNS) return rths_run_frf_columns[i];
-    i -= RTHS_RUN_FRF_COLUMNS;
+    int count = rths_run_frf_column_count(interface_dofs);
+    if (i < 0 || i >= count) return NULL;
+    if (i < RTHS_RUN_FRF_LEADING_COLUMNS) return rths_run_frf_columns[i];
+    if (i >= count - RTHS_RUN_FRF_TAIL_COLUMNS)
+        return rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS - (count - i)];
+    i -= RTHS_RUN_FRF_LEADING_COLUMNS;
     return dof_column_names[i / RTHS_RUN_FRF_DOF_COLUMNS][i % RTHS_RUN_FRF_DOF_COLUMNS];
 }
 
@@ -111,14 +123,18 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
     const rths_solution *s = &pt->sol;
     const rths_evaluation *ev = &s->eval;
     int dofs = dof_columns(interface_dofs), M = s->harmonics, N = dofs ? M / dofs : 0;
+    /* the tail moves behind the per-DoF block */
+    double tail[RTHS_RUN_FRF_TAIL_COLUMNS];
+    memcpy(tail, row + RTHS_RUN_FRF_LEADING_COLUMNS, sizeof tail);
+    memcpy(row + RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dofs, tail, sizeof tail);
     /* the matched estimate stands for the reported amplitude when the strategy reports it */
     int matched = s->have_matched && s->amplitude_m == s->matched_amplitude_m;
     /* a record carrying another number of DoFs than the split leaves its cells empty, not stale */
     for (int i = 0; i < RTHS_RUN_FRF_DOF_COLUMNS * dofs; i++)
-        row[RTHS_RUN_FRF_COLUMNS + i] = NAN;
+        row[RTHS_RUN_FRF_LEADING_COLUMNS + i] = NAN;
     for (int d = 0; d < dofs && ev->interface_dofs == dofs; d++) {
         const rths_fourier *ph = &ev->phys_dof[d], *nu = &ev->num_dof[d];
-        double *r = row + RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
+        double *r = row + RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
         int j = d * N; /* DoF d's fundamental among the solution's pairs (iterate.h) */
         r[0] = matched ? hypot(s->matched_a[j], s->matched_b[j]) : hypot(ph->a[1], ph->b[1]);
         r[1] = hypot(nu->a[1], nu->b[1]);
@@ -133,24 +149,7 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
  * run without it writes frf.csv as before, byte for byte). */
 static const char *const floquet_columns[] = {"floquet_max_abs_experimental", "floquet_max_abs_se",
                                               "stable_experimental", "floquet_trustworthy"};
-/* Always last, after every optional block, so the columns before them keep their places: the
- * accepted evaluation's integrity counts (rths_period, summed by the evaluation) and whether a
- * resumed run measured the point (docs/journal.md, "What a resume restores"). */
-static const char *const tail_columns[] = {"late_samples", "clipped_demand_samples",
-                                           "saturated_sensor_samples", "resumed"};
-enum {
-    FRF_FLOQUET_COLUMNS = 4,
-    FRF_TAIL_COLUMNS = 4,
-    FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS + FRF_TAIL_COLUMNS
-};
-
-static void tail_row(const rths_point *pt, double *out) {
-    const rths_evaluation *e = &pt->residual.eval;
-    out[0] = (double)e->late_samples;
-    out[1] = (double)e->clipped_demand_samples;
-    out[2] = (double)e->saturated_sensor_samples;
-    out[3] = pt->resumed;
-}
+enum { FRF_FLOQUET_COLUMNS = 4, FRF_EXTRA_COLUMNS = FRF_FLOQUET_COLUMNS };
 
 /* The experimental Floquet estimate of point i, NULL where it was not measured. */
 static const frf_floquet_point *floquet_point(const frf_state *run, int i) {
@@ -168,26 +167,31 @@ static void floquet_row(const frf_state *run, int i, double *out) {
     out[3] = f ? f->trustworthy : NAN;
 }
 
+/* The leading and per-DoF columns, the optional blocks, then the tail (run.h): the tail always
+ * ends the row, so a run without an option writes the columns before it as before. */
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs), columns = fixed;
+    int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs);
+    int head = fixed - RTHS_RUN_FRF_TAIL_COLUMNS, columns = head;
     const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
-    for (int i = 0; i < fixed; i++)
+    for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
         for (int k = 0; k < FRF_FLOQUET_COLUMNS; k++)
             names[columns++] = floquet_columns[k];
     int tail = columns;
-    for (int k = 0; k < FRF_TAIL_COLUMNS; k++)
-        names[columns++] = tail_columns[k];
+    for (int k = 0; k < RTHS_RUN_FRF_TAIL_COLUMNS; k++)
+        names[columns++] = rths_run_frf_column_name(dofs, head + k);
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS],
+            tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
-        if (run->floquet.enabled) floquet_row(run, i, row + fixed);
-        tail_row(&run->pts[i], row + tail);
+        memcpy(tail_values, row + head, sizeof tail_values);
+        if (run->floquet.enabled) floquet_row(run, i, row + head);
+        memcpy(row + tail, tail_values, sizeof tail_values);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -202,8 +206,8 @@ int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error 
         "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
-        header[5 + d] =
-            rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d);
+        header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_LEADING_COLUMNS +
+                                                           RTHS_RUN_FRF_DOF_COLUMNS * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
     int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
@@ -238,8 +242,8 @@ static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t
                          "     'frf.csv' using 2:%d skip 1%s with points pt 7 ps 0.8 lc rgb '%s' "
                          "title 'hybrid test, interface DoF %d (DoF %d%s)'",
                          6 + d, axes, colour[d], d + 1, dof, unit,
-                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes, colour[d],
-                         d + 1, dof, unit);
+                         RTHS_RUN_FRF_LEADING_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes,
+                         colour[d], d + 1, dof, unit);
     }
 }
 
