@@ -969,6 +969,144 @@ static void test_standard_error_coverage_duffing(void **state) {
     free(l);
 }
 
+/* A journal whose fields are absent, null or of another type is refused with a message naming
+ * the key (issue 24.7: a header with "strategy": null made strdup(NULL) crash `rths view` and
+ * `rths frf --resume`); a valid one round-trips the integrity counts and the resume mark. */
+static void write_text(const char *path, const char *text) {
+    FILE *f = fopen(path, "w");
+    assert_non_null(f);
+    fputs(text, f);
+    fclose(f);
+}
+
+static char *slurp(const char *path) {
+    FILE *f = fopen(path, "r");
+    assert_non_null(f);
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = 0;
+    return buf;
+}
+
+/* text with the first occurrence of from replaced by to, into out */
+static void replace_once(const char *text, const char *from, const char *to, char *out,
+                         size_t cap) {
+    const char *at = strstr(text, from);
+    assert_non_null(at);
+    snprintf(out, cap, "%.*s%s%s", (int)(at - text), text, to, at + strlen(from));
+}
+
+static void expect_refused(const char *path, const char *text, const char *needle) {
+    write_text(path, text);
+    rths_point *pts = NULL;
+    int n = -1;
+    char *strategy = NULL;
+    rths_error err = {0};
+    int rc = rths_journal_read(path, &pts, &n, &strategy, &err);
+    if (rc != RTHS_EINPUT || !strstr(err.msg, needle))
+        fail_msg("expected a refusal naming '%s', got %d: %s", needle, rc, err.msg);
+    assert_null(pts);
+    assert_null(strategy);
+}
+
+static void test_journal_refuses_wrong_types(void **state) {
+    (void)state;
+    char dir[] = "/tmp/rths_journal_types_XXXXXX";
+    assert_non_null(mkdtemp(dir));
+    char path[256], good[300];
+    snprintf(path, sizeof path, "%s/journal.jsonl", dir);
+    snprintf(good, sizeof good, "%s/good.jsonl", dir);
+    rths_error err = {0};
+    rths_journal *j;
+    assert_int_equal(rths_journal_open_run(good, "default", NULL, "virtual", &j, &err), RTHS_OK);
+    rths_point pt;
+    memset(&pt, 0, sizeof pt);
+    pt.sol.harmonics = pt.sol.eval.harmonics = 1;
+    pt.sol.converged = 1;
+    pt.residual.eval.late_samples = 7;
+    pt.residual.eval.clipped_demand_samples = 3;
+    pt.residual.eval.saturated_sensor_samples = 2;
+    pt.residual.eval.samples_read = 40000;
+    pt.resumed = 1;
+    assert_int_equal(rths_journal_append(j, &pt, 0, &err), RTHS_OK);
+    rths_journal_close(j);
+
+    /* the valid journal reads back with its counts and mark */
+    rths_point *pts;
+    int n;
+    char *strategy;
+    if (rths_journal_read(good, &pts, &n, &strategy, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(n, 1);
+    assert_string_equal(strategy, "default");
+    assert_int_equal(pts[0].residual.eval.late_samples, 7);
+    assert_int_equal(pts[0].residual.eval.clipped_demand_samples, 3);
+    assert_int_equal(pts[0].residual.eval.saturated_sensor_samples, 2);
+    assert_int_equal(pts[0].residual.eval.samples_read, 40000);
+    assert_int_equal(pts[0].resumed, 1);
+    free(pts);
+    free(strategy);
+
+    char text[1 << 16], bad[1 << 16];
+    snprintf(text, sizeof text, "%s", slurp(good));
+    /* the header's strategy: null, absent, a number */
+    replace_once(text, "\"strategy\":\"default\"", "\"strategy\":null", bad, sizeof bad);
+    expect_refused(path, bad, "header key 'strategy' is null");
+    replace_once(text, "\"strategy\":\"default\",", "", bad, sizeof bad);
+    expect_refused(path, bad, "header key 'strategy' is absent");
+    replace_once(text, "\"strategy\":\"default\"", "\"strategy\":3", bad, sizeof bad);
+    expect_refused(path, bad, "header key 'strategy' is a number");
+    /* a record type that is not a string */
+    replace_once(text, "\"type\":\"point\"", "\"type\":null", bad, sizeof bad);
+    expect_refused(path, bad, "key 'type' is null");
+    /* point fields: null, wrong type, out of range */
+    replace_once(text, "\"index\":0", "\"index\":null", bad, sizeof bad);
+    expect_refused(path, bad, "key 'index' is null");
+    replace_once(text, "\"tolerance_m\":0.0", "\"tolerance_m\":\"0\"", bad, sizeof bad);
+    expect_refused(path, bad, "key 'tolerance_m' is a string");
+    replace_once(text, "\"late_samples\":7", "\"late_samples\":-7", bad, sizeof bad);
+    expect_refused(path, bad, "key 'late_samples'");
+    replace_once(text, "\"resumed\":1", "\"resumed\":null", bad, sizeof bad);
+    expect_refused(path, bad, "key 'resumed' is null");
+    replace_once(text, "\"phys_a\":[", "\"phys_a\":[null,", bad, sizeof bad);
+    expect_refused(path, bad, "key 'phys_a'");
+
+    /* a header text field of another type is refused; null stays "known, none" */
+    int known = 0;
+    char *value = NULL;
+    replace_once(text, "\"rig\":\"virtual\"", "\"rig\":5", bad, sizeof bad);
+    write_text(path, bad);
+    assert_int_equal(rths_journal_read_header_text(path, "rig", &known, &value, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "header key 'rig' is a number"));
+    assert_null(value);
+    replace_once(text, "\"rig\":\"virtual\"", "\"rig\":null", bad, sizeof bad);
+    write_text(path, bad);
+    assert_int_equal(rths_journal_read_header_text(path, "rig", &known, &value, &err), RTHS_OK);
+    assert_int_equal(known, 1);
+    assert_null(value);
+    unlink(path);
+    unlink(good);
+    rmdir(dir);
+}
+
+/* A journal write that fails names the journal and the cause with its errno text (issue 24.16:
+ * the run reported only "stopped by the point handler"); /dev/full fails every write with
+ * ENOSPC, as a full disk does. */
+static void test_journal_write_failure_named(void **state) {
+    (void)state;
+    rths_journal *j;
+    rths_error err = {0};
+    if (access("/dev/full", W_OK) != 0) skip();
+    assert_int_equal(rths_journal_open("/dev/full", "default", &j, &err), RTHS_OK);
+    rths_point pt;
+    memset(&pt, 0, sizeof pt);
+    pt.sol.harmonics = pt.sol.eval.harmonics = 1;
+    assert_int_equal(rths_journal_append(j, &pt, 0, &err), RTHS_EFAIL);
+    rths_journal_close(j);
+    if (!strstr(err.msg, "cannot write journal /dev/full: No space left on device"))
+        fail_msg("%s", err.msg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_evaluate_waits_for_steady_state),
@@ -983,6 +1121,8 @@ int main(void) {
         cmocka_unit_test(test_stability_labels_duffing),
         cmocka_unit_test(test_standard_error_coverage_duffing),
         cmocka_unit_test(test_journal_resume),
+        cmocka_unit_test(test_journal_refuses_wrong_types),
+        cmocka_unit_test(test_journal_write_failure_named),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -54,6 +54,10 @@ typedef struct rths_point {
     /* how often the targets' trust region acted on the way to this point (failed attempts
      * included): a model's prediction set aside, a prediction or corrector step shortened */
     int trust_actions;
+    /* 1: measured by a run that resumed the journal (--resume): its rig started again from rest
+     * with a fresh noise stream, so it is not the point the uninterrupted run would have
+     * measured (docs/journal.md, "What a resume restores") */
+    int resumed;
 } rths_point;
 
 typedef struct rths_fold {
@@ -80,6 +84,11 @@ typedef struct rths_continuation_result {
     int n_folds;
     rths_fold folds[32];
     int reached_end; /* 1 if the end frequency was reached */
+    /* 1 if the run ended short of the end frequency for a reason of its own: failed corrections
+     * (max_failures, the arclength step below min_step) or the branch leaving the range; the
+     * stop reason then names the most frequent cause among the last failures. 0 when it reached
+     * the end, the point limit (max_points) or a handler stopped it. */
+    int stopped_short;
     char stop_reason[RTHS_ERROR_MSG_LEN + 256];
 } rths_continuation_result;
 

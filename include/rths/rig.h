@@ -62,6 +62,10 @@ typedef struct rths_rig_ops {
      * has no such command). */
     int (*record_perturbed)(void *self, const rths_perturbation *p, int periods, int max_samples,
                             rths_perturbed_sample *out, int *n_out, rths_error *err);
+    /* Ramps excitation and target to zero and leaves the rig disarmed (safe) until the next
+     * call that needs it running re-arms it. NULL: nothing to disarm (a rig that is never
+     * armed, or one wrapping another that the caller disarms itself). */
+    int (*disarm)(void *self, rths_error *err);
 } rths_rig_ops;
 
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description);
@@ -80,11 +84,29 @@ int rths_rig_set_target_dofs(rths_rig *rig, int dofs, int harmonics, const doubl
 /* Interface DoFs the rig drives, one actuator each (1..RTHS_MAX_INTERFACE_DOFS). */
 int rths_rig_interface_dofs(rths_rig *rig);
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err);
+
+/* The integrity counts (signals.h, rths_period) summed over every period this rig object
+ * delivered through rths_rig_run_periods since it was created, whatever the caller did with them
+ * (evaluations refused for them included). */
+typedef struct rths_rig_integrity {
+    long periods, samples;
+    long late_samples, clipped_demand_samples, saturated_sensor_samples;
+} rths_rig_integrity;
+void rths_rig_integrity_totals(const rths_rig *rig, rths_rig_integrity *out);
+
+/* Brings the rig to its safe state now: excitation and target ramped to zero, disarmed (the
+ * remote rig sends DISARM; the virtual rig, on a simulated clock that only runs when asked,
+ * has nothing to do). A later call that runs the rig arms it again. */
+int rths_rig_disarm(rths_rig *rig, rths_error *err);
 int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,
                           int *n_out, rths_error *err);
 double rths_rig_time_s(rths_rig *rig);
 rths_rig_fault rths_rig_get_fault(rths_rig *rig);
 int rths_rig_reset_fault(rths_rig *rig, rths_error *err);
+/* What `--reset-fault` does: resets the rig's latched fault (RESET_FAULT to a controller), then
+ * looks again after 0.2 s; RTHS_EFAIL with the rig's answer when it refused the reset or latched
+ * the fault again (its cause persists). note (cap bytes) receives what was done, for run.log. */
+int rths_rig_clear_fault(rths_rig *rig, char *note, size_t cap, rths_error *err);
 double rths_rig_noise_level_m(rths_rig *rig);
 /* The perturbed record above; RTHS_EINPUT naming the rig when it cannot record one. Periods that
  * the record spans are delivered to nobody (the next evaluation waits for steady state anew). */

@@ -24,6 +24,11 @@ int rths_virtual_rig_set_pace(rths_rig *rig, double factor, rths_error *err);
 /* The controller inside a virtual rig (feedback mode, direct inspection); NULL for other rigs. */
 rths_controller *rths_virtual_rig_controller(rths_rig *rig);
 rths_plant *rths_virtual_rig_plant(rths_rig *rig);
+/* The integrity counts (rths_period) of every period the rig's controller closed since the rig
+ * was created, delivered by run_periods or not (a trace's, a perturbed record's, those dropped
+ * after a new setting): what feedback mode, which records traces only, judges clipping by.
+ * RTHS_EINPUT (zeros) for a rig that is not virtual. */
+int rths_virtual_rig_integrity(rths_rig *rig, rths_rig_integrity *out);
 
 /* The per-sample loop's demand perturbation (defined in src/controller/sample_loop.c beside the
  * loop, declared here for its one user): rms_v 0 turns it off. Band-limited white noise, see

@@ -9,8 +9,9 @@
  *
  * Bad input (configuration, a journal of another run, an occupied folder) is refused with
  * RTHS_EINPUT before anything is written. Once the run started, everything accepted is saved
- * however it ends: normally, stopped early (too many failures), cancelled through should_cancel
- * (RTHS_OK, r.status RTHS_RUN_CANCELLED), or by a rig fault or I/O error (RTHS_EFAIL). */
+ * however it ends: normally, at the point limit, cancelled through should_cancel (RTHS_OK,
+ * r.status RTHS_RUN_CANCELLED), short of its end by failed corrections (RTHS_EFAIL, r.status
+ * RTHS_RUN_STOPPED, the error naming the cause), or by a rig fault or I/O error (RTHS_EFAIL). */
 #ifndef RTHS_RUN_H
 #define RTHS_RUN_H
 
@@ -42,6 +43,13 @@ typedef struct rths_run_frf_options {
     int n_overrides;
     int argc;
     char **argv;
+    /* a rig of the caller's to measure on instead of creating one (rig_uri NULL): the run takes
+     * it over and destroys it when it ends, also on error; treated like a real rig (its physical
+     * part may be nonlinear whatever the model says). NULL: the virtual rig or rig_uri */
+    rths_rig *rig;
+    /* with rig_uri: reset the controller's latched fault before the run (rths_rig_clear_fault,
+     * logged in run.log); RTHS_EFAIL with the controller's answer when it refuses */
+    int reset_fault;
 } rths_run_frf_options;
 
 typedef struct rths_run_callbacks {
@@ -57,7 +65,10 @@ typedef struct rths_run_callbacks {
 
 typedef enum {
     RTHS_RUN_COMPLETED = 0, /* reached the end frequency */
-    RTHS_RUN_STOPPED = 1,   /* ended early but normally: point limit, failures, step limit */
+    /* ended early: the point limit (rths_run_frf returns RTHS_OK), or short of the end
+     * frequency by failed corrections, the step limit or the branch leaving the range
+     * (RTHS_EFAIL, the error naming the cause) */
+    RTHS_RUN_STOPPED = 1,
     RTHS_RUN_CANCELLED = 2, /* should_cancel asked for it */
     RTHS_RUN_FAILED = 3     /* rig fault, I/O error, or the point callback stopped it */
 } rths_run_status;
@@ -71,16 +82,23 @@ typedef struct rths_run_frf_result {
     int outputs_written; /* 1: frf.csv and summary.json were written (the counts are valid) */
 } rths_run_frf_result;
 
-/* frf.csv's columns, and an accepted point's row as frf.csv has it (what a point callback of the
- * C API receives). */
-enum { RTHS_RUN_FRF_COLUMNS = 24 };
+/* frf.csv's columns of a one-DoF run, and an accepted point's row as frf.csv has it (what a point
+ * callback of the C API receives): the RTHS_RUN_FRF_LEADING_COLUMNS from "point" to "stable",
+ * then the RTHS_RUN_FRF_TAIL_COLUMNS that always end a row (late_samples,
+ * clipped_demand_samples, saturated_sensor_samples: the accepted evaluation's integrity counts;
+ * resumed: 1 when a resumed run measured the point), after any per-DoF or optional columns. */
+enum {
+    RTHS_RUN_FRF_LEADING_COLUMNS = 24,
+    RTHS_RUN_FRF_TAIL_COLUMNS = 4,
+    RTHS_RUN_FRF_COLUMNS = RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_TAIL_COLUMNS
+};
 extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];
 void rths_run_frf_row(const rths_point *pt, double *row);
 /* With several interface DoFs (n > 1) frf.csv adds, for every interface DoF d = 1..n (the split's
  * interface order), dof<d>_amplitude_m (the matched estimate when the strategy reports it, else
  * the measurement), dof<d>_numerical_amplitude_m, dof<d>_phase_rad, dof<d>_interface_error_m
  * and dof<d>_amplitude_se_m (the standard error of dof<d>_amplitude_m) of the fundamental after
- * the columns above; one DoF keeps the columns above alone. */
+ * the leading columns, before the tail; one DoF keeps the columns above alone. */
 enum {
     RTHS_RUN_FRF_DOF_COLUMNS = 5,
     RTHS_RUN_FRF_MAX_COLUMNS =

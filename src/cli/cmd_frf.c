@@ -12,7 +12,7 @@
 static const char usage[] =
     "Usage: rths frf CONFIG --out DIR [--strategy paper|default] [--harmonics N] [--seed S]\n"
     "                [--resume] [--rig tcp://HOST:PORT] [--pace F] [--set key=value]...\n"
-    "                [--force] [--quiet]\n"
+    "                [--reset-fault] [--force] [--quiet]\n"
     "\n"
     "Iterative hybrid test with continuation: solves for the control target's Fourier\n"
     "coefficients at which the physical and numerical interface displacements agree, and\n"
@@ -35,6 +35,10 @@ static const char usage[] =
     "  --seed S             noise seed of the virtual rig (default: rig.seed)\n"
     "  --resume             continue the interrupted run in DIR from its journal's last point\n"
     "  --rig URI            tcp://HOST:PORT: a controller process instead of the virtual rig\n"
+    "  --reset-fault        with --rig: reset the controller's latched fault (RESET_FAULT, e.g.\n"
+    "                       a watchdog trip of an earlier run) before the run, logged in\n"
+    "                       run.log; refused (exit 1, the controller's answer) while its\n"
+    "                       cause persists\n"
     "  --pace F             run the virtual rig at F x real time (1: real time), e.g. to watch\n"
     "                       it with rths view; results are the same (rig.pace; default unpaced)\n"
     "  --force              run even when the true assembly's interface response over the\n"
@@ -50,17 +54,18 @@ static const char usage[] =
     "(response with magnified interface-error bars), iterations.png (histogram of iterations per\n"
     "point), trace.csv + lissajous.png (time and phase plot at one point), summary.json,\n"
     "config.yaml, run.log, results.mat (every table for MATLAB/h5py), live.json (the run in\n"
-    "progress, for rths view), run.lock (held while the run owns DIR); absolute.csv with a base\n"
-    "excitation (forcing.type: base).\n"
+    "progress, for rths view), run.lock (while the run owns DIR; removed when it ends);\n"
+    "absolute.csv with a base excitation (forcing.type: base).\n"
     "\n"
     "Ctrl-C (SIGINT) or SIGTERM stops after the point in progress and writes everything\n"
     "accepted (exit 130); a second Ctrl-C kills at once (the journal still resumes).\n"
     "\n"
-    "Exit status: 0 the run ended normally (also when it stopped early after\n"
-    "continuation.max_failures failed points: see summary.json stop_reason); 1 rig fault,\n"
-    "I/O failure, or no point accepted at all (everything accepted so far is saved); 2 bad\n"
-    "usage or configuration, a journal of another configuration, or DIR in use by another run;\n"
-    "130 interrupted (everything accepted saved).\n";
+    "Exit status: 0 the run reached continuation.end_hz (or continuation.max_points); 1 rig\n"
+    "fault, I/O failure, no point accepted at all, or the sweep stopped short of its end\n"
+    "(failed corrections, the step below continuation.min_step: the message names the most\n"
+    "frequent cause, e.g. a limit; everything accepted so far is saved); 2 bad usage or\n"
+    "configuration, a journal of another configuration, or DIR in use by another run; 130\n"
+    "interrupted (everything accepted saved).\n";
 
 /* Ctrl-C (or SIGTERM) ends the run cleanly after the point in progress: everything accepted is
  * written out (frf.csv, summary.json, figures) and --resume continues it. A second signal kills at
@@ -91,11 +96,21 @@ typedef struct {
     long harmonics;
     int resume;
     int force;
+    int reset_fault;
     const char *rig_uri;
 } frf_args;
 
 static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
-    enum { OPT_STRATEGY, OPT_HARMONICS, OPT_RESUME, OPT_RIG, OPT_PACE, OPT_FORCE, N_OPTS };
+    enum {
+        OPT_STRATEGY,
+        OPT_HARMONICS,
+        OPT_RESUME,
+        OPT_RIG,
+        OPT_PACE,
+        OPT_FORCE,
+        OPT_RESET_FAULT,
+        N_OPTS
+    };
     rths_cli_opt opts[N_OPTS] = {
         [OPT_STRATEGY] = {"--strategy", "NAME", NULL},
         [OPT_HARMONICS] = {"--harmonics", "N", NULL},
@@ -103,6 +118,7 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
         [OPT_RIG] = {"--rig", "URI", NULL},
         [OPT_PACE] = {"--pace", "F", NULL},
         [OPT_FORCE] = {"--force", NULL, NULL},
+        [OPT_RESET_FAULT] = {"--reset-fault", NULL, NULL},
     };
     int rc = rths_cli_parse(cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
                             opts, N_OPTS);
@@ -123,6 +139,13 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
     a->resume = opts[OPT_RESUME].value != NULL;
     a->force = opts[OPT_FORCE].value != NULL;
     a->rig_uri = opts[OPT_RIG].value;
+    a->reset_fault = opts[OPT_RESET_FAULT].value != NULL;
+    if (a->reset_fault && !a->rig_uri)
+        return rths_cli_fail(cli,
+                             rths_error_set(&err, RTHS_EINPUT,
+                                            "option --reset-fault needs --rig tcp://HOST:PORT "
+                                            "(a virtual rig starts without a fault)"),
+                             &err);
     if (a->rig_uri && strncmp(a->rig_uri, "tcp://", 6))
         return rths_cli_fail(cli,
                              rths_error_set(&err, RTHS_EINPUT,
@@ -163,6 +186,7 @@ int rths_cmd_frf(int argc, char **argv) {
                                 .resume = a.resume,
                                 .force = a.force,
                                 .rig_uri = a.rig_uri,
+                                .reset_fault = a.reset_fault,
                                 .has_seed = cli.has_seed,
                                 .seed = cli.seed,
                                 .config_path = cli.config_path,

@@ -17,9 +17,8 @@
 static const char usage[] =
     "Usage: rths simulate CONFIG --frequency F --target A1,B1[,A2,B2,...][;...] "
     "--periods N --out DIR\n"
-    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT] [--pace F] "
-    "[--set KEY=VALUE]... "
-    "[--quiet]\n"
+    "                     [--trace-periods K] [--seed S] [--rig tcp://HOST:PORT [--reset-fault]]\n"
+    "                     [--pace F] [--set KEY=VALUE]... [--quiet]\n"
     "       rths simulate CONFIG --mode feedback [--delay TAU] --frequency F "
     "--periods N --out DIR\n"
     "                     [--seed S] [--set KEY=VALUE]... [--quiet]\n"
@@ -67,6 +66,9 @@ static const char usage[] =
     "  --rig URI            tcp://HOST:PORT: run against a controller process (rths "
     "controller)\n"
     "                       instead of the in-process virtual rig (iterative mode)\n"
+    "  --reset-fault        with --rig: reset the controller's latched fault (RESET_FAULT)\n"
+    "                       first, logged in run.log; refused (exit 1, the controller's\n"
+    "                       answer) while its cause persists\n"
     "  --pace F             run the virtual rig at F x real time (1: real time); results are\n"
     "                       the same (rig.pace; default unpaced)\n"
     "  --trace-periods K    periods in the recorded trace (iterative mode; "
@@ -93,6 +95,7 @@ enum {
     OPT_DELAY,
     OPT_RIG,
     OPT_PACE,
+    OPT_RESET_FAULT,
     OPT_COUNT
 };
 
@@ -212,12 +215,14 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
 /* ---- outputs ---- */
 
 /* coefficients.csv: period, frequency_hz, end_time_s, then for the physical and the numerical
- * interface displacement a0 and a_k, b_k for k = 1..harmonics (m). */
+ * interface displacement a0 and a_k, b_k for k = 1..harmonics (m), then the period's integrity
+ * counts (rths_period: late, clipped-demand and saturated-sensor samples; NaN when the periods
+ * were computed from a feedback run's trace, which has none: summary.json has the run's). */
 static int write_coefficients(rths_report *rep, const rths_period *p, int count, int harmonics,
-                              int dofs, rths_error *err) {
+                              int dofs, int counted, rths_error *err) {
     /* several interface DoFs: every DoF's physical and numerical sides after the first's */
     int per_side = 1 + 2 * harmonics, extra = dofs > 1 ? dofs : 0;
-    int cols = 3 + 2 * per_side * (1 + extra);
+    int cols = 3 + 2 * per_side * (1 + extra) + 3;
     const char **header = calloc((size_t)cols, sizeof *header);
     char(*names)[32] = calloc((size_t)cols, sizeof *names);
     double *row = calloc((size_t)cols, sizeof *row);
@@ -243,6 +248,9 @@ static int write_coefficients(rths_report *rep, const rths_period *p, int count,
             }
         }
     }
+    header[c++] = "late_samples";
+    header[c++] = "clipped_demand_samples";
+    header[c++] = "saturated_sensor_samples";
     if ((rc = rths_csv_open(path, cols, header, &csv, err))) goto done;
     for (int i = 0; i < count && !rc; i++) {
         row[0] = i + 1, row[1] = p[i].frequency_hz, row[2] = p[i].end_time_s;
@@ -256,6 +264,9 @@ static int write_coefficients(rths_report *rep, const rths_period *p, int count,
                     row[c++] = f[s]->a[k], row[c++] = f[s]->b[k];
             }
         }
+        row[c++] = counted ? p[i].late_samples : NAN;
+        row[c++] = counted ? p[i].clipped_demand_samples : NAN;
+        row[c++] = counted ? p[i].saturated_sensor_samples : NAN;
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing %s failed", path);
     }
     if (rc)
@@ -513,10 +524,55 @@ static rths_trace_sample *decimate(const rths_trace_sample *t, int n, int max_ro
     return d;
 }
 
+/* What clipped or saturated over the run (signals.h, rths_period; and the actuator's force clip,
+ * rig.actuator.limits), from every period the rig's controller closed: a virtual rig counts
+ * those of its traces too, a remote one those it delivered. */
+typedef struct {
+    rths_rig_integrity rig;
+    long force_clipped_samples; /* virtual rig: the actuator's force command clipped */
+    int known;                  /* 0: no rig (the pure-delay model has no converters) */
+} sim_integrity;
+
+static void integrity_of(rths_rig *rig, sim_integrity *out) {
+    memset(out, 0, sizeof *out);
+    if (!rig) return;
+    out->known = 1;
+    if (rths_virtual_rig_integrity(rig, &out->rig)) rths_rig_integrity_totals(rig, &out->rig);
+    rths_plant *plant = rths_virtual_rig_plant(rig);
+    if (plant) {
+        rths_actuator_status st;
+        rths_plant_actuator_status(plant, &st);
+        out->force_clipped_samples = st.force_clipped_samples;
+    }
+}
+
+static long clipped_samples(const sim_integrity *t) {
+    return t->rig.clipped_demand_samples + t->rig.saturated_sensor_samples +
+           t->force_clipped_samples;
+}
+
+static json_object *integrity_json(const sim_integrity *t) {
+    json_object *o = json_object_new_object();
+    json_object_object_add(o, "periods", json_object_new_int64(t->rig.periods));
+    json_object_object_add(o, "samples", json_object_new_int64(t->rig.samples));
+    json_object_object_add(o, "late_samples", json_object_new_int64(t->rig.late_samples));
+    json_object_object_add(o, "clipped_demand_samples",
+                           json_object_new_int64(t->rig.clipped_demand_samples));
+    json_object_object_add(o, "saturated_sensor_samples",
+                           json_object_new_int64(t->rig.saturated_sensor_samples));
+    json_object_object_add(o, "force_clipped_samples",
+                           json_object_new_int64(t->force_clipped_samples));
+    return o;
+}
+
 /* summary.json's divergence fields and the printed verdict of a feedback test (the verdict is
- * the stability module's, from the full-resolution trace). */
+ * the stability module's, from the full-resolution trace). A run whose converters saturated or
+ * whose demand or force was clipped is never called bounded (issue 23.4: a limit cycle held by
+ * the force ADC's full scale was reported as "stayed bounded"): clipping, not the loop, may be
+ * what bounds it. */
 static int add_divergence(json_object *summary, const rths_cli *cli, const rths_setup *setup,
-                          const sim_args *a, const sim_result *r, double noise_m, rths_error *err) {
+                          const sim_args *a, const sim_result *r, double noise_m,
+                          const sim_integrity *integrity, rths_error *err) {
     double *col[3] = {trace_column(r->trace, r->n_trace, 0), trace_column(r->trace, r->n_trace, 2),
                       trace_column(r->trace, r->n_trace, 1)};
     int ok = col[0] && col[1] && col[2];
@@ -540,9 +596,24 @@ static int add_divergence(json_object *summary, const rths_cli *cli, const rths_
     if (r->steady_amplitude_m > 0)
         json_object_object_add(summary, "true_steady_amplitude_m",
                                json_object_new_double(r->steady_amplitude_m));
-    rths_cli_print(cli, "feedback test %s: growth rate %.4g 1/s%s%s\n",
-                   v.reason ? "DIVERGED" : "stayed bounded over this run", v.growth_rate_per_s,
-                   (v.reason || v.note) ? "; " : "", v.reason ? v.reason : (v.note ? v.note : ""));
+    long clipped = clipped_samples(integrity);
+    int held = !v.reason && clipped > 0;
+    json_object_object_add(summary, "bounded", json_object_new_boolean(!v.reason && !clipped));
+    json_object_object_add(summary, "clipped", json_object_new_boolean(clipped > 0));
+    char clip_text[300] = "";
+    if (clipped > 0)
+        snprintf(clip_text, sizeof clip_text,
+                 "%ld sample(s) clipped or saturated (%ld clipped demand, %ld saturated sensor, "
+                 "%ld actuator force clipped): the response may be held by the limits, not "
+                 "bounded by the loop",
+                 clipped, integrity->rig.clipped_demand_samples,
+                 integrity->rig.saturated_sensor_samples, integrity->force_clipped_samples);
+    rths_cli_print(cli, "feedback test %s: growth rate %.4g 1/s%s%s%s%s\n",
+                   v.reason ? "DIVERGED"
+                   : held   ? "CLIPPED, not bounded"
+                            : "stayed bounded over this run",
+                   v.growth_rate_per_s, (v.reason || v.note) ? "; " : "",
+                   v.reason ? v.reason : (v.note ? v.note : ""), clipped ? "; " : "", clip_text);
     return RTHS_OK;
 }
 
@@ -666,10 +737,15 @@ static void add_run_summary(json_object *summary, const rths_cli *cli, const rth
 
 int rths_cmd_simulate(int argc, char **argv) {
     rths_cli_opt opts[OPT_COUNT] = {
-        [OPT_FREQ] = {"--frequency", "F", NULL},  [OPT_TARGET] = {"--target", "LIST", NULL},
-        [OPT_PERIODS] = {"--periods", "N", NULL}, [OPT_TRACE] = {"--trace-periods", "K", NULL},
-        [OPT_MODE] = {"--mode", "MODE", NULL},    [OPT_DELAY] = {"--delay", "TAU", NULL},
-        [OPT_RIG] = {"--rig", "URI", NULL},       [OPT_PACE] = {"--pace", "F", NULL},
+        [OPT_FREQ] = {"--frequency", "F", NULL},
+        [OPT_TARGET] = {"--target", "LIST", NULL},
+        [OPT_PERIODS] = {"--periods", "N", NULL},
+        [OPT_TRACE] = {"--trace-periods", "K", NULL},
+        [OPT_MODE] = {"--mode", "MODE", NULL},
+        [OPT_DELAY] = {"--delay", "TAU", NULL},
+        [OPT_RIG] = {"--rig", "URI", NULL},
+        [OPT_PACE] = {"--pace", "F", NULL},
+        [OPT_RESET_FAULT] = {"--reset-fault", NULL, NULL},
     };
     rths_cli cli;
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT | RTHS_CLI_SEED, usage,
@@ -695,6 +771,13 @@ int rths_cmd_simulate(int argc, char **argv) {
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
     int pure_delay = a.feedback && a.has_delay;
     const char *rig_uri = opts[OPT_RIG].value;
+    char reset_note[700] = "";
+    if (opts[OPT_RESET_FAULT].value && !rig_uri) {
+        rc = rths_error_set(&err, RTHS_EINPUT,
+                            "option --reset-fault needs --rig tcp://HOST:PORT (a virtual rig "
+                            "starts without a fault)");
+        goto done;
+    }
     if (rig_uri && a.feedback) {
         rc = rths_error_set(&err, RTHS_EINPUT,
                             "option --rig: feedback mode runs only on the in-process virtual rig");
@@ -703,6 +786,9 @@ int rths_cmd_simulate(int argc, char **argv) {
     if (rig_uri) {
         /* a controller process: its own rig and controller sections apply there */
         if ((rc = rths_remote_rig_create(rig_uri, NULL, &rig, &err))) goto done;
+        if (opts[OPT_RESET_FAULT].value &&
+            (rc = rths_rig_clear_fault(rig, reset_note, sizeof reset_note, &err)))
+            goto done;
         if (rths_rig_interface_dofs(rig) != setup.split.n_int) {
             rc = rths_error_set(&err, RTHS_EINPUT,
                                 "controller %s drives %d interface DoF(s); this configuration's "
@@ -720,6 +806,7 @@ int rths_cmd_simulate(int argc, char **argv) {
     if ((rc = rths_cli_check_config_own(cfg, rig && !rig_uri ? rig_sections : NULL, &err)))
         goto done;
     if ((rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err))) goto done;
+    if (reset_note[0]) rths_report_log(rep, "%s", reset_note);
     rths_report_log(rep, "simulate: mode %s, %g Hz, %ld periods",
                     a.feedback ? "feedback" : "iterative", a.frequency_hz, a.periods);
 
@@ -731,6 +818,11 @@ int rths_cmd_simulate(int argc, char **argv) {
     else
         rc = run_feedback_rig(rig, &setup, &a, &r, &err);
     if (rc) goto done;
+    /* measuring is over: the rig to its safe state before the outputs are written (a slow
+     * figure must not keep a controller's actuator excited; docs/protocol.md, DISARM) */
+    rths_error disarm_err = {0};
+    if (rig && rths_rig_disarm(rig, &disarm_err))
+        rths_report_log(rep, "warning: disarming the rig failed: %s", disarm_err.msg);
     if (a.feedback && r.n_trace > 0 && !r.periods &&
         (rc = periods_from_trace(r.trace, r.n_trace, a.frequency_hz, harmonics, &r.periods,
                                  &r.n_periods, &err)))
@@ -741,15 +833,26 @@ int rths_cmd_simulate(int argc, char **argv) {
         goto done;
     }
     if ((rc = write_coefficients(rep, r.periods, r.n_periods, harmonics,
-                                 a.feedback ? 1 : setup.split.n_int, &err)) ||
+                                 a.feedback ? 1 : setup.split.n_int, !a.feedback, &err)) ||
         (rc = write_trace(rep, shown, n_shown, &err)))
         goto done;
 
     summary = rths_cli_summary_new(&cli);
     add_run_summary(summary, &cli, &setup, &a, &r, rig, harmonics);
+    sim_integrity integrity;
+    integrity_of(rig, &integrity);
+    if (integrity.known) {
+        json_object_object_add(summary, "integrity", integrity_json(&integrity));
+        rths_report_log(rep,
+                        "integrity: %ld periods, %ld samples: %ld late, %ld with a clipped demand, "
+                        "%ld with a saturated sensor, %ld with the actuator force clipped",
+                        integrity.rig.periods, integrity.rig.samples, integrity.rig.late_samples,
+                        integrity.rig.clipped_demand_samples,
+                        integrity.rig.saturated_sensor_samples, integrity.force_clipped_samples);
+    }
     if (a.feedback) {
         if ((rc = add_divergence(summary, &cli, &setup, &a, &r,
-                                 rig ? rths_rig_noise_level_m(rig) : 0.0, &err)))
+                                 rig ? rths_rig_noise_level_m(rig) : 0.0, &integrity, &err)))
             goto done;
         json_object_object_add(summary, "delay_s",
                                pure_delay ? json_object_new_double(a.delay_s) : NULL);

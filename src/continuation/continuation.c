@@ -133,6 +133,9 @@ static int run_resume(cont_run *run, const rths_point *resume, int n_resume, rth
     int n = run->n;
     res->points = res->converged_points = n;
     if (n == 0) return RTHS_OK;
+    /* every point from here on is measured by a rig that started again from rest, with its own
+     * noise stream: marked (docs/journal.md, "What a resume restores") */
+    run->resumed_run = 1;
     int rc = rths_corrector_load(run->corr, &run->pts[n - 1].corrector, err);
     if (rc) return rc;
     /* the state saved with point n - 1 is in the scale its correction used */
@@ -151,6 +154,59 @@ static int run_resume(cont_run *run, const rths_point *resume, int n_resume, rth
     return RTHS_OK;
 }
 
+/* ---- why corrections fail ---- */
+
+/* A failure's kind: its message with every number replaced by '#', so "target of up to 0.01043 m
+ * is beyond the displacement limit" and "... 0.01042 m ..." count as one cause. */
+static void failure_kind(const char *msg, char *kind, size_t cap) {
+    size_t n = 0;
+    for (const char *p = msg; *p && n + 1 < cap;) {
+        int starts_number =
+            (*p >= '0' && *p <= '9') || ((*p == '-' || *p == '.') && p[1] >= '0' && p[1] <= '9');
+        if (!starts_number) {
+            kind[n++] = *p++;
+            continue;
+        }
+        kind[n++] = '#';
+        p++;
+        while ((*p >= '0' && *p <= '9') || *p == '.' ||
+               ((*p == 'e' || *p == 'E') &&
+                (p[1] == '-' || p[1] == '+' || (p[1] >= '0' && p[1] <= '9'))) ||
+               ((*p == '-' || *p == '+') && (p[-1] == 'e' || p[-1] == 'E')))
+            p++;
+    }
+    kind[n] = 0;
+}
+
+static void remember_failure(cont_run *run, const char *msg) {
+    cont_failure *f = &run->recent[run->n_recent_total++ % CONT_RECENT_FAILURES];
+    snprintf(f->msg, sizeof f->msg, "%.*s", (int)sizeof f->msg - 1, msg);
+}
+
+/* The most frequent kind among the last CONT_RECENT_FAILURES failed corrections, as
+ * "; the cause (K of the last M failed corrections): MESSAGE" with the latest message of that
+ * kind, appended to the stop reason: a sweep that ends short of its end says what kept it from
+ * going on (e.g. the target beyond the stroke limit), not only that its step shrank. */
+static void append_cause(cont_run *run) {
+    int m = run->n_recent_total < CONT_RECENT_FAILURES ? run->n_recent_total : CONT_RECENT_FAILURES;
+    if (m == 0) return;
+    static _Thread_local char kinds[CONT_RECENT_FAILURES][sizeof(((cont_failure *)0)->msg)];
+    int best = -1, best_count = 0;
+    for (int i = 0; i < m; i++) /* newest first, so a tie goes to the latest */
+        failure_kind(run->recent[(run->n_recent_total - 1 - i) % CONT_RECENT_FAILURES].msg,
+                     kinds[i], sizeof kinds[i]);
+    for (int i = 0; i < m; i++) {
+        int count = 0;
+        for (int k = 0; k < m; k++)
+            count += !strcmp(kinds[i], kinds[k]);
+        if (count > best_count) best = i, best_count = count;
+    }
+    const char *msg = run->recent[(run->n_recent_total - 1 - best) % CONT_RECENT_FAILURES].msg;
+    size_t len = strlen(run->res->stop_reason);
+    snprintf(run->res->stop_reason + len, sizeof run->res->stop_reason - len,
+             "; the cause (%d of the last %d failed corrections): %s", best_count, m, msg);
+}
+
 /* A failed correction: charged to the next point, retried with a smaller step (the first point
  * from the corrector's last iterate). Returns 1 when the run must stop. */
 static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error *err) {
@@ -161,12 +217,15 @@ static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error
     rths_corrector_counters(run->corr, &evals, NULL, &rig_time);
     res->failures++;
     run->consecutive++;
+    remember_failure(run, err->msg);
     run->pts[run->n].rig_time_s += rig_time;
     run->pts[run->n].evaluations += evals;
     if (run->consecutive > run->opt->max_failures) {
         snprintf(res->stop_reason, sizeof res->stop_reason,
-                 "stopped after %d failed corrections in a row near %.6g Hz: %s", run->consecutive,
-                 sol->omega_rad_s / (2 * M_PI), err->msg);
+                 "stopped after %d failed corrections in a row near %.6g Hz", run->consecutive,
+                 sol->omega_rad_s / (2 * M_PI));
+        append_cause(run);
+        res->stopped_short = 1;
         return 1;
     }
     /* a carried Jacobian that misled the corrector is dropped, so the retry starts fresh */
@@ -184,6 +243,8 @@ static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error
         snprintf(res->stop_reason, sizeof res->stop_reason,
                  "step fell below the minimum %.3g near %.6g Hz", run->opt->min_step,
                  sol->omega_rad_s / (2 * M_PI));
+        append_cause(run);
+        res->stopped_short = 1;
         return 1;
     }
     return 0;
@@ -213,6 +274,7 @@ static int on_accept(cont_run *run, const cont_prediction *pr) {
     pt->iterations = iters;
     pt->rig_time_s += rig_time;
     pt->step = pr->step_used;
+    pt->resumed = run->resumed_run;
     rths_corrector_save(run->corr, &pt->corrector);
     if (n > 0) pt->secant_omega = sol->omega_rad_s - run->pts[n - 1].sol.omega_rad_s;
     int status = cont_fold_track(run, n, 1);
@@ -304,6 +366,7 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
         rc = RTHS_EFAIL;
         if (leave) {
             snprintf(run->res->stop_reason, sizeof run->res->stop_reason, "%s", err->msg);
+            run->res->stopped_short = 1;
             *stop = 1;
             return RTHS_OK;
         }

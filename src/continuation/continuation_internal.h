@@ -36,6 +36,12 @@ typedef struct cont_prediction {
     int trust_declined;   /* model predictions set aside for the targets' trust region */
 } cont_prediction;
 
+/* The failed corrections remembered to name what stopped a sweep (continuation.c). */
+enum { CONT_RECENT_FAILURES = 16 };
+typedef struct cont_failure {
+    char msg[512];
+} cont_failure;
+
 typedef struct cont_run {
     const rths_continuation_options *opt;
     rths_rig *rig;
@@ -56,6 +62,9 @@ typedef struct cont_run {
     rths_continuation_result *res;
     rths_point_fn on_point;
     void *user;
+    cont_failure recent[CONT_RECENT_FAILURES]; /* ring of the last failures' messages */
+    int n_recent_total;                        /* failures remembered so far */
+    int resumed_run; /* resumed after journaled points: new points carry rths_point.resumed */
 } cont_run;
 
 /* predict.c: the predictors */

@@ -32,16 +32,29 @@ static int write_line(rths_journal *j, json_object *obj, rths_error *err) {
     if (!line) return rths_error_set(err, RTHS_EFAIL, "out of memory writing the journal");
     memcpy(line, text, len);
     line[len] = '\n';
-    ssize_t w = write(j->fd, line, len + 1);
+    /* one write(2) per record; a short one (the disk or the file size limit reached mid-record)
+     * is continued, which either completes the record or fails with the errno that names the
+     * cause (ENOSPC, EFBIG); the reader ignores the torn last line that leaves */
+    size_t done = 0;
+    int e = 0;
+    while (done < len + 1) {
+        ssize_t w = write(j->fd, line + done, len + 1 - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) {
+            e = w < 0 ? errno : EIO;
+            break;
+        }
+        done += (size_t)w;
+    }
     free(line);
-    if (w < 0 || fsync(j->fd) != 0)
-        return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path,
-                              strerror(errno));
-    if (w != (ssize_t)(len + 1)) /* no errno for a short write */
+    if (!e && fsync(j->fd) != 0) e = errno;
+    if (e && done > 0 && done < len + 1)
         return rths_error_set(err, RTHS_EFAIL,
-                              "cannot write journal %s: short write (%zd of %zu bytes: disk full "
-                              "or file size limit?)",
-                              j->path, w, len + 1);
+                              "cannot write journal %s: %s (the record was cut after %zu of %zu "
+                              "bytes)",
+                              j->path, strerror(e), done, len + 1);
+    if (e)
+        return rths_error_set(err, RTHS_EFAIL, "cannot write journal %s: %s", j->path, strerror(e));
     return RTHS_OK;
 }
 
@@ -185,6 +198,16 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
     json_object_object_add(o, "amplitude_se_m", json_object_new_double(s->amplitude_se_m));
     json_object_object_add(o, "amplitude_se_honest", json_object_new_int(s->amplitude_se_honest));
     add_interface_dofs(o, s);
+    /* the accepted evaluation's integrity counts (iterate.h), and the resume mark (optional on
+     * reading: docs/journal.md) */
+    const rths_evaluation *acc = &pt->residual.eval;
+    json_object_object_add(o, "late_samples", json_object_new_int64(acc->late_samples));
+    json_object_object_add(o, "clipped_demand_samples",
+                           json_object_new_int64(acc->clipped_demand_samples));
+    json_object_object_add(o, "saturated_sensor_samples",
+                           json_object_new_int64(acc->saturated_sensor_samples));
+    json_object_object_add(o, "samples_read", json_object_new_int64(acc->samples_read));
+    if (pt->resumed) json_object_object_add(o, "resumed", json_object_new_int(1));
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -205,6 +228,28 @@ int rths_journal_append_resume(rths_journal *j, int n_points, const char *const 
 
 /* ---- reading ---- */
 
+/* What a record's key holds, for messages: "absent", "null", "a number", ... */
+static const char *json_type_text(json_object *o, const char *key) {
+    json_object *v;
+    if (!json_object_object_get_ex(o, key, &v)) return "absent";
+    switch (json_object_get_type(v)) {
+    case json_type_null:
+        return "null";
+    case json_type_boolean:
+        return "a boolean";
+    case json_type_double:
+    case json_type_int:
+        return "a number";
+    case json_type_object:
+        return "an object";
+    case json_type_array:
+        return "a list";
+    case json_type_string:
+        return "a string";
+    }
+    return "of an unknown type";
+}
+
 int rths_journal_read_seed(const char *path, int *known, char **seed, rths_error *err) {
     return rths_journal_read_header_text(path, "seed", known, seed, err);
 }
@@ -222,27 +267,54 @@ int rths_journal_read_header_text(const char *path, const char *key, int *known,
     json_object *h = getline(&line, &cap, f) > 0 ? json_tokener_parse(line) : NULL, *v;
     free(line);
     fclose(f);
+    int rc = RTHS_OK;
     if (h && json_object_object_get_ex(h, key, &v)) {
         *known = 1;
-        if (v) *seed = strdup(json_object_get_string(v));
+        if (v && !json_object_is_type(v, json_type_string))
+            rc = rths_error_set(err, RTHS_EINPUT,
+                                "%s:1: header key '%s' is %s; expected a string or null", path, key,
+                                json_type_text(h, key));
+        else if (v && !(*seed = strdup(json_object_get_string(v))))
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     if (h) json_object_put(h);
-    return RTHS_OK;
+    return rc;
+}
+
+/* The key a field reader last refused (absent, null or of the wrong type), for the message
+ * naming it; per thread, as several runs may read journals at once (the C API). */
+static _Thread_local const char *bad_key;
+
+static int refuse(const char *key) {
+    bad_key = key;
+    return -1;
 }
 
 static int get_dbl(json_object *o, const char *key, double *out) {
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v)) return -1;
+    if (!json_object_object_get_ex(o, key, &v)) return refuse(key);
     if (!json_object_is_type(v, json_type_double) && !json_object_is_type(v, json_type_int))
-        return -1;
+        return refuse(key);
     *out = json_object_get_double(v);
     return 0;
 }
 
 static int get_int(json_object *o, const char *key, int *out) {
     json_object *v;
-    if (!json_object_object_get_ex(o, key, &v) || !json_object_is_type(v, json_type_int)) return -1;
+    if (!json_object_object_get_ex(o, key, &v) || !json_object_is_type(v, json_type_int))
+        return refuse(key);
     *out = json_object_get_int(v);
+    return 0;
+}
+
+/* An optional integer count (added within format 3): absent reads as 0; present, it must be a
+ * non-negative integer. */
+static int get_count(json_object *o, const char *key, long *out) {
+    json_object *v;
+    *out = 0;
+    if (!json_object_object_get_ex(o, key, &v)) return 0;
+    if (!json_object_is_type(v, json_type_int) || json_object_get_int64(v) < 0) return refuse(key);
+    *out = (long)json_object_get_int64(v);
     return 0;
 }
 
@@ -250,11 +322,11 @@ static int get_arr(json_object *o, const char *key, double *out, int n) {
     json_object *v;
     if (!json_object_object_get_ex(o, key, &v) || !json_object_is_type(v, json_type_array) ||
         (int)json_object_array_length(v) != n)
-        return -1;
+        return refuse(key);
     for (int i = 0; i < n; i++) {
         json_object *x = json_object_array_get_idx(v, (size_t)i);
         if (!json_object_is_type(x, json_type_double) && !json_object_is_type(x, json_type_int))
-            return -1;
+            return refuse(key);
         out[i] = json_object_get_double(x);
     }
     return 0;
@@ -387,11 +459,19 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
         get_dbl(o, "amplitude_m", &s->amplitude_m) ||
         get_dbl(o, "amplitude_se_m", &s->amplitude_se_m) || get_interface_dofs(o, s))
         return -1;
-    /* added within format 3: a journal without it makes no claim for its standard errors */
-    json_object *honest = NULL;
-    s->amplitude_se_honest = json_object_object_get_ex(o, "amplitude_se_honest", &honest)
-                                 ? json_object_get_int(honest)
-                                 : 0;
+    /* added within format 3, optional (absent: 0): a journal without amplitude_se_honest makes
+     * no claim for its standard errors; the integrity counts of the accepted evaluation; whether
+     * a resumed run measured the point */
+    long honest = 0, resumed = 0;
+    if (get_count(o, "amplitude_se_honest", &honest) || honest > 1 ||
+        get_count(o, "late_samples", &e->late_samples) ||
+        get_count(o, "clipped_demand_samples", &e->clipped_demand_samples) ||
+        get_count(o, "saturated_sensor_samples", &e->saturated_sensor_samples) ||
+        get_count(o, "samples_read", &e->samples_read) || get_count(o, "resumed", &resumed) ||
+        resumed > 1)
+        return refuse(honest > 1 ? "amplitude_se_honest" : resumed > 1 ? "resumed" : bad_key);
+    s->amplitude_se_honest = (int)honest;
+    pt->resumed = (int)resumed;
     rths_residual_from_evaluation(e, &pt->residual);
     return 0;
 }
@@ -420,9 +500,17 @@ static int read_header(journal_reader *r, json_object *o, rths_error *err) {
                               r->path, r->lineno, format, JOURNAL_FORMAT_FLAT_CORRECTOR,
                               JOURNAL_FORMAT);
     r->format = format;
-    if (r->strategy && json_object_object_get_ex(o, "strategy", &s)) {
+    /* the strategy names the run's kind: a header without it as a string (absent, null, a
+     * number) is refused, as a resume or a view could not tell what the points mean */
+    if (!json_object_object_get_ex(o, "strategy", &s) || !json_object_is_type(s, json_type_string))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "%s:%d: header key 'strategy' is %s; expected \"default\" or "
+                              "\"paper\"",
+                              r->path, r->lineno, json_type_text(o, "strategy"));
+    if (r->strategy) {
         free(*r->strategy);
         *r->strategy = strdup(json_object_get_string(s));
+        if (!*r->strategy) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     return READ_ON;
 }
@@ -432,8 +520,13 @@ static int read_point(journal_reader *r, json_object *o, int is_update, rths_err
     if (r->format == 0)
         return rths_error_set(err, RTHS_EINPUT, "%s:%d: point record before the header", r->path,
                               r->lineno);
+    bad_key = NULL;
     if (parse_point(o, r->format, &pt)) {
         if (!r->complete) return READ_TORN;
+        if (bad_key)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "%s:%d: malformed point record: key '%s' is %s or out of range",
+                                  r->path, r->lineno, bad_key, json_type_text(o, bad_key));
         return rths_error_set(err, RTHS_EINPUT, "%s:%d: malformed point record", r->path,
                               r->lineno);
     }
@@ -460,12 +553,18 @@ static int read_point(journal_reader *r, json_object *o, int is_update, rths_err
 static int read_record(journal_reader *r, const char *line, rths_error *err) {
     json_object *o = json_tokener_parse(line), *t;
     const char *type = NULL;
-    if (o && json_object_object_get_ex(o, "type", &t)) type = json_object_get_string(t);
+    if (o && json_object_object_get_ex(o, "type", &t) && json_object_is_type(t, json_type_string))
+        type = json_object_get_string(t);
     int rc = READ_ON;
     if (!o || !type) /* a torn final record: the kill came mid-write */
         rc = !r->complete ? READ_TORN
-                          : rths_error_set(err, RTHS_EINPUT, "%s:%d: not a journal record", r->path,
-                                           r->lineno);
+                          : rths_error_set(err, RTHS_EINPUT,
+                                           "%s:%d: not a journal record (key 'type' is %s; "
+                                           "expected a string)",
+                                           r->path, r->lineno,
+                                           o && json_object_is_type(o, json_type_object)
+                                               ? json_type_text(o, "type")
+                                               : "absent");
     else if (!strcmp(type, "header"))
         rc = read_header(r, o, err);
     else if (!strcmp(type, "point") || !strcmp(type, "update"))

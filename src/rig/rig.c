@@ -1,13 +1,16 @@
 /* The rig interface: a thin dispatcher over a backend's operations. */
 #include "rths/rig.h"
 
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 struct rths_rig {
     const rths_rig_ops *ops;
     void *self;
     char description[256];
+    rths_rig_integrity integrity; /* sums over every period run_periods delivered */
 };
 
 rths_rig *rths_rig_create(const rths_rig_ops *ops, void *self, const char *description) {
@@ -63,7 +66,26 @@ int rths_rig_set_target_dofs(rths_rig *rig, int dofs, int harmonics, const doubl
 }
 
 int rths_rig_run_periods(rths_rig *rig, int count, rths_period *out, rths_error *err) {
-    return rig->ops->run_periods(rig->self, count, out, err);
+    int rc = rig->ops->run_periods(rig->self, count, out, err);
+    if (rc) return rc;
+    rths_rig_integrity *t = &rig->integrity;
+    for (int i = 0; i < count; i++) {
+        t->periods++;
+        t->samples += out[i].samples;
+        t->late_samples += out[i].late_samples;
+        t->clipped_demand_samples += out[i].clipped_demand_samples;
+        t->saturated_sensor_samples += out[i].saturated_sensor_samples;
+    }
+    return RTHS_OK;
+}
+
+void rths_rig_integrity_totals(const rths_rig *rig, rths_rig_integrity *out) {
+    *out = rig->integrity;
+}
+
+int rths_rig_disarm(rths_rig *rig, rths_error *err) {
+    if (!rig->ops->disarm) return RTHS_OK;
+    return rig->ops->disarm(rig->self, err);
 }
 
 int rths_rig_record_trace(rths_rig *rig, double duration_s, int max_samples, rths_trace_sample *out,
@@ -111,4 +133,28 @@ int rths_rig_record_perturbed(rths_rig *rig, const rths_perturbation *p, int per
                               "period and one sample",
                               p->rms_v, p->cutoff_hz, periods, max_samples);
     return rig->ops->record_perturbed(rig->self, p, periods, max_samples, out, n_out, err);
+}
+
+int rths_rig_clear_fault(rths_rig *rig, char *note, size_t cap, rths_error *err) {
+    rths_rig_fault before = rths_rig_get_fault(rig);
+    rths_error why = {0};
+    if (rths_rig_reset_fault(rig, &why))
+        return rths_error_set(err, RTHS_EFAIL, "RESET_FAULT refused by %s: %s", rig->description,
+                              why.msg);
+    /* a cause that persists (a reading beyond its limit, a host still silent) latches the fault
+     * again within a sample or a watchdog period: look again after a moment */
+    struct timespec pause = {0, 200000000};
+    nanosleep(&pause, NULL);
+    rths_rig_fault after = rths_rig_get_fault(rig);
+    if (after != RTHS_RIG_OK)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "RESET_FAULT refused: %s latched its '%s' fault again right after "
+                              "the reset; its cause persists (remove it, then reset again)",
+                              rig->description, rths_rig_fault_name(after));
+    if (before == RTHS_RIG_OK)
+        snprintf(note, cap, "RESET_FAULT sent to %s: no fault was latched", rig->description);
+    else
+        snprintf(note, cap, "RESET_FAULT sent to %s: its '%s' fault cleared", rig->description,
+                 rths_rig_fault_name(before));
+    return RTHS_OK;
 }

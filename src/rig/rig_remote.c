@@ -664,6 +664,18 @@ static double r_noise_level_m(void *self) {
     return ((remote *)self)->noise_m;
 }
 
+/* DISARM: the controller ramps forcing and target to zero (controller.ramp_time_s) and stays
+ * disarmed; the next run_periods or record_trace arms it again. Without a link the controller
+ * has disarmed itself already (loss of the controlling connection disarms it). */
+static int r_disarm(void *self, rths_error *err) {
+    remote *r = self;
+    if (r->fd < 0) return RTHS_OK;
+    rths_msg reply;
+    int rc = simple(r, RTHS_MSG_DISARM, &reply, err);
+    if (!rc) r->armed = 0;
+    return rc;
+}
+
 static void r_destroy(void *self) {
     remote *r = self;
     if (r->fd >= 0) {
@@ -684,6 +696,7 @@ static const rths_rig_ops remote_ops = {
     .time_s = r_time_s,
     .fault = r_fault,
     .reset_fault = r_reset_fault,
+    .disarm = r_disarm,
     .noise_level_m = r_noise_level_m,
     .destroy = r_destroy,
     .set_target_dofs = r_set_target_dofs,

@@ -6,6 +6,7 @@
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 #include <time.h>
 
 typedef struct {
@@ -16,7 +17,19 @@ typedef struct {
     double pace;                 /* rig seconds per wall second; 0: as fast as the CPU allows */
     int64_t pace_anchor_wall_ns; /* monotonic clock when the current rig command began */
     double pace_anchor_rig_s;    /* rig time then */
+    rths_rig_integrity closed;   /* every period the controller closed, delivered or not */
 } virtual_rig;
+
+/* Takes the controller's next closed period (1) into its integrity totals, or 0 when none. */
+static int pop_period(virtual_rig *v, rths_period *p) {
+    if (!rths_controller_pop_period(v->ctrl, p)) return 0;
+    v->closed.periods++;
+    v->closed.samples += p->samples;
+    v->closed.late_samples += p->late_samples;
+    v->closed.clipped_demand_samples += p->clipped_demand_samples;
+    v->closed.saturated_sensor_samples += p->saturated_sensor_samples;
+    return 1;
+}
 
 static void sample(virtual_rig *v, rths_controller_output *out) {
     rths_sample_loop_run(v->loop, out);
@@ -110,7 +123,7 @@ static int v_run_periods(void *self, int count, rths_period *out, rths_error *er
     double f = rths_controller_frequency_hz(v->ctrl);
     if (!(f > 0)) return rths_error_set(err, RTHS_EINPUT, "set the forcing before running");
     rths_period discard;
-    while (rths_controller_pop_period(v->ctrl, &discard)) {
+    while (pop_period(v, &discard)) {
     }
     /* bound: twice the samples of the slowest plausible periods, plus slack */
     long limit = (long)(count + 2) * (long)(2 * v->sample_rate_hz / f) + 100000;
@@ -121,7 +134,7 @@ static int v_run_periods(void *self, int count, rths_period *out, rths_error *er
         sample(v, NULL);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
         int before = got;
-        while (got < count && rths_controller_pop_period(v->ctrl, &out[got]))
+        while (got < count && pop_period(v, &out[got]))
             got++;
         if (got > before) pace_wait(v); /* a period is delivered when its time has passed */
     }
@@ -167,10 +180,14 @@ static int v_record_trace(void *self, double duration_s, int max_samples, rths_t
         sample(v, &o);
         if (rths_controller_fault(v->ctrl)) return fault_error(v, err);
         if (i % every == 0 && *n_out < max_samples) out[(*n_out)++] = trace_sample(&o);
-        if ((i + 1) % slice == 0 || i + 1 == total) pace_wait(v);
-    }
-    rths_period discard;
-    while (rths_controller_pop_period(v->ctrl, &discard)) {
+        if ((i + 1) % slice == 0 || i + 1 == total) {
+            /* the periods closed meanwhile are not the trace's, but their integrity counts are
+             * the rig's: taken every slice, before the controller's ring could overflow */
+            rths_period discard;
+            while (pop_period(v, &discard)) {
+            }
+            pace_wait(v);
+        }
     }
     return RTHS_OK;
 }
@@ -187,7 +204,7 @@ static int v_record_perturbed(void *self, const rths_perturbation *p, int period
         return rths_error_set(err, RTHS_EINPUT, "perturbation of %g V RMS, cutoff %g Hz", p->rms_v,
                               p->cutoff_hz);
     rths_period discard;
-    while (rths_controller_pop_period(v->ctrl, &discard)) {
+    while (pop_period(v, &discard)) {
     }
     long limit = (long)(periods + 3) * (long)(2 * v->sample_rate_hz / f) + 100000;
     int ends = 0, rc = RTHS_OK;
@@ -210,7 +227,7 @@ static int v_record_perturbed(void *self, const rths_perturbation *p, int period
                                                       rths_sample_loop_perturbation_v(v->loop)};
         }
         int before = ends;
-        while (rths_controller_pop_period(v->ctrl, &discard))
+        while (pop_period(v, &discard))
             ends++;
         if (ends > before) pace_wait(v);
     }
@@ -313,6 +330,14 @@ int rths_virtual_rig_set_pace(rths_rig *rig, double factor, rths_error *err) {
 rths_controller *rths_virtual_rig_controller(rths_rig *rig) {
     virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
     return v ? v->ctrl : NULL;
+}
+
+int rths_virtual_rig_integrity(rths_rig *rig, rths_rig_integrity *out) {
+    virtual_rig *v = rths_rig_backend(rig, &virtual_ops);
+    memset(out, 0, sizeof *out);
+    if (!v) return RTHS_EINPUT;
+    *out = v->closed;
+    return RTHS_OK;
 }
 
 rths_plant *rths_virtual_rig_plant(rths_rig *rig) {

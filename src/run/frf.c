@@ -25,6 +25,32 @@ const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_eule
 /* A private status the point handler returns to end the continuation on cancellation. */
 enum { FRF_CANCELLED = 100 };
 
+/* The sweep lies where the controller accepts a forcing: from controller.min_frequency_hz to
+ * below a quarter of controller.sample_rate_hz (what the rigs refuse at run time, src/rig), so a
+ * range the controller would refuse is bad input (exit 2) before anything is written. With a
+ * controller process the host's configuration stands for the controller's. */
+static int check_sweep_range(frf_state *st, rths_error *err) {
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    int rc = rths_controller_config_read(st->opt->cfg, &copt, err);
+    static const char *const keys[2] = {"continuation.start_hz", "continuation.end_hz"};
+    double f[2] = {st->cont.start_hz, st->cont.end_hz}, high = 0.25 * copt.sample_rate_hz;
+    for (int i = 0; i < 2 && !rc; i++) {
+        if (f[i] < copt.min_frequency_hz)
+            rc = rths_config_error_at(st->opt->cfg, keys[i], err,
+                                      "%g Hz is below controller.min_frequency_hz (%g Hz), the "
+                                      "lowest forcing frequency the controller accepts",
+                                      f[i], copt.min_frequency_hz);
+        else if (f[i] >= high)
+            rc = rths_config_error_at(st->opt->cfg, keys[i], err,
+                                      "%g Hz is not below a quarter of controller.sample_rate_hz "
+                                      "(%g Hz), the highest forcing frequency the controller "
+                                      "accepts",
+                                      f[i], high);
+    }
+    return rc;
+}
+
 /* Strategy defaults, then the iteration, continuation and output sections over them. */
 static int read_options(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
@@ -36,6 +62,9 @@ static int read_options(frf_state *st, rths_error *err) {
     if (opt->harmonics < 0 || opt->harmonics > RTHS_MAX_HARMONICS)
         return rths_error_set(err, RTHS_EINPUT, "harmonics %d is not in 1..%d", opt->harmonics,
                               RTHS_MAX_HARMONICS);
+    if (opt->rig_uri && opt->rig)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "both a rig and a rig URI (%s) given: measure on one", opt->rig_uri);
     if (opt->rig_uri && strncmp(opt->rig_uri, "tcp://", 6))
         return rths_error_set(err, RTHS_EINPUT, "rig '%s' is not tcp://HOST:PORT", opt->rig_uri);
     st->harmonics = 1;
@@ -46,16 +75,17 @@ static int read_options(frf_state *st, rths_error *err) {
     int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
+    if (!rc) rc = check_sweep_range(st, err);
     /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
      * part may be nonlinear whatever the model says) */
-    st->cont.monotonic = !opt->rig_uri && !st->setup->has_bilinear;
+    st->cont.monotonic = !opt->rig_uri && !opt->rig && !st->setup->has_bilinear;
     st->newton.rig_lti = st->cont.monotonic;
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
     rths_floquet_measure_defaults(&st->floquet);
     if (!rc) rc = rths_floquet_measure_config_read(opt->cfg, &st->floquet, err);
-    if (!rc && st->floquet.enabled && opt->rig_uri)
+    if (!rc && st->floquet.enabled && (opt->rig_uri || opt->rig))
         rc = rths_config_error_at(opt->cfg, "stability.experimental_floquet", err,
                                   "needs the virtual rig: the remote rig's protocol cannot inject "
                                   "a demand perturbation");
@@ -75,16 +105,24 @@ static int read_options(frf_state *st, rths_error *err) {
 static int create_rig(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
     int rc = RTHS_OK;
-    if (!opt->rig_uri)
+    if (!opt->rig_uri && !opt->rig)
         rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
-    if (!rc && !opt->rig_uri) st->virtual_rig = st->rig;
+    if (!rc && !opt->rig_uri && !opt->rig) st->virtual_rig = st->rig;
     if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
-    if (!rc && opt->rig_uri && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
+    st->inner_rig = st->rig;
+    if (!rc && opt->reset_fault && !opt->rig_uri)
         rc = rths_error_set(err, RTHS_EINPUT,
-                            "controller %s drives %d interface DoF(s); this configuration's "
-                            "split.interface has %d",
-                            opt->rig_uri, rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
+                            "--reset-fault needs --rig tcp://HOST:PORT: a virtual rig starts "
+                            "without a fault");
+    if (!rc && opt->reset_fault)
+        rc = rths_rig_clear_fault(st->rig, st->reset_note, sizeof st->reset_note, err);
+    if (!rc && !st->virtual_rig && rths_rig_interface_dofs(st->rig) != st->setup->split.n_int)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s drives %d interface DoF(s); this configuration's split.interface "
+                            "has %d",
+                            opt->rig_uri ? opt->rig_uri : rths_rig_description(st->rig),
+                            rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
     int dofs = st->setup->split.n_int;
     if (!rc && dofs > 1 && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         rc = rths_error_set(err, RTHS_EINPUT,
@@ -190,7 +228,14 @@ static int check_journal(frf_state *st, rths_error *err) {
  * folder is locked before its journal is looked at (create 0: a missing one is left alone); a new
  * one is created and locked once the input is checked (create 1), so a refused run leaves
  * nothing, and its journal check is repeated under the lock because another run may have started
- * the folder meanwhile. */
+ * the folder meanwhile.
+ *
+ * The run removes run.lock when it releases the folder (release_folder: unlink while still
+ * holding the lock, then close), so a finished folder holds no stale lock file. A run that
+ * opened the old file just before the unlink may then lock an inode no longer in the folder,
+ * while a third run creates and locks a new run.lock: both would own the folder. So a lock
+ * counts only while the path still names the locked inode; otherwise it is dropped and taken
+ * again on the new file. */
 static int lock_folder(frf_state *st, int create, rths_error *err) {
     const char *dir = st->opt->out_dir;
     struct stat sb;
@@ -201,22 +246,37 @@ static int lock_folder(frf_state *st, int create, rths_error *err) {
     char *path = malloc(len);
     if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     snprintf(path, len, "%s/run.lock", dir);
-    st->lock_fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
     int rc = RTHS_OK;
-    if (st->lock_fd < 0) {
-        rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
-    } else if (flock(st->lock_fd, LOCK_EX | LOCK_NB) != 0) {
-        char pid[32] = "?";
-        ssize_t n = pread(st->lock_fd, pid, sizeof pid - 1, 0);
-        pid[n > 0 ? n : 1] = 0;
-        pid[strcspn(pid, "\n")] = 0;
-        rc =
-            rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir, pid);
-    } else {
+    for (int attempt = 0; attempt < 100 && st->lock_fd < 0 && !rc; attempt++) {
+        int fd = open(path, O_RDWR | O_CREAT | O_CLOEXEC, 0644);
+        struct stat held, named;
+        if (fd < 0) {
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot open %s: %s", path, strerror(errno));
+        } else if (flock(fd, LOCK_EX | LOCK_NB) != 0) {
+            char pid[32] = "?";
+            ssize_t n = pread(fd, pid, sizeof pid - 1, 0);
+            pid[n > 0 ? n : 1] = 0;
+            pid[strcspn(pid, "\n")] = 0;
+            rc = rths_error_set(err, RTHS_EINPUT, "%s is in use by another rths run (pid %s)", dir,
+                                pid);
+            close(fd);
+        } else if (fstat(fd, &held) != 0 || stat(path, &named) != 0 ||
+                   held.st_dev != named.st_dev || held.st_ino != named.st_ino) {
+            close(fd); /* the run that held it removed it meanwhile: lock the new file */
+        } else {
+            st->lock_fd = fd;
+            st->lock_path = path;
+            path = NULL;
+        }
+    }
+    if (!rc && st->lock_fd < 0)
+        rc = rths_error_set(err, RTHS_EFAIL, "cannot lock %s: it keeps being replaced", path);
+    if (!rc) {
         char pid[32];
         int n = snprintf(pid, sizeof pid, "%ld\n", (long)getpid());
         if (ftruncate(st->lock_fd, 0) != 0 || pwrite(st->lock_fd, pid, (size_t)n, 0) != n)
-            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(errno));
+            rc = rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", st->lock_path,
+                                strerror(errno));
     }
     free(path);
     if (!rc && !st->opt->resume && st->journal_path && stat(st->journal_path, &sb) == 0)
@@ -227,11 +287,22 @@ static int lock_folder(frf_state *st, int create, rths_error *err) {
     return rc;
 }
 
+/* Gives the folder up: run.lock removed while still locked (see lock_folder), then unlocked. */
+static void release_folder(frf_state *st) {
+    if (st->lock_fd < 0) return;
+    if (st->lock_path) unlink(st->lock_path);
+    close(st->lock_fd);
+    st->lock_fd = -1;
+    free(st->lock_path);
+    st->lock_path = NULL;
+}
+
 /* Opens the output folder (run.log, config.yaml) and writes the truth curve. */
 static int open_outputs(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
     int rc = rths_report_open(opt->out_dir, "frf", opt->argc, opt->argv, &st->rep, err);
     if (rc) return rc;
+    if (st->reset_note[0]) rths_report_log(st->rep, "%s", st->reset_note);
     char *path = rths_report_path(st->rep, "config.yaml");
     rc = path ? rths_config_write(opt->cfg, path, err)
               : rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -375,32 +446,63 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
         run_rc = rths_continuation_run(st->rig, &st->cont, &st->settle, &st->newton, st->harmonics,
                                        st->setup->forcing_amplitude_n, st->resume_pts, st->n_resume,
                                        on_point, on_progress, st, &st->result, run_err);
-    if (run_rc && !run_err->msg[0] && st->point_err.msg[0]) *run_err = st->point_err;
+    /* the point handler stopped the run: say what failed (the journal write, with its errno
+     * text, or the caller's callback), not only that the handler stopped it */
+    if (run_rc && st->point_err.msg[0]) {
+        *run_err = st->point_err;
+        snprintf(st->result.stop_reason, sizeof st->result.stop_reason, "%s", st->point_err.msg);
+    }
     rths_live_close(st->live); /* "state": "ended"; the rig now only forwards */
     st->live = NULL;
     if (st->cancelled) {
         run_rc = RTHS_OK;
         snprintf(st->result.stop_reason, sizeof st->result.stop_reason,
-                 "cancelled by the caller after %d points", st->n);
+                 "stopped by the user after %d points", st->n);
     }
+    int same = !strcmp(run_err->msg, st->result.stop_reason); /* said once */
     rths_report_log(st->rep, "continuation ended: %s%s%s", st->result.stop_reason,
-                    run_rc ? "; " : "", run_rc ? run_err->msg : "");
+                    run_rc && !same ? "; " : "", run_rc && !same ? run_err->msg : "");
     return run_rc;
 }
 
-/* frf.csv, the Lissajous trace (not after a rig fault or a cancellation), summary.json, the
- * figures. */
+/* The rig's safe state as soon as measuring is over (issue 24.3: it stayed armed while the
+ * figures were drawn, long enough for the controller's watchdog to latch): excitation and target
+ * ramped to zero before anything is written. A failed disarm is logged; the controller also
+ * disarms itself when the host disconnects. */
+static void disarm_rig(frf_state *st) {
+    rths_error err = {0};
+    if (!st->inner_rig) return;
+    if (rths_rig_disarm(st->inner_rig, &err))
+        rths_report_log(st->rep, "warning: disarming the rig failed: %s", err.msg);
+    else if (st->opt->rig_uri)
+        rths_report_log(st->rep, "rig disarmed (excitation ramped to zero) before the outputs");
+    st->disarmed = 1;
+}
+
+/* The Lissajous trace (not after a rig fault or a cancellation) is recorded while the rig still
+ * runs; then the rig is disarmed; then frf.csv, trace.csv, summary.json, the figures. */
 static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
+    int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
+    frf_trace trace = {0};
+    if (pick >= 0) {
+        rths_error trace_err;
+        if (frf_trace_record(st->rig, &st->settle, st->harmonics, st->setup->forcing_amplitude_n,
+                             &st->pts[pick], &trace, &trace_err)) {
+            rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);
+            pick = -1;
+        }
+        st->trace_rig_time_s = trace.rig_time_s;
+    }
+    disarm_rig(st);
+    frf_log_integrity(st);
     int rc = frf_write_frf_csv(st->rep, st, err);
     if (!rc && st->setup->base_excitation) rc = frf_write_absolute_csv(st->rep, st, err);
-    int pick = run_rc || st->cancelled ? -1 : frf_choose_trace_point(st, st->trace_hz);
     if (!rc && pick >= 0) {
         rths_error trace_err;
-        if (frf_trace_point(st->rep, st->rig, st->setup, &st->settle, st->harmonics,
-                            st->setup->forcing_amplitude_n, &st->pts[pick], &st->trace_rig_time_s,
-                            &trace_err))
+        if (frf_trace_write(st->rep, st->setup, &trace, &trace_err))
             rths_report_log(st->rep, "no trace figure: %s", trace_err.msg);
     }
+    frf_trace_free(&trace);
     if (!rc) rc = frf_write_summary(st, err);
     if (!rc && st->n > 0) {
         char title[256];
@@ -425,7 +527,8 @@ static void fill_result(const frf_state *st, int run_rc, rths_run_frf_result *r)
     }
     snprintf(r->stop_reason, sizeof r->stop_reason, "%s", st->result.stop_reason);
     r->outputs_written = 1;
-    r->status = run_rc                   ? RTHS_RUN_FAILED
+    r->status = st->stopped_short        ? RTHS_RUN_STOPPED
+                : run_rc                 ? RTHS_RUN_FAILED
                 : st->cancelled          ? RTHS_RUN_CANCELLED
                 : st->result.reached_end ? RTHS_RUN_COMPLETED
                                          : RTHS_RUN_STOPPED;
@@ -441,12 +544,13 @@ static void release(frf_state *st) {
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
     rths_report_close(st->rep);
-    if (st->lock_fd >= 0) close(st->lock_fd); /* releases the folder */
+    release_folder(st);
 }
 
 int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
                  rths_run_frf_result *result, rths_error *err) {
-    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1};
+    /* a caller's rig is the run's from here on, destroyed when it ends however it ends */
+    frf_state st = {.opt = opt, .cb = cb, .setup = opt->setup, .lock_fd = -1, .rig = opt->rig};
     if (opt->has_seed)
         snprintf(st.seed_buf, sizeof st.seed_buf, "%llu", (unsigned long long)opt->seed);
     st.seed_text = opt->has_seed ? st.seed_buf : NULL;
@@ -473,13 +577,29 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     if (!rc && !run_rc && st.n == 0 && !st.cancelled)
         run_rc = rths_error_set(&run_err, RTHS_EFAIL, "no point was accepted: %s",
                                 st.result.stop_reason);
+    /* A sweep that ended short of its end for a reason of its own (failed corrections, the
+     * branch leaving the range; not the user, not max_points) did not measure what was asked:
+     * a failure naming the cause (issue 24.15), everything accepted still written. */
+    else if (!rc && !run_rc && !st.cancelled && st.result.stopped_short) {
+        st.stopped_short = 1;
+        run_rc = rths_error_set(
+            &run_err, RTHS_EFAIL, "the sweep stopped at %.6g Hz, short of its end %.6g Hz: %s",
+            st.pts[st.n - 1].sol.frequency_hz, st.cont.end_hz, st.result.stop_reason);
+    }
+    if (!rc && run_rc) frf_integrity_to_error(&st, &run_err);
     if (!rc) rc = write_outputs(&st, run_rc, err);
     if (!rc) fill_result(&st, run_rc, result);
     if (!rc && run_rc) {
         *err = run_err;
         rc = run_rc;
     }
-    if (st.rep) rths_report_log(st.rep, "finished with status %d", rc);
+    /* the status the command exits with: a cancellation is the user's Ctrl-C (130, as the shell
+     * reports an interrupt; src/cli/cmd_frf.c) */
+    if (st.rep && !rc && st.cancelled)
+        rths_report_log(st.rep, "finished: stopped by the user (exit 130)");
+    else if (st.rep)
+        rths_report_log(st.rep, "finished with status %d%s%s", rc, rc ? ": " : "",
+                        rc ? err->msg : "");
     release(&st);
     return rc;
 }

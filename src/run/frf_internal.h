@@ -37,6 +37,9 @@ typedef struct frf_state {
     rths_rig *rig;
     rths_rig
         *virtual_rig; /* the in-process rig behind the observing one (NULL: remote), owned by rig */
+    rths_rig *inner_rig;  /* the rig behind the observing one (virtual, remote or the caller's) */
+    int disarmed;         /* the rig was brought to its safe state after the last point */
+    char reset_note[700]; /* --reset-fault: what was reset, logged once run.log exists */
     rths_report *rep;
     rths_journal *journal;
     rths_error point_err;    /* why the point handler stopped the run (journal, callback) */
@@ -50,7 +53,9 @@ typedef struct frf_state {
     rths_truth_curve truth;
     rths_continuation_result result;
     int cancelled;
-    int lock_fd; /* DIR/run.lock, flock'ed while the run owns the folder */
+    int stopped_short; /* ended short of end_hz by failures or the range: a failure (exit 1) */
+    int lock_fd;       /* DIR/run.lock, flock'ed while the run owns the folder */
+    char *lock_path;   /* its path, removed when the run releases the folder */
     /* --resume: the configuration keys that changed (allowed ones), "key: was -> now" */
     char changes[8][256];
     int n_changes;
@@ -65,9 +70,10 @@ typedef struct frf_state {
 
 enum { FRF_MAX_CHANGES = 8 };
 
-/* The rig a run measures on, as its journal records it: "virtual" or the tcp:// URI. */
+/* The rig a run measures on, as its journal records it: "virtual", the tcp:// URI, or "caller"
+ * (rths_run_frf_options.rig). */
 static inline const char *frf_rig_text(const frf_state *st) {
-    return st->opt->rig_uri ? st->opt->rig_uri : "virtual";
+    return st->opt->rig_uri ? st->opt->rig_uri : st->opt->rig ? "caller" : "virtual";
 }
 
 /* limits_check.c: computes the truth curve over the run's range (with a margin) and refuses,
@@ -95,10 +101,24 @@ int frf_write_absolute_csv(rths_report *rep, const frf_state *run, rths_error *e
 int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err);
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                  const char *title, rths_error *err);
-int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
-                    const rths_settle_options *settle, int harmonics, double amplitude_n,
-                    const rths_point *pt, double *trace_rig_time_s, rths_error *err);
+/* The Lissajous trace at one accepted point: recorded on the rig (the point's targets again,
+ * steady state, 3 periods), then, once the rig is disarmed, written (trace.csv, lissajous.*). */
+typedef struct frf_trace {
+    rths_trace_sample *samples;
+    int n, dofs, point;
+    double frequency_hz, rig_time_s;
+} frf_trace;
+int frf_trace_record(rths_rig *rig, const rths_settle_options *settle, int harmonics,
+                     double amplitude_n, const rths_point *pt, frf_trace *out, rths_error *err);
+int frf_trace_write(rths_report *rep, const rths_setup *setup, const frf_trace *t, rths_error *err);
+void frf_trace_free(frf_trace *t);
 int frf_choose_trace_point(const frf_state *run, double trace_hz);
 int frf_write_summary(frf_state *run, rths_error *err);
+/* The integrity counts (rths_period): per accepted point the evaluation's (pt->residual.eval),
+ * over the run every period the rig delivered (rths_rig_integrity_totals). frf_log_integrity
+ * writes the totals to run.log; frf_integrity_to_error appends them to a failed run's message
+ * when the rig reported any, since they may be why its evaluations were refused. */
+void frf_log_integrity(frf_state *run);
+void frf_integrity_to_error(frf_state *run, rths_error *err);
 
 #endif

@@ -62,10 +62,15 @@ const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS] = {"point",
                                                                 "amplitude_se_m",
                                                                 "measured_amplitude_m",
                                                                 "se_honest",
-                                                                "stable"};
+                                                                "stable",
+                                                                "late_samples",
+                                                                "clipped_demand_samples",
+                                                                "saturated_sensor_samples",
+                                                                "resumed"};
 
 void rths_run_frf_row(const rths_point *pt, double *row) {
     const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
+    const rths_evaluation *acc = &pt->residual.eval; /* the accepted evaluation */
     const double values[RTHS_RUN_FRF_COLUMNS] = {
         /* amplitude_m: what the strategy reports (the response extrapolated to zero
          * mismatch by default, the measurement for paper); measured_amplitude_m: the
@@ -77,7 +82,10 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
         pt->sol.target_a[0], pt->sol.target_b[0], pt->sol.residual_norm_m, pt->sol.tolerance_m,
         pt->evaluations, pt->iterations, pt->rig_time_s, pt->sol.converged, pt->fold, pt->segment,
         pt->sol.amplitude_se_m, hypot(ph->a[1], ph->b[1]), pt->sol.amplitude_se_honest,
-        rths_point_stable(pt)};
+        rths_point_stable(pt),
+        /* the tail (run.h) */
+        (double)acc->late_samples, (double)acc->clipped_demand_samples,
+        (double)acc->saturated_sensor_samples, pt->resumed};
     memcpy(row, values, sizeof values);
 }
 
@@ -99,10 +107,14 @@ int rths_run_frf_column_count(int interface_dofs) {
     return RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dof_columns(interface_dofs);
 }
 
+/* Leading columns, the per-DoF block, the tail (run.h). */
 const char *rths_run_frf_column_name(int interface_dofs, int i) {
-    if (i < 0 || i >= rths_run_frf_column_count(interface_dofs)) return NULL;
-    if (i < RTHS_RUN_FRF_COLUMNS) return rths_run_frf_columns[i];
-    i -= RTHS_RUN_FRF_COLUMNS;
+    int count = rths_run_frf_column_count(interface_dofs);
+    if (i < 0 || i >= count) return NULL;
+    if (i < RTHS_RUN_FRF_LEADING_COLUMNS) return rths_run_frf_columns[i];
+    if (i >= count - RTHS_RUN_FRF_TAIL_COLUMNS)
+        return rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS - (count - i)];
+    i -= RTHS_RUN_FRF_LEADING_COLUMNS;
     return dof_column_names[i / RTHS_RUN_FRF_DOF_COLUMNS][i % RTHS_RUN_FRF_DOF_COLUMNS];
 }
 
@@ -111,14 +123,18 @@ void rths_run_frf_row_dofs(const rths_point *pt, int interface_dofs, double *row
     const rths_solution *s = &pt->sol;
     const rths_evaluation *ev = &s->eval;
     int dofs = dof_columns(interface_dofs), M = s->harmonics, N = dofs ? M / dofs : 0;
+    /* the tail moves behind the per-DoF block */
+    double tail[RTHS_RUN_FRF_TAIL_COLUMNS];
+    memcpy(tail, row + RTHS_RUN_FRF_LEADING_COLUMNS, sizeof tail);
+    memcpy(row + RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * dofs, tail, sizeof tail);
     /* the matched estimate stands for the reported amplitude when the strategy reports it */
     int matched = s->have_matched && s->amplitude_m == s->matched_amplitude_m;
     /* a record carrying another number of DoFs than the split leaves its cells empty, not stale */
     for (int i = 0; i < RTHS_RUN_FRF_DOF_COLUMNS * dofs; i++)
-        row[RTHS_RUN_FRF_COLUMNS + i] = NAN;
+        row[RTHS_RUN_FRF_LEADING_COLUMNS + i] = NAN;
     for (int d = 0; d < dofs && ev->interface_dofs == dofs; d++) {
         const rths_fourier *ph = &ev->phys_dof[d], *nu = &ev->num_dof[d];
-        double *r = row + RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
+        double *r = row + RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d;
         int j = d * N; /* DoF d's fundamental among the solution's pairs (iterate.h) */
         r[0] = matched ? hypot(s->matched_a[j], s->matched_b[j]) : hypot(ph->a[1], ph->b[1]);
         r[1] = hypot(nu->a[1], nu->b[1]);
@@ -151,22 +167,31 @@ static void floquet_row(const frf_state *run, int i, double *out) {
     out[3] = f ? f->trustworthy : NAN;
 }
 
+/* The leading and per-DoF columns, the optional blocks, then the tail (run.h): the tail always
+ * ends the row, so a run without an option writes the columns before it as before. */
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
-    int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs), columns = fixed;
+    int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs);
+    int head = fixed - RTHS_RUN_FRF_TAIL_COLUMNS, columns = head;
     const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
-    for (int i = 0; i < fixed; i++)
+    for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
         for (int k = 0; k < FRF_FLOQUET_COLUMNS; k++)
             names[columns++] = floquet_columns[k];
+    int tail = columns;
+    for (int k = 0; k < RTHS_RUN_FRF_TAIL_COLUMNS; k++)
+        names[columns++] = rths_run_frf_column_name(dofs, head + k);
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS],
+            tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
-        if (run->floquet.enabled) floquet_row(run, i, row + fixed);
+        memcpy(tail_values, row + head, sizeof tail_values);
+        if (run->floquet.enabled) floquet_row(run, i, row + head);
+        memcpy(row + tail, tail_values, sizeof tail_values);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -181,8 +206,8 @@ int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error 
         "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
-        header[5 + d] =
-            rths_run_frf_column_name(dofs, RTHS_RUN_FRF_COLUMNS + RTHS_RUN_FRF_DOF_COLUMNS * d);
+        header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_LEADING_COLUMNS +
+                                                           RTHS_RUN_FRF_DOF_COLUMNS * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
     int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
@@ -217,8 +242,8 @@ static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t
                          "     'frf.csv' using 2:%d skip 1%s with points pt 7 ps 0.8 lc rgb '%s' "
                          "title 'hybrid test, interface DoF %d (DoF %d%s)'",
                          6 + d, axes, colour[d], d + 1, dof, unit,
-                         RTHS_RUN_FRF_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes, colour[d],
-                         d + 1, dof, unit);
+                         RTHS_RUN_FRF_LEADING_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes,
+                         colour[d], d + 1, dof, unit);
     }
 }
 
@@ -384,9 +409,9 @@ static int lissajous_row(char *out, size_t size, const rths_setup *setup, int d,
 
 /* Fig. 8 of the seed: time traces and the phase (Lissajous) plot of the physical against the
  * numerical interface displacement at one converged point; a row per interface DoF. */
-int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
-                    const rths_settle_options *settle, int harmonics, double amplitude_n,
-                    const rths_point *pt, double *trace_rig_time_s, rths_error *err) {
+int frf_trace_record(rths_rig *rig, const rths_settle_options *settle, int harmonics,
+                     double amplitude_n, const rths_point *pt, frf_trace *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
     double t0 = rths_rig_time_s(rig);
     rths_evaluation ev;
     double f_hz = pt->sol.omega_rad_s / (2 * M_PI);
@@ -395,14 +420,29 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
     int rc = rths_evaluate_dofs(rig, settle, harmonics, dofs, f_hz, amplitude_n, pt->sol.target_a,
                                 pt->sol.target_b, &ev, err);
     enum { MAX_SAMPLES = 4000 };
-    rths_trace_sample *tr = calloc(MAX_SAMPLES, sizeof *tr);
-    int n = 0;
-    if (!rc && !tr) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, tr, &n, err);
-    *trace_rig_time_s = rths_rig_time_s(rig) - t0;
+    out->samples = calloc(MAX_SAMPLES, sizeof *out->samples);
+    if (!rc && !out->samples) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_rig_record_trace(rig, 3.0 / f_hz, MAX_SAMPLES, out->samples, &out->n, err);
+    out->rig_time_s = rths_rig_time_s(rig) - t0;
+    out->dofs = dofs;
+    out->point = pt->index;
+    out->frequency_hz = f_hz;
+    if (rc) frf_trace_free(out);
+    return rc;
+}
+
+void frf_trace_free(frf_trace *t) {
+    free(t->samples);
+    t->samples = NULL;
+    t->n = 0;
+}
+
+int frf_trace_write(rths_report *rep, const rths_setup *setup, const frf_trace *t,
+                    rths_error *err) {
+    int dofs = t->dofs, n = t->n;
+    const rths_trace_sample *tr = t->samples;
     int several = dofs > 1 && n > 0 && tr[0].dofs == dofs;
-    if (!rc) rc = write_trace_csv(rep, tr, n, dofs, err);
-    free(tr);
+    int rc = write_trace_csv(rep, tr, n, dofs, err);
     if (rc) return rc;
     char body[8192];
     int used = snprintf(body, sizeof body,
@@ -410,7 +450,7 @@ int frf_trace_point(rths_report *rep, rths_rig *rig, const rths_setup *setup,
                         "set multiplot layout %d,2 title 'Converged point %d at %.4f Hz: "
                         "interface motions'\n"
                         "set grid\n",
-                        several ? dofs : 1, pt->index, f_hz);
+                        several ? dofs : 1, t->point, t->frequency_hz);
     for (int d = 0; d < (several ? dofs : 1) && used < (int)sizeof body; d++) {
         /* DoF 0 alone: columns 2-4; several: dof<d>_* at 7 + 4 d */
         int c0 = several ? 7 + 4 * d : 2;
@@ -429,6 +469,10 @@ static int compare_int(const void *a, const void *b) {
 
 typedef struct {
     int converged, evaluations, within_se[4], honest, compared;
+    int measured_after_resume; /* points with the resumed mark (frf.csv's resumed column) */
+    /* the accepted evaluations' integrity counts, summed, and the points with any */
+    long late, clipped, saturated, samples_read;
+    int points_late, points_clipped, points_saturated;
     /* points farther than FAR_FROM_FOLD_HZ from a fold of the truth, and those within 3 SE */
     int far, far_within_3se;
     /* points farther than STABLE_FOLD_HZ from a fold: labelled, and agreeing with the truth */
@@ -608,6 +652,15 @@ static void point_statistics(frf_state *run, point_stats *ps) {
     for (int i = 0; i < run->n; i++) {
         const rths_point *pt = &run->pts[i];
         ps->converged += pt->sol.converged;
+        ps->measured_after_resume += pt->resumed;
+        const rths_evaluation *acc = &pt->residual.eval;
+        ps->late += acc->late_samples;
+        ps->clipped += acc->clipped_demand_samples;
+        ps->saturated += acc->saturated_sensor_samples;
+        ps->samples_read += acc->samples_read;
+        ps->points_late += acc->late_samples > 0;
+        ps->points_clipped += acc->clipped_demand_samples > 0;
+        ps->points_saturated += acc->saturated_sensor_samples > 0;
         ps->evaluations += pt->evaluations;
         ps->rig_time += pt->rig_time_s;
         if (evals) evals[i] = pt->evaluations;
@@ -686,6 +739,63 @@ static void add_truth_comparison(json_object *root, const point_stats *ps) {
                            json_object_new_int(ps->stable_agree));
 }
 
+/* The integrity counts: every period the rig delivered in this process (refused evaluations,
+ * failed corrections and the trace's settling included; a resume counts its own), and the
+ * accepted evaluations' (journaled, so resumed points included). */
+static json_object *integrity_json(const frf_state *run, const point_stats *ps) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    json_object *o = json_object_new_object(), *rig = json_object_new_object(),
+                *acc = json_object_new_object();
+    json_object_object_add(rig, "periods", json_object_new_int64(t.periods));
+    json_object_object_add(rig, "samples", json_object_new_int64(t.samples));
+    json_object_object_add(rig, "late_samples", json_object_new_int64(t.late_samples));
+    json_object_object_add(rig, "clipped_demand_samples",
+                           json_object_new_int64(t.clipped_demand_samples));
+    json_object_object_add(rig, "saturated_sensor_samples",
+                           json_object_new_int64(t.saturated_sensor_samples));
+    json_object_object_add(o, "rig_this_run", rig);
+    json_object_object_add(acc, "samples_read", json_object_new_int64(ps->samples_read));
+    json_object_object_add(acc, "late_samples", json_object_new_int64(ps->late));
+    json_object_object_add(acc, "clipped_demand_samples", json_object_new_int64(ps->clipped));
+    json_object_object_add(acc, "saturated_sensor_samples", json_object_new_int64(ps->saturated));
+    json_object_object_add(acc, "points_with_late_samples", json_object_new_int(ps->points_late));
+    json_object_object_add(acc, "points_with_clipped_demand",
+                           json_object_new_int(ps->points_clipped));
+    json_object_object_add(acc, "points_with_saturated_sensors",
+                           json_object_new_int(ps->points_saturated));
+    json_object_object_add(o, "accepted_points", acc);
+    return o;
+}
+
+void frf_log_integrity(frf_state *run) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    long late = 0, clipped = 0, saturated = 0;
+    for (int i = 0; i < run->n; i++) {
+        late += run->pts[i].residual.eval.late_samples;
+        clipped += run->pts[i].residual.eval.clipped_demand_samples;
+        saturated += run->pts[i].residual.eval.saturated_sensor_samples;
+    }
+    rths_report_log(run->rep,
+                    "integrity: the rig ran %ld periods (%ld samples) in this run: %ld late, %ld "
+                    "with a clipped demand, %ld with a saturated sensor; the accepted points' "
+                    "evaluations: %ld late, %ld clipped-demand, %ld saturated-sensor samples",
+                    t.periods, t.samples, t.late_samples, t.clipped_demand_samples,
+                    t.saturated_sensor_samples, late, clipped, saturated);
+}
+
+void frf_integrity_to_error(frf_state *run, rths_error *err) {
+    rths_rig_integrity t;
+    rths_rig_integrity_totals(run->rig, &t);
+    if (!t.late_samples && !t.clipped_demand_samples && !t.saturated_sensor_samples) return;
+    size_t len = strlen(err->msg);
+    snprintf(err->msg + len, sizeof err->msg - len,
+             "; the rig reported %ld late, %ld clipped-demand and %ld saturated-sensor samples "
+             "of %ld in this run (an evaluation with clipping or overruns is refused)",
+             t.late_samples, t.clipped_demand_samples, t.saturated_sensor_samples, t.samples);
+}
+
 /* What the virtual rig's actuator limits saw over the run (rig.actuator.limits): samples clipped
  * or flagged, and the peaks, so a test that ran near its limits says so. */
 static json_object *actuator_summary(const rths_plant *plant) {
@@ -724,6 +834,9 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "points", json_object_new_int(run->n));
     json_object_object_add(root, "converged_points", json_object_new_int(converged));
     json_object_object_add(root, "resumed_points", json_object_new_int(facts->n_resume));
+    json_object_object_add(root, "points_measured_after_resume",
+                           json_object_new_int(ps.measured_after_resume));
+    json_object_object_add(root, "integrity", integrity_json(run, &ps));
     /* Totals over the accepted points (journal included on --resume); failed attempts are in
      * their point's counts, since a point's counters include its retries. */
     json_object_object_add(root, "evaluations_total", json_object_new_int(evaluations));
@@ -740,6 +853,8 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     if (plant) json_object_object_add(root, "actuator", actuator_summary(plant));
     json_object_object_add(root, "failed_corrections", json_object_new_int(res->failures));
     json_object_object_add(root, "reached_end", json_object_new_boolean(res->reached_end));
+    /* short of the end by failures or the range (the run failed, exit 1; stop_reason says why) */
+    json_object_object_add(root, "stopped_short", json_object_new_boolean(res->stopped_short));
     json_object_object_add(root, "stop_reason", json_object_new_string(res->stop_reason));
     json_object_object_add(root, "folds", folds_json(run));
     json_object_object_add(root, "max_interface_error_h1_m", json_object_new_double(max_h[1]));

@@ -124,7 +124,10 @@ PY
 # 7. Ctrl-C (SIGINT) ends a run cleanly after the point in progress: exit 130, frf.csv and
 # summary.json written with every journaled point, live.json "ended"; --resume finishes it.
 # (A paced run, so the signal lands mid-sweep; the wait is for the journal, not a timing.)
-"$bin" frf "$lin" --out "$work/int" --quiet "${quiet[@]}" --pace 20 2>"$work/int.err" &
+# (12.6 -> 13.2 Hz at 5 x real time: about a second of wall time per point, so the signal sent once
+# 3 points are journaled lands mid-sweep even on a loaded machine)
+interrupt=(--set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=13.2)
+"$bin" frf "$lin" --out "$work/int" --quiet "${interrupt[@]}" --pace 5 2>"$work/int.err" &
 pid=$!
 for _ in $(seq 1 300); do
     [ "$(wc -l <"$work/int/journal.jsonl" 2>/dev/null || echo 0)" -ge 4 ] && break
@@ -145,7 +148,13 @@ live = json.load(open(d + "/live.json"))
 print(f"interrupted: {len(rows)} rows, {len(points)} journaled, stop: {s['stop_reason']}, live {live['state']}")
 sys.exit(0 if len(rows) == len(points) == s["points"] > 0 and live["state"] == "ended" else 1)
 PY
-"$bin" frf "$lin" --out "$work/int" --quiet --resume "${quiet[@]}" || fail "resume after Ctrl-C"
+# the log says who stopped it and the status the command exits with (not "status 0")
+grep -q "finished: stopped by the user (exit 130)" "$work/int/run.log" ||
+    fail "interrupted run: run.log does not say the user stopped it: $(tail -n 2 "$work/int/run.log")"
+grep -q '"stop_reason": "stopped by the user after' "$work/int/summary.json" ||
+    fail "interrupted run: summary.json stop_reason"
+[ -e "$work/int/run.lock" ] && fail "interrupted run: run.lock left behind"
+"$bin" frf "$lin" --out "$work/int" --quiet --resume "${interrupt[@]}" || fail "resume after Ctrl-C"
 [ "$failures" -eq 0 ] && echo "ok   Ctrl-C saves everything accepted, exit 130, resumable"
 
 # 8. a test the model knows will exceed the rig's displacement limit (the seed's first mode at 1 N:

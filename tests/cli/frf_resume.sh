@@ -50,4 +50,12 @@ awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
 n_after=$(($(wc -l <"$csv") - 1))
 echo "resumed run has $n_after points ($before from before the kill)"
 grep -q '"resumed_points": *'"$before" "$work/run/summary.json" || fail "summary.json does not report $before resumed points"
+# the points measured after the resume are marked, the journal's are not (the resumed rig starts
+# from rest with a fresh noise stream: docs/journal.md, "What a resume restores")
+awk -F, -v before="$before" 'NR == 1 { for (i = 1; i <= NF; i++) col[$i] = i; next }
+     { want = (NR - 2 >= before) ? 1 : 0
+       if (!("resumed" in col) || $col["resumed"] != want) { print "point " NR - 2 ": resumed " $col["resumed"] ", expected " want; bad = 1 } }
+     END { exit bad }' "$csv" || fail "frf.csv resumed column"
+grep -q '"points_measured_after_resume": *'"$((n_after - before))" "$work/run/summary.json" ||
+    fail "summary.json does not count $((n_after - before)) points measured after the resume"
 echo "ok"
