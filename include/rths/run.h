@@ -34,7 +34,8 @@ typedef struct rths_run_frf_options {
     int harmonics;           /* 1..3; 0: iteration.harmonics */
     int resume;              /* continue the run in out_dir from its journal */
     const char *rig_uri;     /* tcp://HOST:PORT: a controller process; NULL: the virtual rig */
-    int force;    /* run even when the true response exceeds controller.limits.displacement_m */
+    int force;    /* run even when the true response exceeds controller.limits.displacement_m, and
+                     accept (flagged) a point below the measured noise floor */
     int has_seed; /* noise seed of the virtual rig (else rig.seed) */
     uint64_t seed;
     /* recorded in run.log and summary.json */
@@ -86,10 +87,11 @@ typedef struct rths_run_frf_result {
  * callback of the C API receives): the RTHS_RUN_FRF_LEADING_COLUMNS from "point" to "stable",
  * then the RTHS_RUN_FRF_TAIL_COLUMNS that always end a row (late_samples,
  * clipped_demand_samples, saturated_sensor_samples: the accepted evaluation's integrity counts;
- * resumed: 1 when a resumed run measured the point), after any per-DoF or optional columns. */
+ * resumed: 1 when a resumed run measured the point; below_noise_floor: 1 when --force accepted
+ * the point below the measured noise floor), after any per-DoF or optional columns. */
 enum {
     RTHS_RUN_FRF_LEADING_COLUMNS = 24,
-    RTHS_RUN_FRF_TAIL_COLUMNS = 4,
+    RTHS_RUN_FRF_TAIL_COLUMNS = 5,
     RTHS_RUN_FRF_COLUMNS = RTHS_RUN_FRF_LEADING_COLUMNS + RTHS_RUN_FRF_TAIL_COLUMNS
 };
 extern const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS];

@@ -381,6 +381,16 @@ static int run_step(cont_run *run, rths_progress_fn on_progress, int *stop, rths
         *stop = 1;
         return RTHS_EFAIL;
     }
+    /* a response below the measured noise, or measurements the rig corrupted (clipped,
+     * saturated, late) at the point itself: a smaller step meets the same rig, so retrying only
+     * spends rig time before the same verdict */
+    rths_corrector_outcome outcome = rths_corrector_status(run->corr);
+    if (outcome == RTHS_CORRECTOR_BELOW_NOISE || outcome == RTHS_CORRECTOR_REFUSED) {
+        snprintf(run->res->stop_reason, sizeof run->res->stop_reason, "%s", err->msg);
+        run->res->stopped_short = 1;
+        *stop = 1;
+        return RTHS_EFAIL;
+    }
     *stop = on_failure(run, &pr, err);
     return RTHS_OK;
 }

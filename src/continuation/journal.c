@@ -208,6 +208,8 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
                            json_object_new_int64(acc->saturated_sensor_samples));
     json_object_object_add(o, "samples_read", json_object_new_int64(acc->samples_read));
     if (pt->resumed) json_object_object_add(o, "resumed", json_object_new_int(1));
+    if (pt->sol.below_noise_floor)
+        json_object_object_add(o, "below_noise_floor", json_object_new_int(1));
     int rc = write_line(j, o, err);
     json_object_put(o);
     return rc;
@@ -461,8 +463,11 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
         return -1;
     /* added within format 3, optional (absent: 0): a journal without amplitude_se_honest makes
      * no claim for its standard errors; the integrity counts of the accepted evaluation; whether
-     * a resumed run measured the point */
-    long honest = 0, resumed = 0;
+     * a resumed run measured the point; whether it was accepted below the noise floor (--force) */
+    long honest = 0, resumed = 0, below = 0;
+    if (get_count(o, "below_noise_floor", &below) || below > 1)
+        return refuse(below > 1 ? "below_noise_floor" : bad_key);
+    s->below_noise_floor = (int)below;
     if (get_count(o, "amplitude_se_honest", &honest) || honest > 1 ||
         get_count(o, "late_samples", &e->late_samples) ||
         get_count(o, "clipped_demand_samples", &e->clipped_demand_samples) ||

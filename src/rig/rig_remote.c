@@ -200,8 +200,17 @@ static void absorb(remote *r, const rths_msg *m) {
         r->armed = (m->u.status.flags & RTHS_STATUS_ARMED) != 0;
         if (m->u.status.fault && r->fault == RTHS_RIG_OK) {
             r->fault = (rths_rig_fault)m->u.status.fault;
-            snprintf(r->fault_msg, sizeof r->fault_msg, "controller latched a %s fault",
-                     rths_rig_fault_name(r->fault));
+            /* the controller's own account names the channel, the value and the limit; shown
+             * to the operator, so printable text only */
+            char detail[RTHS_PROTO_MAX_TEXT + 4];
+            rths_proto_printable(m->u.status.fault_detail, RTHS_PROTO_MAX_TEXT, detail,
+                                 sizeof detail);
+            if (detail[0])
+                snprintf(r->fault_msg, sizeof r->fault_msg, "controller latched a %s fault: %s",
+                         rths_rig_fault_name(r->fault), detail);
+            else
+                snprintf(r->fault_msg, sizeof r->fault_msg, "controller latched a %s fault",
+                         rths_rig_fault_name(r->fault));
         }
         break;
     default:
@@ -420,7 +429,8 @@ static int connect_and_hello(remote *r, rths_error *err) {
     r->h = reply.u.hello_reply.sample_period_s;
     r->watchdog_s = reply.u.hello_reply.watchdog_s;
     r->noise_m = reply.u.hello_reply.noise_level_m;
-    snprintf(r->controller_name, sizeof r->controller_name, "%s", reply.u.hello_reply.name);
+    rths_proto_printable(reply.u.hello_reply.name, RTHS_PROTO_MAX_TEXT - 3, r->controller_name,
+                         sizeof r->controller_name);
     if ((rc = subscribe(r, RTHS_SUBSCRIBE_PERIODS, 1, &reply, err))) return rc;
     rths_msg_init(&m, RTHS_MSG_GET_STATUS, 0);
     if ((rc = request(r, &m, RTHS_MSG_STATUS, &reply, err))) return rc;
@@ -544,6 +554,9 @@ static void to_period(const rths_proto_period *p, rths_period *o) {
     o->frequency_hz = p->frequency_hz;
     o->end_time_s = p->end_time_s;
     o->samples = (int)p->samples;
+    o->late_samples = (int)p->late_samples;
+    o->clipped_demand_samples = (int)p->clipped_demand_samples;
+    o->saturated_sensor_samples = (int)p->saturated_sensor_samples;
     to_fourier(&p->phys, &o->phys);
     to_fourier(&p->num, &o->num);
     to_fourier(&p->force, &o->force);

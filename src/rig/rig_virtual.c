@@ -63,11 +63,14 @@ static void pace_wait(virtual_rig *v) {
 }
 
 static int fault_error(virtual_rig *v, rths_error *err) {
-    rths_rig_fault f = rths_controller_fault(v->ctrl);
+    rths_fault_detail detail;
+    char text[256];
+    rths_controller_fault_detail(v->ctrl, &detail);
+    rths_fault_detail_format(&detail, text, sizeof text);
     return rths_error_set(err, RTHS_EFAIL,
                           "virtual rig fault at t = %.4f s: %s (limits in controller.limits "
                           "and rig.actuator.limits); the demand was ramped to zero",
-                          rths_controller_time_s(v->ctrl), rths_rig_fault_name(f));
+                          rths_controller_time_s(v->ctrl), text);
 }
 
 static int v_set_forcing(void *self, double frequency_hz, double amplitude_n, rths_error *err) {

@@ -73,6 +73,8 @@ static int read_options(frf_state *st, rths_error *err) {
     rths_continuation_defaults(&st->cont);
     st->cont.model_predictor = !st->paper;
     int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
+    /* --force also accepts a point below the measured noise floor, flagged in frf.csv */
+    st->newton.accept_below_noise = opt->force;
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
     if (!rc) rc = check_sweep_range(st, err);

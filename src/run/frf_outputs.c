@@ -66,7 +66,8 @@ const char *const rths_run_frf_columns[RTHS_RUN_FRF_COLUMNS] = {"point",
                                                                 "late_samples",
                                                                 "clipped_demand_samples",
                                                                 "saturated_sensor_samples",
-                                                                "resumed"};
+                                                                "resumed",
+                                                                "below_noise_floor"};
 
 void rths_run_frf_row(const rths_point *pt, double *row) {
     const rths_fourier *ph = &pt->sol.eval.phys, *nu = &pt->sol.eval.num;
@@ -85,7 +86,7 @@ void rths_run_frf_row(const rths_point *pt, double *row) {
         rths_point_stable(pt),
         /* the tail (run.h) */
         (double)acc->late_samples, (double)acc->clipped_demand_samples,
-        (double)acc->saturated_sensor_samples, pt->resumed};
+        (double)acc->saturated_sensor_samples, pt->resumed, pt->sol.below_noise_floor};
     memcpy(row, values, sizeof values);
 }
 

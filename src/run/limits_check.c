@@ -144,6 +144,9 @@ int frf_plan_within_limits(frf_state *st, rths_error *err) {
     rths_controller_options copt;
     rths_controller_defaults(&copt);
     if ((rc = rths_controller_config_read(st->opt->cfg, &copt, err))) return rc;
+    /* the share of late samples an evaluation may hold: the controller's key, enforced by the
+     * host's evaluations (the virtual rig runs on a simulated clock and has none) */
+    st->settle.max_late_share = copt.max_overrun_share;
     /* the peak within the run's own range; every harmonic adds to the displacement */
     double f_lo = fmin(st->cont.start_hz, st->cont.end_hz),
            f_hi = fmax(st->cont.start_hz, st->cont.end_hz), peak = 0, peak_hz = 0;
