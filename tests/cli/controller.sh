@@ -89,7 +89,9 @@ done
 # The seed with heavier damping (the transient dies out in seconds of wall-clock time), noise
 # off, and a two-point natural continuation: shared by the controller and both host runs.
 PHYS=(--set "structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]" --set rig.noise=false)
-HOST=(--set continuation.method=natural --set continuation.start_hz=16
+# The controller process runs the simulated plant, whose samples do not depend on when they run:
+# on a test machine that is not real-time the host tolerates late samples (counted, reported).
+HOST=(--set controller.max_overrun_share=1 --set continuation.method=natural --set continuation.start_hz=16
     --set continuation.end_hz=16.2 --set continuation.initial_step_hz=0.1
     --set continuation.max_step_hz=0.1 --set continuation.max_points=2
     --set iteration.rel_tolerance=1e-6)
@@ -274,6 +276,7 @@ grep -q $'\x1b' "$tmp/ctl2.err" && fail "an escape sequence reached the console"
 # analytic FRF up to 0.37 % (amplitude) and 0.85 % (complex) over TCP, 0.064 % and 0.074 %
 # in-process.
 "$RTHS" frf "$CFG2" --out "$tmp/remote2" --rig "tcp://127.0.0.1:$port" --set rig.noise=false \
+    --set controller.max_overrun_share=1 \
     --quiet >"$tmp/frf2_remote.out" 2>"$tmp/frf2_remote.err" || fail "two-DoF rths frf over tcp failed"
 "$RTHS" frf "$CFG2" --out "$tmp/local2" --set rig.noise=false --quiet \
     >"$tmp/frf2_local.out" 2>"$tmp/frf2_local.err" || fail "two-DoF rths frf in-process failed"
@@ -405,6 +408,18 @@ ok = all(0 < late <= samples and clipped == 0 and saturated == 0 for samples, la
 sys.exit(0 if ok else 1)
 PY
 cat "$tmp/late.out"
+# ...and a hybrid test on that loop is refused: rths frf exits 1 naming the late samples
+# (issue 24, acceptance; controller.max_overrun_share at its default 0)
+"$RTHS" frf "$CFG" --out "$tmp/slow_frf" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" \
+    --set continuation.method=natural --set continuation.start_hz=16 \
+    --set continuation.end_hz=16.2 --set continuation.initial_step_hz=0.1 \
+    --set continuation.max_step_hz=0.1 --quiet >"$tmp/slow_frf.out" 2>"$tmp/slow_frf.err"
+rc=$?
+[ "$rc" -eq 1 ] || fail "rths frf on an overrunning loop: exit $rc, expected 1"
+grep -Eq "rths frf: .*[0-9]+ were late \(share [0-9.]+, controller.max_overrun_share 0\)" \
+    "$tmp/slow_frf.err" || fail "the refusal does not name the late samples: $(cat "$tmp/slow_frf.err")"
+grep -q "late_samples" "$tmp/slow_frf/summary.json" 2>/dev/null ||
+    fail "summary.json does not report the late samples"
 kill -TERM "$pid"
 wait "$pid"
 rc=$?
