@@ -322,7 +322,7 @@ static void test_complex_solve(void **state) {
  * translations of very different stiffness). Skipped without python3 and numpy. */
 static void test_frame_modes_vs_dense(void **state) {
     (void)state;
-    if (system("python3 -c 'import numpy' 2>/dev/null")) {
+    if (system("/usr/bin/python3 -c 'import numpy' 2>/dev/null")) {
         skip();
         return;
     }
@@ -330,10 +330,11 @@ static void test_frame_modes_vs_dense(void **state) {
     for (int q = 0; q < 2; q++) {
         char dir[] = "/tmp/rths_test_sparse_XXXXXX", cmd[512], path[300];
         assert_non_null(mkdtemp(dir));
-        snprintf(cmd, sizeof cmd,
-                 "python3 tools/gen_frame3d.py --nx 3 --ny 2 --nz 3 --elements-per-member 2 "
-                 "--mass %s --seed 9 %s >/dev/null",
-                 masses[q], dir);
+        snprintf(
+            cmd, sizeof cmd,
+            "/usr/bin/python3 tools/gen_frame3d.py --nx 3 --ny 2 --nz 3 --elements-per-member 2 "
+            "--mass %s --seed 9 %s >/dev/null",
+            masses[q], dir);
         assert_int_equal(system(cmd), 0);
         rths_sparse_sym ks, ms;
         rths_error err;
