@@ -89,10 +89,19 @@ typedef struct {
     rths_sparse_ordering ordering;
 } rths_sparse_eigs_options;
 rths_sparse_eigs_options rths_sparse_eigs_defaults(void);
+/* What the eigensolver did: the last analysis and factorisation (of K - shift M), the Lanczos
+ * iteration (solves included), how many times it applied (K - shift M)^-1 M. */
+typedef struct {
+    double analysis_s, factor_s, lanczos_s;
+    long factor_entries;
+    int operator_applications;
+    rths_sparse_ordering ordering;
+} rths_sparse_eigs_stats;
 /* On success *found modes: lambda[found] ascending, phi n x found column-major (malloc'ed,
- * mass-normalised: phi^T M phi = I), *phi_out NULL when phi_out is NULL. */
+ * mass-normalised: phi^T M phi = I), *phi_out NULL when phi_out is NULL; stats (may be NULL)
+ * filled. */
 int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
                      const rths_sparse_eigs_options *opt, double **lambda_out, double **phi_out,
-                     int *found, rths_error *err);
+                     int *found, rths_sparse_eigs_stats *stats, rths_error *err);
 
 #endif

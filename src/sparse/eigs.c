@@ -8,6 +8,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 rths_sparse_eigs_options rths_sparse_eigs_defaults(void) {
     return (rths_sparse_eigs_options){.count = 20,
@@ -52,8 +53,9 @@ static void sort_modes(int n, int count, double *lambda, double *phi, double *tm
 
 int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
                      const rths_sparse_eigs_options *opt, double **lambda_out, double **phi_out,
-                     int *found, rths_error *err) {
+                     int *found, rths_sparse_eigs_stats *stats, rths_error *err) {
     *lambda_out = NULL;
+    if (stats) memset(stats, 0, sizeof *stats);
     if (phi_out) *phi_out = NULL;
     *found = 0;
     int n = k->n;
@@ -135,14 +137,19 @@ int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
     iparam[0] = 1;    /* exact shifts */
     iparam[2] = 1000; /* restarts */
     iparam[6] = 3;    /* shift-invert, generalised */
+    struct timespec t0;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    int applications = 0;
     for (;;) {
         dsaupd_c(&ido, "G", n, "LM", nev, opt->tolerance, resid, ncv, v, n, iparam, ipntr, workd,
                  workl, lworkl, &info);
         double *x = workd + ipntr[0] - 1, *y = workd + ipntr[1] - 1;
         if (ido == -1) { /* y = (K - sigma M)^-1 M x */
+            applications++;
             rths_sparse_symv(m, x, y);
             if ((rc = rths_sparse_solve_real(f, y, 1, err))) goto done;
         } else if (ido == 1) { /* M x is already at ipntr[2] */
+            applications++;
             memcpy(y, workd + ipntr[2] - 1, (size_t)n * sizeof *y);
             if ((rc = rths_sparse_solve_real(f, y, 1, err))) goto done;
         } else if (ido == 2) {
@@ -159,6 +166,18 @@ int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
     if (info != 0) {
         rc = arpack_failed("dseupd", info, err);
         goto done;
+    }
+    if (stats) {
+        struct timespec t1;
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        rths_sparse_factor_stats fs = rths_sparse_factor_get_stats(f);
+        stats->analysis_s = fs.analysis_s;
+        stats->factor_s = fs.factor_s;
+        stats->factor_entries = fs.factor_entries;
+        stats->ordering = fs.ordering_used;
+        stats->operator_applications = applications;
+        stats->lanczos_s =
+            (double)(t1.tv_sec - t0.tv_sec) + 1e-9 * (double)(t1.tv_nsec - t0.tv_nsec);
     }
     int converged = iparam[4];
     if (converged < nev) {
