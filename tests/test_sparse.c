@@ -224,9 +224,12 @@ static void test_grid_laplacian_modes(void **state) {
         double *lambda, *phi;
         int found;
         rths_error err;
-        if (rths_sparse_eigs(&ks, &ms, &opt, &lambda, &phi, &found, NULL, &err))
+        rths_sparse_eigs_stats stats;
+        if (rths_sparse_eigs(&ks, &ms, &opt, &lambda, &phi, &found, &stats, &err))
             fail_msg("%s", err.msg);
         assert_int_equal(found, want);
+        /* the ordering asked is the one MUMPS used (INFOG(7)): none silently replaced */
+        assert_int_equal(stats.ordering, orders[o]);
         for (int c = 0; c < want; c++)
             if (fabs(lambda[c] / exact[c] - 1) > 1e-9)
                 fail_msg("%s: mode %d: %.17g, exact %.17g", rths_sparse_ordering_name(orders[o]),

@@ -52,6 +52,20 @@ const char *rths_sparse_ordering_name(rths_sparse_ordering ordering) {
     return "?";
 }
 
+/* The ordering MUMPS reports it used (INFOG(7)): it may fall back when one is not built in. */
+static rths_sparse_ordering ordering_from_infog7(int infog7, rths_sparse_ordering asked) {
+    switch (infog7) {
+    case 0:
+        return RTHS_SPARSE_ORDER_AMD;
+    case 3:
+        return RTHS_SPARSE_ORDER_SCOTCH;
+    case 4:
+        return RTHS_SPARSE_ORDER_PORD;
+    default:
+        return asked;
+    }
+}
+
 static int icntl7(rths_sparse_ordering ordering) {
     switch (ordering) {
     case RTHS_SPARSE_ORDER_PORD:
@@ -237,6 +251,7 @@ int rths_sparse_factor_real(rths_sparse_factor *f, const double *coef, rths_erro
         if (INFOG(f->dm, 1) < 0)
             return mumps_failed("analysis", INFOG(f->dm, 1), INFOG(f->dm, 2), err);
         f->dm_analysed = 1;
+        f->stats.ordering_used = ordering_from_infog7(INFOG(f->dm, 7), f->ordering);
     }
     double t0 = now_s();
     f->dm_factored = 0;
