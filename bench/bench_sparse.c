@@ -1,5 +1,6 @@
 /* sparse: the sparse engine (sparse.h) on 3-D frames from tools/gen_frame3d.py (Euler-Bernoulli
- * 3-D beams, nodes numbered at random, consistent mass) of about 10 000 and 100 000 DoFs: read
+ * 3-D beams, nodes numbered at random, consistent mass) of about 10 000, 60 000 (the 50 x 5 x 40
+ * slab block of issue 26's acceptance) and 100 000 DoFs: read
  * (rths_mtx_read_sparse of K and M), symbolic analysis (SCOTCH ordering), numerical LDL^T of K,
  * the lowest 20 modes by shift-invert Lanczos, each timed, and the process's peak resident memory
  * after each case (getrusage: the peak so far, so the 100k line holds the larger). The generator's
@@ -87,6 +88,8 @@ void rths_bench_sparse(void) {
     printf("%-6s %8s %9s %7s %7s %8s %7s %8s %8s %5s %9s %8s  %s\n", "case", "dofs", "K_nnz",
            "gen_s", "read_s", "analys_s", "fact_s", "lanczos_s", "eigs_s", "ops", "L_Mentry",
            "peak_MB", "f1..f20_hz");
-    run_case("10k", 10, 6, 28);                          /* 1680 free nodes: 10 080 DoFs */
+    run_case("10k", 10, 6, 28); /* 1680 free nodes: 10 080 DoFs */
+    /* the acceptance frame of issue 26: a slab block of 50 x 5 column lines, 40 storeys */
+    if (max_dofs >= 60000) run_case("60k", 50, 5, 40);   /* 10 000 free nodes: 60 000 DoFs */
     if (max_dofs >= 100000) run_case("100k", 50, 5, 67); /* 16 750 free nodes: 100 500 DoFs */
 }

@@ -32,8 +32,11 @@ enum {
 int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, int *cols,
                           rths_error *err);
 
-/* Largest order rths_mtx_read_sparse accepts: its column pointers, 4 bytes per declared column,
- * are the only memory that follows the size line rather than the entries (40 MB at this size). */
+/* Largest order rths_mtx_read_sparse accepts. The only memory that follows the size line rather
+ * than the entries is allocated after every entry has been read and checked: the column pointers
+ * and two work arrays of the CSC build, 12 bytes per declared column (120 MB at this size, for a
+ * file that holds the entries it declares; with RTHS_MTX_POSITIVE_DIAGONAL a file with fewer
+ * entries than its order never gets that far). */
 #define RTHS_MTX_MAX_SPARSE_DIM 10000000
 
 /* Reads a square matrix file into symmetric CSC (lower triangle; a "symmetric" file's one
