@@ -5,7 +5,7 @@
  * the lowest 20 modes by shift-invert Lanczos, each timed, and the process's peak resident memory
  * after each case (getrusage: the peak so far, so the 100k line holds the larger). The generator's
  * own time is printed apart. Run from the source tree (it calls tools/gen_frame3d.py with
- * /usr/bin/python3); RTHS_BENCH_SPARSE_MAX_DOFS=20000 skips the large case. */
+ * /usr/bin/python3); RTHS_BENCH_SPARSE_MAX_DOFS=20000 skips the large cases. */
 #include "rths/mtx.h"
 #include "rths/sparse.h"
 

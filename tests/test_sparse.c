@@ -303,6 +303,10 @@ static void test_complex_solve(void **state) {
         }
         if (diff > 1e-10 * size) fail_msg("w = %g: max difference %.3g of %.3g", w, diff, size);
     }
+    /* one symbolic analysis, three numerical factorisations */
+    rths_sparse_factor_stats fs = rths_sparse_factor_get_stats(f);
+    assert_int_equal(fs.analyses, 1);
+    assert_int_equal(fs.factorisations, 3);
     /* the real path through the same factor: K x = b against dgesv */
     double coef[3] = {1, 0, 0};
     double *xr = malloc((size_t)n * sizeof *xr), *br = malloc((size_t)n * sizeof *br);
@@ -311,6 +315,9 @@ static void test_complex_solve(void **state) {
         xr[i] = br[i] = rths_rng_uniform(&rng);
     if (rths_sparse_factor_real(f, coef, &err)) fail_msg("%s", err.msg);
     assert_int_equal(rths_sparse_factor_negative_pivots(f), 0); /* K positive definite */
+    fs = rths_sparse_factor_get_stats(f);
+    assert_int_equal(fs.analyses, 2); /* the real arithmetic's own analysis */
+    assert_int_equal(fs.factorisations, 4);
     if (rths_sparse_solve_real(f, xr, 1, &err)) fail_msg("%s", err.msg);
     assert_int_equal(LAPACKE_dgesv(LAPACK_COL_MAJOR, n, 1, kd, n, ip2, br, n), 0);
     for (int i = 0; i < n; i++)

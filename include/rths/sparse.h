@@ -67,9 +67,11 @@ int rths_sparse_solve_complex(rths_sparse_factor *f, double complex *rhs, int nr
 /* Negative pivots of the last real factorisation: by Sylvester's law of inertia, for K - s M with
  * M positive definite, the number of eigenvalues of K x = lambda M x below s. */
 int rths_sparse_factor_negative_pivots(const rths_sparse_factor *f);
-/* Seconds of the last analysis and numerical factorisation, and the factor's entries. */
+/* Seconds of the last analysis and numerical factorisation, the factor's entries (real), and
+ * how many symbolic analyses and numerical factorisations ran (both arithmetics together). */
 typedef struct {
     double analysis_s, factor_s;
+    int analyses, factorisations;
     long factor_entries;
     rths_sparse_ordering ordering_used;
 } rths_sparse_factor_stats;

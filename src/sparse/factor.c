@@ -247,6 +247,7 @@ int rths_sparse_factor_real(rths_sparse_factor *f, const double *coef, rths_erro
         double t0 = now_s();
         f->dm.job = 1;
         dmumps_c(&f->dm);
+        f->stats.analyses++;
         f->stats.analysis_s = now_s() - t0;
         if (INFOG(f->dm, 1) < 0)
             return mumps_failed("analysis", INFOG(f->dm, 1), INFOG(f->dm, 2), err);
@@ -257,6 +258,7 @@ int rths_sparse_factor_real(rths_sparse_factor *f, const double *coef, rths_erro
     f->dm_factored = 0;
     f->dm.job = 2;
     dmumps_c(&f->dm);
+    f->stats.factorisations++;
     f->stats.factor_s = now_s() - t0;
     if (INFOG(f->dm, 1) < 0)
         return mumps_failed("factorisation", INFOG(f->dm, 1), INFOG(f->dm, 2), err);
@@ -315,6 +317,7 @@ int rths_sparse_factor_complex(rths_sparse_factor *f, const double complex *coef
         double t0 = now_s();
         f->zm.job = 1;
         zmumps_c(&f->zm);
+        f->stats.analyses++;
         f->stats.analysis_s = now_s() - t0;
         if (INFOG(f->zm, 1) < 0)
             return mumps_failed("analysis", INFOG(f->zm, 1), INFOG(f->zm, 2), err);
@@ -324,6 +327,7 @@ int rths_sparse_factor_complex(rths_sparse_factor *f, const double complex *coef
     f->zm_factored = 0;
     f->zm.job = 2;
     zmumps_c(&f->zm);
+    f->stats.factorisations++;
     f->stats.factor_s = now_s() - t0;
     if (INFOG(f->zm, 1) < 0)
         return mumps_failed("factorisation", INFOG(f->zm, 1), INFOG(f->zm, 2), err);
