@@ -185,6 +185,63 @@ static void test_chain_modes(void **state) {
     free(perm);
 }
 
+/* A free-free chain (no base spring: K singular, one rigid mode) of n masses m, springs k:
+ * lambda_j = 4 k/m sin^2((j - 1) pi / (2 n)), j = 1..n. Numbered in order, its LDL^T at shift 0
+ * meets an exactly zero pivot: refused, naming the singular matrix (not NaN modes). Numbered at
+ * random, with a negative shift, the rigid mode comes out at 0 (to rounding of the stiffness
+ * scale) and the elastic ones at the closed form. */
+static void free_chain(int n, double k, double m, const int *perm, rths_sparse_sym *ks,
+                       rths_sparse_sym *ms) {
+    triplets kt = {0}, mt = {0};
+    for (int e = 1; e < n; e++) {
+        push_sym(&kt, perm, e - 1, e - 1, k);
+        push_sym(&kt, perm, e, e, k);
+        push_sym(&kt, perm, e, e - 1, -k);
+    }
+    for (int e = 0; e < n; e++)
+        push_sym(&mt, perm, e, e, m);
+    build(&kt, n, ks);
+    build(&mt, n, ms);
+    free_triplets(&kt), free_triplets(&mt);
+}
+
+static void test_free_chain_shift(void **state) {
+    (void)state;
+    const int n = 500;
+    const double k = 1e4, m = 2.0;
+    int *identity = malloc((size_t)n * sizeof *identity);
+    for (int i = 0; i < n; i++)
+        identity[i] = i;
+    rths_sparse_sym ks, ms;
+    free_chain(n, k, m, identity, &ks, &ms);
+    rths_sparse_eigs_options opt = rths_sparse_eigs_defaults();
+    opt.count = 6;
+    double *lambda, *phi;
+    int found;
+    rths_error err;
+    assert_int_equal(rths_sparse_eigs(&ks, &ms, &opt, &lambda, &phi, &found, NULL, &err),
+                     RTHS_EFAIL);
+    assert_non_null(strstr(err.msg, "numerically singular (1 null pivots of 500)"));
+    rths_sparse_free(&ks), rths_sparse_free(&ms);
+
+    int *perm = random_permutation(n, 13);
+    free_chain(n, k, m, perm, &ks, &ms);
+    opt.shift = -0.1 * k / m * pow(M_PI / (2.0 * n), 2); /* a tenth of the first elastic one */
+    if (rths_sparse_eigs(&ks, &ms, &opt, &lambda, &phi, &found, NULL, &err))
+        fail_msg("%s", err.msg);
+    assert_int_equal(found, 6);
+    assert_true(fabs(lambda[0]) < 1e-12 * 4 * k / m);
+    for (int j = 2; j <= found; j++) {
+        double s = sin((j - 1) * M_PI / (2.0 * n)), exact = 4 * k / m * s * s;
+        if (fabs(lambda[j - 1] / exact - 1) > 1e-9)
+            fail_msg("mode %d: %.17g, exact %.17g", j, lambda[j - 1], exact);
+    }
+    check_modes(&ks, &ms, found, lambda, phi);
+    free(lambda), free(phi);
+    rths_sparse_free(&ks), rths_sparse_free(&ms);
+    free(perm), free(identity);
+}
+
 /* The 5-point Laplacian on an nx x ny grid with Dirichlet edges, M = I:
  * lambda(p, q) = 4 sin^2(p pi / (2 (nx + 1))) + 4 sin^2(q pi / (2 (ny + 1))). */
 static int cmp_double(const void *a, const void *b) {
@@ -479,6 +536,7 @@ static void test_mtx_sparse_memory_bound(void **state) {
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_chain_modes),
+        cmocka_unit_test(test_free_chain_shift),
         cmocka_unit_test(test_grid_laplacian_modes),
         cmocka_unit_test(test_complex_solve),
         cmocka_unit_test(test_frame_modes_vs_dense),

@@ -191,8 +191,11 @@ void rths_sparse_factor_destroy(rths_sparse_factor *f) {
     free(f);
 }
 
-/* Silence MUMPS (it prints to stdout by default), choose the ordering, and give the numerical
- * phase more workspace than the analysis estimates (pivoting in LDL^T of an indefinite shift). */
+/* Silence MUMPS (it prints to stdout by default), choose the ordering, give the numerical phase
+ * more workspace than the analysis estimates (pivoting in LDL^T of an indefinite shift), and have
+ * it count null pivots: without ICNTL(24) an exactly singular K (a free-floating model at shift 0)
+ * factorises "successfully" and the solves return garbage. The threshold (CNTL(3) = 0) is
+ * 1e-5 eps ||A||: a shift close to an eigenvalue, which shift-invert needs to work, passes. */
 #define CONFIGURE(id, f)                                                                           \
     do {                                                                                           \
         ICNTL(id, 1) = -1;                                                                         \
@@ -201,6 +204,7 @@ void rths_sparse_factor_destroy(rths_sparse_factor *f) {
         ICNTL(id, 4) = 0;                                                                          \
         ICNTL(id, 7) = icntl7((f)->ordering);                                                      \
         ICNTL(id, 14) = 50;                                                                        \
+        ICNTL(id, 24) = 1; /* count null pivots (INFOG(28)), do not divide by them */              \
         (id).n = (f)->n;                                                                           \
         (id).nnz = (f)->nnz;                                                                       \
         (id).irn = (f)->irn;                                                                       \
@@ -262,6 +266,12 @@ int rths_sparse_factor_real(rths_sparse_factor *f, const double *coef, rths_erro
     f->stats.factor_s = now_s() - t0;
     if (INFOG(f->dm, 1) < 0)
         return mumps_failed("factorisation", INFOG(f->dm, 1), INFOG(f->dm, 2), err);
+    if (INFOG(f->dm, 28) > 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "sparse factorisation: the matrix is numerically singular (%d null "
+                              "pivots of %d): a shift equal to an eigenvalue, or a free-floating "
+                              "model factorised without a shift",
+                              INFOG(f->dm, 28), f->n);
     /* INFOG(29): entries in the factors (negative: millions) */
     long fe = INFOG(f->dm, 29);
     f->stats.factor_entries = fe < 0 ? -fe * 1000000L : fe;
@@ -331,6 +341,12 @@ int rths_sparse_factor_complex(rths_sparse_factor *f, const double complex *coef
     f->stats.factor_s = now_s() - t0;
     if (INFOG(f->zm, 1) < 0)
         return mumps_failed("factorisation", INFOG(f->zm, 1), INFOG(f->zm, 2), err);
+    if (INFOG(f->zm, 28) > 0)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "sparse factorisation: the matrix is numerically singular (%d null "
+                              "pivots of %d): a shift equal to an eigenvalue, or a free-floating "
+                              "model factorised without a shift",
+                              INFOG(f->zm, 28), f->n);
     f->zm_factored = 1;
     return RTHS_OK;
 }
