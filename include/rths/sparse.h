@@ -101,7 +101,8 @@ typedef struct {
 } rths_sparse_eigs_stats;
 /* On success *found modes: lambda[found] ascending, phi n x found column-major (malloc'ed,
  * mass-normalised: phi^T M phi = I), *phi_out NULL when phi_out is NULL; stats (may be NULL)
- * filled. */
+ * filled. One call at a time per process: ARPACK's reverse communication keeps its state in
+ * Fortran SAVE variables, so two threads must not run it together. */
 int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
                      const rths_sparse_eigs_options *opt, double **lambda_out, double **phi_out,
                      int *found, rths_sparse_eigs_stats *stats, rths_error *err);
