@@ -13,6 +13,7 @@ void rths_bench_model(void) __attribute__((weak));
 void rths_bench_plant(void) __attribute__((weak));
 void rths_bench_view(void) __attribute__((weak));
 void rths_bench_step_size(void) __attribute__((weak));
+void rths_bench_sparse(void) __attribute__((weak));
 
 typedef struct {
     const char *name;
@@ -29,6 +30,7 @@ int main(int argc, char **argv) {
         {"plant", rths_bench_plant},
         {"view", rths_bench_view},
         {"step_size", rths_bench_step_size},
+        {"sparse", rths_bench_sparse},
     };
     const char *filter = argc > 1 ? argv[1] : NULL;
     if (filter && (!strcmp(filter, "--help") || !strcmp(filter, "-h"))) {

@@ -11,6 +11,7 @@
 #define RTHS_MTX_H
 
 #include "rths/core.h"
+#include "rths/sparse.h"
 
 /* Largest dimension accepted: a dense n x n double matrix of this size is 1.3 GB. */
 #define RTHS_MTX_MAX_DIM 12000
@@ -30,5 +31,19 @@ enum {
  * present: a short file declaring a large size is refused without allocating it. */
 int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, int *cols,
                           rths_error *err);
+
+/* Largest order rths_mtx_read_sparse accepts. The only memory that follows the size line rather
+ * than the entries is allocated after every entry has been read and checked: the column pointers
+ * and two work arrays of the CSC build, 12 bytes per declared column (120 MB at this size, for a
+ * file that holds the entries it declares; with RTHS_MTX_POSITIVE_DIAGONAL a file with fewer
+ * entries than its order never gets that far). */
+#define RTHS_MTX_MAX_SPARSE_DIM 10000000
+
+/* Reads a square matrix file into symmetric CSC (lower triangle; a "symmetric" file's one
+ * triangle, or a "general" file that must then be symmetric, checked), streaming: the entries are
+ * held as triplets as they are read, so memory follows the entries present, not the declared
+ * size; with RTHS_MTX_POSITIVE_DIAGONAL a file with fewer entries than its order is refused before
+ * anything of that order is allocated. Errors as rths_mtx_read's. */
+int rths_mtx_read_sparse(const char *path, int flags, rths_sparse_sym *out, rths_error *err);
 
 #endif

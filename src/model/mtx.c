@@ -123,17 +123,16 @@ static int parse_header(mtx_reader *r, mtx_kind *kind, rths_error *err) {
     return RTHS_OK;
 }
 
-static int read_size(mtx_reader *r, const mtx_kind *kind, int *rows, int *cols, long *entries,
-                     rths_error *err) {
+static int read_size(mtx_reader *r, const mtx_kind *kind, int max_dim, int *rows, int *cols,
+                     long *entries, rths_error *err) {
     if (!next_data_line(r)) return bad(r, err, "missing size line");
     double v[3];
     int rc = parse_fields(r, kind->coordinate ? 3 : 2, v, err);
     if (rc) return rc;
     char msg[160];
     for (int k = 0; k < 2; k++)
-        if (v[k] != floor(v[k]) || v[k] < 1 || v[k] > RTHS_MTX_MAX_DIM) {
-            snprintf(msg, sizeof msg, "size %.17g is not a whole number in 1..%d", v[k],
-                     RTHS_MTX_MAX_DIM);
+        if (v[k] != floor(v[k]) || v[k] < 1 || v[k] > max_dim) {
+            snprintf(msg, sizeof msg, "size %.17g is not a whole number in 1..%d", v[k], max_dim);
             return bad(r, err, msg);
         }
     *rows = (int)v[0];
@@ -279,23 +278,43 @@ int rths_mtx_read(const char *path, double **out, int *rows, int *cols, rths_err
     return rths_mtx_read_checked(path, 0, out, rows, cols, err);
 }
 
+/* Reads the whole file into triplets (checked: header, size, every entry, the count), with
+ * sizes up to max_dim; r->f is closed and r->line freed on return. */
+static int read_entries(mtx_reader *r, int max_dim, mtx_kind *kind, int *rows, int *cols,
+                        mtx_entries *t, rths_error *err) {
+    r->f = fopen(r->path, "r");
+    if (!r->f)
+        return rths_error_set(err, RTHS_EINPUT, "%s: cannot open: %s", r->path, strerror(errno));
+    long entries = 0;
+    int rc = parse_header(r, kind, err);
+    if (!rc) rc = read_size(r, kind, max_dim, rows, cols, &entries, err);
+    if (!rc)
+        rc = kind->coordinate ? read_coordinate(r, kind, *rows, *cols, entries, t, err)
+                              : read_array(r, kind, *rows, entries, t, err);
+    if (!rc && next_data_line(r)) rc = bad(r, err, "more entries than the size line announces");
+    free(r->line);
+    r->line = NULL;
+    fclose(r->f);
+    r->f = NULL;
+    return rc;
+}
+
+static void free_entries(mtx_entries *t) {
+    free(t->i);
+    free(t->j);
+    free(t->v);
+    memset(t, 0, sizeof *t);
+}
+
 int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, int *cols,
                           rths_error *err) {
     *out = NULL;
     *rows = *cols = 0;
     mtx_reader r = {.path = path};
-    r.f = fopen(path, "r");
-    if (!r.f) return rths_error_set(err, RTHS_EINPUT, "%s: cannot open: %s", path, strerror(errno));
     mtx_kind kind = {0};
     mtx_entries t = {0};
-    long entries = 0;
     double *m = NULL;
-    int rc = parse_header(&r, &kind, err);
-    if (!rc) rc = read_size(&r, &kind, rows, cols, &entries, err);
-    if (!rc)
-        rc = kind.coordinate ? read_coordinate(&r, &kind, *rows, *cols, entries, &t, err)
-                             : read_array(&r, &kind, *rows, entries, &t, err);
-    if (!rc && next_data_line(&r)) rc = bad(&r, err, "more entries than the size line announces");
+    int rc = read_entries(&r, RTHS_MTX_MAX_DIM, &kind, rows, cols, &t, err);
     if (!rc && (flags & RTHS_MTX_POSITIVE_DIAGONAL)) {
         if (*rows != *cols)
             rc = rths_error_set(err, RTHS_EINPUT, "%s: must be square (is %d x %d)", path, *rows,
@@ -310,11 +329,7 @@ int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, 
         else
             assemble(&kind, *rows, &t, m);
     }
-    free(t.i);
-    free(t.j);
-    free(t.v);
-    free(r.line);
-    fclose(r.f);
+    free_entries(&t);
     if (rc) {
         rths_mat_free(m);
         *rows = *cols = 0;
@@ -322,4 +337,78 @@ int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, 
     }
     *out = m;
     return RTHS_OK;
+}
+
+/* A general file read as symmetric: every off-diagonal entry (duplicates summed) must equal its
+ * mirror, to rounding of the largest entry (an FE code writing both triangles prints the same
+ * number twice); checked column by column on the two triangles folded onto the lower one. */
+static int check_symmetric(const char *path, const rths_sparse_sym *lower,
+                           const rths_sparse_sym *upper, rths_error *err) {
+    double big = 0;
+    for (int e = 0; e < lower->colptr[lower->n]; e++)
+        big = fmax(big, fabs(lower->value[e]));
+    for (int e = 0; e < upper->colptr[upper->n]; e++)
+        big = fmax(big, fabs(upper->value[e]));
+    double tol = 1e-12 * big;
+    for (int j = 0; j < lower->n; j++) {
+        int a = lower->colptr[j], ae = lower->colptr[j + 1];
+        int b = upper->colptr[j], be = upper->colptr[j + 1];
+        if (a < ae && lower->rowidx[a] == j) a++; /* the diagonal has no mirror */
+        while (a < ae || b < be) {
+            int ia = a < ae ? lower->rowidx[a] : lower->n,
+                ib = b < be ? upper->rowidx[b] : upper->n;
+            int i = ia < ib ? ia : ib;
+            double va = ia == i ? lower->value[a++] : 0, vb = ib == i ? upper->value[b++] : 0;
+            if (fabs(va - vb) > tol)
+                return rths_error_set(err, RTHS_EINPUT,
+                                      "%s: not symmetric: entry (%d,%d) is %.17g but (%d,%d) is "
+                                      "%.17g",
+                                      path, i + 1, j + 1, va, j + 1, i + 1, vb);
+        }
+    }
+    return RTHS_OK;
+}
+
+int rths_mtx_read_sparse(const char *path, int flags, rths_sparse_sym *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    mtx_reader r = {.path = path};
+    mtx_kind kind = {0};
+    mtx_entries t = {0};
+    int rows = 0, cols = 0;
+    int rc = read_entries(&r, RTHS_MTX_MAX_SPARSE_DIM, &kind, &rows, &cols, &t, err);
+    if (!rc && rows != cols)
+        rc = rths_error_set(err, RTHS_EINPUT, "%s: must be square (is %d x %d)", path, rows, cols);
+    /* a positive diagonal needs n entries: refused before anything of the declared size exists */
+    if (!rc && (flags & RTHS_MTX_POSITIVE_DIAGONAL) && t.n < rows)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "%s: declares %d x %d but holds %ld entries: a mass or stiffness "
+                            "matrix needs a positive diagonal term on every DoF",
+                            path, rows, cols, t.n);
+    if (!rc && (flags & RTHS_MTX_POSITIVE_DIAGONAL))
+        rc = check_positive_diagonal(&r, rows, &t, err);
+    if (!rc && kind.symmetric) {
+        rc = rths_sparse_from_triplets(rows, t.n, t.i, t.j, t.v, out, err);
+    } else if (!rc) {
+        /* general: the lower entries (with the diagonal) and the upper ones, each folded onto the
+         * lower triangle, must agree */
+        long nl = 0;
+        for (long e = 0; e < t.n; e++)
+            if (t.i[e] >= t.j[e]) {
+                int ti = t.i[e], tj = t.j[e];
+                double tv = t.v[e];
+                t.i[e] = t.i[nl], t.j[e] = t.j[nl], t.v[e] = t.v[nl];
+                t.i[nl] = ti, t.j[nl] = tj, t.v[nl] = tv;
+                nl++;
+            }
+        rths_sparse_sym upper = {0};
+        rc = rths_sparse_from_triplets(rows, nl, t.i, t.j, t.v, out, err);
+        if (!rc)
+            rc = rths_sparse_from_triplets(rows, t.n - nl, t.i + nl, t.j + nl, t.v + nl, &upper,
+                                           err);
+        if (!rc) rc = check_symmetric(path, out, &upper, err);
+        rths_sparse_free(&upper);
+    }
+    free_entries(&t);
+    if (rc) rths_sparse_free(out);
+    return rc;
 }
