@@ -398,6 +398,22 @@ function renderPlots() {
 
 // ---------- facts ----------
 
+// The accepted points' integrity (frf.csv's late_samples, clipped_demand_samples,
+// saturated_sensor_samples of each point's accepted evaluation): any of them means the coupling
+// did not hold for some samples the point rests on. Kept in window.rthsView.integrity for tests.
+function integrityRow(pts) {
+  const sum = (k) => pts.reduce((s, p) => s + (p[k] || 0), 0);
+  const i = {
+    late: sum("late_samples"),
+    clipped: sum("clipped_demand_samples"),
+    saturated: sum("saturated_sensor_samples"),
+    points: pts.filter((p) => p.late_samples || p.clipped_demand_samples || p.saturated_sensor_samples).length,
+  };
+  window.rthsView.integrity = i;
+  const any = i.late || i.clipped || i.saturated;
+  return ["late / clipped / saturated samples", `${i.late} / ${i.clipped} / ${i.saturated}` + (any ? ` (${i.points} points)` : ""), any ? "bad" : "ok"];
+}
+
 function renderFacts() {
   const pts = state.points, plan = state.status && state.status.plan, l = state.live;
   const fs = pts.map((p) => p.frequency_hz).filter((f) => f != null);
@@ -431,6 +447,7 @@ function renderFacts() {
     ["rig fault", h ? h.fault : "–", h ? (h.fault_code ? "bad" : "ok") : null],
     ["points not converged", `${pts.length - converged}`, pts.length - converged ? "warn" : "ok"],
     ["largest interface error", `${sig(Math.max(0, ...pts.map((p) => p.interface_error_m || 0)), 3)} m`],
+    integrityRow(pts),
     ["live.json", l ? (state.summary || l.state === "ended" ? "final" : `updated ${duration(age)} ago`) : "not written by this run", age > 60 && !state.summary && l && l.state !== "ended" ? "warn" : null],
   ];
   if (h && h.link_stats) {

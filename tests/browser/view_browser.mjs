@@ -29,6 +29,15 @@ async function finishedRun(browser) {
   await page.waitForFunction(() => window.rthsView && window.rthsView.renders > 0 && window.rthsView.drawn.frf.length > 0, { timeout: 15000 });
   await new Promise((r) => setTimeout(r, 800)); // the event stream's first change, then idle
   await drawsCsv(page, path.join(finishedDir, "frf.csv"));
+  // the health panel's integrity counts: frf.csv's columns summed over the points
+  const integrity = await page.evaluate(() => window.rthsView.integrity);
+  const rows = (await import("node:fs")).readFileSync(path.join(finishedDir, "frf.csv"), "utf8").trim().split("\n");
+  const head = rows[0].split(",");
+  const col = (name) => rows.slice(1).reduce((s, r) => s + Number(r.split(",")[head.indexOf(name)]), 0);
+  const want = { late: col("late_samples"), clipped: col("clipped_demand_samples"), saturated: col("saturated_sensor_samples") };
+  if (!integrity || head.indexOf("late_samples") < 0 || integrity.late !== want.late || integrity.clipped !== want.clipped || integrity.saturated !== want.saturated)
+    fail(`integrity counts shown ${JSON.stringify(integrity)}, frf.csv has ${JSON.stringify(want)}`);
+  else ok(`integrity counts shown as frf.csv has them (${JSON.stringify(want)})`);
   const file = path.join(outDir, "view_finished.png");
   await screenshot(page, file);
   const badge = await page.$eval("#state", (e) => e.textContent);
