@@ -876,6 +876,8 @@ int rths_cmd_simulate(int argc, char **argv) {
     rc = plot(rep, title,
               fmax(shown && n_shown ? shown[0].time_s : 0, t_last - 5.0 / a.frequency_hz), max_abs,
               &err);
+    /* results.mat last: a failed write fails the command with its reason (not a warning) */
+    if (!rc) rc = rths_report_write_mat(rep, &err);
 done:
     if (summary) json_object_put(summary);
     free(shown);

@@ -2,6 +2,7 @@
 #include "cli/commands.h"
 #include "rths/core.h"
 
+#include <signal.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -41,6 +42,9 @@ int main(int argc, char **argv) {
         {"view", rths_cmd_view, "live web page of a run folder, finished or in progress"},
     };
     const int n = (int)(sizeof cmds / sizeof cmds[0]);
+    /* a file size limit (ulimit -f) makes write() fail with EFBIG, which every writer reports by
+     * name, instead of killing the process mid-output */
+    signal(SIGXFSZ, SIG_IGN);
     if (argc < 2) {
         print_usage(stderr, cmds, n);
         return RTHS_EINPUT;

@@ -513,6 +513,9 @@ static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
                  st->setup->has_bilinear ? ", bilinear leg" : "");
         rc = frf_plot_frf(st->rep, st, &st->truth, title, err);
     }
+    /* results.mat last, from the outputs above: a failed write (disk full, file size limit) fails
+     * the run with its reason instead of a warning at close */
+    if (!rc) rc = rths_report_write_mat(st->rep, err);
     return rc;
 }
 
