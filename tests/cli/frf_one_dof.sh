@@ -1,7 +1,6 @@
 #!/usr/bin/env bash
-# Needs: src/controller/step.c's numerical_stiffness_definite to accept an all-zero numerical
-# stiffness (rths_cmat_hermitian_eigen_ratio returns -1 for it: "indefinite"); the numerical
-# substructure of a one-DoF split is the free mass p M.
+# The numerical substructure of a one-DoF split is the free mass p M with an all-zero stiffness,
+# which is not indefinite (it was refused as such).
 # Issue 24.8: a single-DoF structure (M = [[5]], C = [[1]], K = [[40000]]) as a hybrid test:
 # `rths frf` said "K indefinite" (exit 2). With the change it runs, exit 0, and every point lies
 # within 1 % of 1 / (K - M w^2 + i C w) away from the 14.24 Hz resonance (the sweep's 10 .. 13 Hz
