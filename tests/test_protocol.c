@@ -279,6 +279,56 @@ static int sample_messages(rths_msg *out) {
     return n;
 }
 
+/* output.dofs' optional last block of a PERIOD: absent without output DoFs (the frame as
+ * before, 57 + 288 n bytes), else u8 m and m fourier blocks (1 + 96 m bytes more); the largest
+ * PERIOD (4 interface DoFs, 16 output DoFs) fits the payload bound; a count of 0 or 17 in the
+ * block is malformed and named. */
+static void test_period_output_dofs(void **state) {
+    (void)state;
+    rths_msg m, back;
+    rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
+    rths_proto_period *p = &m.u.period;
+    p->index = 3, p->frequency_hz = 13.25, p->samples = 755;
+    fill_fourier(&p->phys, 1e-4);
+    p->interface_dofs = 1;
+    uint8_t buf[RTHS_PROTO_MAX_FRAME];
+    size_t used = 0;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 57 + 288);
+    p->interface_dofs = 4;
+    for (int d = 1; d < 4; d++)
+        fill_fourier(&p->phys_dof[d], 1e-3 * d);
+    p->output_dofs = RTHS_PROTO_MAX_OUTPUT_DOFS;
+    for (int j = 0; j < p->output_dofs; j++)
+        fill_fourier(&p->output_dof[j], -2e-5 * (j + 1));
+    size_t len = rths_proto_encode(&m, buf, sizeof buf);
+    assert_int_equal(len, 57 + 288 * 4 + 1 + 96 * RTHS_PROTO_MAX_OUTPUT_DOFS);
+    assert_int_equal(len, 2746);
+    assert_int_equal(rths_proto_decode(buf, len, &back, &used), RTHS_PROTO_OK);
+    assert_memory_equal(&back, &m, sizeof m);
+    /* one output DoF on one interface DoF: then its count byte set to 0 (CRC fixed) */
+    rths_msg_init(&m, RTHS_MSG_PERIOD, 0);
+    p->interface_dofs = 1, p->samples = 10;
+    p->output_dofs = 1;
+    fill_fourier(&p->output_dof[0], 5e-5);
+    len = rths_proto_encode(&m, buf, sizeof buf);
+    assert_int_equal(len, 57 + 288 + 1 + 96);
+    assert_int_equal(rths_proto_decode(buf, len, &back, &used), RTHS_PROTO_OK);
+    assert_int_equal(back.u.period.output_dofs, 1);
+    assert_memory_equal(&back.u.period.output_dof[0], &p->output_dof[0], sizeof p->output_dof[0]);
+    for (int count = 0; count <= 17; count += 17) {
+        size_t at = len - RTHS_PROTO_CRC_SIZE - 96 - 1;
+        buf[at] = (uint8_t)count;
+        uint32_t crc = rths_crc32(buf, len - RTHS_PROTO_CRC_SIZE);
+        for (int b = 0; b < 4; b++)
+            buf[len - RTHS_PROTO_CRC_SIZE + (size_t)b] = (uint8_t)(crc >> (8 * b));
+        assert_int_equal(rths_proto_decode(buf, len, &back, &used), RTHS_PROTO_EPAYLOAD);
+        assert_non_null(strstr(back.problem, "output DoFs; the protocol carries 1..16"));
+    }
+    /* more output DoFs than the protocol carries: nothing is encoded */
+    p->output_dofs = RTHS_PROTO_MAX_OUTPUT_DOFS + 1;
+    assert_int_equal(rths_proto_encode(&m, buf, sizeof buf), 0);
+}
+
 static void test_round_trip_every_type(void **state) {
     (void)state;
     rths_msg msgs[40];
@@ -792,6 +842,7 @@ int main(void) {
         cmocka_unit_test(test_version_one_peer),
         cmocka_unit_test(test_printable_text),
         cmocka_unit_test(test_frame_sizes),
+        cmocka_unit_test(test_period_output_dofs),
         cmocka_unit_test(test_seed_corpus),
         cmocka_unit_test(test_document_tables_match_the_message_list),
     };

@@ -90,6 +90,12 @@ typedef struct rths_controller_options {
        evaluation; 0 (default): none may. Read here so the key belongs to the controller's
        section; the step does not use it, the host does (docs/config/controller.md). */
     double max_overrun_share;
+    /* output.dofs: assembly DoFs (0-based here, 1-based in the file) whose displacements the step
+       sums into every period's output_dof (signals.h); 0 (default): none, and the step does no
+       extra work. Read from the output section, which the controller process shares with the
+       host's configuration. */
+    int output_dofs;
+    int output_dof[RTHS_MAX_OUTPUT_DOFS];
 } rths_controller_options;
 
 /* What latched a fault: the limit and the channel it was beyond, so that every fault message

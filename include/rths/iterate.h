@@ -69,6 +69,10 @@ typedef struct rths_evaluation {
     int interface_dofs;
     rths_fourier phys_dof[RTHS_MAX_INTERFACE_DOFS], num_dof[RTHS_MAX_INTERFACE_DOFS];
     rths_fourier phys_dof_se[RTHS_MAX_INTERFACE_DOFS], num_dof_se[RTHS_MAX_INTERFACE_DOFS];
+    /* output.dofs (rths_period.output_dof): every listed DoF's period-averaged coefficients and
+       their standard errors, m (rad for a rotation), in the list's order; 0: none */
+    int output_dofs;
+    rths_fourier output_dof[RTHS_MAX_OUTPUT_DOFS], output_dof_se[RTHS_MAX_OUTPUT_DOFS];
     /* the periods' integrity counts (rths_period) summed over every period this evaluation
      * read, waiting and averaging, and the controller samples those periods held */
     long late_samples, clipped_demand_samples, saturated_sensor_samples, samples_read;

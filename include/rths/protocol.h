@@ -29,13 +29,14 @@
 #define RTHS_PROTO_MAGIC1 0x54u
 #define RTHS_PROTO_HEADER_SIZE 8
 #define RTHS_PROTO_CRC_SIZE 4
-/* the largest message, a TRACE of 16 samples of 4 interface DoFs, is 2690 bytes */
+/* the largest message, a PERIOD of 4 interface DoFs and 16 output DoFs, is 2746 bytes */
 #define RTHS_PROTO_MAX_PAYLOAD 4096
 #define RTHS_PROTO_MAX_FRAME (RTHS_PROTO_HEADER_SIZE + RTHS_PROTO_MAX_PAYLOAD + RTHS_PROTO_CRC_SIZE)
 #define RTHS_PROTO_MAX_TEXT 200 /* bytes of a name or error message (no NUL on the wire) */
 #define RTHS_PROTO_HARMONICS 5  /* coefficients k = 0..5 per signal in a PERIOD frame */
 #define RTHS_PROTO_MAX_DOFS 4   /* interface DoFs (one actuator each) a frame carries */
 #define RTHS_PROTO_MAX_TRACE_BATCH 16
+#define RTHS_PROTO_MAX_OUTPUT_DOFS 16 /* output.dofs a PERIOD frame carries (signals.h) */
 #define RTHS_PROTO_LATENCY_BINS 16
 
 /* The message list, the one table the codec, the type names and docs/protocol.md's message
@@ -121,7 +122,9 @@
     F(u32, period.saturated_sensor_samples, "u32 saturated-sensor samples")                        \
     F(period_dofs, period,                                                                         \
       "u8 n interface DoFs (1..4), then n × (fourier physical interface displacement (m), "       \
-      "fourier numerical interface displacement (m), fourier load-cell force (N))")
+      "fourier numerical interface displacement (m), fourier load-cell force (N))")                \
+    F(output_dofs, period,                                                                         \
+      "only with output.dofs: u8 m output DoFs (1..16), then m × fourier displacement (m or rad)")
 #define RTHS_PROTO_PAYLOAD_TRACE(F)                                                                \
     F(trace_batch, trace,                                                                          \
       "u8 n interface DoFs (1..4), u8 count (1..16), then count × (f64 time (s), n × (x_phys "   \
@@ -233,6 +236,10 @@ typedef struct rths_proto_period {
     rths_proto_fourier phys_dof[RTHS_PROTO_MAX_DOFS];
     rths_proto_fourier num_dof[RTHS_PROTO_MAX_DOFS];
     rths_proto_fourier force_dof[RTHS_PROTO_MAX_DOFS];
+    /* output.dofs (rths_period.output_dof): the listed DoFs' displacements, m or rad, in the
+     * list's order. 0: none, and the frame ends after the interface DoFs, as without them */
+    int output_dofs;
+    rths_proto_fourier output_dof[RTHS_PROTO_MAX_OUTPUT_DOFS];
 } rths_proto_period;
 
 /* One trace sample: the scalars are the first interface DoF's; for d >= 1, DoF d's signals are

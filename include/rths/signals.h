@@ -13,6 +13,9 @@
 /* Interface DoFs the real-time side drives (one actuator each): PD control, Fourier sums,
  * inertial compensation and grounding control per DoF, in fixed per-sample buffers. */
 #define RTHS_MAX_INTERFACE_DOFS 4
+/* Assembly DoFs reported beside the interface (output.dofs): one more Fourier sum each per
+ * sample, in a fixed per-period buffer. */
+#define RTHS_MAX_OUTPUT_DOFS 16
 
 /* Fourier coefficients of one signal over one whole period, x(t) ~ a[0] + sum_k a[k] cos(k w t) +
  * b[k] sin(k w t), k = 1..RTHS_MAX_HARMONICS (b[0] unused, 0). t is measured from the start of the
@@ -44,6 +47,13 @@ typedef struct rths_period {
     int late_samples;
     int clipped_demand_samples;
     int saturated_sensor_samples;
+    /* output.dofs (docs/method.md, "Outputs"): the displacement (m, or rad for a rotation) of
+     * every listed assembly DoF, in the list's order, summed like the interface's: a numerical
+     * DoF from the controller's own state, a physical DoF below the interface from its sensor
+     * (rths_sensor_sample.displacement_m), an interface DoF from its physical signal (phys_dof).
+     * 0 without output.dofs, or from a producer that carries none. */
+    int output_dofs;
+    rths_fourier output_dof[RTHS_MAX_OUTPUT_DOFS];
 } rths_period;
 
 typedef enum {

@@ -32,6 +32,15 @@ double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz);
  * for a rotation) into amp_m[0..split.n_int-1]; NAN and -1 with a bilinear leg or on failure. */
 int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double *amp_m);
 
+/* Linear structure: the analytic steady response of assembly DoFs dofs[0..count-1] (0-based) at
+ * f_hz, x(t) = amp cos(w t + phase) against the forcing's cos(w t) (a force, or the ground
+ * acceleration: then displacements relative to the ground, as the hybrid test reports them):
+ * amp_m[i] in m (rad for a rotation), phase_rad[i] in (-pi, pi] (may be NULL); NAN and -1 with
+ * a bilinear leg, a DoF out of range or on failure. output.dofs' truth (docs/method.md,
+ * "Outputs"). */
+int rths_truth_linear_dofs_response(const rths_setup *s, double f_hz, int count, const int *dofs,
+                                    double *amp_m, double *phase_rad);
+
 /* Distance of (f_hz, amp_m) from the curve in the plane (10 ln f, ln A), so a 1 % amplitude error
  * and a 0.1 % frequency offset count alike: the vertical relative error where the curve is flat,
  * still meaningful where a folded curve is steep or multi-valued. INFINITY for a non-positive

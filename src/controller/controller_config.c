@@ -64,6 +64,30 @@ static int gain_matrices(rths_config *cfg, rths_controller_options *opt, rths_er
     return rc;
 }
 
+/* output.dofs: assembly DoFs (1-based) reported beside the interface, each once. The assembly's
+ * size is checked at create (rths_controller_create), which knows the setup. */
+static int output_dofs_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
+    int *list = NULL, count = 0;
+    int rc = rths_config_get_int_list(cfg, "output.dofs", 0, &list, &count, err);
+    if (!rc && count > RTHS_MAX_OUTPUT_DOFS)
+        rc = rths_config_error_at(cfg, "output.dofs", err, "%d DoFs; at most %d", count,
+                                  RTHS_MAX_OUTPUT_DOFS);
+    for (int i = 0; !rc && i < count; i++) {
+        if (list[i] < 1)
+            rc = rths_config_error_at(cfg, "output.dofs", err,
+                                      "entry %d is %d; DoFs are numbered from 1", i + 1, list[i]);
+        for (int j = 0; !rc && j < i; j++)
+            if (list[j] == list[i])
+                rc = rths_config_error_at(cfg, "output.dofs", err,
+                                          "DoF %d is listed twice (entries %d and %d)", list[i],
+                                          j + 1, i + 1);
+        if (!rc) opt->output_dof[i] = list[i] - 1;
+    }
+    if (!rc) opt->output_dofs = count;
+    free(list);
+    return rc;
+}
+
 int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
     static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh", "exact_foh",
                                           NULL};
@@ -106,7 +130,8 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = gains_per_dof(cfg, "controller.grounding_kp_per_dof", opt->grounding_kp_dof, err)) ||
         (rc = gains_per_dof(cfg, "controller.grounding_kd_per_dof", opt->grounding_kd_dof, err)) ||
         (rc = gain_matrices(cfg, opt, err)) ||
-        (rc = rths_reduction_config_read(cfg, &opt->reduction, err)))
+        (rc = rths_reduction_config_read(cfg, &opt->reduction, err)) ||
+        (rc = output_dofs_read(cfg, opt, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
     /* the default cutoff (1 kHz, chosen at the seed's 10 kHz) is capped at a quarter of a lower

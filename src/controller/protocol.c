@@ -199,6 +199,17 @@ static void enc_period_dofs(writer *w, const rths_proto_period *p) {
         enc_fourier(w, d ? &p->force_dof[d] : &p->force);
     }
 }
+/* The optional last block of a PERIOD: absent for none (one encoding per message), else 1..16. */
+static void enc_output_dofs(writer *w, const rths_proto_period *p) {
+    if (!p->output_dofs) return;
+    if (p->output_dofs < 0 || p->output_dofs > RTHS_PROTO_MAX_OUTPUT_DOFS) {
+        w->bad = 1;
+        return;
+    }
+    w_u8(w, (unsigned)p->output_dofs);
+    for (int j = 0; j < p->output_dofs && !w->bad; j++)
+        enc_fourier(w, &p->output_dof[j]);
+}
 static void enc_trace_batch(writer *w, const rths_proto_trace *t) {
     unsigned n = w_dofs(w, t->dofs);
     if (t->count < 1 || t->count > RTHS_PROTO_MAX_TRACE_BATCH) {
@@ -430,6 +441,20 @@ static void dec_period_dofs(reader *r, rths_proto_period *p) {
         dec_fourier(r, d ? &p->num_dof[d] : &p->num);
         dec_fourier(r, d ? &p->force_dof[d] : &p->force);
     }
+}
+static void dec_output_dofs(reader *r, rths_proto_period *p) {
+    p->output_dofs = 0;
+    if (r->bad || r->pos == r->n) return; /* absent: none */
+    unsigned m = r_u8(r);
+    if (!r->bad && (m < 1 || m > RTHS_PROTO_MAX_OUTPUT_DOFS)) {
+        snprintf(r->problem, r->problem_cap, "%u output DoFs; the protocol carries 1..%d", m,
+                 RTHS_PROTO_MAX_OUTPUT_DOFS);
+        r->bad = 1;
+    }
+    if (r->bad) return;
+    p->output_dofs = (int)m;
+    for (unsigned j = 0; j < m; j++)
+        dec_fourier(r, &p->output_dof[j]);
 }
 static void dec_trace_batch(reader *r, rths_proto_trace *t) {
     unsigned n = r_dofs(r), c = r_u8(r);

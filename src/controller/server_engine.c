@@ -206,5 +206,8 @@ int rths_engine_pop_period(rths_engine *e, rths_proto_period *out) {
         copy_fourier(&p.num_dof[d], &out->num_dof[d]);
         copy_fourier(&p.force_dof[d], &out->force_dof[d]);
     }
+    out->output_dofs = p.output_dofs <= RTHS_PROTO_MAX_OUTPUT_DOFS ? p.output_dofs : 0;
+    for (int j = 0; j < out->output_dofs; j++)
+        copy_fourier(&p.output_dof[j], &out->output_dof[j]);
     return 1;
 }

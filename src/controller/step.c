@@ -14,6 +14,15 @@
 /* inputs of the numerical model: the force on each interface DoF, then the external forcing */
 #define MAX_INPUTS (RTHS_MAX_INTERFACE_DOFS + 1)
 #define MAX_IFACE RTHS_MAX_INTERFACE_DOFS
+#define MAX_OUT RTHS_MAX_OUTPUT_DOFS
+
+/* Where an output DoF's displacement comes from (output.dofs, rths_period.output_dof). */
+enum {
+    OUT_SENSOR,    /* a physical DoF below the interface: its laser, displacement_m[index] */
+    OUT_INTERFACE, /* an interface DoF: its physical signal, interface DoF index */
+    OUT_STATE,     /* a numerical DoF integrated as it is: state coordinate index */
+    OUT_REDUCED    /* a numerical DoF of a reduced model: out_row . the reduced coordinates */
+};
 
 /* A signal's running Fourier sums: the mean's, then (a_k, b_k) interleaved for k = 1..K, as in
  * harmonic_table, so the per-sample update is one loop of 2K products over both arrays */
@@ -96,6 +105,13 @@ struct rths_controller {
        y_prev[3 d + (0 physical, 1 numerical, 2 force)] */
     sums acc_phys[MAX_IFACE], acc_num[MAX_IFACE], acc_force[MAX_IFACE];
     double y_prev[3 * MAX_IFACE];
+    /* output.dofs: the listed DoFs' sources, their sums and previous samples (n_out 0: none,
+       and the step skips all of it) */
+    int n_out;
+    int out_kind[MAX_OUT], out_index[MAX_OUT];
+    double out_row[MAX_OUT][RTHS_REALTIME_MAX_DOFS];
+    sums acc_out[MAX_OUT];
+    double y_out_prev[MAX_OUT];
     /* The trapezoid summed point by point: a sample point enters the sums once, when both its
      * intervals are known, with their two weights together. left_weight: the weight the point
      * at theta (y_prev) has from the interval that ends there (0 at a period's start);
@@ -141,6 +157,8 @@ void rths_controller_defaults(rths_controller_options *opt) {
     memset(opt->kp_matrix, 0, sizeof opt->kp_matrix);
     memset(opt->kd_matrix, 0, sizeof opt->kd_matrix);
     rths_reduction_defaults(&opt->reduction);
+    opt->output_dofs = 0;
+    memset(opt->output_dof, 0, sizeof opt->output_dof);
 }
 
 double rths_target_peak_bound_m(int harmonics, const double *a, const double *b) {
@@ -203,6 +221,13 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
                               reduce ? reduced_input : input, &a, &b, err);
     c->nn = n;
     c->nx = 2 * n;
+    /* output DoFs of the numerical side: a state coordinate, or a row of q = T r */
+    for (int j = 0; !rc && j < c->n_out; j++) {
+        if (c->out_kind[j] != OUT_STATE || !reduce) continue;
+        c->out_kind[j] = OUT_REDUCED;
+        for (int k = 0; k < n; k++)
+            c->out_row[j][k] = red.transform[c->out_index[j] + (size_t)k * (size_t)s->nn];
+    }
     if (!rc) rc = rths_discretise(c->nx, n_in, a, b, c->h, c->opt.scheme, &d, err);
     if (!rc) {
         memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
@@ -345,6 +370,46 @@ int rths_controller_check_sensed_dofs(const rths_split *s, rths_error *err) {
     return RTHS_OK;
 }
 
+/* Where each of output.dofs is read: the step's own state for a numerical DoF, the sensors for a
+ * physical one. */
+static int output_sources(rths_controller *c, const rths_setup *setup, rths_error *err) {
+    const rths_split *s = &setup->split;
+    c->n_out = c->opt.output_dofs;
+    for (int j = 0; j < c->n_out; j++) {
+        const int dof = c->opt.output_dof[j];
+        int found = 0;
+        if (dof < 0 || dof >= s->n)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "output.dofs: DoF %d is beyond the assembly's %d DoFs", dof + 1,
+                                  s->n);
+        for (int i = 0; !found && i < s->n_phys; i++)
+            if (s->phys_dofs[i] == dof) {
+                if (i >= RTHS_MAX_SENSED_DOFS)
+                    return rths_error_set(err, RTHS_EINPUT,
+                                          "output.dofs: physical DoF %d has no sensor (a sensor "
+                                          "sample carries the first %d physical DoFs)",
+                                          dof + 1, RTHS_MAX_SENSED_DOFS);
+                c->out_kind[j] = OUT_SENSOR, c->out_index[j] = i, found = 1;
+            }
+        for (int d = 0; !found && d < s->n_int; d++)
+            if (s->int_dofs[d] == dof)
+                c->out_kind[j] = OUT_INTERFACE, c->out_index[j] = d, found = 1;
+        for (int i = 0; !found && i < s->n_num; i++)
+            if (s->num_dofs[i] == dof) {
+                if (setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
+                    return rths_error_set(err, RTHS_EINPUT,
+                                          "output.dofs: numerical DoF %d is not integrated in "
+                                          "real time (split.numerical_solver: frequency)",
+                                          dof + 1);
+                c->out_kind[j] = OUT_STATE, c->out_index[j] = s->n_int + i, found = 1;
+            }
+        if (!found)
+            return rths_error_set(err, RTHS_EINPUT, "output.dofs: DoF %d belongs to no side",
+                                  dof + 1);
+    }
+    return RTHS_OK;
+}
+
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
                            rths_controller **out, rths_error *err) {
     *out = NULL;
@@ -413,6 +478,11 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         c->sensed_dof[i] = 1 + (i < s->n_phys ? s->phys_dofs[i] : s->int_dofs[i - s->n_phys]);
     for (int d = 0; d < c->ni; d++)
         c->int_dof[d] = 1 + s->int_dofs[d];
+    rc = output_sources(c, setup, err);
+    if (rc) {
+        free(c);
+        return rc;
+    }
     c->forcing_index = forcing_interface > 0 ? forcing_interface : 0;
     for (int i = 0; i < s->n_num; i++)
         if (s->num_dofs[i] == setup->forcing_dof) c->forcing_index = s->n_int + i;
@@ -558,6 +628,7 @@ static void clear_sums(rths_controller *c) {
     memset(c->acc_phys, 0, sizeof c->acc_phys);
     memset(c->acc_num, 0, sizeof c->acc_num);
     memset(c->acc_force, 0, sizeof c->acc_force);
+    memset(c->acc_out, 0, sizeof c->acc_out);
     c->period_samples = 0;
     c->late_samples = c->clipped_demand_samples = c->saturated_sensor_samples = 0;
     c->left_weight = 0; /* the point at theta opens the period */
@@ -585,6 +656,9 @@ static void publish(rths_controller *c, double end_time) {
     p.phys = p.phys_dof[0];
     p.num = p.num_dof[0];
     p.force = p.force_dof[0];
+    p.output_dofs = c->n_out;
+    for (int j = 0; j < c->n_out; j++)
+        sums_to_fourier(&c->acc_out[j], &p.output_dof[j]);
     if (!rths_spsc_push(&c->ring, &p)) atomic_fetch_add(&c->dropped, 1);
     clear_sums(c);
 }
@@ -839,12 +913,14 @@ static void transformed_demands(rths_controller *c, const double *target, const 
 /* The three signals (physical, numerical, force) of every interface DoF at the phase of table t
  * into the sums with weight w. */
 static void accumulate_signals(rths_controller *c, const harmonic_table *t, double w,
-                               const double *y) {
+                               const double *y, const double *y_out) {
     for (int d = 0; d < c->ni; d++) {
         accumulate_point(&c->acc_phys[d], t, w, y[3 * d]);
         accumulate_point(&c->acc_num[d], t, w, y[3 * d + 1]);
         accumulate_point(&c->acc_force[d], t, w, y[3 * d + 2]);
     }
+    for (int j = 0; j < c->n_out; j++)
+        accumulate_point(&c->acc_out[j], t, w, y_out[j]);
 }
 
 /* Fourier sums over whole periods (trapezoid in theta, exact period ends by interpolation); at
@@ -852,12 +928,14 @@ static void accumulate_signals(rths_controller *c, const harmonic_table *t, doub
  * [theta0, theta1], cos/sin of k theta1 in the table other than tables[at_theta]. The point at
  * theta0 (y_prev) enters the sums now, with the weight of both its intervals; the point at theta1
  * waits for its next one. */
-static void update_fourier(rths_controller *c, double theta0, double theta1, const double *y) {
+static void update_fourier(rths_controller *c, double theta0, double theta1, const double *y,
+                           const double *y_out) {
     if (!(c->omega > 0)) return;
     const double two_pi = 2 * M_PI;
     if (theta1 < two_pi) {
         const double w = (theta1 - theta0) / two_pi;
-        accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w, c->y_prev);
+        accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w, c->y_prev,
+                           c->y_out_prev);
         c->left_weight = w;
         c->period_samples++;
         c->theta = theta1;
@@ -868,11 +946,14 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
     harmonic_table at_zero;
     harmonic_table_init(&at_zero, 1.0, 0.0);
     const double alpha = (two_pi - theta0) / (theta1 - theta0), w_end = (two_pi - theta0) / two_pi;
-    double yb[3 * MAX_IFACE] = {0};
+    double yb[3 * MAX_IFACE] = {0}, yb_out[MAX_OUT];
     for (int i = 0; i < 3 * c->ni; i++)
         yb[i] = c->y_prev[i] + alpha * (y[i] - c->y_prev[i]);
-    accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w_end, c->y_prev);
-    accumulate_signals(c, &at_zero, w_end, yb);
+    for (int j = 0; j < c->n_out; j++)
+        yb_out[j] = c->y_out_prev[j] + alpha * (y_out[j] - c->y_out_prev[j]);
+    accumulate_signals(c, &c->tables[c->at_theta], c->left_weight + w_end, c->y_prev,
+                       c->y_out_prev);
+    accumulate_signals(c, &at_zero, w_end, yb, yb_out);
     c->period_samples++;
     for (int d = 0; d < c->ni; d++)
         c->static_offset[d] = c->acc_phys[d].mean;
@@ -884,7 +965,7 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
     }
     /* the next period opens at theta = 0 with yb; the point at rest = theta1 - 2 pi waits */
     const double rest = theta1 - two_pi;
-    accumulate_signals(c, &at_zero, rest / two_pi, yb);
+    accumulate_signals(c, &at_zero, rest / two_pi, yb, yb_out);
     set_phase(c, rest);
     c->left_weight = rest / two_pi;
     c->at_boundary = 1;
@@ -903,6 +984,27 @@ static void numerical_forces(rths_controller *c, const measured *m, double cos1,
     }
     c->grounding_have = 1;
     u[c->ni] = c->forcing_now * cos1;
+}
+
+/* Output DoF j's displacement this sample (after the numerical step: the state at theta1, as the
+ * interface's xi). A sensor the device does not fill reads NaN, which the host reports as such. */
+static double output_displacement(const rths_controller *c, int j, const rths_sensor_sample *in,
+                                  const measured *m) {
+    const int i = c->out_index[j];
+    switch (c->out_kind[j]) {
+    case OUT_SENSOR:
+        return i < in->n ? in->displacement_m[i] : NAN;
+    case OUT_INTERFACE:
+        return m->x[i];
+    case OUT_STATE:
+        return c->host_numerical ? NAN : c->z[i];
+    default: {
+        double x = 0;
+        for (int k = 0; k < c->nn; k++)
+            x += c->out_row[j][k] * c->z[k];
+        return x;
+    }
+    }
 }
 
 double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
@@ -942,11 +1044,16 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
         y[3 * d + 1] = c->host_numerical ? f_interface[d] : xi[d];
         y[3 * d + 2] = m.f_lc[d];
     }
+    double y_out[MAX_OUT];
+    for (int j = 0; j < c->n_out; j++)
+        y_out[j] = output_displacement(c, j, in, &m);
     c->at_boundary = 0;
     c->time_s += c->h;
-    update_fourier(c, theta0, theta1, y);
+    update_fourier(c, theta0, theta1, y, y_out);
     for (int i = 0; i < 3 * c->ni; i++)
         c->y_prev[i] = y[i];
+    for (int j = 0; j < c->n_out; j++)
+        c->y_out_prev[j] = y_out[j];
     if (out) {
         out->time_s = c->time_s;
         out->demand_v = c->demand[0];

@@ -198,6 +198,20 @@ static void scatter_add(average_scatter *sc, int q, int n_avg, int d, const rths
             }
 }
 
+/* The output DoFs' means and standard errors of the mean (out_sum / out_sum2 as mean_and_error's,
+ * side 0 used). */
+static void average_output_dofs(int n_avg, double out_sum[][2][2][RTHS_MAX_HARMONICS + 1],
+                                double out_sum2[][2][2][RTHS_MAX_HARMONICS + 1], int n_out,
+                                rths_evaluation *out) {
+    out->output_dofs = n_out;
+    for (int j = 0; j < n_out; j++) {
+        rths_fourier unused_mean, unused_se;
+        rths_fourier *mean[2] = {&out->output_dof[j], &unused_mean},
+                     *se[2] = {&out->output_dof_se[j], &unused_se};
+        mean_and_error(n_avg, out_sum[j], out_sum2[j], mean, se);
+    }
+}
+
 /* Averages n_avg whole periods: mean and standard error of the mean of every coefficient the rig
  * measures, not only the matched ones (the report shows the higher harmonics' error too), of
  * every interface DoF the periods carry. */
@@ -213,12 +227,27 @@ static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, integ
     double last[D][H][2][2][2] = {{{{{0}}}}}; /* scatter_add's memory of the last two periods */
     memset(scatter, 0, sizeof *scatter);
     rths_period p;
-    int rc, dofs = 1;
+    int rc, dofs = 1, n_out = 0;
     long samples = 0;
+    /* output.dofs: one side each (index 0 of the side dimension) */
+    double out_sum[RTHS_MAX_OUTPUT_DOFS][2][2][H], out_sum2[RTHS_MAX_OUTPUT_DOFS][2][2][H];
+    memset(out_sum, 0, sizeof out_sum);
+    memset(out_sum2, 0, sizeof out_sum2);
     for (int q = 0; q < n_avg; q++) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
         count_period(cnt, &p);
         samples += p.samples;
+        if (q == 0) n_out = p.output_dofs <= RTHS_MAX_OUTPUT_DOFS ? p.output_dofs : 0;
+        if (p.output_dofs != n_out)
+            return rths_error_set(err, RTHS_EFAIL,
+                                  "the rig's periods carry %d output DoFs, then %d (output.dofs)",
+                                  n_out, p.output_dofs);
+        for (int j = 0; j < n_out; j++)
+            for (int k = 0; k < H; k++) {
+                const double a = p.output_dof[j].a[k], b = p.output_dof[j].b[k];
+                out_sum[j][0][0][k] += a, out_sum[j][0][1][k] += b;
+                out_sum2[j][0][0][k] += a * a, out_sum2[j][0][1][k] += b * b;
+            }
         dofs = p.interface_dofs > 1 ? p.interface_dofs : 1;
         for (int d = 0; d < dofs; d++) {
             const rths_fourier *sides[2] = {d ? &p.phys_dof[d] : &p.phys,
@@ -246,6 +275,7 @@ static int average_periods(rths_rig *rig, int n_avg, rths_evaluation *out, integ
     }
     rths_fourier *mean[2] = {&out->phys, &out->num}, *se[2] = {&out->phys_se, &out->num_se};
     mean_and_error(n_avg, sum[0], sum2[0], mean, se);
+    average_output_dofs(n_avg, out_sum, out_sum2, n_out, out);
     if (dofs > 1) {
         out->interface_dofs = dofs;
         out->phys_dof[0] = out->phys, out->num_dof[0] = out->num;

@@ -158,6 +158,32 @@ int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double 
     return rc;
 }
 
+int rths_truth_linear_dofs_response(const rths_setup *s, double f_hz, int count, const int *dofs,
+                                    double *amp_m, double *phase_rad) {
+    for (int i = 0; i < count; i++) {
+        amp_m[i] = NAN;
+        if (phase_rad) phase_rad[i] = NAN;
+    }
+    int n = s->assembly.n;
+    for (int i = 0; i < count; i++)
+        if (dofs[i] < 0 || dofs[i] >= n) return -1;
+    if (s->has_bilinear) return -1;
+    double complex *x = calloc((size_t)n, sizeof *x);
+    rths_error err;
+    int rc = -1;
+    /* x(t) = Re(X e^{i w t}) = |X| cos(w t + arg X) for the force Re(F e^{i w t}) */
+    if (x && !rths_frf(n, s->assembly.mass, s->assembly.damping, s->assembly.stiffness, s->force,
+                       2 * M_PI * f_hz, x, &err)) {
+        for (int i = 0; i < count; i++) {
+            amp_m[i] = cabs(x[dofs[i]]);
+            if (phase_rad) phase_rad[i] = carg(x[dofs[i]]);
+        }
+        rc = 0;
+    }
+    free(x);
+    return rc;
+}
+
 double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz) {
     double amp[RTHS_MAX_INTERFACE_DOFS];
     if (s->split.n_int > RTHS_MAX_INTERFACE_DOFS) return NAN;
