@@ -569,6 +569,9 @@ static void to_period(const rths_proto_period *p, rths_period *o) {
         to_fourier(&p->num_dof[d], &o->num_dof[d]);
         to_fourier(&p->force_dof[d], &o->force_dof[d]);
     }
+    o->output_dofs = p->output_dofs;
+    for (int j = 0; j < o->output_dofs; j++)
+        to_fourier(&p->output_dof[j], &o->output_dof[j]);
 }
 
 static int r_run_periods(void *self, int count, rths_period *out, rths_error *err) {

@@ -85,6 +85,10 @@ static int read_options(frf_state *st, rths_error *err) {
     if (!rc)
         rc = rths_config_get_double(opt->cfg, "output.trace_frequency_hz", 0, 0, 0, 1e5,
                                     &st->trace_hz, err);
+    rths_controller_options copt; /* output.dofs, as the rig's controller reads it */
+    rths_controller_defaults(&copt);
+    if (!rc) rc = rths_controller_config_read(opt->cfg, &copt, err);
+    if (!rc) frf_dof_columns_init(&st->dof_cols, &copt);
     rths_floquet_measure_defaults(&st->floquet);
     if (!rc) rc = rths_floquet_measure_config_read(opt->cfg, &st->floquet, err);
     if (!rc && st->floquet.enabled && (opt->rig_uri || opt->rig))
@@ -309,7 +313,7 @@ static int open_outputs(frf_state *st, rths_error *err) {
     rc = path ? rths_config_write(opt->cfg, path, err)
               : rths_error_set(err, RTHS_EFAIL, "out of memory");
     free(path);
-    if (!rc) rc = frf_write_truth_csv(st->rep, &st->truth, err);
+    if (!rc) rc = frf_write_truth_csv(st->rep, st, &st->truth, err);
     if (!rc)
         rc = rths_journal_open_run(st->journal_path, st->strategy, st->seed_text, frf_rig_text(st),
                                    &st->journal, err);

@@ -6,6 +6,7 @@
 #include "rths/report.h"
 #include "rths/run.h"
 #include "rths/truth.h"
+#include "run/frf_dof_columns.h"
 
 /* The experimental Floquet estimate of one point (stability.experimental_floquet). */
 typedef struct frf_floquet_point {
@@ -66,6 +67,7 @@ typedef struct frf_state {
     frf_floquet_point *floquet_pts;  /* by point index, cap entries (the option on; else NULL) */
     double floquet_rig_time_s;       /* rig time spent on the perturbed records */
     frf_floquet_truth floquet_truth; /* computed when the option is on */
+    frf_dof_columns dof_cols;        /* output.dofs' columns (count 0 without it) */
 } frf_state;
 
 enum { FRF_MAX_CHANGES = 8 };
@@ -98,7 +100,8 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err);
 /* frf_absolute.c: absolute.csv for a base-excited run (absolute interface displacement, hybrid
  * and true, beside the relative one frf.csv reports). */
 int frf_write_absolute_csv(rths_report *rep, const frf_state *run, rths_error *err);
-int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err);
+int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
+                        rths_error *err);
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                  const char *title, rths_error *err);
 /* The Lissajous trace at one accepted point: recorded on the rig (the point's targets again,

@@ -175,23 +175,27 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     rths_csv *csv = NULL;
     int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs);
     int head = fixed - RTHS_RUN_FRF_TAIL_COLUMNS, columns = head;
-    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS];
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS];
     for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
         for (int k = 0; k < FRF_FLOQUET_COLUMNS; k++)
             names[columns++] = floquet_columns[k];
+    const int dof_at = columns; /* output.dofs' columns after the optional ones */
+    for (int k = 0; k < run->dof_cols.count; k++)
+        names[columns++] = frf_dof_column_name(&run->dof_cols, k);
     int tail = columns;
     for (int k = 0; k < RTHS_RUN_FRF_TAIL_COLUMNS; k++)
         names[columns++] = rths_run_frf_column_name(dofs, head + k);
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS],
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS],
             tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         memcpy(tail_values, row + head, sizeof tail_values);
         if (run->floquet.enabled) floquet_row(run, i, row + head);
+        frf_dof_columns_row(&run->dof_cols, &run->pts[i], row + dof_at);
         memcpy(row + tail, tail_values, sizeof tail_values);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
@@ -202,8 +206,10 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
 
 /* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
  * also dof<d>_amplitude_m of each (frf.csv's names). */
-int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error *err) {
-    const char *header[5 + RTHS_MAX_INTERFACE_DOFS] = {
+int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
+                        rths_error *err) {
+    const frf_dof_columns *oc = &run->dof_cols;
+    const char *header[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
         "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
@@ -211,13 +217,16 @@ int frf_write_truth_csv(rths_report *rep, const rths_truth_curve *t, rths_error 
                                                            RTHS_RUN_FRF_DOF_COLUMNS * d);
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
-    int rc = path ? rths_csv_open(path, 5 + dofs, header, &csv, err)
+    for (int k = 0; k < oc->count; k++)
+        header[5 + dofs + k] = frf_dof_column_name(oc, k);
+    int rc = path ? rths_csv_open(path, 5 + dofs + oc->count, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5 + RTHS_MAX_INTERFACE_DOFS] = {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j],
-                                                   t->amp_h3_m[j], t->stable[j]};
+        double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
+            t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         for (int d = 0; d < dofs; d++)
             row[5 + d] = t->amp_dof_m[d * t->n + j];
+        frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + 5 + dofs);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
