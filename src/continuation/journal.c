@@ -284,11 +284,12 @@ int rths_journal_read_header_text(const char *path, const char *key, int *known,
 }
 
 /* The key a field reader last refused (absent, null or of the wrong type), for the message
- * naming it; per thread, as several runs may read journals at once (the C API). */
-static _Thread_local const char *bad_key;
+ * naming it; per thread, as several runs may read journals at once (the C API). A copy: a key
+ * may be composed in a reader's stack buffer ("phys_a") that is gone when the message is made. */
+static _Thread_local char bad_key[64];
 
 static int refuse(const char *key) {
-    bad_key = key;
+    if (key != bad_key) snprintf(bad_key, sizeof bad_key, "%s", key);
     return -1;
 }
 
@@ -525,10 +526,10 @@ static int read_point(journal_reader *r, json_object *o, int is_update, rths_err
     if (r->format == 0)
         return rths_error_set(err, RTHS_EINPUT, "%s:%d: point record before the header", r->path,
                               r->lineno);
-    bad_key = NULL;
+    bad_key[0] = '\0';
     if (parse_point(o, r->format, &pt)) {
         if (!r->complete) return READ_TORN;
-        if (bad_key)
+        if (bad_key[0])
             return rths_error_set(err, RTHS_EINPUT,
                                   "%s:%d: malformed point record: key '%s' is %s or out of range",
                                   r->path, r->lineno, bad_key, json_type_text(o, bad_key));
