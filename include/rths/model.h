@@ -165,6 +165,15 @@ void rths_discrete_free(rths_discrete *d);
 /* Largest |eigenvalue| of a real n x n matrix (LAPACK dgeev): a discrete map x_{k+1} = A x_k is
  * stable below 1. -1 on failure. */
 double rths_spectral_radius(int n, const double *a);
+/* The spectral radius of a discrete numerical substructure (inputs 0..ni-1: the interface forces)
+ * under grounding control that acts one sample late: F = G1 xi_k + G0 xi_k-1 with
+ * G1 = -(kp^ + kd^/h), G0 = kd^/h per interface DoF (the physical side held at rest), entering
+ * the step as the next input; state [z_k, z_k-1, u_k]. The model is rths_discrete's form with
+ * nx states, n_inputs inputs and step h, s; gkp, gkd: ni gains (N/m, N s/m). -1 on failure. The
+ * controller refuses gains above 1; rths tune chooses them below. */
+double rths_grounding_loop_radius(int nx, int n_inputs, const double *ad, const double *b_prev,
+                                  const double *b_curr, double h, int ni, const double *gkp,
+                                  const double *gkd);
 
 /* ---- periodic response of the true assembly with a bilinear leg (shooting) ---- */
 

@@ -313,28 +313,9 @@ static int build_transforms(rths_controller *c, const rths_setup *setup, rths_er
  *   z_k+1 = (Ad + Bc G1) z_k + Bc G0 z_k-1 + Bp u_k-1,  u_k = G1 z_k + G0 z_k-1,
  * G1 = -(kp^ + kd^/h) and G0 = kd^/h on each interface DoF. Refused at create when unstable. */
 static int grounding_stable(const rths_controller *c, const rths_split *s, rths_error *err) {
-    const int nx = c->nx, ni = c->ni, n_in = c->n_inputs, N = 2 * nx + n_in;
-    double *w = rths_mat_new(N, N);
-    if (!w) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    for (int j = 0; j < nx; j++)
-        for (int i = 0; i < nx; i++)
-            RTHS_AT(w, N, i, j) = c->ad[i + j * nx];
-    for (int j = 0; j < n_in; j++)
-        for (int i = 0; i < nx; i++)
-            RTHS_AT(w, N, i, 2 * nx + j) = c->b_prev[i + j * nx];
-    for (int i = 0; i < nx; i++)
-        RTHS_AT(w, N, nx + i, i) = 1.0;
-    for (int d = 0; d < ni; d++) {
-        double g1 = -(c->gkp[d] + c->gkd[d] / c->h), g0 = c->gkd[d] / c->h;
-        for (int i = 0; i < nx; i++) {
-            RTHS_AT(w, N, i, d) += c->b_curr[i + d * nx] * g1;
-            RTHS_AT(w, N, i, nx + d) += c->b_curr[i + d * nx] * g0;
-        }
-        RTHS_AT(w, N, 2 * nx + d, d) = g1;
-        RTHS_AT(w, N, 2 * nx + d, nx + d) = g0;
-    }
-    double radius = rths_spectral_radius(N, w);
-    rths_mat_free(w);
+    const int ni = c->ni;
+    double radius = rths_grounding_loop_radius(c->nx, c->n_inputs, c->ad, c->b_prev, c->b_curr,
+                                               c->h, ni, c->gkp, c->gkd);
     if (radius < 0)
         return rths_error_set(err, RTHS_EFAIL,
                               "the eigenvalues of the grounding loop could not be computed");

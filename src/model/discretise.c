@@ -178,3 +178,31 @@ double rths_spectral_radius(int n, const double *a) {
     free(work), free(wr), free(wi);
     return radius;
 }
+
+double rths_grounding_loop_radius(int nx, int n_in, const double *ad, const double *b_prev,
+                                  const double *b_curr, double h, int ni, const double *gkp,
+                                  const double *gkd) {
+    const int N = 2 * nx + n_in;
+    double *w = rths_mat_new(N, N);
+    if (!w) return -1;
+    for (int j = 0; j < nx; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(w, N, i, j) = ad[i + j * nx];
+    for (int j = 0; j < n_in; j++)
+        for (int i = 0; i < nx; i++)
+            RTHS_AT(w, N, i, 2 * nx + j) = b_prev[i + j * nx];
+    for (int i = 0; i < nx; i++)
+        RTHS_AT(w, N, nx + i, i) = 1.0;
+    for (int d = 0; d < ni; d++) {
+        double g1 = -(gkp[d] + gkd[d] / h), g0 = gkd[d] / h;
+        for (int i = 0; i < nx; i++) {
+            RTHS_AT(w, N, i, d) += b_curr[i + d * nx] * g1;
+            RTHS_AT(w, N, i, nx + d) += b_curr[i + d * nx] * g0;
+        }
+        RTHS_AT(w, N, 2 * nx + d, d) = g1;
+        RTHS_AT(w, N, 2 * nx + d, nx + d) = g0;
+    }
+    double radius = rths_spectral_radius(N, w);
+    rths_mat_free(w);
+    return radius;
+}

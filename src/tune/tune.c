@@ -93,34 +93,11 @@ static int numerical_model(const rths_setup *setup, const rths_controller_option
     return rc;
 }
 
-/* The grounding force acts one sample late: F = G1 xi_k + G0 xi_{k-1}, G1 = -(kp^ + kd^/h),
- * G0 = kd^/h per interface DoF (the physical side held at rest), entering the step as the next
- * input; state [z_k, z_{k-1}, u_k]. The same matrix as step.c's grounding_stable. */
+/* The grounding loop's radius (model.h): the same matrix the controller checks at create. */
 static double grounding_radius_of(const rths_discrete *dm, int ni, double h, const double *gkp,
                                   const double *gkd) {
-    const int nx = dm->nx, n_in = dm->nu, N = 2 * nx + n_in;
-    double *w = rths_mat_new(N, N);
-    if (!w) return -1;
-    for (int j = 0; j < nx; j++)
-        for (int i = 0; i < nx; i++)
-            RTHS_AT(w, N, i, j) = dm->ad[i + j * nx];
-    for (int j = 0; j < n_in; j++)
-        for (int i = 0; i < nx; i++)
-            RTHS_AT(w, N, i, 2 * nx + j) = dm->b_prev[i + j * nx];
-    for (int i = 0; i < nx; i++)
-        RTHS_AT(w, N, nx + i, i) = 1.0;
-    for (int d = 0; d < ni; d++) {
-        double g1 = -(gkp[d] + gkd[d] / h), g0 = gkd[d] / h;
-        for (int i = 0; i < nx; i++) {
-            RTHS_AT(w, N, i, d) += dm->b_curr[i + d * nx] * g1;
-            RTHS_AT(w, N, i, nx + d) += dm->b_curr[i + d * nx] * g0;
-        }
-        RTHS_AT(w, N, 2 * nx + d, d) = g1;
-        RTHS_AT(w, N, 2 * nx + d, nx + d) = g0;
-    }
-    double radius = rths_spectral_radius(N, w);
-    rths_mat_free(w);
-    return radius;
+    return rths_grounding_loop_radius(dm->nx, dm->nu, dm->ad, dm->b_prev, dm->b_curr, h, ni, gkp,
+                                      gkd);
 }
 
 double rths_grounding_radius(const rths_setup *setup, const rths_controller_options *copt,
