@@ -78,8 +78,9 @@ static const char usage[] =
 enum { MAX_AXES = 16 };
 
 typedef struct {
-    char *key;     /* dotted configuration key */
-    char **values; /* scalar texts as written in the plan */
+    char *key;            /* dotted configuration key */
+    char **values;        /* scalar texts as written in the plan */
+    int *lines, *columns; /* each value's position in the plan */
     int n_values;
 } grid_axis;
 
@@ -104,6 +105,8 @@ static void plan_free(plan *p) {
         for (int i = 0; i < p->axes[a].n_values; i++)
             free(p->axes[a].values[i]);
         free(p->axes[a].values);
+        free(p->axes[a].lines);
+        free(p->axes[a].columns);
     }
     for (int i = 0; i < p->n_seeds; i++)
         free(p->seeds[i]);
@@ -223,7 +226,10 @@ static int read_grid(struct fy_node *map, struct fy_node *keynode, const char *f
         int n = fy_node_is_sequence(v) ? fy_node_sequence_item_count(v) : 0;
         if (n < 1) return plan_error(err, file, k, name, "must be a non-empty list of values");
         ax->values = calloc((size_t)n, sizeof *ax->values);
-        if (!ax->values) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        ax->lines = calloc((size_t)n, sizeof *ax->lines);
+        ax->columns = calloc((size_t)n, sizeof *ax->columns);
+        if (!ax->values || !ax->lines || !ax->columns)
+            return rths_error_set(err, RTHS_EFAIL, "out of memory");
         void *it2 = NULL;
         struct fy_node *item;
         while ((item = fy_node_sequence_iterate(v, &it2))) {
@@ -231,6 +237,7 @@ static int read_grid(struct fy_node *map, struct fy_node *keynode, const char *f
             if (!val)
                 return plan_error(err, file, k, name,
                                   "every entry must be a single value (no lists or mappings)");
+            node_position(item, &ax->lines[ax->n_values], &ax->columns[ax->n_values]);
             ax->values[ax->n_values++] = val;
         }
     }
@@ -284,9 +291,13 @@ static int plan_read(const char *file, const rths_cli *cli, plan *p, rths_error 
     int rc = RTHS_OK;
     struct fy_node *root = doc ? fy_document_root(doc) : NULL;
     if (!doc) {
+        /* libfyaml's "FILE:LINE:COL: error: what" */
         const char *sep = strstr(cap.text, ": error: ");
-        rc = rths_error_set(err, RTHS_EINPUT, "%s: not valid YAML%s%s", file, sep ? ": " : "",
-                            sep ? cap.text : "");
+        if (sep)
+            rc = rths_error_set(err, RTHS_EINPUT, "%.*s: not valid YAML: %s", (int)(sep - cap.text),
+                                cap.text, sep + 9);
+        else
+            rc = rths_error_set(err, RTHS_EINPUT, "%s: not valid YAML", file);
         goto done;
     }
     if (!root || !fy_node_is_mapping(root)) {
@@ -398,26 +409,49 @@ static void free_strings(char **s, int n) {
         free(s[i]);
 }
 
-/* Every grid combination's configuration is loaded and its structure read before anything is
- * written, so a bad value is refused naming its run and key instead of failing run by run. */
+/* Every grid value, then every grid combination, is loaded with the configuration and its
+ * structure read before anything is written, so a bad value is refused naming its place in the
+ * plan (or its run) and key instead of failing run by run. */
+static int check_overrides(const plan *p, char **sets, int n, rths_error *e) {
+    rths_cli c = {.config_path = p->config_path};
+    for (int i = 0; i < n; i++)
+        c.sets[i] = sets[i];
+    c.n_sets = n;
+    rths_config *cfg = NULL;
+    rths_setup setup;
+    int rc = rths_cli_load(&c, &cfg, &setup, e);
+    if (!rc) rths_cli_unload(cfg, &setup);
+    return rc;
+}
+
 static int plan_check_runs(const plan *p, const char *plan_file, rths_error *err) {
+    char *sets[RTHS_CLI_MAX_SETS];
+    rths_error e = {0};
+    int rc = check_overrides(p, p->sets, p->n_sets, &e);
+    if (rc)
+        return rths_error_set(err, rc, "%s: config %s%s: %s", plan_file, p->config_path,
+                              p->n_sets ? " with set: and --set" : "", e.msg);
+    for (int a = 0; a < p->n_axes; a++)
+        for (int v = 0; v < p->axes[a].n_values; v++) {
+            int n = 0;
+            for (; n < p->n_sets; n++)
+                sets[n] = p->sets[n];
+            char one[4096];
+            snprintf(one, sizeof one, "%s=%s", p->axes[a].key, p->axes[a].values[v]);
+            sets[n++] = one;
+            if ((rc = check_overrides(p, sets, n, &e)))
+                return rths_error_set(err, rc, "%s:%d:%d: key 'grid.%s': value '%s': %s", plan_file,
+                                      p->axes[a].lines[v], p->axes[a].columns[v], p->axes[a].key,
+                                      p->axes[a].values[v], e.msg);
+        }
     int per_seed = p->n_seeds ? p->n_seeds : 1;
     for (int k = 0; k < p->n_runs; k += per_seed) {
-        char *sets[RTHS_CLI_MAX_SETS];
         int n = 0;
-        rths_cli c = {.config_path = p->config_path};
         if (run_overrides(p, k, sets, &n)) {
             free_strings(sets, n);
             return rths_error_set(err, RTHS_EFAIL, "out of memory");
         }
-        for (int i = 0; i < n; i++)
-            c.sets[i] = sets[i];
-        c.n_sets = n;
-        rths_config *cfg = NULL;
-        rths_setup setup;
-        rths_error e = {0};
-        int rc = rths_cli_load(&c, &cfg, &setup, &e);
-        if (!rc) rths_cli_unload(cfg, &setup);
+        rc = check_overrides(p, sets, n, &e);
         free_strings(sets, n);
         if (rc)
             return rths_error_set(err, rc, "%s: run_%04d (config %s): %s", plan_file, k,
