@@ -631,6 +631,19 @@ static int record_run(campaign *c, int k, int status, rths_error *err) {
     if (!c->results[k] && asprintf(&c->results[k], "%d,,,,,,", status) < 0) c->results[k] = NULL;
     c->finished++;
     if (status) c->failed++;
+    if (status) {
+        /* a failure is said even with --quiet, with the run's first message */
+        char *log = path_of(c->dir, "logs/run_%04d.log", k), line[512] = "";
+        FILE *f = log ? fopen(log, "r") : NULL;
+        if (f) {
+            if (!fgets(line, sizeof line, f)) line[0] = 0;
+            fclose(f);
+        }
+        free(log);
+        line[strcspn(line, "\r\n")] = 0;
+        fprintf(stderr, "rths campaign: run_%04d failed, exit %d%s%s (logs/run_%04d.log)\n", k,
+                status, line[0] ? ": " : "", line, k);
+    }
     if (!c->quiet)
         fprintf(stderr, "rths campaign: run_%04d exit %d (%d of %d finished)\n", k, status,
                 c->finished, c->p->n_runs);
@@ -973,8 +986,11 @@ int rths_cmd_campaign(int argc, char **argv) {
     if (n_ranks > 1) MPI_Bcast(&rc, 1, MPI_INT, 0, MPI_COMM_WORLD);
 #endif
     if (rc) goto end;
-    signal(SIGINT, on_interrupt);
-    signal(SIGTERM, on_interrupt);
+    /* without SA_RESTART, so that waitpid returns and the runs in progress are told */
+    struct sigaction sa = {.sa_handler = on_interrupt};
+    sigemptyset(&sa.sa_mask);
+    sigaction(SIGINT, &sa, NULL);
+    sigaction(SIGTERM, &sa, NULL);
     if (rank == 0 && !cli.quiet)
         fprintf(stderr, "rths campaign: %d run(s) of %s, %d to run, %s\n", p.n_runs, p.config_path,
                 n_todo,
