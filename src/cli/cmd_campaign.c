@@ -830,9 +830,12 @@ static int exit_status_of(int wstatus) {
 static int run_to_end(const char *self, const campaign *c, int k) {
     pid_t pid = spawn_run(self, c, k);
     if (pid < 0) return 1;
-    int ws;
-    while (waitpid(pid, &ws, 0) < 0)
+    int ws, told = 0;
+    while (waitpid(pid, &ws, 0) < 0) {
         if (errno != EINTR) return 1;
+        /* mpirun passes SIGINT/SIGTERM on to the ranks, not to their runs */
+        if (interrupted && !told) told = !kill(pid, SIGTERM);
+    }
     return exit_status_of(ws);
 }
 
@@ -958,7 +961,7 @@ int rths_cmd_campaign(int argc, char **argv) {
         goto end;
     }
     if ((rc = plan_read(cli.config_path, &cli, &p, &err))) {
-        rc = rths_cli_fail(&cli, rc, &err);
+        if (rank == 0) rths_cli_fail(&cli, rc, &err); /* every rank reads it: one says why */
         goto end;
     }
     char self[PATH_MAX];
