@@ -63,9 +63,10 @@ finished_stats() {
         echo "$r $(stat -c '%i %Y.%y' "$1/$r") $(stat -c '%i %y' "$1/$r/summary.json")"
     done
 }
-# wait_runs DIR N PID: until N runs have a recorded status (or PID ended); 0 if N reached
+# wait_runs DIR N PID: until N runs have a recorded status (or PID ended, or 5 minutes on a
+# loaded machine); 0 if N reached
 wait_runs() {
-    for _ in $(seq 1 600); do
+    for _ in $(seq 1 3000); do
         [ "$(ls "$1"/logs/*.status 2>/dev/null | wc -l)" -ge "$2" ] && return 0
         kill -0 "$3" 2>/dev/null || return 1
         sleep 0.1
