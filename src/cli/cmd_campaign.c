@@ -826,19 +826,6 @@ static int exit_status_of(int wstatus) {
     return 1;
 }
 
-/* Runs one run to its end (a worker of the MPI job): its exit status. */
-static int run_to_end(const char *self, const campaign *c, int k) {
-    pid_t pid = spawn_run(self, c, k);
-    if (pid < 0) return 1;
-    int ws, told = 0;
-    while (waitpid(pid, &ws, 0) < 0) {
-        if (errno != EINTR) return 1;
-        /* mpirun passes SIGINT/SIGTERM on to the ranks, not to their runs */
-        if (interrupted && !told) told = !kill(pid, SIGTERM);
-    }
-    return exit_status_of(ws);
-}
-
 /* The runs of todo, at most jobs at a time, the next started as soon as one ends. */
 static int run_local(const char *self, campaign *c, const int *todo, int n_todo, int jobs,
                      rths_error *err) {
@@ -893,6 +880,19 @@ static int run_local(const char *self, campaign *c, const int *todo, int n_todo,
 }
 
 #ifdef RTHS_HAVE_MPI
+/* Runs one run to its end (a worker of the MPI job): its exit status. */
+static int run_to_end(const char *self, const campaign *c, int k) {
+    pid_t pid = spawn_run(self, c, k);
+    if (pid < 0) return 1;
+    int ws, told = 0;
+    while (waitpid(pid, &ws, 0) < 0) {
+        if (errno != EINTR) return 1;
+        /* mpirun passes SIGINT/SIGTERM on to the ranks, not to their runs */
+        if (interrupted && !told) told = !kill(pid, SIGTERM);
+    }
+    return exit_status_of(ws);
+}
+
 enum { TAG_RESULT = 1, TAG_WORK = 2 };
 
 /* Rank 0: hands out todo's runs one at a time to the ranks that ask (a worker's first message
