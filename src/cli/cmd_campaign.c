@@ -56,17 +56,19 @@ static const char usage[] =
     "one at a time to the other ranks as they finish, and writes campaign.csv; --jobs is not\n"
     "used there. With one rank the campaign runs as without MPI.\n"
     "\n"
-    "Writes into DIR: runs.csv (the index: run, the grid values, seed), run_K/ (each run's\n"
-    "folder, as rths frf writes it), logs/run_K.log (its messages), logs/run_K.status (its\n"
-    "exit status, once it ended), campaign.csv (one row per run: the grid values, seed,\n"
+    "Writes into DIR: plan.txt (the plan as resolved), runs.csv (the index: run, the grid\n"
+    "values, seed), run_K/ (each run's folder, as rths frf writes it), logs/run_K.log (its\n"
+    "messages), logs/run_K.status (its exit status, once it ended), campaign.csv (one row\n"
+    "per run: the grid values, seed,\n"
     "exit_status, points, converged_points, evaluations, rig_time_s,\n"
     "max_relative_error_vs_truth, share_within_3_standard_errors; empty for runs not yet\n"
     "finished), rewritten atomically after every run.\n"
     "\n"
-    "Resuming is the default: if DIR holds a campaign of the same plan (the same runs.csv),\n"
-    "its finished runs (a run_K/summary.json and a recorded exit status) are kept untouched and\n"
-    "the others run again, each unfinished folder replaced; this is said on stderr. DIR holding\n"
-    "anything else, or a campaign of another plan, is refused.\n"
+    "Resuming is the default: if DIR holds a campaign of the same plan (plan.txt: the same\n"
+    "configuration file, overrides and runs), its finished runs (a run_K/summary.json and a\n"
+    "recorded exit status) are kept untouched and the others run again, each unfinished folder\n"
+    "replaced; this is said on stderr. DIR holding anything else, or a campaign of another\n"
+    "plan, is refused.\n"
     "\n"
     "Ctrl-C (SIGINT) or SIGTERM: the runs in progress are stopped and left unfinished (they run\n"
     "again on resume), everything finished is recorded (exit 130).\n"
@@ -515,6 +517,27 @@ static char *runs_index_text(const plan *p) {
     return buf;
 }
 
+/* plan.txt: what makes the runs what they are (the configuration file, the overrides of every
+ * run, the index), compared when a campaign is taken up again: a finished run is kept only for
+ * the same plan. malloc'ed. */
+static char *plan_identity_text(const plan *p, const char *index) {
+    char *buf = NULL, *real = realpath(p->config_path, NULL);
+    size_t len = 0;
+    FILE *f = open_memstream(&buf, &len);
+    if (f) {
+        fprintf(f, "config: %s\n", real ? real : p->config_path);
+        for (int i = 0; i < p->n_sets; i++)
+            fprintf(f, "set: %s\n", p->sets[i]);
+        fprintf(f, "runs:\n%s", index);
+        if (fclose(f)) {
+            free(buf);
+            buf = NULL;
+        }
+    }
+    free(real);
+    return buf;
+}
+
 /* ---- the campaign folder ---- */
 
 typedef struct {
@@ -657,7 +680,11 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
     const plan *p = c->p;
     *lock_fd = -1;
     char *index = runs_index_text(p), *path = NULL;
-    if (!index) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    char *identity = index ? plan_identity_text(p, index) : NULL;
+    if (!identity) {
+        free(index);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
     int rc = RTHS_OK, existing = 0;
     struct stat st;
     if (!stat(c->dir, &st)) {
@@ -665,7 +692,7 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
             rc = rths_error_set(err, RTHS_EINPUT, "--out %s: exists and is not a folder", c->dir);
             goto done;
         }
-        if (asprintf(&path, "%s/runs.csv", c->dir) < 0) goto oom;
+        if (asprintf(&path, "%s/plan.txt", c->dir) < 0) goto oom;
         FILE *f = fopen(path, "r");
         free(path);
         path = NULL;
@@ -674,12 +701,14 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
             size_t cap = 0;
             ssize_t len = getdelim(&old, &cap, '\0', f);
             fclose(f);
-            int same = len >= 0 && (size_t)len == strlen(index) && !memcmp(old, index, (size_t)len);
+            int same =
+                len >= 0 && (size_t)len == strlen(identity) && !memcmp(old, identity, (size_t)len);
             free(old);
             if (!same) {
                 rc = rths_error_set(err, RTHS_EINPUT,
-                                    "--out %s: holds a campaign of another plan (its runs.csv "
-                                    "differs); choose another folder",
+                                    "--out %s: holds a campaign of another plan (its plan.txt: "
+                                    "configuration, overrides or runs differ); choose another "
+                                    "folder",
                                     c->dir);
                 goto done;
             }
@@ -693,7 +722,7 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
             if (d) closedir(d);
             if (entries) {
                 rc = rths_error_set(err, RTHS_EINPUT,
-                                    "--out %s: exists and holds no campaign (no runs.csv); "
+                                    "--out %s: exists and holds no campaign (no plan.txt); "
                                     "choose another folder",
                                     c->dir);
                 goto done;
@@ -721,6 +750,11 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
     free(path);
     if (asprintf(&path, "%s/runs.csv", c->dir) < 0) goto oom;
     if (!existing && (rc = rths_write_file_atomic(path, index, strlen(index), err))) goto done;
+    free(path);
+    /* written last: a folder with plan.txt has its index */
+    if (asprintf(&path, "%s/plan.txt", c->dir) < 0) goto oom;
+    if (!existing && (rc = rths_write_file_atomic(path, identity, strlen(identity), err)))
+        goto done;
     *n_todo = 0;
     int kept = 0;
     for (int k = 0; k < p->n_runs; k++) {
@@ -757,6 +791,7 @@ oom:
 done:
     free(path);
     free(index);
+    free(identity);
     return rc;
 }
 

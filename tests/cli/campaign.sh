@@ -182,4 +182,12 @@ rc=$?
     cmp -s "$csv" "$work/jobs/campaign.csv" && echo "ok   a campaign of another plan is refused" ||
     fail "another plan: exit $rc: $(cat "$work/o.err")"
 
+# the same grid with another override is another plan: the finished runs are not taken for it
+"$bin" campaign "$plan" --out "$serial" --set forcing.amplitude_n=2 --quiet 2>"$work/o.err"
+rc=$?
+[ $rc -eq 2 ] && grep -q "holds a campaign of another plan" "$work/o.err" &&
+    cmp -s "$csv" "$work/jobs/campaign.csv" &&
+    echo "ok   the same grid with another --set is refused as another plan" ||
+    fail "another --set: exit $rc: $(cat "$work/o.err")"
+
 exit $((failures > 0))
