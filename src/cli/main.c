@@ -40,6 +40,7 @@ int main(int argc, char **argv) {
         {"tune", rths_cmd_tune, "PD and grounding gains from the model, with their margins"},
         {"controller", rths_cmd_controller, "the real-time controller process"},
         {"view", rths_cmd_view, "live web page of a run folder, finished or in progress"},
+        {"campaign", rths_cmd_campaign, "many frf runs over a grid of values and seeds (MPI)"},
     };
     const int n = (int)(sizeof cmds / sizeof cmds[0]);
     /* a file size limit (ulimit -f) makes write() fail with EFBIG, which every writer reports by
@@ -55,6 +56,11 @@ int main(int argc, char **argv) {
     }
     if (!strcmp(argv[1], "--version")) {
         printf("rths %s\n", RTHS_VERSION);
+#ifdef RTHS_HAVE_MPI
+        printf("MPI: built in (rths campaign under mpirun shares its runs between the ranks)\n");
+#else
+        printf("MPI: not built in (rths campaign runs serially or with --jobs)\n");
+#endif
         return RTHS_OK;
     }
     for (int i = 0; i < n; i++)
