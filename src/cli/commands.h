@@ -13,6 +13,6 @@ int rths_cmd_chart(int argc, char **argv) __attribute__((weak));
 int rths_cmd_tune(int argc, char **argv) __attribute__((weak));
 int rths_cmd_controller(int argc, char **argv) __attribute__((weak));
 int rths_cmd_view(int argc, char **argv) __attribute__((weak));
-int rths_cmd_campaign(int argc, char **argv) __attribute__((weak));
+int rths_cmd_campaign(int argc, char **argv);
 
 #endif
