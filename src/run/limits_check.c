@@ -107,10 +107,13 @@ static int refuse_or_warn(frf_state *st, const char *what, const char *advice, r
     return RTHS_OK;
 }
 
-/* A sweep with no mode in its range measures a quasi-static or mass-line response: legal, but
- * more often a range typed for another structure (or units off by a factor) than a plan. Says so
- * before arming, naming the nearest mode; a warning on stderr and in run.log. */
+/* A sweep with no mode in or near its range measures a quasi-static or mass-line response: legal,
+ * but more often a range typed for another structure (or units off by a factor) than a plan. Says
+ * so before arming, naming the nearest mode; a warning on stderr and in run.log. */
 static int warn_if_no_mode_in_range(frf_state *st, double f_lo, double f_hi, rths_error *err) {
+    /* a nonlinear leg moves the resonance with the amplitude: the linearised modes say nothing of
+     * where it lies */
+    if (st->setup->has_bilinear) return RTHS_OK;
     rths_modes modes = {0};
     int rc = rths_modal_analysis(&st->setup->assembly, &modes, err);
     if (rc) return rc;
@@ -118,7 +121,8 @@ static int warn_if_no_mode_in_range(frf_state *st, double f_lo, double f_hi, rth
     double gap = INFINITY;
     for (int r = 0; r < modes.n; r++) {
         double f = modes.frequency_hz[r], d = f < f_lo ? f_lo - f : f > f_hi ? f - f_hi : 0;
-        inside |= d == 0;
+        /* a mode within three half-power bandwidths (2 zeta f) of the range still shapes it */
+        inside |= d <= 3 * 2 * modes.damping_ratio[r] * f;
         if (d < gap) gap = d, nearest = r;
     }
     if (!inside && nearest >= 0) {

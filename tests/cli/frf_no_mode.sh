@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Before arming, rths frf says when no mode of the true assembly lies in the sweep, naming the
 # nearest one (the seed's modes: 4.339, 13.473, 21.819, 27.367 Hz), on stderr and in run.log; a
-# sweep across mode 2 gets no such warning.
+# sweep across mode 2, or just above it within three half-power bandwidths (13.5 Hz: 0.027 Hz
+# above, bandwidth 0.095 Hz), gets no such warning, nor does the bilinear example (its
+# resonance moves with the amplitude).
 set -u
 bin=$1
 src=$2
@@ -16,4 +18,10 @@ grep -Eq "warning: $re" "$work/off/run.log" || fail "run.log: $(cat "$work/off/r
 "$bin" frf "$cfg" --set continuation.start_hz=13.4 --set continuation.end_hz=13.5 "${short[@]}" \
     --out "$work/on" 2>"$work/on_stderr" || fail "sweep across mode 2: exit $?"
 grep -q "no mode" "$work/on_stderr" "$work/on/run.log" && fail "warned on a sweep across mode 2"
+"$bin" frf "$cfg" --set continuation.start_hz=13.5 --set continuation.end_hz=13.6 "${short[@]}" \
+    --out "$work/near" 2>"$work/near_stderr" || fail "sweep near mode 2: exit $?"
+grep -q "no mode" "$work/near_stderr" && fail "warned on a sweep 0.027 Hz above mode 2"
+"$bin" frf "$src/examples/four_storey_bilinear.yaml" --set continuation.max_points=2 --quiet \
+    --out "$work/bilinear" 2>"$work/bilinear_stderr"
+grep -q "no mode" "$work/bilinear_stderr" && fail "warned on the bilinear example"
 [ "$failures" -eq 0 ] && echo "frf_no_mode: all checks passed" || exit 1
