@@ -130,9 +130,12 @@ int rths_matfile_write(const char *dir, const char *const *csv_names, int n_csv,
 /* True when stderr is a terminal and quiet is 0: the caller may print \r progress lines. */
 int rths_progress_enabled(int quiet);
 
-/* The results of `rths model` (modes, interface peak, the setup's facts) added to a summary. */
 struct rths_setup;
 struct rths_modes;
+/* The excitation as configured, into a summary: excitation "force" with forcing_dof (1-based)
+ * and forcing_amplitude_n, or "base" with base_acceleration_amplitude_m_s2. */
+void rths_summary_add_excitation(struct json_object *root, const struct rths_setup *s);
+/* The results of `rths model` (modes, interface peak, the setup's facts) added to a summary. */
 void rths_model_summary_add(struct json_object *root, const struct rths_setup *s,
                             const struct rths_modes *m, int points, double peak_amp_m,
                             double peak_hz);

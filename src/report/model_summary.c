@@ -4,6 +4,21 @@
 
 #include <json-c/json.h>
 
+void rths_summary_add_excitation(struct json_object *root, const rths_setup *s) {
+    /* a base excitation has no forcing DoF, and its amplitude is the ground's acceleration, not
+     * a force */
+    if (s->base_excitation) {
+        json_object_object_add(root, "excitation", json_object_new_string("base"));
+        json_object_object_add(root, "base_acceleration_amplitude_m_s2",
+                               json_object_new_double(s->forcing_amplitude_n));
+    } else {
+        json_object_object_add(root, "excitation", json_object_new_string("force"));
+        json_object_object_add(root, "forcing_dof", json_object_new_int(s->forcing_dof + 1));
+        json_object_object_add(root, "forcing_amplitude_n",
+                               json_object_new_double(s->forcing_amplitude_n));
+    }
+}
+
 void rths_model_summary_add(struct json_object *root, const rths_setup *s, const rths_modes *m,
                             int points, double peak_amp_m, double peak_hz) {
     json_object *modes = json_object_new_array();
@@ -19,18 +34,7 @@ void rths_model_summary_add(struct json_object *root, const rths_setup *s, const
     json_object_object_add(root, "dofs", json_object_new_int(s->assembly.n));
     json_object_object_add(root, "mass_ratio", json_object_new_double(s->split.mass_ratio));
     json_object_object_add(root, "interface_dof", json_object_new_int(s->split.int_dofs[0] + 1));
-    /* the excitation as configured: a base excitation has no forcing DoF, and its amplitude is
-     * the ground's acceleration, not a force */
-    if (s->base_excitation) {
-        json_object_object_add(root, "excitation", json_object_new_string("base"));
-        json_object_object_add(root, "base_acceleration_amplitude_m_s2",
-                               json_object_new_double(s->forcing_amplitude_n));
-    } else {
-        json_object_object_add(root, "excitation", json_object_new_string("force"));
-        json_object_object_add(root, "forcing_dof", json_object_new_int(s->forcing_dof + 1));
-        json_object_object_add(root, "forcing_amplitude_n",
-                               json_object_new_double(s->forcing_amplitude_n));
-    }
+    rths_summary_add_excitation(root, s);
     json_object_object_add(root, "modes", modes);
     json_object_object_add(root, "frf_points", json_object_new_int(points));
     json_object_object_add(root, "interface_peak_amplitude_m", json_object_new_double(peak_amp_m));

@@ -838,8 +838,7 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "harmonics", json_object_new_int(facts->harmonics));
     json_object_object_add(root, "mass_ratio",
                            json_object_new_double(facts->setup->split.mass_ratio));
-    json_object_object_add(root, "forcing_amplitude_n",
-                           json_object_new_double(facts->setup->forcing_amplitude_n));
+    rths_summary_add_excitation(root, facts->setup);
     json_object_object_add(root, "bilinear", json_object_new_boolean(facts->setup->has_bilinear));
     json_object_object_add(root, "points", json_object_new_int(run->n));
     json_object_object_add(root, "converged_points", json_object_new_int(converged));
