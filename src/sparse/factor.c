@@ -2,7 +2,7 @@
  * patterns; one MUMPS instance per arithmetic (dmumps for real LDL^T, zmumps for complex
  * symmetric), each analysed once (the fill-reducing ordering and symbolic factorisation depend on
  * the pattern only) and refactorised numerically per shift or frequency. Debian's sequential
- * MUMPS needs no MPI_Init: its libmpiseq stubs MPI. */
+ * MUMPS needs no MPI_Init: its libmpiseq stands in for MPI. */
 #include "rths/sparse.h"
 
 #include <dmumps_c.h>
