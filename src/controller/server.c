@@ -1187,21 +1187,28 @@ static void report_realtime(rths_server *s, int mlocked, const char *mlock_why) 
                 atomic_load(&s->rt_cpu), strerror(atomic_load(&s->rt_pin_errno)));
 }
 
-int rths_server_start(rths_server *s, rths_error *err) {
-    if (s->loop_started) return RTHS_OK;
+/* server.realtime: all memory locked (no page fault in the loop); 1 when granted, else why not
+ * in why. Recorded in the status flags either way. */
+static int lock_memory(rths_server *s, char *why, size_t cap) {
     int mlocked = 0;
-    char mlock_why[160] = "";
     if (s->opt.realtime) {
 #ifdef RTHS_ASAN
-        snprintf(mlock_why, sizeof mlock_why, "not with AddressSanitizer (its shadow memory)");
+        snprintf(why, cap, "not with AddressSanitizer (its shadow memory)");
 #else
         if (!mlockall(MCL_CURRENT | MCL_FUTURE))
             mlocked = 1;
         else
-            snprintf(mlock_why, sizeof mlock_why, "%s", strerror(errno));
+            snprintf(why, cap, "%s", strerror(errno));
 #endif
     }
     if (mlocked) atomic_fetch_or(&s->rt_flags, RTHS_STATUS_RT_MLOCK);
+    return mlocked;
+}
+
+int rths_server_start(rths_server *s, rths_error *err) {
+    if (s->loop_started) return RTHS_OK;
+    char mlock_why[160] = "";
+    int mlocked = lock_memory(s, mlock_why, sizeof mlock_why);
     atomic_store(&s->last_rx_ns, mono_ns());
     /* the plug-in's hardware watchdog, when it has one: armed before the loop kicks it */
     rths_error werr;
@@ -1422,19 +1429,8 @@ int rths_server_latency_test(const rths_server_options *opt, double rate_hz, dou
         free(s->lat_hist), free(s->step_hist), free(s);
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
-    int mlocked = 0;
     char mlock_why[160] = "";
-    if (s->opt.realtime) {
-#ifdef RTHS_ASAN
-        snprintf(mlock_why, sizeof mlock_why, "not with AddressSanitizer (its shadow memory)");
-#else
-        if (!mlockall(MCL_CURRENT | MCL_FUTURE))
-            mlocked = 1;
-        else
-            snprintf(mlock_why, sizeof mlock_why, "%s", strerror(errno));
-#endif
-    }
-    if (mlocked) atomic_fetch_or(&s->rt_flags, RTHS_STATUS_RT_MLOCK);
+    int mlocked = lock_memory(s, mlock_why, sizeof mlock_why);
     latency_run run = {s, (uint64_t)llround(seconds * rate_hz)};
     pthread_t th;
     int e = pthread_create(&th, NULL, latency_main, &run);
