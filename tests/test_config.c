@@ -748,6 +748,60 @@ static void test_section_read(void **state) {
 }
 
 /* '.' is the decimal point whatever LC_NUMERIC the process runs in. */
+/* Lists of mappings (rig.sites, structure.nonlinear): counted, read by index, overridden by
+ * index, their unknown keys located, and a count asked of a non-list refused. */
+static void test_lists_of_mappings(void **state) {
+    (void)state;
+    static const char *const yaml = "rig:\n"                       /* 1 */
+                                    "  sites:\n"                   /* 2 */
+                                    "    - uri: tcp://a:1\n"       /* 3 */
+                                    "      interface_dofs: [1]\n"  /* 4 */
+                                    "    - uri: tcp://b:2\n"       /* 5 */
+                                    "      interface_dofss: [2]\n" /* 6: key col 7 */
+                                    "  name: x\n";                 /* 7 */
+    rths_config *cfg;
+    rths_error err = {0};
+    const char *const ov[] = {"rig.sites.0.uri=tcp://c:3"};
+    assert_int_equal(load(yaml, ov, 1, &cfg, &err), RTHS_OK);
+    int count = -1;
+    assert_int_equal(rths_config_get_count(cfg, "rig.sites", &count, &err), RTHS_OK);
+    assert_int_equal(count, 2);
+    const char *uri = NULL;
+    assert_int_equal(rths_config_get_string(cfg, "rig.sites.0.uri", 1, NULL, &uri, &err), RTHS_OK);
+    assert_string_equal(uri, "tcp://c:3");
+    assert_int_equal(rths_config_get_string(cfg, "rig.sites.1.uri", 1, NULL, &uri, &err), RTHS_OK);
+    assert_string_equal(uri, "tcp://b:2");
+    int *dofs = NULL, n = 0;
+    assert_int_equal(
+        rths_config_get_int_list(cfg, "rig.sites.0.interface_dofs", 1, &dofs, &n, &err), RTHS_OK);
+    assert_int_equal(n, 1);
+    assert_int_equal(dofs[0], 1);
+    free(dofs);
+    assert_int_equal(
+        rths_config_get_int_list(cfg, "rig.sites.1.interface_dofs", 0, &dofs, &n, &err), RTHS_OK);
+    assert_int_equal(n, 0);
+    free(dofs);
+    assert_int_equal(rths_config_has(cfg, "rig.sites.2.uri"), 0);
+    assert_int_equal(rths_config_has(cfg, "rig.sites.01.uri"), 0);
+    const char *name = NULL;
+    assert_int_equal(rths_config_get_string(cfg, "rig.name", 1, NULL, &name, &err), RTHS_OK);
+    assert_int_equal(rths_config_check_unknown(cfg, &err), RTHS_EINPUT);
+    msg_has(&err,
+            "%s:6:7: unknown key 'rig.sites.1.interface_dofss' (did you mean "
+            "'rig.sites.1.interface_dofs'?)",
+            path);
+    assert_int_equal(rths_config_get_count(cfg, "rig.name", &count, &err), RTHS_EINPUT);
+    msg_has(&err, "%s:7:9: key 'rig.name': must be a list", path);
+    assert_int_equal(rths_config_get_count(cfg, "rig.absent", &count, &err), RTHS_OK);
+    assert_int_equal(count, 0);
+    done(cfg);
+
+    const char *const beyond[] = {"rig.sites.2.uri=tcp://d:4"};
+    assert_int_equal(load(yaml, beyond, 1, &cfg, &err), RTHS_EINPUT);
+    msg_has(&err, "'rig.sites' is a list of 2 items, so it has no item '2'");
+    done(cfg);
+}
+
 static void test_locale_independent(void **state) {
     (void)state;
     const char *locales[] = {"de_DE.UTF-8", "de_DE.utf8", "fr_FR.UTF-8", NULL};
@@ -772,6 +826,7 @@ int main(void) {
         cmocka_unit_test(test_doubles),
         cmocka_unit_test(test_ints_bools_strings_choices),
         cmocka_unit_test(test_lists_and_matrices),
+        cmocka_unit_test(test_lists_of_mappings),
         cmocka_unit_test(test_overrides),
         cmocka_unit_test(test_unknown_keys),
         cmocka_unit_test(test_document_errors),

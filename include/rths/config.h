@@ -56,6 +56,10 @@ int rths_config_get_matrix(rths_config *cfg, const char *key, int required, doub
                            int *cols, rths_error *err);
 /* Marks a whole subtree as known (for sections read by a component not linked in this command);
  * NULL or "" marks the whole document. */
+/* Lists of mappings (rig.sites, structure.nonlinear): *count items (0 when the key is absent or
+ * empty), read one by one through keys with the item's index, "rig.sites.0.uri"; an index is a
+ * key part everywhere (getters, rths_config_error_at, --set). Not a list: a located error. */
+int rths_config_get_count(rths_config *cfg, const char *key, int *count, rths_error *err);
 void rths_config_mark_known(rths_config *cfg, const char *key_prefix);
 
 /* A semantic error about a key that exists (e.g. "matrix is not symmetric"): the message is

@@ -550,6 +550,19 @@ static int key_error(const rths_config *cfg, const char *key, const cnode *at, r
 
 /* Walks the dotted key. Returns the node or NULL; *deepest receives the deepest existing node on
  * the path (for locating "missing" errors). Marks the path as known when mark is set. */
+/* A key part naming an item of a list ("rig.sites.1.uri"): its decimal index, or -1 when the
+ * part is not a plain index or lies beyond the list. */
+static int sequence_index(const cnode *n, const char *p, size_t len) {
+    if (len == 0 || len > 6) return -1;
+    int index = 0;
+    for (size_t k = 0; k < len; k++) {
+        if (p[k] < '0' || p[k] > '9') return -1;
+        index = 10 * index + (p[k] - '0');
+    }
+    if (len > 1 && p[0] == '0') return -1;
+    return index < n->count ? index : -1;
+}
+
 static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **deepest) {
     cnode *n = cfg->root;
     if (deepest) *deepest = NULL;
@@ -560,8 +573,13 @@ static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **
         if (!*p) return n;
         const char *dot = strchr(p, '.');
         size_t len = dot ? (size_t)(dot - p) : strlen(p);
-        if (n->type != NODE_MAPPING) return NULL;
-        int i = map_find(n, p, len);
+        int i;
+        if (n->type == NODE_SEQUENCE)
+            i = sequence_index(n, p, len);
+        else if (n->type == NODE_MAPPING)
+            i = map_find(n, p, len);
+        else
+            return NULL;
         if (i < 0) return NULL;
         n = n->items[i];
         p += len + (dot ? 1 : 0);
@@ -629,6 +647,25 @@ static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
             n->type = NODE_MAPPING;
             free(n->text);
             n->text = NULL;
+        }
+        if (n->type == NODE_SEQUENCE) { /* "rig.sites.1.uri=..." replaces inside item 1 */
+            int item = sequence_index(n, p, len);
+            if (item < 0) {
+                node_free(value);
+                return rths_error_set(err, RTHS_EINPUT,
+                                      "%s: '%.*s' is a list of %d item%s, so it has no item '%.*s' "
+                                      "(items are numbered from 0)",
+                                      where, (int)(p - copy - 1), copy, n->count,
+                                      n->count == 1 ? "" : "s", (int)len, p);
+            }
+            if (!dot) {
+                node_free(n->items[item]);
+                n->items[item] = value;
+                return RTHS_OK;
+            }
+            n = n->items[item];
+            p = dot + 1;
+            continue;
         }
         if (n->type != NODE_MAPPING) {
             node_free(value);
@@ -1079,6 +1116,18 @@ int rths_config_get_matrix(rths_config *cfg, const char *key, int required, doub
     return RTHS_OK;
 }
 
+int rths_config_get_count(rths_config *cfg, const char *key, int *count, rths_error *err) {
+    *count = 0;
+    cnode *n;
+    int rc = get_node(cfg, key, 0, &n, err);
+    if (rc || !n || is_empty(n)) return rc;
+    if (n->type != NODE_SEQUENCE)
+        return key_error(cfg, key, n, err, "must be a list ([...] or '- ' items), not %s",
+                         describe(n));
+    *count = n->count;
+    return RTHS_OK;
+}
+
 void rths_config_mark_known(rths_config *cfg, const char *key_prefix) {
     if (!cfg) return;
     if (!key_prefix) key_prefix = "";
@@ -1111,7 +1160,19 @@ int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *er
 
 static int check_node(const rths_config *cfg, const cnode *n, char *path, size_t plen,
                       rths_error *err) {
-    if (n->type != NODE_MAPPING || n->known_subtree) return RTHS_OK;
+    if (n->known_subtree) return RTHS_OK;
+    if (n->type == NODE_SEQUENCE) { /* a list of mappings: each item's keys are checked */
+        for (int i = 0; i < n->count; i++) {
+            if (n->items[i]->type != NODE_MAPPING) continue;
+            if (plen + 16 >= 1024) return RTHS_OK;
+            size_t at = plen + (size_t)snprintf(path + plen, 1024 - plen, ".%d", i);
+            int rc = check_node(cfg, n->items[i], path, at, err);
+            path[plen] = 0;
+            if (rc) return rc;
+        }
+        return RTHS_OK;
+    }
+    if (n->type != NODE_MAPPING) return RTHS_OK;
     for (int i = 0; i < n->count; i++) {
         size_t len = strlen(n->keys[i]);
         if (plen + len + 2 >= 1024) { /* no reader asks for such a key: it is unknown */
