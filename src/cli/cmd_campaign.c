@@ -7,6 +7,7 @@
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/report.h"
+#include "rths/rths.h"
 
 #include <dirent.h>
 #include <errno.h>
@@ -18,6 +19,7 @@
 #include <libgen.h>
 #include <limits.h>
 #include <signal.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -84,12 +86,15 @@ typedef struct {
     char **values;        /* scalar texts as written in the plan */
     int *lines, *columns; /* each value's position in the plan */
     int n_values;
+    int key_line, key_column; /* the key's position in the plan */
 } grid_axis;
 
 typedef struct {
     char *config_path; /* as the runs get it: relative to the plan's folder resolved */
     char **sets;       /* "key=value": plan's set:, then the command line's --set */
     int n_sets;
+    int n_plan_sets;              /* the first n_plan_sets of sets are the plan's set: */
+    int *set_lines, *set_columns; /* their keys' positions in the plan */
     grid_axis axes[MAX_AXES];
     int n_axes;
     char **seeds; /* decimal texts; n_seeds 0: runs take no --seed */
@@ -102,6 +107,8 @@ static void plan_free(plan *p) {
     for (int i = 0; i < p->n_sets; i++)
         free(p->sets[i]);
     free(p->sets);
+    free(p->set_lines);
+    free(p->set_columns);
     for (int a = 0; a < p->n_axes; a++) {
         free(p->axes[a].key);
         for (int i = 0; i < p->axes[a].n_values; i++)
@@ -174,7 +181,10 @@ static int read_sets(struct fy_node *map, struct fy_node *keynode, const char *f
     struct fy_node_pair *pair;
     int n = fy_node_mapping_item_count(map);
     p->sets = calloc((size_t)n + RTHS_CLI_MAX_SETS + 1, sizeof *p->sets);
-    if (!p->sets) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    p->set_lines = calloc((size_t)n + 1, sizeof *p->set_lines);
+    p->set_columns = calloc((size_t)n + 1, sizeof *p->set_columns);
+    if (!p->sets || !p->set_lines || !p->set_columns)
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
     while ((pair = fy_node_mapping_iterate(map, &it))) {
         struct fy_node *k = fy_node_pair_key(pair), *v = fy_node_pair_value(pair);
         char *key = scalar_copy(k);
@@ -193,7 +203,9 @@ static int read_sets(struct fy_node *map, struct fy_node *keynode, const char *f
         free(key);
         free(val);
         if (!p->sets[p->n_sets]) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        node_position(k, &p->set_lines[p->n_sets], &p->set_columns[p->n_sets]);
         p->n_sets++;
+        p->n_plan_sets++;
     }
     return RTHS_OK;
 }
@@ -225,6 +237,7 @@ static int read_grid(struct fy_node *map, struct fy_node *keynode, const char *f
         }
         grid_axis *ax = &p->axes[p->n_axes++];
         ax->key = key;
+        node_position(k, &ax->key_line, &ax->key_column);
         int n = fy_node_is_sequence(v) ? fy_node_sequence_item_count(v) : 0;
         if (n < 1) return plan_error(err, file, k, name, "must be a non-empty list of values");
         ax->values = calloc((size_t)n, sizeof *ax->values);
@@ -622,6 +635,141 @@ static int remove_entry(const char *path, const struct stat *st, int type, struc
     return remove(path);
 }
 
+/* ---- every grid value through the run's own readers ---- */
+
+static int cancel_at_once(void *user) {
+    (void)user;
+    return 1;
+}
+
+/* The run of the combination vi (value index per grid axis) with the first seed. */
+static int run_of(const plan *p, const int *vi) {
+    int k = 0;
+    for (int a = 0; a < p->n_axes; a++)
+        k = k * p->axes[a].n_values + vi[a];
+    return k * (p->n_seeds ? p->n_seeds : 1);
+}
+
+/* An error of the configuration reader about one of the overrides starts with "--set K=V:" (how
+ * the reader locates a value given by --set): said again at its place in the plan, the key for
+ * an unknown key, the value for a bad one. Anything else names the run. */
+static int locate_in_plan(const plan *p, const char *plan_file, const int *vi, char *const *sets,
+                          int n, const rths_error *e, rths_error *err) {
+    for (int i = 0; i < n; i++) {
+        size_t len = strlen(sets[i]);
+        if (strncmp(e->msg, "--set ", 6) || strncmp(e->msg + 6, sets[i], len) ||
+            e->msg[6 + len] != ':')
+            continue;
+        if (i < p->n_plan_sets) {
+            const char *eq = strchr(sets[i], '=');
+            return rths_error_set(err, e->code, "%s:%d:%d: key 'set.%.*s': %s", plan_file,
+                                  p->set_lines[i], p->set_columns[i],
+                                  (int)(eq ? eq - sets[i] : (ptrdiff_t)len), sets[i], e->msg);
+        }
+        if (i < p->n_sets) break; /* the command line's --set: the message says so */
+        const grid_axis *ax = &p->axes[i - p->n_sets];
+        if (strstr(e->msg, ": unknown key '"))
+            return rths_error_set(err, e->code, "%s:%d:%d: key 'grid.%s': %s", plan_file,
+                                  ax->key_line, ax->key_column, ax->key, e->msg);
+        int v = vi[i - p->n_sets];
+        return rths_error_set(err, e->code, "%s:%d:%d: key 'grid.%s': value '%s': %s", plan_file,
+                              ax->lines[v], ax->columns[v], ax->key, ax->values[v], e->msg);
+    }
+    return rths_error_set(err, e->code, "%s: run_%04d (config %s): %s", plan_file, run_of(p, vi),
+                          p->config_path, e->msg);
+}
+
+/* The combination vi started through the library's FRF test (rths_api_frf: the same readers and
+ * checks as `rths frf`) in the scratch folder and cancelled before its first point. The run's
+ * warnings (e.g. no mode in the sweep) go to stderr: held, and said unless quiet. */
+static int check_combination(const plan *p, const char *plan_file, const int *vi,
+                             const char *scratch, int quiet, rths_error *err) {
+    char *sets[RTHS_CLI_MAX_SETS], *out = NULL;
+    int n = 0;
+    for (int i = 0; i < p->n_sets; i++)
+        if (!(sets[n++] = strdup(p->sets[i]))) goto oom;
+    for (int a = 0; a < p->n_axes; a++)
+        if (asprintf(&sets[n++], "%s=%s", p->axes[a].key, p->axes[a].values[vi[a]]) < 0) {
+            sets[n - 1] = NULL;
+            goto oom;
+        }
+    if (asprintf(&out, "%s/run_%04d", scratch, run_of(p, vi)) < 0) goto oom;
+    rths_error e = {0};
+    rths_api_config *cfg = NULL;
+    int rc = rths_api_config_load(p->config_path, (const char *const *)sets, n, &cfg, &e);
+    if (!rc) {
+        rths_api_frf_options o;
+        rths_api_frf_options_default(&o);
+        o.out_dir = out;
+        o.should_cancel = cancel_at_once;
+        if (p->n_seeds) {
+            o.has_seed = 1;
+            o.seed = strtoull(p->seeds[0], NULL, 10);
+        }
+        rths_result *r = NULL;
+        fflush(stderr);
+        FILE *held = tmpfile();
+        int saved = held ? dup(STDERR_FILENO) : -1;
+        if (saved >= 0) dup2(fileno(held), STDERR_FILENO);
+        rc = rths_api_frf(cfg, &o, &r, &e);
+        rths_result_free(r);
+        fflush(stderr);
+        if (saved >= 0) {
+            dup2(saved, STDERR_FILENO);
+            close(saved);
+            char line[1024];
+            rewind(held);
+            while (!quiet && fgets(line, sizeof line, held))
+                fprintf(stderr, "rths campaign: run_%04d (checked before the campaign): %s",
+                        run_of(p, vi), line);
+        }
+        if (held) fclose(held);
+    }
+    rths_api_config_free(cfg);
+    if (rc) rc = locate_in_plan(p, plan_file, vi, sets, n, &e, err);
+    free_strings(sets, n);
+    free(out);
+    return rc;
+oom:
+    free_strings(sets, n);
+    return rths_error_set(err, RTHS_EFAIL, "out of memory");
+}
+
+/* Before the campaign writes anything, every grid value is read by the run's own readers (every
+ * section a run reads, key by key): run 0's combination, then each other value of each grid key
+ * in run 0's combination. So a grid or set: key no reader asks for (a typo: split.mas_ratio,
+ * controller.kp_v_per_mm) is refused with the reader's "did you mean", and so is any value a
+ * run's reader refuses (not only the structure's, plan_check_runs), named at its place in the
+ * plan. About 0.1-0.2 s per value (docs/campaign.md). */
+static int plan_check_values(const plan *p, const char *plan_file, int quiet, rths_error *err) {
+    if (!rths_api_frf_available()) return RTHS_OK;
+    const char *tmp_root = getenv("TMPDIR");
+    char *scratch = NULL;
+    if (asprintf(&scratch, "%s/rths-campaign-check.XXXXXX",
+                 tmp_root && *tmp_root ? tmp_root : "/tmp") < 0)
+        scratch = NULL;
+    if (!scratch || !mkdtemp(scratch)) {
+        int e = errno;
+        free(scratch);
+        return rths_error_set(err, RTHS_EFAIL,
+                              "cannot create a scratch folder to check the plan's values: %s",
+                              strerror(e));
+    }
+    int vi0[MAX_AXES], vi[MAX_AXES], si;
+    run_indices(p, 0, vi0, &si);
+    int rc = check_combination(p, plan_file, vi0, scratch, quiet, err);
+    for (int a = 0; a < p->n_axes && !rc; a++)
+        for (int v = 0; v < p->axes[a].n_values && !rc; v++) {
+            if (v == vi0[a]) continue;
+            memcpy(vi, vi0, sizeof vi);
+            vi[a] = v;
+            rc = check_combination(p, plan_file, vi, scratch, 1, err);
+        }
+    nftw(scratch, remove_entry, 16, FTW_DEPTH | FTW_PHYS);
+    free(scratch);
+    return rc;
+}
+
 /* Recorded exit status of run k, or -1. */
 static int read_status(const char *dir, int k) {
     char *path = path_of(dir, "logs/run_%04d.status", k);
@@ -1016,7 +1164,8 @@ int rths_cmd_campaign(int argc, char **argv) {
         todo = calloc((size_t)p.n_runs, sizeof *todo);
         if (!c.results || !todo)
             rc = rths_error_set(&err, RTHS_EFAIL, "out of memory");
-        else if (!(rc = plan_check_runs(&p, cli.config_path, &err)))
+        else if (!(rc = plan_check_runs(&p, cli.config_path, &err)) &&
+                 !(rc = plan_check_values(&p, cli.config_path, cli.quiet, &err)))
             rc = campaign_open(&c, todo, &n_todo, &lock_fd, &err);
         if (rc) rths_cli_fail(&cli, rc, &err);
     }

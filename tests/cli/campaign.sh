@@ -11,7 +11,9 @@
 #  - with MPI built in and mpirun installed: mpirun -n 3 equals the serial campaign.csv, and a
 #    worker rank killed mid-campaign (mpirun then ends the job) loses no finished run: the same
 #    command again resumes and completes, equal to the serial one (skipped, said why, otherwise);
-#  - bad plans exit 2 naming FILE:LINE:COL and key, and write nothing.
+#  - bad plans exit 2 naming FILE:LINE:COL and key, and write nothing: among them a grid or set:
+#    key no reader asks for (a typo, with "did you mean") and a value a run's reader refuses,
+#    both found before any run starts.
 set -u
 bin=$1
 src=$(cd "$2" && pwd)
@@ -163,6 +165,21 @@ cfg="$src/examples/four_storey_linear.yaml"
 bad="$work/bad.yaml"
 printf 'config: %s\ngrid:\n  split.mass_ratio: [0.5, 2]\n' "$cfg" >"$bad"
 refused campaign "grid value out of range" "bad.yaml:3:27: key 'grid.split.mass_ratio': value '2': .*must be in \(0, 1\)" "$bad"
+# (the plan check's scratch folder goes to TMPDIR: one of this test's own, checked empty after)
+mkdir "$work/tmp" && export TMPDIR="$work/tmp"
+# keys no reader of the run asks for (typos) and values a run's reader refuses, found before
+# anything runs (every grid value through the run's own readers), named at their place
+# in the plan with the configuration reader's "did you mean"
+printf 'config: %s\ngrid:\n  split.mas_ratio: [0.4, 0.5]\n' "$cfg" >"$bad"
+refused campaign "grid key typo (structure)" "bad.yaml:3:3: key 'grid.split.mas_ratio': .*unknown key 'split.mas_ratio' \(did you mean 'split.mass_ratio'\?\)" "$bad"
+printf 'config: %s\ngrid:\n  split.mass_ratio: [0.5]\n  controller.kp_v_per_mm: [100, 150]\n' "$cfg" >"$bad"
+refused campaign "grid key typo (a run section)" "bad.yaml:4:3: key 'grid.controller.kp_v_per_mm': .*unknown key 'controller.kp_v_per_mm' \(did you mean 'controller.kp_v_per_m'\?\)" "$bad"
+printf 'config: %s\nset:\n  continuation.ned_hz: 12\ngrid:\n  split.mass_ratio: [0.5]\n' "$cfg" >"$bad"
+refused campaign "set: key typo" "bad.yaml:3:3: key 'set.continuation.ned_hz': .*unknown key 'continuation.ned_hz' \(did you mean 'continuation.end_hz'\?\)" "$bad"
+# (in run_0003, not the first run: every value of every grid key is checked)
+printf 'config: %s\ngrid:\n  split.mass_ratio: [0.4, 0.5]\n  controller.kp_v_per_m: [100, -5]\nseeds: [3, 4]\n' "$cfg" >"$bad"
+refused campaign "grid value a run refuses" "bad.yaml:4:32: key 'grid.controller.kp_v_per_m': value '-5': .*must be in \[0, 1e\+09\] \(got -5\)" "$bad"
+[ -z "$(ls -A "$TMPDIR")" ] || fail "the plan check left its scratch folder: $(ls -A "$TMPDIR")"
 printf 'config: %s\nseeds: [1, x]\n' "$cfg" >"$bad"
 refused campaign "bad seed" "bad.yaml:2:12: key 'seeds': 'x' is not an unsigned 64-bit integer" "$bad"
 printf 'config: %s\ngrids: {split.mass_ratio: [0.5]}\n' "$cfg" >"$bad"
