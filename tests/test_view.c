@@ -10,8 +10,11 @@
  * written): files of the run folder that are symlinks or FIFOs are refused without a byte of
  * what they name, files over 16 MB are served whole, an encoded NUL is refused, HEAD of the event
  * stream ends, a busy server says 503 Service Unavailable, idle connections are closed and do
- * not starve the API. Every server a test starts is stopped by its teardown, whatever the
- * test's outcome.
+ * not starve the API. A campaign folder: campaign.csv as JSON (quoted and text grid values,
+ * 64-bit seeds, every digit of the results, unfinished runs null), its state, its page, and each
+ * run's page and API under /runs/run_K/ with the path rules (run_ and digits, a folder of the
+ * campaign, not a link, that holds a run). Every server a test starts is stopped by its
+ * teardown, whatever the test's outcome.
  *
  * `test_view --serve-controller CONFIG [key=value...]` is not a test: it runs a controller with
  * its page on free loopback ports for tests/cli/view.sh's browser test, until SIGTERM. */
@@ -22,6 +25,7 @@
 #include <civetweb.h>
 #include <json-c/json.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -32,6 +36,7 @@
 #include <poll.h>
 #include <pthread.h>
 #include <signal.h>
+#include <sys/file.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <time.h>
@@ -126,9 +131,8 @@ static void run_folders(void **state) {
     assert_int_equal(rths_view_start(&opt, &v, &err), RTHS_EINPUT);
     assert_null(v);
     opt.run_dir = scratch;
-    assert_int_equal(rths_view_start(&opt, &v, &err), RTHS_OK);
-    assert_true(rths_view_port(v) > 0); /* port 0: the system picked one */
-    rths_view_stop(v);
+    assert_int_equal(rths_view_start(&opt, &served, &err), RTHS_OK); /* stopped by teardown */
+    assert_true(rths_view_port(served) > 0);                         /* port 0: picked */
 }
 
 static json_object *first_point(const char *json, const char *source) {
@@ -229,11 +233,10 @@ static void process_snapshot(void **state) {
     opt.port = 0;
     opt.snapshot = snapshot;
     opt.snapshot_user = &overruns;
-    rths_view *v;
     rths_error err;
-    assert_int_equal(rths_view_start(&opt, &v, &err), RTHS_OK);
+    assert_int_equal(rths_view_start(&opt, &served, &err), RTHS_OK); /* stopped by teardown */
     char ebuf[256] = "", body[4096] = "";
-    struct mg_connection *c = mg_download("127.0.0.1", rths_view_port(v), 0, ebuf, sizeof ebuf,
+    struct mg_connection *c = mg_download("127.0.0.1", rths_view_port(served), 0, ebuf, sizeof ebuf,
                                           "GET /api/status HTTP/1.0\r\n\r\n");
     assert_non_null(c);
     int n = 0, got;
@@ -241,7 +244,6 @@ static void process_snapshot(void **state) {
         n += got;
     body[n] = 0;
     mg_close_connection(c);
-    rths_view_stop(v);
     json_object *root = json_tokener_parse(body), *proc, *x;
     assert_non_null(root);
     assert_true(json_object_object_get_ex(root, "process", &proc));
@@ -706,6 +708,183 @@ static int serve_controller(int argc, char **argv) {
     return 0;
 }
 
+/* ---- a campaign folder (rths campaign --out, docs/campaign.md) ---- */
+
+/* campaign.csv as the campaign writes it: a grid value quoted (it holds a comma), a text grid
+ * value, a 64-bit seed, a failed run (no summary: results empty), an unfinished run. */
+static const char campaign_csv[] =
+    "run,split.mass_ratio,controller.scheme,seed,exit_status,points,converged_points,evaluations,"
+    "rig_time_s,max_relative_error_vs_truth,share_within_3_standard_errors\n"
+    "run_0000,0.4,\"a,b\",18446744073709551615,0,5,5,11,13.361799999982198,"
+    "0.00030924030501774312,1\n"
+    "run_0001,0.5,foe,2,1,,,,,,\n"
+    "run_0002,0.6,foe,1,,,,,,,\n";
+
+/* scratch as a campaign: campaign.csv, run_0000/ a run (frf.csv), run_0001/ not started (empty),
+ * run_0002 a symbolic link to run_0000 (never followed). */
+static void write_campaign(void) {
+    write_text("runs.csv", "run,split.mass_ratio,controller.scheme,seed\n");
+    write_text("plan.txt", "config: /somewhere/four_storey_linear.yaml\nruns:\n");
+    write_text("campaign.csv", campaign_csv);
+    assert_int_equal(mkdir(scratch_path("run_0000"), 0700), 0);
+    write_text("run_0000/frf.csv", "point,frequency_hz,amplitude_m\n0,12,4.5e-05\n");
+    assert_int_equal(mkdir(scratch_path("run_0001"), 0700), 0);
+    assert_int_equal(symlink(scratch_path("run_0000"), scratch_path("run_0002")), 0);
+}
+
+static json_object *array_at(json_object *o, const char *key, size_t i) {
+    json_object *a = member(o, key);
+    assert_true(json_object_is_type(a, json_type_array));
+    assert_true(i < json_object_array_length(a));
+    return json_object_array_get_idx(a, i);
+}
+
+static void campaign_table(void **state) {
+    (void)state;
+    rths_error err;
+    /* an empty folder is neither; runs.csv with plan.txt is a campaign that has just started */
+    assert_int_equal(rths_view_check_folder(scratch, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "not a run folder"));
+    assert_non_null(strstr(err.msg, "nor a campaign folder"));
+    write_text("runs.csv", "run,split.mass_ratio,seed\nrun_0000,0.4,1\n");
+    assert_int_equal(rths_view_check_folder(scratch, &err), RTHS_EINPUT);
+    write_text("plan.txt", "config: x.yaml\n");
+    assert_int_equal(rths_view_check_folder(scratch, &err), RTHS_OK);
+    char *json = NULL;
+    assert_int_equal(rths_view_campaign_json(scratch, &json, &err), RTHS_OK);
+    json_object *root = json_tokener_parse(json);
+    free(json);
+    assert_string_equal(json_object_get_string(member(root, "source")), "runs.csv");
+    assert_int_equal(json_object_get_int(member(root, "total")), 1);
+    assert_int_equal(json_object_get_int(member(root, "finished")), 0);
+    json_object_put(root);
+    unlink(scratch_path("runs.csv"));
+    unlink(scratch_path("plan.txt"));
+
+    write_campaign();
+    assert_int_equal(rths_view_check_folder(scratch, &err), RTHS_OK);
+    assert_int_equal(rths_view_campaign_json(scratch, &json, &err), RTHS_OK);
+    root = json_tokener_parse(json);
+    free(json);
+    assert_non_null(root);
+    assert_string_equal(json_object_get_string(member(root, "source")), "campaign.csv");
+    /* the grid keys are the columns between run and seed; the results follow seed */
+    json_object *grid = member(root, "grid"), *outputs = member(root, "outputs");
+    assert_int_equal(json_object_array_length(grid), 2);
+    assert_string_equal(json_object_get_string(json_object_array_get_idx(grid, 0)),
+                        "split.mass_ratio");
+    assert_string_equal(json_object_get_string(json_object_array_get_idx(grid, 1)),
+                        "controller.scheme");
+    assert_int_equal(json_object_array_length(outputs), 7);
+    assert_string_equal(json_object_get_string(json_object_array_get_idx(outputs, 0)),
+                        "exit_status");
+    json_object *r0 = array_at(root, "runs", 0), *r1 = array_at(root, "runs", 1);
+    assert_string_equal(json_object_get_string(member(r0, "run")), "run_0000");
+    assert_string_equal(json_object_get_string(member(r0, "controller.scheme")), "a,b");
+    /* every digit the file holds: %.17g round-trips the double, the seed is an integer */
+    assert_true(json_object_get_double(member(r0, "rig_time_s")) == 13.361799999982198);
+    assert_true(json_object_get_double(member(r0, "max_relative_error_vs_truth")) ==
+                0.00030924030501774312);
+    assert_true(json_object_get_uint64(member(r0, "seed")) == UINT64_MAX);
+    assert_int_equal(json_object_get_int(member(r0, "points")), 5);
+    assert_true(json_object_is_type(member(r0, "points"), json_type_int));
+    assert_int_equal(json_object_get_int(member(r1, "exit_status")), 1);
+    json_object *x;
+    assert_true(json_object_object_get_ex(r1, "points", &x) && x == NULL); /* empty: null */
+    assert_int_equal(json_object_get_int(member(root, "total")), 3);
+    assert_int_equal(json_object_get_int(member(root, "finished")), 2);
+    assert_int_equal(json_object_get_int(member(root, "failed")), 1);
+    /* a link only to a run that has started, in a folder of its own (not a symbolic link) */
+    assert_true(json_object_get_boolean(array_at(root, "run_folders", 0)));
+    assert_false(json_object_get_boolean(array_at(root, "run_folders", 1)));
+    assert_false(json_object_get_boolean(array_at(root, "run_folders", 2)));
+    json_object_put(root);
+}
+
+/* GET path's JSON body (status want). */
+static json_object *expect_json(int port, const char *path, int want) {
+    char *a = expect_answer(port, path, want, "SECRET");
+    json_object *o = json_tokener_parse(body_of(a));
+    if (!o) fail_msg("GET %s: not JSON: %.300s", path, a);
+    free(a);
+    return o;
+}
+
+/* The campaign's own routes, a run's page and API under /runs/run_K/, and the path rules: only
+ * run_ and digits, a folder (not a link) of the campaign that holds a run. */
+static void campaign_routes(void **state) {
+    (void)state;
+    write_campaign();
+    rths_view_options opt;
+    rths_view_options_defaults(&opt);
+    opt.port = 0;
+    opt.run_dir = scratch;
+    rths_error err;
+    if (rths_view_start(&opt, &served, &err)) fail_msg("%s", err.msg); /* stopped by teardown */
+    int port = rths_view_port(served);
+    char *a = expect_answer(port, "/", 200, NULL);
+    assert_non_null(strstr(a, "campaign.js")); /* the campaign's page */
+    free(a);
+    a = expect_answer(port, "/assets/campaign.js", 200, NULL);
+    free(a);
+    json_object *o = expect_json(port, "/api/campaign", 200);
+    assert_int_equal(json_object_get_int(member(o, "total")), 3);
+    json_object_put(o);
+    /* stopped: runs without an exit status and no campaign holding campaign.lock */
+    o = expect_json(port, "/api/status", 200);
+    assert_string_equal(json_object_get_string(member(o, "kind")), "campaign");
+    assert_string_equal(json_object_get_string(member(o, "state")), "stopped");
+    assert_string_equal(json_object_get_string(member(member(o, "campaign"), "config")),
+                        "/somewhere/four_storey_linear.yaml");
+    json_object_put(o);
+    /* running while a process holds the lock (here, this one) */
+    int lock = open(scratch_path("campaign.lock"), O_RDWR | O_CREAT | O_CLOEXEC, 0600);
+    assert_true(lock >= 0);
+    assert_int_equal(flock(lock, LOCK_EX | LOCK_NB), 0);
+    o = expect_json(port, "/api/status", 200);
+    assert_string_equal(json_object_get_string(member(o, "state")), "running");
+    json_object_put(o);
+    close(lock);
+    a = expect_answer(port, "/run/campaign.csv", 200, NULL);
+    assert_string_equal(body_of(a), campaign_csv);
+    free(a);
+    o = expect_json(port, "/api/points", 404); /* a campaign has no points of its own */
+    json_object_put(o);
+
+    /* run 0: its page and API, relative to /runs/run_0000/ */
+    a = expect_answer(port, "/runs/run_0000", 301, NULL);
+    assert_non_null(strstr(a, "\r\nLocation: /runs/run_0000/\r\n"));
+    free(a);
+    a = expect_answer(port, "/runs/run_0000/", 200, NULL);
+    assert_non_null(strstr(a, "app.js")); /* the run's page */
+    free(a);
+    o = expect_json(port, "/runs/run_0000/api/points", 200);
+    assert_string_equal(json_object_get_string(member(o, "source")), "frf.csv");
+    assert_true(json_object_get_double(member(array_at(o, "points", 0), "amplitude_m")) == 4.5e-05);
+    json_object_put(o);
+    o = expect_json(port, "/runs/run_0000/api/status", 200);
+    assert_string_equal(json_object_get_string(member(o, "kind")), "run");
+    assert_string_equal(json_object_get_string(member(o, "campaign_page")), "/");
+    json_object_put(o);
+    a = expect_answer(port, "/runs/run_0000/run/frf.csv", 200, NULL);
+    free(a);
+    /* not started, a symbolic link, no such run, not a run's name, out of the folder */
+    const char *missing[] = {"/runs/run_0001/api/points",
+                             "/runs/run_0002/api/points",
+                             "/runs/run_0002/run/frf.csv",
+                             "/runs/run_0009/",
+                             "/runs/logs/",
+                             "/runs/run_0000x/api/points",
+                             "/runs//api/points"};
+    for (size_t i = 0; i < sizeof missing / sizeof missing[0]; i++)
+        free(expect_answer(port, missing[i], 404, "4.5e-05"));
+    const char *outside[] = {"/runs/../campaign.csv", "/runs/run_0000/../../etc/passwd",
+                             "/runs/run_0000/run/..%2f..%2fcampaign.csv", "/runs/%2e%2e/"};
+    for (size_t i = 0; i < sizeof outside / sizeof outside[0]; i++)
+        free(expect_answer(port, outside[i], 403, "root:"));
+    free(expect_answer(port, "/runs/run_0000/run/%00", 400, NULL));
+}
+
 int main(int argc, char **argv) {
     if (argc >= 3 && !strcmp(argv[1], "--serve-controller")) return serve_controller(argc, argv);
     const struct CMUnitTest tests[] = {
@@ -713,13 +892,15 @@ int main(int argc, char **argv) {
         cmocka_unit_test_setup_teardown(run_folders, setup, teardown),
         cmocka_unit_test_setup_teardown(points_from_csv, setup, teardown),
         cmocka_unit_test_setup_teardown(points_from_journal, setup, teardown),
-        cmocka_unit_test(process_snapshot),
+        cmocka_unit_test_setup_teardown(process_snapshot, setup, teardown),
         cmocka_unit_test_setup_teardown(symlinks_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(fifo_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(large_files_whole, setup, teardown),
         cmocka_unit_test_setup_teardown(encoded_nul_refused, setup, teardown),
         cmocka_unit_test_setup_teardown(events_head_and_busy, setup, teardown),
         cmocka_unit_test_setup_teardown(idle_connections_closed, setup, teardown),
+        cmocka_unit_test_setup_teardown(campaign_table, setup, teardown),
+        cmocka_unit_test_setup_teardown(campaign_routes, setup, teardown),
         cmocka_unit_test(controller_page),
         cmocka_unit_test(loop_side_source_is_clean),
     };

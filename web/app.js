@@ -1,4 +1,5 @@
-// rths live view: fetches the run's JSON (/api/*), redraws on server-sent "change" events.
+// rths live view: fetches the run's JSON (api/*, relative to the page: a run of a campaign is
+// served under /runs/run_K/), redraws on server-sent "change" events.
 // Amplitudes are shown in micrometres, times in seconds or milliseconds as labelled.
 "use strict";
 
@@ -470,6 +471,8 @@ function renderFacts() {
 function renderHeader() {
   const s = state.status;
   $("run").textContent = s && s.run_dir ? s.run_dir : "";
+  // a run of a campaign (rths view CAMPAIGN_DIR): the way back to the campaign's page
+  $("campaign-link").hidden = !(s && s.campaign_page);
   const badge = $("state");
   const st = state.error ? "problem" : s ? s.state : "connecting";
   badge.textContent = st === "gone" ? "run folder gone" : st;
@@ -491,13 +494,13 @@ function render() {
 // Fetches what changed (only files the folder holds, so a finished run asks for no live.json
 // and the browser logs no 404).
 async function load(changed) {
-  state.status = await getJSON("/api/status");
+  state.status = await getJSON("api/status");
   const files = state.status.files || {};
   const want = (k) => state.status.run_dir && (!changed || changed.includes(k));
-  if (want("points")) state.points = (await getJSON("/api/points")).points;
-  if (want("truth") && files["truth.csv"]) state.truth = await getJSON("/api/truth");
-  if (want("live")) state.live = files["live.json"] ? await getJSON("/api/live") : null;
-  if (want("summary")) state.summary = files["summary.json"] ? await getJSON("/api/summary") : null;
+  if (want("points")) state.points = (await getJSON("api/points")).points;
+  if (want("truth") && files["truth.csv"]) state.truth = await getJSON("api/truth");
+  if (want("live")) state.live = files["live.json"] ? await getJSON("api/live") : null;
+  if (want("summary")) state.summary = files["summary.json"] ? await getJSON("api/summary") : null;
   state.error = state.status.state === "gone" ? `The run folder ${state.status.run_dir} is gone.` : null;
 }
 

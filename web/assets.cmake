@@ -4,7 +4,8 @@
 set(RTHS_WEB ${CMAKE_CURRENT_SOURCE_DIR}/web)
 set(RTHS_UPLOT ${RTHS_WEB}/node_modules/uplot/dist)
 set(RTHS_WEB_ASSETS ${RTHS_WEB}/index.html ${RTHS_WEB}/app.js ${RTHS_WEB}/app.css
-  ${RTHS_WEB}/plots.js ${RTHS_WEB}/controller.html ${RTHS_WEB}/controller.js)
+  ${RTHS_WEB}/plots.js ${RTHS_WEB}/controller.html ${RTHS_WEB}/controller.js
+  ${RTHS_WEB}/campaign.html ${RTHS_WEB}/campaign.js)
 if(EXISTS ${RTHS_UPLOT}/uPlot.iife.min.js)
   list(APPEND RTHS_WEB_ASSETS ${RTHS_UPLOT}/uPlot.iife.min.js ${RTHS_UPLOT}/uPlot.min.css)
 else()

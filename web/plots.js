@@ -95,7 +95,7 @@ function startPage(page) {
   };
   page.makePlots();
   refresh(null).then(() => {
-    const es = new EventSource("/api/events");
+    const es = new EventSource("api/events");
     es.addEventListener("change", (ev) => refresh(JSON.parse(ev.data).changed));
     es.onerror = () => {
       state.error = page.lost;

@@ -15,6 +15,13 @@
  *   /run/NAME          a file directly inside the run folder (figures, CSV); nothing else
  *   /api/process       a live process's own data (the controller's scope and lateness), when
  *                      one is served
+ * A campaign folder (`rths campaign --out`, docs/campaign.md) is served as its own page:
+ *   /                  the campaign's table and a plot of any result column against a grid column
+ *   /api/campaign      campaign.csv as JSON (rths_view_campaign_json)
+ *   /api/status        the campaign's state (running, ended, stopped) and files
+ *   /api/events        "change" whenever campaign.csv or runs.csv changes
+ *   /run/NAME          a file directly inside the campaign folder (campaign.csv, plan.txt, ...)
+ *   /runs/run_K/...    run K's own page and API, as above for a run folder
  * Requests naming anything outside the run folder (.., encoded or not, slashes) are refused with
  * 403, and so is every file of the folder that is a symlink, FIFO, device or folder (only regular
  * files are read, never through a link); an encoded NUL gets 400; unknown paths get 404; all
@@ -64,6 +71,16 @@ int rths_view_host_is_loopback(const char *host);
 /* RTHS_OK when dir is a folder holding a run (journal.jsonl, frf.csv or live.json), else
  * RTHS_EINPUT with the reason (missing, not a folder, not a run). */
 int rths_view_check_run_dir(const char *dir, rths_error *err);
+/* RTHS_OK when dir holds a run (as above) or a campaign (`rths campaign --out`: campaign.csv, or
+ * runs.csv and plan.txt), what rths_view_start serves; else RTHS_EINPUT with the reason. */
+int rths_view_check_folder(const char *dir, rths_error *err);
+
+/* A campaign folder's table as JSON {"kind": "campaign", "source": "campaign.csv"|"runs.csv"|
+ * "none", "columns": [...], "grid": [the grid keys], "outputs": [the result columns],
+ * "runs": [{column: value, ...}, ...] (empty fields null, numbers as numbers, other text as
+ * text), "run_folders": [whether run K's folder holds a run yet], "total", "finished", "failed"}
+ * (malloc'ed text, caller frees). */
+int rths_view_campaign_json(const char *dir, char **json, rths_error *err);
 
 /* The run's accepted points as JSON {"source": "frf.csv"|"journal.jsonl", "columns": [...],
  * "points": [{column: value, ...}, ...]} (malloc'ed text, caller frees). NaN becomes null. */

@@ -1,4 +1,5 @@
-/* rths view RUN_DIR [--listen ADDR:PORT]: the live web page of a run folder (src/view/). */
+/* rths view DIR [--listen ADDR:PORT]: the live web page of a run folder or of a campaign folder
+ * (src/view/). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
 #include "rths/view.h"
@@ -10,7 +11,7 @@
 #include <unistd.h>
 
 static const char usage[] =
-    "Usage: rths view RUN_DIR [--listen ADDR:PORT] [--quiet]\n"
+    "Usage: rths view RUN_DIR|CAMPAIGN_DIR [--listen ADDR:PORT] [--quiet]\n"
     "\n"
     "Serves a web page that watches the run folder RUN_DIR (the --out of 'rths frf'), finished\n"
     "or still being written, here or on a shared disk: the frequency response so far over the\n"
@@ -18,6 +19,10 @@ static const char usage[] =
     "point's residual and the interface signals. It only reads the folder (journal.jsonl,\n"
     "frf.csv, truth.csv, live.json, summary.json, config.yaml); the test itself serves nothing\n"
     "and is not slowed. The page updates itself (server-sent events), no reload.\n"
+    "\n"
+    "CAMPAIGN_DIR (the --out of 'rths campaign'), finished or still running: campaign.csv as\n"
+    "a table (sortable; each run links to its own page, /runs/run_K/) and any result column\n"
+    "plotted against a grid column, updated after every run.\n"
     "Runs until interrupted (Ctrl-C).\n"
     "\n"
     "Options:\n"
@@ -28,10 +33,11 @@ static const char usage[] =
     "  --help               this text\n"
     "\n"
     "JSON behind the page: /api/points (frf.csv's fields, every accepted point), /api/truth,\n"
-    "/api/live (live.json), /api/summary (once the run has ended), /api/status, /api/events.\n"
+    "/api/live (live.json), /api/summary (once the run has ended), /api/status, /api/events;\n"
+    "for a campaign /api/campaign (campaign.csv), /api/status, /api/events.\n"
     "\n"
-    "Exit status: 0 stopped by a signal; 1 cannot listen; 2 bad usage, or RUN_DIR missing or not\n"
-    "a run folder.\n";
+    "Exit status: 0 stopped by a signal; 1 cannot listen; 2 bad usage, or the folder missing or\n"
+    "neither a run nor a campaign folder.\n";
 
 /* RUN_DIR is the one argument that is neither an option nor an option's value. */
 static int split_run_dir(int argc, char **argv, char **rest, int *n_rest, const char **run_dir) {
@@ -61,7 +67,7 @@ int rths_cmd_view(int argc, char **argv) {
         return rths_cli_fail(&cli,
                              rths_error_set(&err, RTHS_EINPUT,
                                             "missing RUN_DIR (the folder of a run, e.g. "
-                                            "out/demo/linear_p0.5)"),
+                                            "out/demo/linear_p0.5, or of a campaign)"),
                              &err);
     rths_view_options vopt;
     rths_view_options_defaults(&vopt);
@@ -69,7 +75,7 @@ int rths_cmd_view(int argc, char **argv) {
     if (opts[OPT_LISTEN].value && (rc = rths_view_parse_listen(opts[OPT_LISTEN].value, vopt.host,
                                                                sizeof vopt.host, &vopt.port, &err)))
         return rths_cli_fail(&cli, rc, &err);
-    if ((rc = rths_view_check_run_dir(run_dir, &err))) return rths_cli_fail(&cli, rc, &err);
+    if ((rc = rths_view_check_folder(run_dir, &err))) return rths_cli_fail(&cli, rc, &err);
     if (!rths_view_host_is_loopback(vopt.host))
         fprintf(stderr,
                 "rths view: warning: serving on %s, reachable from other machines; the page "

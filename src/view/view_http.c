@@ -26,6 +26,7 @@ struct rths_view {
     rths_view_process_fn process;
     void *process_user;
     const char *page; /* the asset served at / */
+    int campaign;     /* run_dir is a campaign folder (docs/campaign.md) */
     atomic_int stopping;
     atomic_int event_streams; /* open /api/events streams, each holding a server thread */
 };
@@ -42,11 +43,28 @@ enum { VIEW_MAX_EVENT_STREAMS = 8 };
 #define VIEW_REQUEST_TIMEOUT_MS "5000"
 
 /* The files of a run whose changes the page hears about, and the API each one feeds. */
-static const char *const watched[][2] = {
+static const char *const run_watched[][2] = {
     {"journal.jsonl", "points"}, {"frf.csv", "points"},  {"live.json", "live"},
     {"summary.json", "summary"}, {"truth.csv", "truth"},
 };
-enum { N_WATCHED = sizeof watched / sizeof watched[0] };
+/* A campaign's: campaign.csv is rewritten after every run, runs.csv and plan.txt when it starts;
+ * a run's own page is served under /runs/run_K/ and watches its run's files. */
+static const char *const campaign_watched[][2] = {
+    {"campaign.csv", "campaign"},
+    {"runs.csv", "campaign"},
+    {"plan.txt", "campaign"},
+};
+enum {
+    N_RUN_WATCHED = sizeof run_watched / sizeof run_watched[0],
+    N_CAMPAIGN_WATCHED = sizeof campaign_watched / sizeof campaign_watched[0],
+    N_WATCHED = N_RUN_WATCHED /* the longer list */
+};
+
+/* The files watched in a folder served as a run (campaign 0) or as a campaign. */
+static int watched_files(int campaign, const char *const (**list)[2]) {
+    *list = campaign ? campaign_watched : run_watched;
+    return campaign ? N_CAMPAIGN_WATCHED : N_RUN_WATCHED;
+}
 
 void rths_view_options_defaults(rths_view_options *opt) {
     memset(opt, 0, sizeof *opt);
@@ -111,6 +129,8 @@ static const char *reason_phrase(int status) {
     switch (status) {
     case 200:
         return "OK";
+    case 301:
+        return "Moved Permanently";
     case 400:
         return "Bad Request";
     case 403:
@@ -231,12 +251,12 @@ static const char *mime_of(const char *name) {
 
 /* /run/NAME: a regular file directly inside the run folder, not a symlink (view_files.c),
  * served whole. */
-static int serve_run_file(rths_view *v, struct mg_connection *c, const char *name) {
+static int serve_run_file(struct mg_connection *c, const char *dir, const char *name) {
     if (!*name || name[0] == '.' || strchr(name, '/'))
         return send_html_error(c, 403, "Refused: only files directly inside the run folder.");
     view_file f;
     rths_error err = {0};
-    int status = view_file_open(v->run_dir, name, &f, &err);
+    int status = view_file_open(dir, name, &f, &err);
     if (status == 200)
         status = send_file(c, &f, mime_of(name));
     else if (status == 404)
@@ -252,11 +272,11 @@ static int serve_run_file(rths_view *v, struct mg_connection *c, const char *nam
 }
 
 /* /api/live, /api/summary: the file as the run wrote it, whole; `missing` when absent. */
-static int serve_file_json(rths_view *v, struct mg_connection *c, const char *name,
+static int serve_file_json(struct mg_connection *c, const char *dir, const char *name,
                            const char *missing) {
     view_file f;
     rths_error err = {0};
-    int status = view_file_open(v->run_dir, name, &f, &err);
+    int status = view_file_open(dir, name, &f, &err);
     status = status == 200   ? send_file(c, &f, "application/json")
              : status == 404 ? send_json_error(c, 404, missing)
                              : send_json_error(c, status, err.msg);
@@ -264,10 +284,12 @@ static int serve_file_json(rths_view *v, struct mg_connection *c, const char *na
     return status;
 }
 
-static json_object *files_object(const rths_view *v) {
+static json_object *files_object(const char *dir, int campaign) {
     json_object *files = json_object_new_object();
-    for (int i = 0; i < N_WATCHED; i++) {
-        char *path = rths_path_join(v->run_dir, watched[i][0]);
+    const char *const(*watched)[2];
+    int n_watched = watched_files(campaign, &watched);
+    for (int i = 0; i < n_watched; i++) {
+        char *path = rths_path_join(dir, watched[i][0]);
         struct stat st;
         if (path && lstat(path, &st) == 0 && S_ISREG(st.st_mode)) { /* the run's own files */
             json_object *f = json_object_new_object();
@@ -282,21 +304,31 @@ static json_object *files_object(const rths_view *v) {
     return files;
 }
 
-static int serve_status(rths_view *v, struct mg_connection *c) {
+static int serve_status(rths_view *v, struct mg_connection *c, const char *dir, int campaign) {
     json_object *o = json_object_new_object();
     json_object_object_add(o, "rths_version", json_object_new_string(RTHS_VERSION));
-    if (v->run_dir) {
+    if (dir) {
         struct stat st;
-        int present = stat(v->run_dir, &st) == 0;
-        json_object_object_add(o, "run_dir", json_object_new_string(v->run_dir));
+        int present = stat(dir, &st) == 0;
+        json_object_object_add(o, "kind", json_object_new_string(campaign ? "campaign" : "run"));
+        json_object_object_add(o, "run_dir", json_object_new_string(dir));
         json_object_object_add(o, "run_dir_present", json_object_new_boolean(present));
-        json_object_object_add(o, "state",
-                               json_object_new_string(!present ? "gone"
-                                                      : view_file_exists(v->run_dir, "summary.json")
-                                                          ? "ended"
-                                                          : "running"));
-        json_object_object_add(o, "files", files_object(v));
-        json_object_object_add(o, "plan", view_plan_object(v->run_dir));
+        json_object *cs = campaign && present ? view_campaign_state(dir) : NULL, *state = NULL;
+        if (cs && json_object_object_get_ex(cs, "state", &state)) json_object_get(state);
+        json_object_object_add(
+            o, "state",
+            !present ? json_object_new_string("gone")
+            : state  ? state
+                     : json_object_new_string(view_file_exists(dir, "summary.json") ? "ended"
+                                                                                    : "running"));
+        json_object_object_add(o, "files", files_object(dir, campaign));
+        if (campaign)
+            json_object_object_add(o, "campaign", cs);
+        else
+            json_object_object_add(o, "plan", view_plan_object(dir));
+        /* a run of a campaign: the link back to the campaign's page */
+        if (!campaign && v->campaign)
+            json_object_object_add(o, "campaign_page", json_object_new_string("/"));
     }
     if (v->snapshot) {
         char buf[16384];
@@ -311,9 +343,13 @@ static int serve_status(rths_view *v, struct mg_connection *c) {
 }
 
 /* A signature of the watched files: any change of size, time or inode (rename) shows. */
-static void signature(const rths_view *v, long long sig[N_WATCHED][3]) {
-    for (int i = 0; i < N_WATCHED; i++) {
-        char *path = rths_path_join(v->run_dir, watched[i][0]);
+static void signature(const char *dir, int campaign, long long sig[N_WATCHED][3]) {
+    const char *const(*watched)[2];
+    int n_watched = watched_files(campaign, &watched);
+    for (int i = 0; i < N_WATCHED; i++)
+        sig[i][0] = sig[i][1] = sig[i][2] = -1;
+    for (int i = 0; i < n_watched; i++) {
+        char *path = rths_path_join(dir, watched[i][0]);
         struct stat st;
         if (path && lstat(path, &st) == 0) {
             sig[i][0] = (long long)st.st_size;
@@ -334,13 +370,13 @@ static void sleep_s(double s) {
 
 /* Server-sent events: "change" with the APIs to fetch again, a comment as keep-alive. Ends when
  * the browser goes (a write fails) or the view stops. */
-static int serve_event_stream(rths_view *v, struct mg_connection *c);
+static int serve_event_stream(rths_view *v, struct mg_connection *c, const char *dir, int campaign);
 
 static const char event_stream_head[] =
     "HTTP/1.1 200 OK\r\nContent-Type: text/event-stream\r\nCache-Control: no-store\r\n"
     "Connection: close\r\n\r\n";
 
-static int serve_events(rths_view *v, struct mg_connection *c) {
+static int serve_events(rths_view *v, struct mg_connection *c, const char *dir, int campaign) {
     /* HEAD: the head a stream would have, and no stream (it would hold a thread for nothing) */
     if (is_head(c)) return mg_printf(c, "%s", event_stream_head), 200;
     if (atomic_fetch_add(&v->event_streams, 1) >= VIEW_MAX_EVENT_STREAMS) {
@@ -349,24 +385,27 @@ static int serve_events(rths_view *v, struct mg_connection *c) {
                                "too many live pages are open on this view (8): close one and "
                                "reload");
     }
-    int status = serve_event_stream(v, c);
+    int status = serve_event_stream(v, c, dir, campaign);
     atomic_fetch_sub(&v->event_streams, 1);
     return status;
 }
 
 /* Polls the run folder and pushes a change event; a keep-alive every second otherwise, so a
  * page that went away frees its thread within a second. */
-static int serve_event_stream(rths_view *v, struct mg_connection *c) {
+static int serve_event_stream(rths_view *v, struct mg_connection *c, const char *dir,
+                              int campaign) {
     mg_printf(c, "%sretry: 1000\n\n", event_stream_head);
+    const char *const(*watched)[2];
+    int n_watched = watched_files(campaign, &watched);
     long long last[N_WATCHED][3], now[N_WATCHED][3];
     memset(last, 0xff, sizeof last);
     memset(now, 0xff, sizeof now);
     int first = 1;
     double idle = 0;
     while (!atomic_load(&v->stopping)) {
-        if (v->run_dir) signature(v, now);
+        if (dir) signature(dir, campaign, now);
         char list[256] = "";
-        for (int i = 0; v->run_dir && i < N_WATCHED; i++)
+        for (int i = 0; dir && i < n_watched; i++)
             if ((first || memcmp(now[i], last[i], sizeof now[i])) && !strstr(list, watched[i][1]))
                 snprintf(list + strlen(list), sizeof list - strlen(list), "%s\"%s\"",
                          list[0] ? ", " : "", watched[i][1]);
@@ -393,42 +432,105 @@ static int serve_event_stream(rths_view *v, struct mg_connection *c) {
     return 200;
 }
 
-static int route_api(rths_view *v, struct mg_connection *c, const char *what) {
+static int route_api(rths_view *v, struct mg_connection *c, const char *dir, int campaign,
+                     const char *what) {
     rths_error err = {0};
     char *text = NULL;
-    if (!strcmp(what, "status")) return serve_status(v, c);
-    if (!strcmp(what, "events")) return serve_events(v, c);
+    if (!strcmp(what, "status")) return serve_status(v, c, dir, campaign);
+    if (!strcmp(what, "events")) return serve_events(v, c, dir, campaign);
     if (!strcmp(what, "process")) {
         if (!v->process) return send_json_error(c, 404, "this view serves no live process");
         err.code = RTHS_EFAIL;
         snprintf(err.msg, sizeof err.msg, "the process gave no data");
         return send_owned_json(c, 500, v->process(v->process_user), &err);
     }
-    if (!v->run_dir) return send_json_error(c, 404, "this view serves no run folder");
+    if (!dir) return send_json_error(c, 404, "this view serves no run folder");
     struct stat st;
-    if (stat(v->run_dir, &st) != 0) {
+    if (stat(dir, &st) != 0) {
         char msg[PATH_MAX + 64];
-        snprintf(msg, sizeof msg, "the run folder %s is gone", v->run_dir);
+        snprintf(msg, sizeof msg, "the %s folder %s is gone", campaign ? "campaign" : "run", dir);
         return send_json_error(c, 404, msg);
     }
+    if (campaign) {
+        if (!strcmp(what, "campaign")) {
+            int status = view_campaign_json(dir, &text, &err);
+            return send_owned_json(c, status, text, &err);
+        }
+        return send_json_error(c, 404,
+                               "unknown API for a campaign folder: use campaign, status, events; "
+                               "each run's own API is under /runs/run_K/api/");
+    }
     if (!strcmp(what, "points")) {
-        int status = view_points_json(v->run_dir, &text, &err);
+        int status = view_points_json(dir, &text, &err);
         return send_owned_json(c, status, text, &err);
     }
     if (!strcmp(what, "truth")) {
-        if (!view_file_present(v->run_dir, "truth.csv"))
+        if (!view_file_present(dir, "truth.csv"))
             return send_json_error(c, 404, "no truth.csv in the run folder (yet)");
-        int status = view_truth_json(v->run_dir, &text, &err);
+        int status = view_truth_json(dir, &text, &err);
         return send_owned_json(c, status, text, &err);
     }
     if (!strcmp(what, "live"))
-        return serve_file_json(v, c, "live.json",
+        return serve_file_json(c, dir, "live.json",
                                "no live.json: this run has not written one (yet); runs write "
                                "it after every evaluation when they are watched");
     if (!strcmp(what, "summary"))
-        return serve_file_json(v, c, "summary.json", "the run has not ended: no summary.json yet");
+        return serve_file_json(c, dir, "summary.json",
+                               "the run has not ended: no summary.json yet");
     return send_json_error(
         c, 404, "unknown API: use points, truth, live, summary, status, events, process");
+}
+
+/* The routes of one folder: the run folder (or campaign folder) served, or a run of the
+ * campaign under /runs/run_K/ (uri is then the rest after it, from its slash). */
+static int route_folder(rths_view *v, struct mg_connection *c, const char *uri, const char *dir,
+                        int campaign) {
+    if (!strcmp(uri, "/") || !strcmp(uri, "/index.html"))
+        return serve_asset(c, campaign ? "campaign.html" : v->page);
+    if (!strncmp(uri, "/assets/", 8)) return serve_asset(c, uri + 8);
+    if (!strncmp(uri, "/api/", 5)) return route_api(v, c, dir, campaign, uri + 5);
+    if (!strncmp(uri, "/run/", 5)) {
+        if (!dir) return send_html_error(c, 404, "This view serves no run folder.");
+        return serve_run_file(c, dir, uri + 5);
+    }
+    return send_html_error(c, 404, "Not found.");
+}
+
+/* /runs/run_K/...: run K of the campaign, its page and API as for a run folder. Only a folder
+ * named run_ and digits directly inside the campaign folder, not a symbolic link, holding a run
+ * (it has started). /runs/run_K without the slash is sent to /runs/run_K/ (the run's page asks
+ * for its API relative to its own address). */
+static int route_campaign_run(rths_view *v, struct mg_connection *c, const char *rest) {
+    char name[32];
+    size_t len = strcspn(rest, "/");
+    if (len >= sizeof name)
+        return send_html_error(c, 404, "No such run: runs are named run_ and digits.");
+    memcpy(name, rest, len);
+    name[len] = 0;
+    if (!view_campaign_run_name(name))
+        return send_html_error(c, 404, "No such run: runs are named run_ and digits.");
+    if (!view_campaign_run_dir(v->run_dir, name))
+        return send_html_error(c, 404,
+                               "The campaign folder holds no such run folder (a symbolic link is "
+                               "not followed).");
+    if (!rest[len]) {
+        mg_printf(c,
+                  "HTTP/1.1 301 Moved Permanently\r\nLocation: /runs/%s/\r\n"
+                  "Content-Length: 0\r\nCache-Control: no-store\r\nConnection: close\r\n\r\n",
+                  name);
+        return 301;
+    }
+    char *dir = rths_path_join(v->run_dir, name);
+    rths_error err = {0};
+    int status;
+    if (!dir)
+        status = send_html_error(c, 500, "Out of memory.");
+    else if (rths_view_check_run_dir(dir, &err))
+        status = send_html_error(c, 404, "That run has not started yet: its folder holds no run.");
+    else
+        status = route_folder(v, c, rest + len, dir, 0);
+    free(dir);
+    return status;
 }
 
 /* civetweb hands the path over undecoded (decode_url=no, rths_view_start): decoding it itself
@@ -450,14 +552,8 @@ static int handle_request(rths_view *v, struct mg_connection *c) {
         return send_html_error(c, 400, "Refused: the request holds an encoded NUL (%00).");
     if (is_traversal(uri))
         return send_html_error(c, 403, "Refused: the path leaves the run folder.");
-    if (!strcmp(uri, "/") || !strcmp(uri, "/index.html")) return serve_asset(c, v->page);
-    if (!strncmp(uri, "/assets/", 8)) return serve_asset(c, uri + 8);
-    if (!strncmp(uri, "/api/", 5)) return route_api(v, c, uri + 5);
-    if (!strncmp(uri, "/run/", 5)) {
-        if (!v->run_dir) return send_html_error(c, 404, "This view serves no run folder.");
-        return serve_run_file(v, c, uri + 5);
-    }
-    return send_html_error(c, 404, "Not found.");
+    if (v->campaign && !strncmp(uri, "/runs/", 6)) return route_campaign_run(v, c, uri + 6);
+    return route_folder(v, c, uri, v->run_dir, v->campaign);
 }
 
 typedef struct {
@@ -514,7 +610,7 @@ int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *e
     v->process_user = opt->process_user;
     v->page = opt->page && opt->page[0] ? opt->page : "index.html";
     if (opt->run_dir) {
-        int rc = rths_view_check_run_dir(opt->run_dir, err);
+        int rc = rths_view_check_folder(opt->run_dir, err);
         if (!rc && !(v->run_dir = realpath(opt->run_dir, NULL)))
             rc = rths_error_set(err, RTHS_EINPUT, "run folder %s: %s", opt->run_dir,
                                 strerror(errno));
@@ -522,6 +618,7 @@ int rths_view_start(const rths_view_options *opt, rths_view **out, rths_error *e
             free(v);
             return rc;
         }
+        v->campaign = view_is_campaign_dir(v->run_dir);
     }
     char ports[300];
     snprintf(ports, sizeof ports, strchr(opt->host, ':') ? "[%s]:%d" : "%s:%d", opt->host,

@@ -44,6 +44,19 @@ int view_truth_json(const char *dir, char **json, rths_error *err);
 /* rths_view_points_json returning the HTTP status: 403 for a refused file. */
 int view_points_json(const char *dir, char **json, rths_error *err);
 
+/* A campaign folder (view_campaign.c, docs/campaign.md): campaign.csv, or runs.csv with plan.txt
+ * (a campaign that has only started). */
+int view_is_campaign_dir(const char *dir);
+/* NAME is run_ and digits (never "..", a slash, a hidden name). */
+int view_campaign_run_name(const char *name);
+/* NAME is such a run folder directly inside the campaign folder, a folder and not a symlink. */
+int view_campaign_run_dir(const char *campaign_dir, const char *name);
+/* rths_view_campaign_json returning the HTTP status (403 for a refused file). */
+int view_campaign_json(const char *dir, char **json, rths_error *err);
+/* The campaign's state for /api/status: {state: running|ended|stopped, runs, finished, failed,
+ * config}. */
+struct json_object *view_campaign_state(const char *dir);
+
 /* What the run's config.yaml plans: {start_hz, end_hz, method, max_points}, or NULL. */
 struct json_object *view_plan_object(const char *dir);
 
