@@ -3,6 +3,7 @@
 // SOURCE (frf.csv or journal.jsonl) as where it came from; summary, truth and /run/ files must
 // equal the folder's; paths leaving the folder are refused with 403 and never leak a byte of what
 // they name; unknown paths get 404, other methods 405. Prints ok/FAIL lines, exits 1 on failure.
+// BASE_URL may name a run of a campaign (http://HOST:PORT/runs/run_K/): the same checks under it.
 // Plain Node (http, fs): no npm package needed.
 import fs from "node:fs";
 import http from "node:http";
@@ -10,6 +11,8 @@ import path from "node:path";
 
 const [base, runDir, csvPath, source, uplotFlag] = process.argv.slice(2);
 const url = new URL(base);
+// a run of a campaign is served under /runs/run_K/: every path below is asked for under it
+const prefix = url.pathname.replace(/\/+$/, "");
 let failures = 0;
 const ok = (m) => console.log(`ok   ${m}`);
 const fail = (m) => {
@@ -20,7 +23,7 @@ const fail = (m) => {
 // A raw request: the path is sent exactly as given (no URL normalisation, unlike fetch).
 function request(rawPath, method = "GET") {
   return new Promise((resolve, reject) => {
-    const req = http.request({ host: url.hostname, port: url.port, path: rawPath, method }, (res) => {
+    const req = http.request({ host: url.hostname, port: url.port, path: prefix + rawPath, method }, (res) => {
       const chunks = [];
       res.on("data", (c) => chunks.push(c));
       res.on("end", () => resolve({ status: res.statusCode, type: res.headers["content-type"] || "", body: Buffer.concat(chunks) }));
@@ -123,7 +126,7 @@ async function page() {
 // The first server-sent event names what to fetch.
 function firstEvent() {
   return new Promise((resolve) => {
-    const req = http.get({ host: url.hostname, port: url.port, path: "/api/events" }, (res) => {
+    const req = http.get({ host: url.hostname, port: url.port, path: `${prefix}/api/events` }, (res) => {
       let text = "";
       res.on("data", (c) => {
         text += c;

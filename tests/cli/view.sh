@@ -6,54 +6,18 @@
 # screenshot that is not blank, a growing run followed; a two-interface run's every DoF and a
 # bilinear run's unstable points drawn as frf.csv says: view_runs_browser.mjs), a real run paced by rig.pace watched from
 # start to end (paced_browser.mjs), and the controller process's page on a driven controller
-# (controller_browser.mjs). Screenshots stay in view-test-output/.
-# Every process started here is stopped whatever the outcome (stop_all, on EXIT and on TERM, INT,
-# HUP), each server also runs under `timeout` so that not even a SIGKILLed script leaves one for
-# long, and the script's last check is that none is left.
+# (controller_browser.mjs); a campaign folder (rths campaign --out) followed while it runs, its
+# table as campaign.csv, each run's page and API under /runs/run_K/ and the path rules there, its
+# page in the browser (campaign_browser.mjs). Screenshots stay in view-test-output/.
+# Every process started here is stopped whatever the outcome (stop_all of tests/cli/lib/servers.sh,
+# on EXIT and on TERM, INT, HUP), each server also runs under `timeout` so that not even a
+# SIGKILLed script leaves one for long, and the script's last check is that none is left.
 set -u
 bin=$1
 src=$2
 source "$src/tests/cli/lib/common.sh"
 out="$PWD/view-test-output"
-servers=() # every background process started here: views, runs, the controller and its host
-trap 'stop_all; rm -rf "$work"' EXIT
-trap 'exit 143' TERM
-trap 'exit 130' INT
-trap 'exit 129' HUP
-# A server outlives a killed script by at most this long (timeout's own limit).
-life=900
-
-# alive PID: running, not a zombie waiting to be reaped
-alive() {
-    local stat
-    stat=$(cat "/proc/$1/stat" 2>/dev/null) || return 1
-    stat=${stat##*) }
-    [ "${stat:0:1}" != Z ]
-}
-
-# forget PID: a process waited for here leaves servers (its pid may be reused)
-forget() {
-    local keep=() p
-    for p in "${servers[@]}"; do [ "$p" = "$1" ] || keep+=("$p"); done
-    servers=("${keep[@]}")
-}
-
-# stop_all: SIGTERM to every process in servers, then waits for them; SIGKILL to what still runs
-# after 10 s.
-stop_all() {
-    [ ${#servers[@]} -gt 0 ] || return 0
-    local p left
-    kill -TERM "${servers[@]}" 2>/dev/null
-    for _ in $(seq 100); do
-        left=0
-        for p in "${servers[@]}"; do alive "$p" && left=1; done
-        [ $left = 0 ] && break
-        sleep 0.1
-    done
-    kill -KILL "${servers[@]}" 2>/dev/null
-    wait "${servers[@]}" 2>/dev/null
-    servers=()
-}
+source "$src/tests/cli/lib/servers.sh" # servers, stop_all (on exit, whatever the outcome), life
 
 command -v node >/dev/null || { echo "FAIL node is missing (make deps installs nodejs)"; exit 1; }
 
@@ -182,6 +146,76 @@ if start_view anywhere "$work/run" --listen 0.0.0.0:0; then
 fi
 grep -q warning "$work/finished.err" && fail "warning for loopback"
 
+# 5b. a campaign folder (rths campaign --out, docs/campaign.md): served while the campaign runs
+# (4 runs, 2 at a time) and followed until it has ended; /api/campaign equals campaign.csv value
+# for value; each run's page and API under /runs/run_K/ (api_check.mjs under that prefix); the
+# path rules of /runs/ (run_ and digits, a folder of the campaign, not a link, holding a run)
+cplan="$work/campaign.yaml"
+printf 'config: %s\nset:\n  continuation.start_hz: 12.0\n  continuation.end_hz: 12.2\ngrid:\n  split.mass_ratio: [0.4, 0.6]\n  controller.kp_v_per_m: [100, 150]\n' \
+    "$src/examples/four_storey_linear.yaml" >"$cplan"
+timeout -k 5 $life "$bin" campaign "$cplan" --out "$work/campaign" --jobs 2 --quiet \
+    >"$work/campaign.out" 2>&1 &
+campaign_pid=$!
+servers+=($campaign_pid)
+for _ in $(seq 600); do [ -f "$work/campaign/plan.txt" ] && break; sleep 0.1; done
+campaign_base=""
+# status_of URL: "STATE FINISHED RUNS" of a campaign's /api/status
+campaign_status() {
+    curl -s --max-time 5 "$1api/status" | node -e 'let s = ""; process.stdin.on("data", (d) => (s += d)).on("end", () => {
+        try { const j = JSON.parse(s); console.log(j.kind, j.state, j.campaign.finished, j.campaign.runs); } catch { console.log("?"); } })'
+}
+if start_view campaign_view "$work/campaign" --listen 127.0.0.1:0; then
+    campaign_base=$base
+    seen=""
+    for _ in $(seq 1200); do
+        st=$(campaign_status "$campaign_base")
+        [ "$st" != "${seen##*; }" ] && seen="$seen; $st"
+        [ "$st" = "campaign ended 4 4" ] && break
+        sleep 0.25
+    done
+    [ "${seen##*; }" = "campaign ended 4 4" ] && echo "ok   campaign followed to its end:$seen" ||
+        fail "campaign status: $seen"
+fi
+wait "$campaign_pid" || fail "campaign exit $?: $(cat "$work/campaign.out")"
+forget "$campaign_pid"
+if [ -n "$campaign_base" ]; then
+    # /api/campaign against campaign.csv: the same text or number in every cell
+    node - "$campaign_base" "$work/campaign/campaign.csv" <<'JS' || fail "/api/campaign differs from campaign.csv"
+const [base, file] = process.argv.slice(2);
+const [head, ...rows] = require("fs").readFileSync(file, "utf8").trim().split("\n");
+const cols = head.split(",");
+fetch(`${base}api/campaign`).then((r) => r.json()).then((j) => {
+  let bad = j.columns.join() !== head || j.runs.length !== rows.length || j.grid.join() !== "split.mass_ratio,controller.kp_v_per_m";
+  rows.forEach((r, i) => r.split(",").forEach((v, c) => {
+    const got = j.runs[i][cols[c]], want = c === 0 ? v : v === "" ? null : Number(v);
+    if (got !== want) { console.log(`row ${i} ${cols[c]}: ${got} != ${want}`); bad = true; }
+  }));
+  if (!j.run_folders.every((x) => x)) bad = true;
+  console.log(bad ? "FAIL /api/campaign" : `ok   /api/campaign equals campaign.csv (${rows.length} runs x ${cols.length} columns)`);
+  process.exit(bad ? 1 : 0);
+});
+JS
+    # run 2's page and API under /runs/run_0002/, with the run view's own checks
+    crun="$work/campaign/run_0002"
+    ln -s /etc/passwd "$crun/outside_link"
+    node "$src/tests/browser/api_check.mjs" "${campaign_base}runs/run_0002/" "$crun" "$crun/frf.csv" frf.csv $uplot ||
+        fail "API of a campaign's run"
+    code=$(curl -s -o /dev/null -w '%{http_code} %{redirect_url}' --max-time 5 "${campaign_base}runs/run_0002")
+    [ "$code" = "301 ${campaign_base}runs/run_0002/" ] && echo "ok   /runs/run_0002: 301 to /runs/run_0002/" ||
+        fail "/runs/run_0002: $code"
+    ln -s "$crun" "$work/campaign/run_0009"
+    mkdir "$work/campaign/run_0010"
+    for p in runs/run_0009/api/points runs/run_0010/ runs/run_0011/ runs/logs/ runs/run_0002x/ api/points; do
+        code=$(curl -s -o "$work/body" -w '%{http_code}' --max-time 5 "${campaign_base}$p")
+        [ "$code" = 404 ] && ! grep -q "frequency_hz" "$work/body" && echo "ok   /$p: 404" || fail "/$p: HTTP $code"
+    done
+    for p in runs/../campaign.csv runs/run_0002/../../etc/passwd runs/%2e%2e/campaign.csv runs/run_0002/run/..%2f..%2fcampaign.csv; do
+        code=$(curl -s --path-as-is -o "$work/body" -w '%{http_code}' --max-time 5 "${campaign_base}$p")
+        [ "$code" = 403 ] && ! grep -q "root:" "$work/body" && echo "ok   /$p: 403" || fail "/$p: HTTP $code"
+    done
+    rm "$work/campaign/run_0009" && rmdir "$work/campaign/run_0010"
+fi
+
 # 6. the page in a real browser (skipped only without chromium or web/node_modules)
 chromium=$(command -v chromium || command -v chromium-browser || true)
 if [ -z "$chromium" ] || [ ! -d "$src/web/node_modules/puppeteer-core" ]; then
@@ -206,6 +240,16 @@ else
     timeout 300 node "$src/tests/browser/view_runs_browser.mjs" "$src/web" "$chromium" "$out" \
         two_interface "$two" "$work/two" bilinear "$bilinear" "$work/bilinear" ||
         fail "other runs in the browser"
+
+    # 6c. the campaign's page: its table, sorting, plots, a run's page through its link, and a
+    # copy whose campaign.csv is rewritten run by run followed without a reload
+    if [ -n "$campaign_base" ]; then
+        cp -r "$work/campaign" "$work/campaign_live"
+        start_view campaign_live_view "$work/campaign_live" --listen 127.0.0.1:0 && campaign_live=$base
+        timeout 300 node "$src/tests/browser/campaign_browser.mjs" "$src/web" "$chromium" "$out" \
+            "$campaign_base" "$work/campaign" "$campaign_live" "$work/campaign_live" ||
+            fail "campaign page in the browser"
+    fi
 
     # 7. a real paced run: rths frf at 4 x real time (59 s of rig time: about 15 s of wall time),
     # watched from its first points to its end

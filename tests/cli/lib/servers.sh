@@ -1,0 +1,64 @@
+# Sourced by the CLI tests that start servers (rths view, rths controller) or other background
+# processes (a campaign, a host run): every process registered in `servers` (`servers+=($!)`)
+# is stopped when the script exits, whatever its outcome (a failed check, `exit`, an error,
+# TERM/INT/HUP from ctest or a user): SIGTERM, then SIGKILL to what still runs after 10 s, and
+# waited for. The folders listed in `scratch_dirs` are removed after (common.sh's $work is one).
+# A script killed by SIGKILL runs no trap: start each server under `timeout -k 5 $life` so that
+# it outlives the script by at most $life seconds. Kept out of tests/cli/*.sh, which CMake
+# registers as tests one by one.
+servers=()
+scratch_dirs=()
+[ -n "${work:-}" ] && scratch_dirs+=("$work")
+life=900
+
+# alive PID: running, not a zombie waiting to be reaped
+alive() {
+    local stat
+    stat=$(cat "/proc/$1/stat" 2>/dev/null) || return 1
+    stat=${stat##*) }
+    [ "${stat:0:1}" != Z ]
+}
+
+# forget PID: a process waited for here leaves servers (its pid may be reused)
+forget() {
+    local keep=() p
+    for p in "${servers[@]}"; do [ "$p" = "$1" ] || keep+=("$p"); done
+    servers=("${keep[@]}")
+}
+
+# stop_all: SIGTERM to every process in servers, then waits for them; SIGKILL to what still runs
+# after 10 s.
+stop_all() {
+    [ ${#servers[@]} -gt 0 ] || return 0
+    local p left
+    kill -TERM "${servers[@]}" 2>/dev/null
+    for _ in $(seq 100); do
+        left=0
+        for p in "${servers[@]}"; do alive "$p" && left=1; done
+        [ $left = 0 ] && break
+        sleep 0.1
+    done
+    kill -KILL "${servers[@]}" 2>/dev/null
+    wait "${servers[@]}" 2>/dev/null
+    servers=()
+}
+
+stop_all_and_clean() {
+    local rc=$?
+    stop_all
+    [ ${#scratch_dirs[@]} -eq 0 ] || rm -rf "${scratch_dirs[@]}"
+    return $rc
+}
+trap stop_all_and_clean EXIT
+trap 'exit 143' TERM
+trap 'exit 130' INT
+trap 'exit 129' HUP
+
+# none_left PATTERN: the script's last check, that no process whose command line holds PATTERN
+# (the script's scratch folder, a port) is left.
+none_left() {
+    stop_all
+    local left
+    left=$(pgrep -af -- "$1" | grep -v "^$$ " || true)
+    [ -z "$left" ]
+}
