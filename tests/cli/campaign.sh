@@ -18,6 +18,8 @@ set -u
 bin=$1
 src=$(cd "$2" && pwd)
 source "$src/tests/cli/lib/common.sh"
+# the campaigns started in the background are stopped when the script exits, whatever the outcome
+source "$src/tests/cli/lib/servers.sh"
 plan="$src/examples/campaign/four_storey_grid.yaml"
 export OPENBLAS_NUM_THREADS=1
 
@@ -80,9 +82,11 @@ wait_runs() {
 res="$work/resumed"
 "$bin" campaign "$plan" --out "$res" --jobs 2 --quiet 2>"$work/res1.err" &
 pid=$!
+servers+=($pid)
 if wait_runs "$res" 3 $pid; then
     kill -KILL $pid
     wait $pid 2>/dev/null
+    forget $pid
     before=$(finished_stats "$res")
     n_before=$(echo "$before" | grep -c run_)
     if [ "$n_before" -ge 3 ] && [ "$n_before" -lt 12 ]; then
@@ -126,6 +130,7 @@ else
     kr="$work/mpi_killed"
     "${mpi[@]}" "$bin" campaign "$plan" --out "$kr" --quiet >"$work/mk1.out" 2>&1 &
     mpid=$!
+    servers+=($mpid)
     if wait_runs "$kr" 3 $mpid; then
         rank1=""
         for child in $(pgrep -P $mpid); do
@@ -135,6 +140,7 @@ else
         if [ -n "$rank1" ]; then
             kill -KILL "$rank1"
             wait $mpid 2>/dev/null
+            forget $mpid
             before=$(finished_stats "$kr")
             n_before=$(echo "$before" | grep -c run_)
             sleep 1.1
