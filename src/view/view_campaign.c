@@ -12,7 +12,6 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
-#include <sys/sysmacros.h>
 #include <unistd.h>
 
 int view_is_campaign_dir(const char *dir) {
@@ -144,8 +143,9 @@ static void free_fields(char **fields, int n) {
 }
 
 /* Whether a process holds an flock on the folder's campaign.lock (a campaign runs into it):
- * /proc/locks lists every lock on this machine by device and inode. Read only; a campaign on
- * another machine of a shared disk does not show. */
+ * /proc/locks lists every lock on this machine by device and inode. Read only (the view takes no
+ * lock, which could make a starting campaign find the folder in use); a campaign on another
+ * machine of a shared disk does not show. */
 static int campaign_locked(const char *dir) {
     char *path = rths_path_join(dir, "campaign.lock");
     struct stat st;
@@ -167,9 +167,10 @@ static int campaign_locked(const char *dir) {
             while (p && *p == ' ')
                 p++;
         }
+        /* the inode decides: on an overlay file system the lock is on the underlying file,
+         * whose device differs from the one stat gives (its inode number does not) */
         if (p && sscanf(p, "%x:%x:%llu", &maj, &min, &ino) == 3)
-            held = ino == (unsigned long long)st.st_ino && maj == major(st.st_dev) &&
-                   min == minor(st.st_dev);
+            held = ino == (unsigned long long)st.st_ino;
     }
     fclose(f);
     return held;

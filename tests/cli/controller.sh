@@ -10,11 +10,11 @@ SRC=$2
 CFG="$SRC/examples/four_storey.yaml"
 tmp=$(mktemp -d)
 pid=
-cleanup() {
-    [ -n "$pid" ] && kill "$pid" 2>/dev/null
-    rm -rf "$tmp"
-}
-trap cleanup EXIT
+# Every controller and host started here is stopped when the script exits, whatever the outcome
+# (tests/cli/lib/servers.sh: SIGTERM, SIGKILL after 10 s, waited for). Not under `timeout`: the
+# exit status after SIGTERM is asserted here, and timeout forwards the signal to itself too (143).
+source "$SRC/tests/cli/lib/servers.sh"
+scratch_dirs+=("$tmp")
 fail() {
     echo "FAIL: $*"
     for f in "$tmp"/*.out "$tmp"/*.err; do [ -f "$f" ] && { echo "--- $f"; cat "$f"; }; done
@@ -101,10 +101,11 @@ HOST=(--set controller.max_overrun_share=1 --set continuation.method=natural --s
 # on this loaded machine can take longer than the default 2 s, and the next host would find the
 # watchdog fault latched (its text says "the host was silent for 2.00 s"); the watchdog itself
 # is tested in test_controller_process.
-"$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false "${PHYS[@]}" \
-    --io "$BUILD/rths_io_virtual.so" --set server.watchdog_s=20 \
+"$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
+    --set server.realtime=false "${PHYS[@]}" --io "$BUILD/rths_io_virtual.so" --set server.watchdog_s=20 \
     >"$tmp/ctl.out" 2>"$tmp/ctl.err" &
 pid=$!
+servers+=($pid)
 port=
 for _ in $(seq 1 400); do
     port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$tmp/ctl.out")
@@ -137,9 +138,11 @@ if "$RTHS" frf --help 2>/dev/null | grep -q -- "--rig"; then
     "$RTHS" frf "$CFG" --out "$tmp/killed" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" \
         "${HOST[@]}" --quiet >"$tmp/killed.out" 2>"$tmp/killed.err" &
     hpid=$!
+    servers+=($hpid)
     wait_for "armed by" "$tmp/ctl.err" "'armed' notice"
     kill -KILL "$hpid"
     wait "$hpid" 2>/dev/null
+    forget "$hpid"
     wait_for "disarmed (host connection lost)" "$tmp/ctl.err" "disarm after the host was killed"
 
     "$RTHS" frf "$CFG" --out "$tmp/remote" --rig "tcp://127.0.0.1:$port" "${PHYS[@]}" "${HOST[@]}" \
@@ -198,6 +201,7 @@ storm_lines=$(($(wc -l <"$tmp/ctl.err") - before))
 kill -TERM "$pid"
 wait "$pid"
 rc=$?
+forget "$pid"
 pid=
 [ "$rc" -eq 0 ] || fail "controller exit $rc after SIGTERM"
 grep -q "stopped after [0-9]* samples" "$tmp/ctl.err" || fail "no statistics after stop"
@@ -208,6 +212,7 @@ CFG2="$SRC/examples/two_interface_storeys.yaml"
 "$RTHS" controller --config "$CFG2" --listen 127.0.0.1:0 --set server.realtime=false \
     --set rig.noise=false --io "$BUILD/rths_io_virtual.so" >"$tmp/ctl2.out" 2>"$tmp/ctl2.err" &
 pid=$!
+servers+=($pid)
 port=
 for _ in $(seq 1 400); do
     port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$tmp/ctl2.out")
@@ -345,6 +350,7 @@ PY
 kill -TERM "$pid"
 wait "$pid"
 rc=$?
+forget "$pid"
 pid=
 [ "$rc" -eq 0 ] || fail "two-DoF controller exit $rc after SIGTERM"
 
@@ -355,9 +361,11 @@ cc -shared -fPIC -std=c11 -D_GNU_SOURCE -I"$SRC/include" "$SRC/tests/data/io/mis
 start_controller() { # out-prefix, then extra arguments
     local out=$1
     shift
-    "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 --set server.realtime=false \
-        "${PHYS[@]}" --io "$tmp/misbehaving.so" "$@" >"$tmp/$out.out" 2>"$tmp/$out.err" &
+    "$RTHS" controller --config "$CFG" --listen 127.0.0.1:0 \
+        --set server.realtime=false "${PHYS[@]}" --io "$tmp/misbehaving.so" "$@" \
+        >"$tmp/$out.out" 2>"$tmp/$out.err" &
     pid=$!
+    servers+=($pid)
     port=
     for _ in $(seq 1 400); do
         port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$tmp/$out.out")
@@ -423,6 +431,7 @@ grep -q "late_samples" "$tmp/slow_frf/summary.json" 2>/dev/null ||
 kill -TERM "$pid"
 wait "$pid"
 rc=$?
+forget "$pid"
 pid=
 [ "$rc" -eq 0 ] || fail "slow plug-in controller exit $rc after SIGTERM"
 
@@ -442,6 +451,7 @@ done
 kill -0 "$pid" 2>/dev/null && fail "a stalled controller did not exit on SIGTERM"
 wait "$pid"
 rc=$?
+forget "$pid"
 pid=
 [ "$rc" -eq 1 ] || fail "stalled controller exit $rc after SIGTERM, expected 1"
 grep -q "the loop stalled in the I/O device" "$tmp/stall.err" || fail "no stall message at exit"
