@@ -44,6 +44,12 @@ int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *por
 int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths_rig **out,
                            rths_error *err);
 
+/* The fault a remote rig knows without asking (the controller pushes a STATUS whenever its fault
+ * or armed state changes, taken in whenever the rig reads; a lost link latches at once): 1 with
+ * *out filled for a remote rig, 0 for any other rig. rths_rig_get_fault asks the controller
+ * (a round trip over the link) when none is known. */
+int rths_remote_rig_known_fault(rths_rig *rig, rths_rig_fault *out);
+
 /* ---- multi-site tests (docs/method.md, "Multi-site tests") ----
  *
  * One rig over several sites, each a rig of its own (a controller process: its own physical

@@ -26,9 +26,11 @@ _Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
 _Static_assert(RTHS_PROTO_MAX_DOFS == RTHS_MAX_INTERFACE_DOFS,
                "frames carry every interface DoF a rig drives");
 
-#define RX_CAP (64 * 1024)
+/* 1 MiB: with the injected link delay the host holds what arrived during the delay (a trace
+ * stream of 4 DoFs is about 0.6 MB/s) */
+#define RX_CAP (1024 * 1024)
 /* arrival marks of the received bytes (the injected link delay): chunks beyond merge */
-#define RX_MARKS 256
+#define RX_MARKS 4096
 
 typedef struct remote {
     char uri[300];
@@ -80,14 +82,6 @@ void rths_remote_options_defaults(rths_remote_options *opt) {
     opt->link_delay_s = 0.0;
 }
 
-/* Sleeps until the monotonic clock reads until_s (the injected delay only). */
-static void sleep_until(double until_s) {
-    for (double left; (left = until_s - rths_monotonic_s()) > 0;) {
-        struct timespec ts = {(time_t)left, (long)((left - (double)(time_t)left) * 1e9)};
-        nanosleep(&ts, NULL);
-    }
-}
-
 int rths_rig_uri_is_remote(const char *uri) {
     return uri && !strncmp(uri, "tcp://", 6);
 }
@@ -129,6 +123,42 @@ int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *por
 
 /* ---- link ---- */
 
+/* The injected delay's bookkeeping: when the bytes now ending rx arrived. */
+static void mark_arrival(remote *r) {
+    if (r->marks == RX_MARKS) { /* merge the two oldest chunks: the later time holds for both */
+        memmove(r->mark_end, r->mark_end + 1, sizeof r->mark_end[0] * (RX_MARKS - 1));
+        memmove(r->mark_time + 1, r->mark_time + 2, sizeof r->mark_time[0] * (RX_MARKS - 2));
+        r->marks--;
+    }
+    r->mark_end[r->marks] = r->rx_len;
+    r->mark_time[r->marks++] = rths_monotonic_s();
+}
+
+/* Waits until the monotonic clock reads until_s (the injected delay only), taking in whatever
+ * arrives meanwhile with its arrival time, as the kernel would on a long link: frames are
+ * delayed by the link, never by the host being busy waiting. A closed or failed socket is left
+ * for the next read to report. */
+static void wait_receiving(remote *r, double until_s) {
+    for (double left; (left = until_s - rths_monotonic_s()) > 0;) {
+        if (r->fd < 0 || r->rx_len == RX_CAP) {
+            struct timespec ts = {(time_t)left, (long)((left - (double)(time_t)left) * 1e9)};
+            nanosleep(&ts, NULL);
+            continue;
+        }
+        struct pollfd pfd = {r->fd, POLLIN, 0};
+        int pr = poll(&pfd, 1, (int)ceil(left * 1000.0));
+        if (pr <= 0) continue;
+        ssize_t k = recv(r->fd, r->rx + r->rx_len, RX_CAP - r->rx_len, MSG_DONTWAIT);
+        if (k > 0) {
+            r->rx_len += (size_t)k;
+            mark_arrival(r);
+        } else if (k == 0 || (errno != EINTR && errno != EAGAIN)) {
+            struct timespec ts = {(time_t)left, (long)((left - (double)(time_t)left) * 1e9)};
+            nanosleep(&ts, NULL); /* the read after the wait finds the failure */
+        }
+    }
+}
+
 static int link_fail(remote *r, rths_error *err, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
@@ -153,7 +183,7 @@ static int send_msg(remote *r, rths_msg *m, rths_error *err) {
         return rths_error_set(err, RTHS_EINPUT, "cannot encode %s (values not finite?)",
                               rths_msg_type_name(m->type));
     /* the test hook: the frame reaches the controller delay_s later, as over a long link */
-    if (r->delay_s > 0) sleep_until(rths_monotonic_s() + r->delay_s);
+    if (r->delay_s > 0) wait_receiving(r, rths_monotonic_s() + r->delay_s);
     size_t off = 0;
     while (off < n) {
         ssize_t k = send(r->fd, buf + off, n - off, MSG_NOSIGNAL);
@@ -252,16 +282,6 @@ static int version_fail(remote *r, rths_error *err) {
     return link_fail(r, err, "%s", why);
 }
 
-/* The injected delay's bookkeeping: when the bytes now ending rx arrived. */
-static void mark_arrival(remote *r) {
-    if (r->marks == RX_MARKS) { /* merge the two oldest chunks: the later time holds for both */
-        memmove(r->mark_end, r->mark_end + 1, sizeof r->mark_end[0] * (RX_MARKS - 1));
-        memmove(r->mark_time + 1, r->mark_time + 2, sizeof r->mark_time[0] * (RX_MARKS - 2));
-        r->marks--;
-    }
-    r->mark_end[r->marks] = r->rx_len;
-    r->mark_time[r->marks++] = rths_monotonic_s();
-}
 /* When byte used - 1 of rx arrived (now when unmarked). */
 static double arrival_s(const remote *r, size_t used) {
     for (int i = 0; i < r->marks; i++)
@@ -289,10 +309,10 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
             /* the test hook: a frame is read delay_s after its last byte arrived */
             double ready = arrival_s(r, used) + r->delay_s;
             if (ready > deadline) {
-                sleep_until(deadline);
+                wait_receiving(r, deadline);
                 return RTHS_OK;
             }
-            sleep_until(ready);
+            wait_receiving(r, ready);
         }
         if (st == RTHS_PROTO_OK) {
             memmove(r->rx, r->rx + used, r->rx_len - used);
@@ -777,6 +797,13 @@ static const rths_rig_ops remote_ops = {
     .set_target_dofs = r_set_target_dofs,
     .interface_dofs = r_interface_dofs,
 };
+
+int rths_remote_rig_known_fault(rths_rig *rig, rths_rig_fault *out) {
+    remote *r = rths_rig_backend(rig, &remote_ops);
+    if (!r) return 0;
+    *out = r->fault;
+    return 1;
+}
 
 int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths_rig **out,
                            rths_error *err) {

@@ -35,7 +35,7 @@ typedef struct sites_rig {
     site s[RTHS_MAX_INTERFACE_DOFS];
     int dofs; /* host interface DoFs, every one driven by exactly one site */
     /* the current operation */
-    enum { OP_FORCING, OP_TARGET, OP_PERIODS, OP_TRACE, OP_TIME, OP_RESET, OP_DISARM } op;
+    enum { OP_FORCING, OP_TARGET, OP_PERIODS, OP_TRACE, OP_RESET, OP_DISARM } op;
     double frequency_hz, amplitude_n;
     int harmonics;
     const double *a, *b; /* host-order targets */
@@ -75,13 +75,11 @@ static void run_site(sites_rig *r, int i) {
     }
     case OP_PERIODS:
         s->rc = rths_rig_run_periods(s->rig, r->count, s->buf, &s->err);
+        if (!s->rc && r->count > 0) s->last_time_s = s->buf[r->count - 1].end_time_s;
         break;
     case OP_TRACE:
         s->rc = rths_rig_record_trace(s->rig, r->trace_s, r->trace_max, r->trace[i], &r->trace_n[i],
                                       &s->err);
-        break;
-    case OP_TIME:
-        s->last_time_s = rths_rig_time_s(s->rig);
         break;
     case OP_RESET:
         s->rc = rths_rig_reset_fault(s->rig, &s->err);
@@ -119,7 +117,7 @@ static int all_sites(sites_rig *r, rths_error *err) {
             rc = r->s[i].rc;
             rths_error_set(err, rc, "site %d (%s): %s", i + 1, r->s[i].uri, r->s[i].err.msg);
         }
-    if (r->op == OP_DISARM || r->op == OP_RESET || r->op == OP_TIME) return rc;
+    if (r->op == OP_DISARM || r->op == OP_RESET) return rc;
     /* only a site that failed is asked (asking a remote site costs a round trip) */
     for (int i = 0; i < r->n; i++) {
         if (!r->s[i].rc) continue;
@@ -275,23 +273,30 @@ static int s_record_trace(void *self, double duration_s, int max_samples, rths_t
     return rc;
 }
 
-/* The joined rig's time: the longest any site has run since the rig was made (each site's time
- * is its own controller's, samples run times its sample period). */
+/* The joined rig's time: the longest any site has run since the rig was made, each site's time
+ * its own controller's (samples run times its sample period) at the end of the last period it
+ * delivered (or when last asked). Not asked anew here: asking a remote site costs a round trip
+ * over its link, twice per evaluation; between evaluations a site's clock runs on while the host
+ * is busy, which the next evaluation's last period counts. */
 static double s_time_s(void *self) {
     sites_rig *r = self;
-    rths_error ignored;
-    r->op = OP_TIME;
-    all_sites(r, &ignored);
     double t = 0;
     for (int k = 0; k < r->n; k++)
         if (r->s[k].last_time_s - r->s[k].time0_s > t) t = r->s[k].last_time_s - r->s[k].time0_s;
     return t;
 }
 
+/* A site's fault as known without a round trip when it is remote (rths_remote_rig_known_fault:
+ * the host asks after every evaluation, and a slow link would pay twice its latency per site). */
+static rths_rig_fault site_fault(const site *s) {
+    rths_rig_fault f;
+    return rths_remote_rig_known_fault(s->rig, &f) ? f : rths_rig_get_fault(s->rig);
+}
+
 static rths_rig_fault s_fault(void *self) {
     sites_rig *r = self;
     for (int k = 0; k < r->n && r->fault == RTHS_RIG_OK; k++) {
-        rths_rig_fault f = rths_rig_get_fault(r->s[k].rig);
+        rths_rig_fault f = site_fault(&r->s[k]);
         if (f != RTHS_RIG_OK) r->fault = f, r->fault_site = k;
     }
     return r->fault;
@@ -453,7 +458,7 @@ int rths_sites_rig_site(rths_rig *rig, int k, rths_site_info *out) {
     for (int j = 0; j < s->dofs; j++)
         out->map[j] = s->map[j];
     out->rig_time_s = s->last_time_s - s->time0_s;
-    out->fault = rths_rig_get_fault(s->rig);
+    out->fault = site_fault(s);
     rths_rig_integrity_totals(s->rig, &out->integrity);
     return RTHS_OK;
 }
