@@ -131,9 +131,11 @@ static int all_sites(sites_rig *r, rths_error *err) {
             if (k != i) rths_rig_disarm(r->s[k].rig, &ignored);
         }
         if (!rc)
-            rc = rths_error_set(err, RTHS_EFAIL,
-                                "site %d (%s) latched a %s fault; every site was disarmed", i + 1,
+            rc = rths_error_set(err, RTHS_EFAIL, "site %d (%s) latched a %s fault", i + 1,
                                 r->s[i].uri, rths_rig_fault_name(f));
+        size_t len = strlen(err->msg);
+        snprintf(err->msg + len, sizeof err->msg - len,
+                 "; every other site was disarmed (excitation and target ramped to zero)");
     }
     return rc;
 }
