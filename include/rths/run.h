@@ -51,6 +51,11 @@ typedef struct rths_run_frf_options {
     /* with rig_uri: reset the controller's latched fault before the run (rths_rig_clear_fault,
      * logged in run.log); RTHS_EFAIL with the controller's answer when it refuses */
     int reset_fault;
+    /* a multi-site test's controllers (rig.sites), one URI per site in rig.sites' order, from
+     * `--rig` given once per site (n_site_uris >= 2; rig_uri NULL): they override
+     * rig.sites.N.uri. 0: rig_uri, or the URIs in rig.sites */
+    const char *const *site_uris;
+    int n_site_uris;
 } rths_run_frf_options;
 
 typedef struct rths_run_callbacks {
@@ -141,6 +146,49 @@ int rths_floquet_measure_config_read(rths_config *cfg, rths_floquet_measure_opti
 int rths_floquet_measure(rths_rig *rig, double frequency_hz, const rths_floquet_measure_options *o,
                          uint64_t seed, rths_floquet_estimate *est, double *rig_time_s,
                          rths_error *err);
+
+/* ---- multi-site tests (docs/method.md, "Multi-site tests"): rig.sites lists the sites, each
+ * {uri: tcp://HOST:PORT (optional: --rig gives it), interface_dofs: [1-based DoFs of
+ * split.interface]}; every interface DoF belongs to exactly one site, every physical DoF to the
+ * site whose interface DoFs it is joined to through physical elements (no physical element may
+ * join two sites). Each site runs its own `rths controller CONFIG --site N` over the same file,
+ * whose split the overrides below restrict to the site. ---- */
+#define RTHS_RUN_SITE_MAX_PHYSICAL 64
+typedef struct rths_run_site {
+    char uri[300]; /* rig.sites.N.uri, "" when absent */
+    int n_int;
+    int int_dofs[RTHS_MAX_INTERFACE_DOFS]; /* assembly DoFs (0-based), ascending */
+    int map[RTHS_MAX_INTERFACE_DOFS];      /* each one's index in the split's interface order */
+    int n_phys;
+    int phys_dofs[RTHS_RUN_SITE_MAX_PHYSICAL]; /* its physical substructure's DoFs, ascending */
+} rths_run_site;
+typedef struct rths_run_sites {
+    int n; /* 0: rig.sites absent (one rig) */
+    rths_run_site site[RTHS_MAX_INTERFACE_DOFS];
+    /* 1 when numerical elements join interface DoFs of two sites (through numerical DoFs):
+     * only the frequency form (split.numerical_solver: frequency) can run it; coupling_dof is
+     * such a numerical DoF (0-based) */
+    int numerical_couples_sites;
+    int coupling_dof;
+} rths_run_sites;
+
+/* Reads rig.sites over the setup (located errors: a DoF in no site or two, a shared physical
+ * element, more than RTHS_MAX_INTERFACE_DOFS sites, keys the sites cannot share: rig.actuators,
+ * rig.lasers, output.dofs, the interface shares, base excitation). out->n = 0 when absent. */
+int rths_run_sites_read(rths_config *cfg, const rths_setup *setup, rths_run_sites *out,
+                        rths_error *err);
+/* RTHS_EINPUT naming why when the numerical side couples the sites and the real-time form is
+ * asked for (each site's controller would need the other sites' motion in real time). */
+int rths_run_sites_check_solver(rths_config *cfg, const rths_setup *setup,
+                                const rths_run_sites *sites, rths_error *err);
+/* The overrides that make the shared configuration site k's (0-based): split.interface,
+ * split.physical and split.numerical (every other DoF) and split.mass_ratio (the site's p). */
+typedef struct rths_run_site_sets {
+    int n;
+    char text[4][4096];
+} rths_run_site_sets;
+int rths_run_site_overrides(const rths_setup *setup, const rths_run_sites *sites, int k,
+                            rths_run_site_sets *out, rths_error *err);
 
 /* Runs the test (see above). Returns RTHS_OK when it ran (status says how it ended; also when
  * cancelled), RTHS_EINPUT on bad input (nothing written), RTHS_EFAIL on a failure during it. */

@@ -3,6 +3,7 @@
 #include "cli/commands.h"
 #include "rths/config.h"
 #include "rths/protocol.h"
+#include "rths/run.h"
 #include "rths/server.h"
 #include "rths/view.h"
 
@@ -22,7 +23,7 @@ static void usage_text(char *out, size_t cap) {
         out, cap,
         "Usage: rths controller --config CONFIG [--listen ADDR:PORT] [--io PLUGIN.so]\n"
         "                       [--set key=value]... [--view ADDR:PORT] [--duration SECONDS]\n"
-        "                       [--quiet]\n"
+        "                       [--site N] [--quiet]\n"
         "       rths controller CONFIG [options]\n"
         "       rths controller --latency-test SECONDS [--config CONFIG] [--set key=value]...\n\n"
         "Runs the real-time controller: the per-sample step of the hybrid test (numerical\n"
@@ -48,6 +49,7 @@ static void usage_text(char *out, size_t cap) {
         "                      path; an empty one is refused. Refused before anything\n"
         "                      runs when its ABI version differs or a symbol is missing.\n"
         "  --set key=value     override a configuration key (repeatable, at most %d)\n"
+        "  --site N            be site N of a multi-site test (rig.sites, docs/method.md)\n"
         "  --view ADDR:PORT    serve a web page of the process (docs/view.md): the interface\n"
         "                      signals as an oscilloscope, limit state, watchdog, the loop's\n"
         "                      lateness histogram and overruns, read without disturbing the\n"
@@ -122,10 +124,11 @@ typedef struct controller_args {
     const char *config_path, *view_listen;
     double duration_s;     /* -1: until a signal */
     double latency_test_s; /* --latency-test; -1: none */
+    long site;             /* --site N (1-based); 0: the whole configuration */
     char io_set[2 * 4096 + 16];
 } controller_args;
 
-enum { OPT_CONFIG, OPT_LISTEN, OPT_IO, OPT_VIEW, OPT_DURATION, OPT_LATENCY, N_OPTS };
+enum { OPT_CONFIG, OPT_LISTEN, OPT_IO, OPT_VIEW, OPT_DURATION, OPT_LATENCY, OPT_SITE, N_OPTS };
 
 /* 1 when argv asks for the latency test (which needs no configuration). */
 static int has_latency_test(int argc, char **argv) {
@@ -143,7 +146,8 @@ static int parse_args(int argc, char **argv, controller_args *args, rths_server_
                                  [OPT_IO] = {"--io", "PLUGIN.so", NULL},
                                  [OPT_VIEW] = {"--view", "ADDR:PORT", NULL},
                                  [OPT_DURATION] = {"--duration", "SECONDS", NULL},
-                                 [OPT_LATENCY] = {"--latency-test", "SECONDS", NULL}};
+                                 [OPT_LATENCY] = {"--latency-test", "SECONDS", NULL},
+                                 [OPT_SITE] = {"--site", "N", NULL}};
     rths_cli *cli = &args->cli;
     /* CONFIG is either --config's value or the one positional argument, never both; the
      * latency test takes it only by --config, and runs without one */
@@ -170,6 +174,9 @@ static int parse_args(int argc, char **argv, controller_args *args, rths_server_
     if (opts[OPT_LATENCY].value &&
         (rc = rths_cli_double_ex("--latency-test", opts[OPT_LATENCY].value, 0.0, 3600.0,
                                  RTHS_CONFIG_LO_OPEN, &args->latency_test_s, &err)))
+        return rths_cli_fail(cli, rc, &err);
+    if (opts[OPT_SITE].value && (rc = rths_cli_int("--site", opts[OPT_SITE].value, 1,
+                                                   RTHS_MAX_INTERFACE_DOFS, &args->site, &err)))
         return rths_cli_fail(cli, rc, &err);
     const char *io_path = opts[OPT_IO].value;
     /* an unset variable in a lab's script (--io "$PLUGIN") must not run the simulated plant,
@@ -209,9 +216,49 @@ static int parse_args(int argc, char **argv, controller_args *args, rths_server_
 
 /* The configuration with the overrides, the server section, and the server built from it
  * (step, plant or plug-in, listening socket): everything that can refuse input. */
+/* --site N: the configuration restricted to site N (rths_run_site_overrides: its interface and
+ * physical DoFs, every other DoF numerical, its mass ratios), the overrides after the command
+ * line's. */
+static int load_site(const controller_args *args, rths_config **cfg, rths_error *err) {
+    rths_setup setup = {0};
+    rths_run_sites sites;
+    rths_run_site_sets site_sets;
+    int have_setup = 0;
+    int rc = rths_setup_read(*cfg, &setup, err);
+    if (!rc) have_setup = 1;
+    if (!rc) rc = rths_run_sites_read(*cfg, &setup, &sites, err);
+    if (!rc && sites.n == 0)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "--site %ld: %s lists no rig.sites (a multi-site test lists every "
+                            "site's interface DoFs there)",
+                            args->site, args->config_path);
+    if (!rc) rc = rths_run_site_overrides(&setup, &sites, (int)args->site - 1, &site_sets, err);
+    if (have_setup) rths_setup_free(&setup);
+    if (rc) return rc;
+    const char *sets[RTHS_CLI_MAX_SETS + 4];
+    int n = 0;
+    for (int i = 0; i < args->cli.n_sets; i++)
+        sets[n++] = args->cli.sets[i];
+    for (int i = 0; i < site_sets.n; i++)
+        sets[n++] = site_sets.text[i];
+    rths_config_free(*cfg);
+    *cfg = NULL;
+    rc = rths_config_load(args->config_path, sets, n, cfg, err);
+    /* the host's list of the sites: this process is one of them */
+    if (!rc) rths_config_mark_known(*cfg, "rig.sites");
+    if (!rc && !args->cli.quiet)
+        fprintf(stderr, "rths controller: site %ld: %s %s %s\n", args->site, site_sets.text[0],
+                site_sets.text[1], site_sets.text[2]);
+    return rc;
+}
+
 static int create_server(const controller_args *args, rths_server_options *opt, rths_config **cfg,
                          rths_server **srv, rths_error *err) {
     int rc = rths_config_load(args->config_path, args->cli.sets, args->cli.n_sets, cfg, err);
+    if (!rc && args->site > 0) rc = load_site(args, cfg, err);
+    /* without --site the process runs the whole configuration (a one-site test): the sites'
+     * list is the host's */
+    if (!rc && args->site == 0) rths_config_mark_known(*cfg, "rig.sites");
     if (!rc) rc = rths_server_config_read(*cfg, opt, err);
     /* Everything a command run does not read (iteration, continuation, output...) is fine in a
      * test configuration shared with the host; only typos within read sections are refused. */

@@ -34,7 +34,7 @@ static const char usage[] =
     "iteration.harmonics, 1)\n"
     "  --seed S             noise seed of the virtual rig (default: rig.seed)\n"
     "  --resume             continue the interrupted run in DIR from its journal's last point\n"
-    "  --rig URI            tcp://HOST:PORT: a controller process instead of the virtual rig\n"
+    "  --rig URI            tcp://HOST:PORT: a controller process (repeated: rig.sites)\n"
     "  --reset-fault        with --rig: reset the controller's latched fault (RESET_FAULT, e.g.\n"
     "                       a watchdog trip of an earlier run) before the run, logged in\n"
     "                       run.log; refused (exit 1, the controller's answer) while its\n"
@@ -100,6 +100,7 @@ typedef struct {
     int force;
     int reset_fault;
     const char *rig_uri;
+    int n_site_rigs; /* --rig given once per site (taken out before parsing) */
 } frf_args;
 
 static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
@@ -142,7 +143,7 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
     a->force = opts[OPT_FORCE].value != NULL;
     a->rig_uri = opts[OPT_RIG].value;
     a->reset_fault = opts[OPT_RESET_FAULT].value != NULL;
-    if (a->reset_fault && !a->rig_uri)
+    if (a->reset_fault && !a->rig_uri && !a->n_site_rigs)
         return rths_cli_fail(cli,
                              rths_error_set(&err, RTHS_EINPUT,
                                             "option --reset-fault needs --rig tcp://HOST:PORT "
@@ -155,7 +156,7 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
                                             a->rig_uri),
                              &err);
     if (opts[OPT_PACE].value &&
-        (rc = rths_cli_add_pace(cli, opts[OPT_PACE].value, a->rig_uri != NULL, &err)))
+        (rc = rths_cli_add_pace(cli, opts[OPT_PACE].value, a->rig_uri || a->n_site_rigs, &err)))
         return rths_cli_fail(cli, rc, &err);
     /* The paper strategy integrates the numerical substructure as the seed did; an explicit
      * --set controller.scheme=... still wins, because overrides apply in order. */
@@ -171,9 +172,51 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
     return RTHS_OK;
 }
 
+/* --rig given several times names the sites of a multi-site test (rig.sites): they are taken
+ * out of the arguments here (the shared parser takes an option once) into uris, in order. The
+ * filtered arguments go to argv_out (argc + 1 entries). Returns how many --rig there were. */
+static int take_site_rigs(int argc, char **argv, char **argv_out, int *argc_out, const char **uris,
+                          int cap) {
+    int n = 0, rigs = 0;
+    for (int i = 0; i < argc; i++)
+        rigs += !strcmp(argv[i], "--rig") || !strncmp(argv[i], "--rig=", 6);
+    for (int i = 0; i < argc; i++) {
+        if (rigs > 1 && !strcmp(argv[i], "--rig") && i + 1 < argc) {
+            if (n < cap) uris[n] = argv[i + 1];
+            n++, i++;
+        } else if (rigs > 1 && !strncmp(argv[i], "--rig=", 6)) {
+            if (n < cap) uris[n] = argv[i] + 6;
+            n++;
+        } else {
+            argv_out[(*argc_out)++] = argv[i];
+        }
+    }
+    argv_out[*argc_out] = NULL;
+    return n;
+}
+
 int rths_cmd_frf(int argc, char **argv) {
     rths_cli cli;
     frf_args a = {0};
+    const char *site_uris[RTHS_MAX_INTERFACE_DOFS];
+    char *args[argc + 1];
+    int n_args = 0;
+    int n_sites = take_site_rigs(argc, argv, args, &n_args, site_uris, RTHS_MAX_INTERFACE_DOFS);
+    if (n_sites > RTHS_MAX_INTERFACE_DOFS) {
+        fprintf(stderr, "rths frf: --rig given %d times; a multi-site test has at most %d sites\n",
+                n_sites, RTHS_MAX_INTERFACE_DOFS);
+        return RTHS_EINPUT;
+    }
+    for (int k = 0; k < n_sites; k++)
+        if (strncmp(site_uris[k], "tcp://", 6)) {
+            fprintf(stderr, "rths frf: option --rig: '%s' is not tcp://HOST:PORT\n", site_uris[k]);
+            return RTHS_EINPUT;
+        }
+    int all_argc = argc; /* run.log records the command as given */
+    char **all_argv = argv;
+    argc = n_args;
+    argv = args;
+    a.n_site_rigs = n_sites;
     int rc = parse_args(&cli, argc, argv, &a);
     if (rc || cli.help) return rc;
     rths_config *cfg = NULL;
@@ -189,13 +232,15 @@ int rths_cmd_frf(int argc, char **argv) {
                                 .force = a.force,
                                 .rig_uri = a.rig_uri,
                                 .reset_fault = a.reset_fault,
+                                .site_uris = site_uris,
+                                .n_site_uris = n_sites,
                                 .has_seed = cli.has_seed,
                                 .seed = cli.seed,
                                 .config_path = cli.config_path,
                                 .overrides = cli.sets,
                                 .n_overrides = cli.n_sets,
-                                .argc = argc,
-                                .argv = argv};
+                                .argc = all_argc,
+                                .argv = all_argv};
     int progress = rths_progress_enabled(cli.quiet);
     rths_run_callbacks cb = {.on_progress = progress ? print_progress : NULL,
                              .should_cancel = should_cancel};

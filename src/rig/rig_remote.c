@@ -18,6 +18,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/socket.h>
+#include <time.h>
 #include <unistd.h>
 
 _Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
@@ -25,7 +26,11 @@ _Static_assert(RTHS_PROTO_HARMONICS == RTHS_MAX_HARMONICS,
 _Static_assert(RTHS_PROTO_MAX_DOFS == RTHS_MAX_INTERFACE_DOFS,
                "frames carry every interface DoF a rig drives");
 
-#define RX_CAP (64 * 1024)
+/* 1 MiB: with the injected link delay the host holds what arrived during the delay (a trace
+ * stream of 4 DoFs is about 0.6 MB/s) */
+#define RX_CAP (1024 * 1024)
+/* arrival marks of the received bytes (the injected link delay): chunks beyond merge */
+#define RX_MARKS 4096
 
 typedef struct remote {
     char uri[300];
@@ -37,6 +42,12 @@ typedef struct remote {
     uint16_t seq;
     uint8_t rx[RX_CAP];
     size_t rx_len;
+    /* the test hook's one-way delay (rths_remote_options.link_delay_s): the time each received
+     * chunk of rx arrived, chunk i ending at rx offset mark_end[i] */
+    double delay_s;
+    size_t mark_end[RX_MARKS];
+    double mark_time[RX_MARKS];
+    int marks;
     /* controller facts from HELLO_REPLY */
     double h, watchdog_s, noise_m;
     int interface_dofs; /* the controller's: every target and record has this many */
@@ -68,6 +79,7 @@ void rths_remote_options_defaults(rths_remote_options *opt) {
     opt->reply_timeout_s = 5.0;
     opt->stall_timeout_s = 10.0;
     opt->client_name = "rths host";
+    opt->link_delay_s = 0.0;
 }
 
 int rths_rig_uri_is_remote(const char *uri) {
@@ -111,6 +123,42 @@ int rths_remote_parse_uri(const char *uri, char *host, size_t host_cap, int *por
 
 /* ---- link ---- */
 
+/* The injected delay's bookkeeping: when the bytes now ending rx arrived. */
+static void mark_arrival(remote *r) {
+    if (r->marks == RX_MARKS) { /* merge the two oldest chunks: the later time holds for both */
+        memmove(r->mark_end, r->mark_end + 1, sizeof r->mark_end[0] * (RX_MARKS - 1));
+        memmove(r->mark_time + 1, r->mark_time + 2, sizeof r->mark_time[0] * (RX_MARKS - 2));
+        r->marks--;
+    }
+    r->mark_end[r->marks] = r->rx_len;
+    r->mark_time[r->marks++] = rths_monotonic_s();
+}
+
+/* Waits until the monotonic clock reads until_s (the injected delay only), taking in whatever
+ * arrives meanwhile with its arrival time, as the kernel would on a long link: frames are
+ * delayed by the link, never by the host being busy waiting. A closed or failed socket is left
+ * for the next read to report. */
+static void wait_receiving(remote *r, double until_s) {
+    for (double left; (left = until_s - rths_monotonic_s()) > 0;) {
+        if (r->fd < 0 || r->rx_len == RX_CAP) {
+            struct timespec ts = {(time_t)left, (long)((left - (double)(time_t)left) * 1e9)};
+            nanosleep(&ts, NULL);
+            continue;
+        }
+        struct pollfd pfd = {r->fd, POLLIN, 0};
+        int pr = poll(&pfd, 1, (int)ceil(left * 1000.0));
+        if (pr <= 0) continue;
+        ssize_t k = recv(r->fd, r->rx + r->rx_len, RX_CAP - r->rx_len, MSG_DONTWAIT);
+        if (k > 0) {
+            r->rx_len += (size_t)k;
+            mark_arrival(r);
+        } else if (k == 0 || (errno != EINTR && errno != EAGAIN)) {
+            struct timespec ts = {(time_t)left, (long)((left - (double)(time_t)left) * 1e9)};
+            nanosleep(&ts, NULL); /* the read after the wait finds the failure */
+        }
+    }
+}
+
 static int link_fail(remote *r, rths_error *err, const char *fmt, ...)
     __attribute__((format(printf, 3, 4)));
 
@@ -122,6 +170,7 @@ static int link_fail(remote *r, rths_error *err, const char *fmt, ...) {
     if (r->fd >= 0) close(r->fd);
     r->fd = -1;
     r->rx_len = 0;
+    r->marks = 0;
     r->armed = 0;
     r->fault = RTHS_RIG_FAULT_LINK;
     return rths_error_set(err, RTHS_EFAIL, "controller %s: link lost: %s", r->uri, r->fault_msg);
@@ -133,6 +182,8 @@ static int send_msg(remote *r, rths_msg *m, rths_error *err) {
     if (!n)
         return rths_error_set(err, RTHS_EINPUT, "cannot encode %s (values not finite?)",
                               rths_msg_type_name(m->type));
+    /* the test hook: the frame reaches the controller delay_s later, as over a long link */
+    if (r->delay_s > 0) wait_receiving(r, rths_monotonic_s() + r->delay_s);
     size_t off = 0;
     while (off < n) {
         ssize_t k = send(r->fd, buf + off, n - off, MSG_NOSIGNAL);
@@ -231,6 +282,22 @@ static int version_fail(remote *r, rths_error *err) {
     return link_fail(r, err, "%s", why);
 }
 
+/* When byte used - 1 of rx arrived (now when unmarked). */
+static double arrival_s(const remote *r, size_t used) {
+    for (int i = 0; i < r->marks; i++)
+        if (r->mark_end[i] >= used) return r->mark_time[i];
+    return rths_monotonic_s();
+}
+static void consume_marks(remote *r, size_t used) {
+    int keep = 0;
+    for (int i = 0; i < r->marks; i++)
+        if (r->mark_end[i] > used) {
+            r->mark_end[keep] = r->mark_end[i] - used;
+            r->mark_time[keep++] = r->mark_time[i];
+        }
+    r->marks = keep;
+}
+
 /* Reads one frame, waiting at most timeout_s. RTHS_OK with *got = 1 (frame in m) or 0 (timeout). */
 static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_error *err) {
     double deadline = rths_monotonic_s() + timeout_s;
@@ -238,9 +305,19 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
     for (;;) {
         size_t used = 0;
         int st = rths_proto_decode(r->rx, r->rx_len, m, &used);
+        if (st == RTHS_PROTO_OK && r->delay_s > 0) {
+            /* the test hook: a frame is read delay_s after its last byte arrived */
+            double ready = arrival_s(r, used) + r->delay_s;
+            if (ready > deadline) {
+                wait_receiving(r, deadline);
+                return RTHS_OK;
+            }
+            wait_receiving(r, ready);
+        }
         if (st == RTHS_PROTO_OK) {
             memmove(r->rx, r->rx + used, r->rx_len - used);
             r->rx_len -= used;
+            consume_marks(r, used);
             *got = 1;
             return RTHS_OK;
         }
@@ -260,6 +337,7 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
         if (k == 0) return link_fail(r, err, "the controller closed the connection");
         if (k < 0) return link_fail(r, err, "recv: %s", strerror(errno));
         r->rx_len += (size_t)k;
+        if (r->delay_s > 0) mark_arrival(r);
     }
 }
 
@@ -392,6 +470,7 @@ static int connect_and_hello(remote *r, rths_error *err) {
     setsockopt(fd, SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof tv);
     r->fd = fd;
     r->rx_len = 0;
+    r->marks = 0;
     r->q_len = 0;
     r->armed = 0;
     r->valid_from_s = 0.0;
@@ -719,6 +798,13 @@ static const rths_rig_ops remote_ops = {
     .interface_dofs = r_interface_dofs,
 };
 
+int rths_remote_rig_known_fault(rths_rig *rig, rths_rig_fault *out) {
+    remote *r = rths_rig_backend(rig, &remote_ops);
+    if (!r) return 0;
+    *out = r->fault;
+    return 1;
+}
+
 int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths_rig **out,
                            rths_error *err) {
     *out = NULL;
@@ -738,6 +824,23 @@ int rths_remote_rig_create(const char *uri, const rths_remote_options *opt, rths
     if (!(r->opt.connect_timeout_s > 0)) r->opt.connect_timeout_s = 5.0;
     if (!(r->opt.reply_timeout_s > 0)) r->opt.reply_timeout_s = 5.0;
     if (!(r->opt.stall_timeout_s > 0)) r->opt.stall_timeout_s = 10.0;
+    /* the test hook (docs/protocol.md, "Injected link delay"): the environment's delay when the
+     * options set none */
+    const char *env = getenv("RTHS_TEST_LINK_DELAY_S");
+    if (!(r->opt.link_delay_s > 0) && env && *env) {
+        char *end;
+        double d = strtod(env, &end);
+        if (*end || !(d >= 0) || d > 60) {
+            free(r);
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "RTHS_TEST_LINK_DELAY_S='%.40s': expected seconds in [0, 60]",
+                                  env);
+        }
+        r->opt.link_delay_s = d;
+    }
+    r->delay_s = r->opt.link_delay_s > 0 ? r->opt.link_delay_s : 0.0;
+    /* a request waits for its reply over both ways of the link */
+    if (r->opt.reply_timeout_s < 4 * r->delay_s + 1) r->opt.reply_timeout_s = 4 * r->delay_s + 1;
     snprintf(r->client_name, sizeof r->client_name, "%s",
              r->opt.client_name ? r->opt.client_name : "rths host");
     r->opt.client_name = NULL;

@@ -312,6 +312,9 @@ int rths_virtual_rig_create(rths_config *cfg, const rths_setup *setup, int has_s
     int rc = rths_sample_loop_config_read(cfg, &copt, &popt, err);
     if (!rc) rc = rths_config_get_double(cfg, "rig.pace", 0, 0.0, 0.0, 1e6, &pace, err);
     if (rc) return rc;
+    /* a multi-site test's list of sites (docs/method.md, "Multi-site tests"): in one process
+     * the virtual rig runs every site's physical part itself */
+    rths_config_mark_known(cfg, "rig.sites");
     if (has_seed) popt.seed = seed_override;
     rc = rths_virtual_rig_create_with(setup, &copt, &popt, out, err);
     if (!rc && pace > 0) rc = rths_virtual_rig_set_pace(*out, pace, err);

@@ -3,6 +3,7 @@
  * it happens, and frf.csv, summary.json and the figures are written at the end however the run
  * ended, so nothing accepted is ever lost. */
 #include "run/frf_internal.h"
+#include "run/frf_sites.h"
 
 #include "rths/reduce.h"
 #include "rths/rig_remote.h"
@@ -10,6 +11,7 @@
 
 #include <errno.h>
 #include <fcntl.h>
+#include <json-c/json.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -105,19 +107,91 @@ static int read_options(frf_state *st, rths_error *err) {
     return rc;
 }
 
+/* A multi-site test (rig.sites; docs/method.md, "Multi-site tests"): the sites' URIs from --rig
+ * (one per site) or from rig.sites, and the joined rig over their controllers. *joined = 0 when
+ * no site has a URI: the virtual rig then runs the whole physical side in one process (the
+ * single-process run of the same test). Refused: URIs for some sites only, a count of --rig
+ * that differs from the sites', one --rig with rig.sites, the real-time form when the numerical
+ * side couples the sites. */
+static int create_sites_rig(frf_state *st, int *joined, rths_error *err) {
+    const rths_run_frf_options *opt = st->opt;
+    rths_run_sites sites;
+    *joined = 0;
+    int rc = rths_run_sites_read(opt->cfg, st->setup, &sites, err);
+    if (!rc && opt->n_site_uris > 0 && sites.n == 0)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "--rig given %d times: a multi-site test needs rig.sites in the "
+                            "configuration (which interface DoFs each site drives)",
+                            opt->n_site_uris);
+    if (rc || sites.n == 0) return rc;
+    if (opt->rig_uri || opt->rig)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "rig.sites lists %d sites: give --rig once per site (in rig.sites' "
+                              "order), or none to take rig.sites.N.uri",
+                              sites.n);
+    if (opt->n_site_uris > 0 && opt->n_site_uris != sites.n)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "--rig given %d times; rig.sites lists %d sites (one --rig per "
+                              "site, in rig.sites' order)",
+                              opt->n_site_uris, sites.n);
+    const char *uris[RTHS_MAX_INTERFACE_DOFS];
+    const int *maps[RTHS_MAX_INTERFACE_DOFS];
+    int have = 0;
+    for (int k = 0; k < sites.n; k++) {
+        uris[k] = opt->n_site_uris ? opt->site_uris[k] : sites.site[k].uri;
+        maps[k] = sites.site[k].map;
+        have += uris[k][0] != 0;
+    }
+    if (have == 0) return RTHS_OK; /* the single-process run */
+    for (int k = 0; k < sites.n; k++)
+        if (!uris[k][0]) {
+            char key[64];
+            snprintf(key, sizeof key, "rig.sites.%d", k);
+            return rths_config_error_at(opt->cfg, key, err,
+                                        "has no uri while other sites have one: give every "
+                                        "site's tcp://HOST:PORT (or --rig once per site)");
+        }
+    rc = rths_run_sites_check_solver(opt->cfg, st->setup, &sites, err);
+    /* the sites' controllers read the rig section (as with one --rig, whose run reads none of
+     * it): the host has read rig.sites only */
+    if (!rc) rths_config_mark_known(opt->cfg, "rig");
+    if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
+    if (!rc)
+        rc =
+            rths_sites_rig_create(sites.n, uris, maps, st->setup->split.n_int, NULL, &st->rig, err);
+    if (rc) return rc;
+    *joined = 1;
+    /* real rigs: the physical parts may be nonlinear whatever the model says */
+    st->cont.monotonic = 0;
+    st->newton.rig_lti = 0;
+    for (int k = 0; k < sites.n; k++) {
+        rths_site_info info;
+        rths_sites_rig_site(st->rig, k, &info);
+        /* each site's controller announces the DoFs its own split gives it */
+        if (info.interface_dofs != sites.site[k].n_int)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "site %d (%s) drives %d interface DoF(s); rig.sites.%d."
+                                  "interface_dofs lists %d (start its controller with --site %d)",
+                                  k + 1, uris[k], info.interface_dofs, k, sites.site[k].n_int,
+                                  k + 1);
+    }
+    return RTHS_OK;
+}
+
 /* The rig, created before anything is written: its configuration errors are input errors. The
  * run's own sections are checked key by key; the controller process reads rig and controller
  * itself. */
 static int create_rig(frf_state *st, rths_error *err) {
     const rths_run_frf_options *opt = st->opt;
-    int rc = RTHS_OK;
-    if (!opt->rig_uri && !opt->rig)
+    int joined = 0;
+    int rc = create_sites_rig(st, &joined, err);
+    if (!rc && !joined && !opt->rig_uri && !opt->rig)
         rc = rths_virtual_rig_create(opt->cfg, st->setup, opt->has_seed, opt->seed, &st->rig, err);
-    if (!rc && !opt->rig_uri && !opt->rig) st->virtual_rig = st->rig;
-    if (!rc) rc = rths_config_check_sections(opt->cfg, NULL, err);
+    if (!rc && !joined && !opt->rig_uri && !opt->rig) st->virtual_rig = st->rig;
+    if (!rc && !joined) rc = rths_config_check_sections(opt->cfg, NULL, err);
     if (!rc && opt->rig_uri) rc = rths_remote_rig_create(opt->rig_uri, NULL, &st->rig, err);
     st->inner_rig = st->rig;
-    if (!rc && opt->reset_fault && !opt->rig_uri)
+    if (!rc && opt->reset_fault && !opt->rig_uri && !joined)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "--reset-fault needs --rig tcp://HOST:PORT: a virtual rig starts "
                             "without a fault");
@@ -130,12 +204,6 @@ static int create_rig(frf_state *st, rths_error *err) {
                             opt->rig_uri ? opt->rig_uri : rths_rig_description(st->rig),
                             rths_rig_interface_dofs(st->rig), st->setup->split.n_int);
     int dofs = st->setup->split.n_int;
-    if (!rc && dofs > 1 && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
-        rc = rths_error_set(err, RTHS_EINPUT,
-                            "with %d interface DoFs rths frf runs the real-time numerical "
-                            "substructure (split.numerical_solver: frequency takes one interface "
-                            "DoF)",
-                            dofs);
     if (!rc && dofs > 1 && 2 * st->harmonics * dofs > 2 * RTHS_MAX_HARMONICS)
         rc = rths_error_set(err, RTHS_EINPUT,
                             "%d harmonic(s) on %d interface DoFs are %d unknowns; the corrector "
@@ -364,6 +432,90 @@ static int measure_floquet(frf_state *st, const rths_point *pt) {
     return RTHS_OK;
 }
 
+/* One run.log line per accepted point, written (and flushed) as it is accepted, so a run under
+ * nohup shows its progress with tail -f: frequency, amplitude and its standard error, the
+ * evaluations and rig time the point took; with several interface DoFs every DoF's amplitude; in
+ * a multi-site test every site's rig time so far. */
+static void log_point(frf_state *st, const rths_point *pt) {
+    const rths_solution *sol = &pt->sol;
+    char extra[600] = "";
+    int len = 0;
+    for (int d = 1; d < sol->interface_dofs && len < (int)sizeof extra; d++)
+        len += snprintf(extra + len, sizeof extra - (size_t)len, "; DoF %d %.6g m +- %.2g",
+                        st->setup->split.int_dofs[d] + 1, sol->dof_amplitude_m[d],
+                        sol->dof_amplitude_se_m[d]);
+    int sites = rths_sites_rig_count(st->inner_rig);
+    for (int k = 0; k < sites && len < (int)sizeof extra; k++) {
+        rths_site_info info;
+        rths_sites_rig_site(st->inner_rig, k, &info);
+        len += snprintf(extra + len, sizeof extra - (size_t)len, "%s%.1f s",
+                        k ? ", " : "; sites' rig time ", info.rig_time_s);
+    }
+    rths_report_log(st->rep,
+                    "point %d accepted: %.6f Hz, amplitude %.6g m +- %.2g (SE), %d evaluations, "
+                    "%.2f s rig%s%s",
+                    pt->index, sol->frequency_hz, sol->amplitude_m, sol->amplitude_se_m,
+                    pt->evaluations, pt->rig_time_s, sol->converged ? "" : ", not converged",
+                    extra);
+}
+
+/* A multi-site test's sites as run.log and summary.json report them: URI, interface DoFs, rig
+ * time (each site's controller clock since the run joined it), latched fault, integrity. */
+static void log_sites(frf_state *st) {
+    int sites = st->inner_rig ? rths_sites_rig_count(st->inner_rig) : 0;
+    for (int k = 0; k < sites; k++) {
+        rths_site_info info;
+        rths_sites_rig_site(st->inner_rig, k, &info);
+        char dofs[64] = "";
+        for (int j = 0, len = 0; j < info.interface_dofs; j++)
+            len += snprintf(dofs + len, sizeof dofs - (size_t)len, "%s%d", j ? ", " : "",
+                            st->setup->split.int_dofs[info.map[j]] + 1);
+        rths_report_log(st->rep,
+                        "site %d %s (%s): interface DoFs [%s], rig time %.2f s, fault %s, %ld "
+                        "periods, %ld late samples",
+                        k + 1, info.uri, info.description, dofs, info.rig_time_s,
+                        rths_rig_fault_name(info.fault), info.integrity.periods,
+                        info.integrity.late_samples);
+    }
+}
+
+/* summary.json's "sites" (a multi-site test only), added to the summary frf_write_summary wrote
+ * (replaced atomically) before results.mat reads it. */
+static int add_sites_summary(frf_state *st, rths_error *err) {
+    int sites = st->inner_rig ? rths_sites_rig_count(st->inner_rig) : 0;
+    if (!sites) return RTHS_OK;
+    char *path = rths_report_path(st->rep, "summary.json");
+    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    json_object *root = json_object_from_file(path);
+    int rc = root ? RTHS_OK
+                  : rths_error_set(err, RTHS_EFAIL, "cannot read back %s to add the sites", path);
+    json_object *list = rc ? NULL : json_object_new_array();
+    for (int k = 0; k < sites && list; k++) {
+        rths_site_info info;
+        rths_sites_rig_site(st->inner_rig, k, &info);
+        json_object *o = json_object_new_object(), *dofs = json_object_new_array();
+        for (int j = 0; j < info.interface_dofs; j++)
+            json_object_array_add(dofs,
+                                  json_object_new_int(st->setup->split.int_dofs[info.map[j]] + 1));
+        json_object_object_add(o, "uri", json_object_new_string(info.uri));
+        json_object_object_add(o, "controller", json_object_new_string(info.description));
+        json_object_object_add(o, "interface_dofs", dofs);
+        json_object_object_add(o, "rig_time_s", json_object_new_double(info.rig_time_s));
+        json_object_object_add(o, "fault", json_object_new_string(rths_rig_fault_name(info.fault)));
+        json_object_object_add(o, "periods", json_object_new_int64(info.integrity.periods));
+        json_object_object_add(o, "late_samples",
+                               json_object_new_int64(info.integrity.late_samples));
+        json_object_array_add(list, o);
+    }
+    if (list) {
+        json_object_object_add(root, "sites", list);
+        rc = rths_json_write(path, root, err);
+    }
+    if (root) json_object_put(root);
+    free(path);
+    return rc;
+}
+
 static int on_point(void *user, const rths_point *pt, int is_update) {
     frf_state *st = user;
     rths_error err;
@@ -372,6 +524,7 @@ static int on_point(void *user, const rths_point *pt, int is_update) {
         st->point_err = err;
         return RTHS_EFAIL;
     }
+    if (!is_update) log_point(st, pt);
     if (!is_update && pt->trust_actions > 0)
         rths_report_log(st->rep,
                         "point %d at %.6g Hz: the targets' trust region acted %d time(s) "
@@ -422,16 +575,26 @@ static int run_frequency_form(frf_state *st, rths_error *err) {
 }
 
 /* Several interface DoFs: the continuation on the zero problem over all of them (iterate.h,
- * rths_rig_problem_init_dofs), whose solutions carry every DoF's targets. */
+ * rths_rig_problem_init_dofs), whose solutions carry every DoF's targets. With the numerical
+ * substructure on the host (split.numerical_solver: frequency, e.g. a multi-site test whose
+ * numerical side couples the sites) the problem reads the rig through the view that turns the
+ * measured interface forces into the numerical interface displacements (frf_sites.h). */
 static int run_interface_dofs(frf_state *st, rths_error *err) {
     rths_zero_problem problem;
     rths_rig_problem ctx;
-    int rc = rths_rig_problem_init_dofs(&problem, &ctx, st->rig, &st->settle, st->harmonics,
+    frf_host_numerical *host = NULL;
+    rths_rig *rig = st->rig;
+    int rc = RTHS_OK;
+    if (st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
+        rc = frf_host_numerical_create(st->setup, st->rig, &host, &rig, err);
+    if (!rc)
+        rc = rths_rig_problem_init_dofs(&problem, &ctx, rig, &st->settle, st->harmonics,
                                         st->setup->forcing_amplitude_n, err);
     if (!rc)
-        rc = rths_continuation_run_problem(&problem, st->rig, &st->cont, &st->newton,
-                                           problem.harmonics, st->resume_pts, st->n_resume,
-                                           on_point, on_progress, st, &st->result, err);
+        rc = rths_continuation_run_problem(&problem, rig, &st->cont, &st->newton, problem.harmonics,
+                                           st->resume_pts, st->n_resume, on_point, on_progress, st,
+                                           &st->result, err);
+    if (host) frf_host_numerical_destroy(host, rig);
     return rc;
 }
 
@@ -444,7 +607,8 @@ static int run_continuation(frf_state *st, rths_error *run_err) {
                     st->cont.start_hz, st->cont.end_hz, st->opt->resume ? ", resumed" : "");
     if (st->cb && st->cb->should_cancel && st->cb->should_cancel(st->cb->user)) st->cancelled = 1;
     int run_rc = RTHS_OK;
-    if (!st->cancelled && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
+    if (!st->cancelled && st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY &&
+        st->setup->split.n_int == 1)
         run_rc = run_frequency_form(st, run_err);
     else if (!st->cancelled && st->setup->split.n_int > 1)
         run_rc = run_interface_dofs(st, run_err);
@@ -480,7 +644,7 @@ static void disarm_rig(frf_state *st) {
     if (!st->inner_rig) return;
     if (rths_rig_disarm(st->inner_rig, &err))
         rths_report_log(st->rep, "warning: disarming the rig failed: %s", err.msg);
-    else if (st->opt->rig_uri)
+    else if (st->opt->rig_uri || rths_sites_rig_count(st->inner_rig))
         rths_report_log(st->rep, "rig disarmed (excitation ramped to zero) before the outputs");
     st->disarmed = 1;
 }
@@ -500,6 +664,7 @@ static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
         st->trace_rig_time_s = trace.rig_time_s;
     }
     disarm_rig(st);
+    log_sites(st);
     frf_log_integrity(st);
     int rc = frf_write_frf_csv(st->rep, st, err);
     if (!rc && st->setup->base_excitation) rc = frf_write_absolute_csv(st->rep, st, err);
@@ -510,6 +675,7 @@ static int write_outputs(frf_state *st, int run_rc, rths_error *err) {
     }
     frf_trace_free(&trace);
     if (!rc) rc = frf_write_summary(st, err);
+    if (!rc) rc = add_sites_summary(st, err);
     if (!rc && st->n > 0) {
         char title[256];
         snprintf(title, sizeof title, "Hybrid test, %s strategy, p = %g, %d harmonic(s)%s",
