@@ -1,0 +1,48 @@
+#!/usr/bin/env bash
+# Issue 27: the seed's bilinear leg on the numerical side (examples/four_storey_bilinear_numerical.yaml),
+# integrated by the controller's step every sample. Noise off, a narrow band over both folds by
+# pseudo-arclength: both folds found, each within 2 mHz of the shooting truth's turning points
+# (truth.csv), every point within 0.5 % of the truth (summary.json's distance measure), the
+# stability labels (fold-based) equal to the truth's Floquet stability; and the same leg with
+# split.numerical_solver: frequency is refused before anything is written.
+set -u
+bin=$1
+src=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+fail() { echo "FAIL: $*"; exit 1; }
+ex="$src/examples/four_storey_bilinear_numerical.yaml"
+json() { sed -n "s/^ *\"$2\": *\"\{0,1\}\([^\",]*\)\"\{0,1\},\{0,1\}$/\1/p" "$1" | head -n 1; }
+
+"$bin" frf "$ex" --out "$work/run" --quiet --set rig.noise=false \
+    --set continuation.start_hz=14.94 --set continuation.end_hz=15.0 || fail "run failed"
+s="$work/run/summary.json"
+# the truth's turning points: where truth.csv's frequency changes direction
+truth_folds=$(awk -F, 'NR > 1 { f = $1; if (n >= 2 && (p1 - p0) * (f - p1) < 0) printf "%s ", p1;
+    p0 = p1; p1 = f; n++ }' "$work/run/truth.csv")
+run_folds=$(sed -n 's/.*"frequency_hz": \([0-9.e+-]*\), "amplitude_m".*/\1/p' "$s" | tr '\n' ' ')
+[ -z "$run_folds" ] && run_folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' |
+    grep -o '"frequency_hz":[0-9.e+-]*' | cut -d: -f2 | tr '\n' ' ')
+echo "truth folds: $truth_folds; hybrid folds: $run_folds"
+awk -v t="$truth_folds" -v r="$run_folds" 'BEGIN {
+    nt = split(t, tf, " "); nr = split(r, rf, " ");
+    if (nt != 2 || nr != 2) { print "fold counts: truth " nt ", hybrid " nr; exit 1 }
+    for (i = 1; i <= 2; i++) { best = 1e9
+        for (j = 1; j <= 2; j++) { d = rf[i] - tf[j]; if (d < 0) d = -d; if (d < best) best = d }
+        printf "fold %s Hz: %.2f mHz from the truth\n", rf[i], 1000 * best
+        if (best > 0.002) exit 1 }
+}' || fail "folds not within 2 mHz of the truth"
+err=$(json "$s" max_relative_error_vs_truth)
+awk -v e="$err" 'BEGIN { print "max error vs truth " e; exit !(e < 0.005) }' \
+    || fail "a point beyond 0.5 % of the truth"
+cmp=$(json "$s" stability_points_compared)
+agree=$(json "$s" stability_points_agreeing)
+[ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
+    fail "stability labels: $agree of $cmp agree with the truth"
+
+"$bin" frf "$ex" --out "$work/freq" --quiet --set split.numerical_solver=frequency 2>"$work/freq.err"
+rc=$?
+[ $rc -eq 2 ] || fail "frequency solver with a numerical leg: exit $rc, expected 2"
+grep -q "nonlinear element on the numerical side" "$work/freq.err" || fail "message: $(cat "$work/freq.err")"
+[ -e "$work/freq" ] && fail "a refused run wrote $work/freq"
+echo "ok"
