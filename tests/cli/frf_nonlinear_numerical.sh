@@ -3,7 +3,8 @@
 # integrated by the controller's step every sample. Noise off, a narrow band over both folds by
 # pseudo-arclength: both folds found, each within 2 mHz of the shooting truth's turning points
 # (truth.csv), every point within 0.5 % of the truth (summary.json's distance measure), the
-# stability labels (fold-based) equal to the truth's Floquet stability; and the same leg with
+# stability labels (fold-based) equal to the truth's Floquet stability; elements on both sides at
+# once (the rig's leg and a numerical cubic spring) likewise; and the numerical leg with
 # split.numerical_solver: frequency is refused before anything is written.
 set -u
 bin=$1
@@ -39,6 +40,30 @@ cmp=$(json "$s" stability_points_compared)
 agree=$(json "$s" stability_points_agreeing)
 [ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
     fail "stability labels: $agree of $cmp agree with the truth"
+
+# elements on both sides at once: the seed's bilinear leg on the rig (plant) and a cubic spring
+# between storeys 3 and 4 on the numerical side; the truth's folds at 14.035594 and 14.003901 Hz
+# (shooting); noise off over both folds
+bil="$src/examples/four_storey_bilinear.yaml"
+"$bin" frf "$bil" --out "$work/both" --quiet --set rig.noise=false \
+    --set continuation.start_hz=13.95 --set continuation.end_hz=14.1 \
+    --set 'structure.nonlinear=[{type: cubic, dofs: [4, 3], stiffness_n_per_m3: 3e8}]' ||
+    fail "both sides: run failed"
+s="$work/both/summary.json"
+folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' | grep -o '"frequency_hz":[0-9.e+-]*' |
+    cut -d: -f2 | tr '\n' ' ')
+echo "both sides: hybrid folds $folds"
+awk -v r="$folds" 'BEGIN { n = split(r, f, " "); t[1] = 14.035594; t[2] = 14.003901
+    if (n != 2) exit 1
+    for (i = 1; i <= 2; i++) { d = f[i] - t[i]; if (d < 0) d = -d; if (d > 0.002) exit 1 } }' ||
+    fail "both sides: folds $folds not within 2 mHz of 14.035594 and 14.003901 Hz"
+err=$(json "$s" max_relative_error_vs_truth)
+awk -v e="$err" 'BEGIN { print "both sides: max error vs truth " e; exit !(e < 0.005) }' ||
+    fail "both sides: a point beyond 0.5 % of the truth"
+cmp=$(json "$s" stability_points_compared)
+agree=$(json "$s" stability_points_agreeing)
+[ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
+    fail "both sides: stability labels: $agree of $cmp agree with the truth"
 
 "$bin" frf "$ex" --out "$work/freq" --quiet --set split.numerical_solver=frequency 2>"$work/freq.err"
 rc=$?
