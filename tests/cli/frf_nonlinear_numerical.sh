@@ -4,7 +4,8 @@
 # pseudo-arclength: both folds found, each within 2 mHz of the shooting truth's turning points
 # (truth.csv), every point within 0.5 % of the truth (summary.json's distance measure), the
 # stability labels (fold-based) equal to the truth's Floquet stability; elements on both sides at
-# once (the rig's leg and a numerical cubic spring) likewise; and the numerical leg with
+# once (the rig's leg and a numerical cubic spring) likewise, and a Duffing spring on the
+# numerical side of the two-interface building; and the numerical leg with
 # split.numerical_solver: frequency is refused before anything is written.
 set -u
 bin=$1
@@ -64,6 +65,32 @@ cmp=$(json "$s" stability_points_compared)
 agree=$(json "$s" stability_points_agreeing)
 [ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
     fail "both sides: stability labels: $agree of $cmp agree with the truth"
+
+# a Duffing spring (3e9 N/m^3 between storeys 3 and 4) on the numerical side of the
+# two-interface building (storeys 2 and 3 the interface), real-time form, harmonics 1-2 (the
+# corrector's bound at two interface DoFs): the truth's folds at 13.573056 and 13.568541 Hz
+two="$src/examples/two_interface_storeys.yaml"
+"$bin" frf "$two" --out "$work/duffing" --quiet --set rig.noise=false \
+    --set continuation.start_hz=13.5 --set continuation.end_hz=13.65 \
+    --set continuation.method=arclength --set continuation.initial_step_hz=0.01 \
+    --set iteration.harmonics=2 \
+    --set 'structure.nonlinear=[{type: cubic, dofs: [4, 3], stiffness_n_per_m3: 3e9}]' ||
+    fail "Duffing: run failed"
+s="$work/duffing/summary.json"
+folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' | grep -o '"frequency_hz":[0-9.e+-]*' |
+    cut -d: -f2 | tr '\n' ' ')
+echo "Duffing: hybrid folds $folds"
+awk -v r="$folds" 'BEGIN { n = split(r, f, " "); t[1] = 13.573056; t[2] = 13.568541
+    if (n != 2) exit 1
+    for (i = 1; i <= 2; i++) { d = f[i] - t[i]; if (d < 0) d = -d; if (d > 0.002) exit 1 } }' ||
+    fail "Duffing: folds $folds not within 2 mHz of 13.573056 and 13.568541 Hz"
+err=$(json "$s" max_relative_error_vs_truth)
+awk -v e="$err" 'BEGIN { print "Duffing: max error vs truth " e; exit !(e < 0.005) }' ||
+    fail "Duffing: a point beyond 0.5 % of the truth"
+cmp=$(json "$s" stability_points_compared)
+agree=$(json "$s" stability_points_agreeing)
+[ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
+    fail "Duffing: stability labels: $agree of $cmp agree with the truth"
 
 "$bin" frf "$ex" --out "$work/freq" --quiet --set split.numerical_solver=frequency 2>"$work/freq.err"
 rc=$?
