@@ -447,6 +447,10 @@ static void test_nonlinear_elements(void **state) {
     expect_refused(seed, "structure.nonlinear=[{type: gap, dofs: [4, 3], clearance_m: 0}]",
                    "structure.nonlinear.0.stiffness_n_per_m");
     expect_refused(seed,
+                   "structure.nonlinear=[{type: friction, dofs: [4, 3], slip_force_n: 1, "
+                   "regularisation_m_s: 1e-300}]",
+                   "key 'structure.nonlinear.0.regularisation_m_s': must be in [1e-09, 1000]");
+    expect_refused(seed,
                    "structure.nonlinear=[{type: bilinear, dofs: [4, 0], compression_ratio: 2}]",
                    "needs stiffness_n_per_m");
 }

@@ -603,9 +603,8 @@ static int read_element(rths_config *cfg, rths_setup *s, int index, rths_error *
         if (!rc)
             rc = rths_config_get_double_ex(cfg, k_a, 1, 0, 0, 1e6, RTHS_CONFIG_LO_OPEN, &e.force_n,
                                            err);
-        if (!rc)
-            rc = rths_config_get_double_ex(cfg, k_b, 0, 1e-3, 0, 1e3, RTHS_CONFIG_LO_OPEN,
-                                           &e.v_reg_m_s, err);
+        if (!rc) /* below 1e-9 m/s the smoothed sign is a step no integrator resolves */
+            rc = rths_config_get_double(cfg, k_b, 0, 1e-3, 1e-9, 1e3, &e.v_reg_m_s, err);
         break;
     default:
         break;
