@@ -4,6 +4,7 @@
 #include "testlib.h"
 
 #include "rths/model.h"
+#include "rths/harmonic_balance.h"
 #include "rths/nonlinear.h"
 
 #include <complex.h>
@@ -260,6 +261,72 @@ static void test_duffing_folds_and_stability(void **state) {
     rths_assembly_free(&a);
 }
 
+/* Harmonic balance (AFT, exact Jacobian) against shooting at one frequency: the 2-DoF chain with
+ * a cubic spring and regularised friction at 8 Hz, and the hardening Duffing oscillator at 14 Hz;
+ * the truncation checked by doubling the harmonics. */
+static void hb_against_shooting(const rths_assembly *a, int count, const rths_nl_element *el,
+                                const double *f, double f_hz, double tol) {
+    rths_error err;
+    int n = a->n;
+    double fs[2] = {0, 0};
+    rths_shooting_options opt = {.start_hz = f_hz,
+                                 .end_hz = f_hz + 0.01,
+                                 .steps_per_period = 2048,
+                                 .max_step = 0.05,
+                                 .max_points = 3};
+    rths_periodic_point *pts;
+    int np;
+    assert_int_equal(rths_nonlinear_frf(a, count, el, fs, f, &opt, &pts, &np, &err), RTHS_OK);
+    rths_hb_options ho;
+    rths_hb_defaults(&ho);
+    double *x = calloc((size_t)n * (2 * ho.harmonics + 1), sizeof(double));
+    int it = 0;
+    assert_int_equal(rths_hb_solve(a, count, el, fs, f, pts[0].omega_rad_s, &ho, x, &it, &err),
+                     RTHS_OK);
+    rths_hb_options h2 = ho;
+    h2.harmonics = 2 * ho.harmonics;
+    h2.samples = 2 * ho.samples;
+    double *x2 = calloc((size_t)n * (2 * h2.harmonics + 1), sizeof(double));
+    assert_int_equal(rths_hb_solve(a, count, el, fs, f, pts[0].omega_rad_s, &h2, x2, NULL, &err),
+                     RTHS_OK);
+    for (int i = 0; i < n; i++) {
+        double amp = hypot(x[i + n], x[i + 2 * n]);
+        print_message("DoF %d at %g Hz: HB %g m (%d Newton steps), shooting %g m, 3rd %g m\n",
+                      i + 1, f_hz, amp, it, hypot(pts[0].cos_m[i + n], pts[0].sin_m[i + n]),
+                      hypot(x[i + 5 * n], x[i + 6 * n]));
+        /* shooting's sin_m is the sin(w t) coefficient, as the series' */
+        assert_close(x[i + n], pts[0].cos_m[i + n], tol * amp);
+        assert_close(x[i + 2 * n], pts[0].sin_m[i + n], tol * amp);
+        assert_close(x[i + 5 * n], pts[0].cos_m[i + 3 * n], tol * amp);
+        assert_close(x[i + 6 * n], pts[0].sin_m[i + 3 * n], tol * amp);
+        /* doubling the harmonics moves nothing beyond the tolerance */
+        assert_close(x2[i + n], x[i + n], tol * amp);
+        assert_close(x2[i + 2 * n], x[i + 2 * n], tol * amp);
+    }
+    free(x), free(x2);
+    rths_periodic_points_free(pts, np);
+}
+
+static void test_harmonic_balance_matches_shooting(void **state) {
+    (void)state;
+    rths_assembly a;
+    rths_error err;
+    const double m[2] = {1, 1}, c[2] = {2, 2}, k[2] = {1e4, 1e4};
+    assert_int_equal(rths_assembly_from_chain(2, m, c, k, &a, &err), RTHS_OK);
+    rths_nl_element el[2] = {
+        {.type = RTHS_NL_CUBIC, .dof_i = 1, .dof_j = 0, .k = 1e10},
+        {.type = RTHS_NL_FRICTION, .dof_i = 0, .dof_j = -1, .force_n = 0.2, .v_reg_m_s = 1e-2}};
+    double f[2] = {0, 2.0};
+    hb_against_shooting(&a, 2, el, f, 8.0, 1e-6);
+    rths_assembly_free(&a);
+    const double m1[1] = {1}, c1[1] = {1}, k1[1] = {1e4};
+    assert_int_equal(rths_assembly_from_chain(1, m1, c1, k1, &a, &err), RTHS_OK);
+    rths_nl_element duffing = {.type = RTHS_NL_CUBIC, .dof_i = 0, .dof_j = -1, .k = 3e7};
+    double f1[2] = {2.0, 0};
+    hb_against_shooting(&a, 1, &duffing, f1, 14.0, 1e-6);
+    rths_assembly_free(&a);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_linear_leg_matches_analytic_frf),
@@ -268,6 +335,7 @@ int main(void) {
         cmocka_unit_test(test_cubic_static_point),
         cmocka_unit_test(test_cubic_and_friction_match_simulation),
         cmocka_unit_test(test_duffing_folds_and_stability),
+        cmocka_unit_test(test_harmonic_balance_matches_shooting),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
