@@ -379,6 +379,100 @@ static void test_beam_element_split(void **state) {
     rths_config_free(cfg);
 }
 
+/* Issue 27: the seed's leg below storey 4 lies on the numerical side (it was refused: "must be on
+ * the physical side"), its preload a static force on storey 4 toward the stiff side; the element
+ * list reads every type with its side and parameters, and a bad element is refused at its key. */
+static void test_nonlinear_elements(void **state) {
+    (void)state;
+    const char *ov[] = {"structure.bilinear.enabled=true", "structure.bilinear.storey=4"};
+    rths_config *cfg;
+    rths_setup s;
+    load_seed(ov, 2, &cfg, &s);
+    assert_int_equal(s.has_bilinear, 1);
+    assert_int_equal(s.n_nonlinear, 1);
+    assert_int_equal(s.nonlinear[0].numerical, 1);
+    assert_int_equal(s.nonlinear[0].dof_i, 3);
+    assert_int_equal(s.nonlinear[0].dof_j, 2);
+    assert_close(s.nonlinear[0].k, 45052, 1e-9); /* (2 - 1) x the chain's leg */
+    assert_close(s.static_force[3], -26.68, 0);
+    assert_close(s.static_force[0] + s.static_force[1] + s.static_force[2], 0, 0);
+    assert_int_equal(rths_setup_nonlinear_count(&s, 1), 1);
+    assert_int_equal(rths_setup_nonlinear_count(&s, 0), 0);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+
+    const char *list[] = {
+        "structure.nonlinear=[{type: cubic, dofs: [4, 3], stiffness_n_per_m3: 2e12}, "
+        "{type: gap, dofs: [2, 1], stiffness_n_per_m: 1e4, clearance_m: 1e-4}, "
+        "{type: friction, dofs: [3, 0], side: numerical, slip_force_n: 0.5, "
+        "regularisation_m_s: 2e-3}, {type: bilinear, dofs: [2, 1], compression_ratio: 3, "
+        "preload_n: 10}]"};
+    load_seed(list, 1, &cfg, &s);
+    assert_int_equal(s.n_nonlinear, 4);
+    assert_int_equal(s.nonlinear[0].type, RTHS_NL_CUBIC);
+    assert_int_equal(s.nonlinear[0].numerical, 1);
+    assert_close(s.nonlinear[0].k, 2e12, 0);
+    assert_int_equal(s.nonlinear[1].type, RTHS_NL_GAP);
+    assert_int_equal(s.nonlinear[1].numerical, 0);
+    assert_close(s.nonlinear[1].clearance_m, 1e-4, 0);
+    assert_int_equal(s.nonlinear[2].type, RTHS_NL_FRICTION);
+    assert_int_equal(s.nonlinear[2].numerical, 1);
+    assert_int_equal(s.nonlinear[2].dof_j, -1);
+    assert_close(s.nonlinear[2].v_reg_m_s, 2e-3, 0);
+    assert_int_equal(s.nonlinear[3].type, RTHS_NL_BILINEAR);
+    assert_close(s.nonlinear[3].leg_stiffness_n_per_m, 45724, 1e-9); /* the chain's leg 1-2 */
+    assert_close(s.nonlinear[3].k, 2 * 45724, 1e-9);
+    /* the preload compresses the leg: storey 2 pushed down, storey 1 up */
+    assert_close(s.static_force[1], -10, 0);
+    assert_close(s.static_force[0], 10, 0);
+    /* the friction element's regularisation: tanh(v / v_reg), slope F / v_reg at rest */
+    double slope;
+    assert_close(rths_nl_force(&s.nonlinear[2], 2e-3, &slope), 0.5 * tanh(1.0), 1e-15);
+    assert_close(rths_nl_force(&s.nonlinear[2], 0, &slope), 0, 0);
+    assert_close(slope, 0.5 / 2e-3, 1e-9);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+
+    const char *seed = "examples/four_storey.yaml";
+    expect_refused(seed, "structure.nonlinear=[{type: cubic, dofs: [2, 4], stiffness_n_per_m3: 1}]",
+                   "key 'structure.nonlinear.0.dofs': joins physical DoF and numerical DoF");
+    expect_refused(seed,
+                   "structure.nonlinear=[{type: cubic, dofs: [4, 3], side: physical, "
+                   "stiffness_n_per_m3: 1}]",
+                   "key 'structure.nonlinear.0.side': the element touches a numerical DoF");
+    expect_refused(seed, "structure.nonlinear=[{type: spring, dofs: [4, 3]}]",
+                   "structure.nonlinear.0.type");
+    expect_refused(seed, "structure.nonlinear=[{type: gap, dofs: [4], stiffness_n_per_m: 1}]",
+                   "lists 1 DoFs: give two");
+    expect_refused(seed, "structure.nonlinear=[{type: gap, dofs: [4, 3], clearance_m: 0}]",
+                   "structure.nonlinear.0.stiffness_n_per_m");
+    expect_refused(seed,
+                   "structure.nonlinear=[{type: friction, dofs: [4, 3], slip_force_n: 1, "
+                   "regularisation_m_s: 1e-300}]",
+                   "key 'structure.nonlinear.0.regularisation_m_s': must be in [1e-09, 1000]");
+    expect_refused(seed,
+                   "structure.nonlinear=[{type: bilinear, dofs: [4, 0], compression_ratio: 2}]",
+                   "needs stiffness_n_per_m");
+}
+
+/* The host's per-harmonic numerical substructure is linear: a numerical-side element with
+ * split.numerical_solver: frequency is refused by name. */
+static void test_nonlinear_frequency_solver_refused(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_setup s;
+    rths_error err;
+    const char *ov[] = {"structure.bilinear.enabled=true", "structure.bilinear.storey=4",
+                        "split.numerical_solver=frequency"};
+    assert_int_equal(
+        rths_config_load(rths_test_source_path("examples/four_storey.yaml"), ov, 3, &cfg, &err),
+        RTHS_OK);
+    assert_int_equal(rths_setup_read(cfg, &s, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "split.numerical_solver"));
+    assert_non_null(strstr(err.msg, "nonlinear element on the numerical side"));
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_seed_example),
@@ -390,6 +484,8 @@ int main(void) {
         cmocka_unit_test(test_physical_sense),
         cmocka_unit_test(test_beam_element_split),
         cmocka_unit_test(test_interface_mass_modes),
+        cmocka_unit_test(test_nonlinear_elements),
+        cmocka_unit_test(test_nonlinear_frequency_solver_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

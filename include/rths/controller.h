@@ -143,6 +143,10 @@ void rths_controller_destroy(rths_controller *c);
  * step drives the physical interface to the target and its published `num` channel carries the
  * force on the numerical substructure's interface, F = p m_int x''_measured - F_LC, N. */
 int rths_controller_numerical_dofs(const rths_controller *c);
+/* The most Newton steps one sample has taken for the numerical side's nonlinear elements since
+ * create (0 without them; at most a fixed bound, docs/method.md, "Nonlinear elements in the
+ * real-time step"): the per-sample worst case rths_bench step_size reports. */
+int rths_controller_nonlinear_newton_steps(const rths_controller *c);
 
 /* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
  * period boundary, so every published period has one forcing; the phase theta is continuous

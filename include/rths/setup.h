@@ -3,7 +3,11 @@
  *   structure:   storeys {mass_kg, damping_n_s_per_m, stiffness_n_per_m} (lists, ground up)
  *                or matrices {mass_kg, damping_n_s_per_m, stiffness_n_per_m}, each n x n rows
  *                or the path of a Matrix Market file (mtx.h), relative to the config's folder;
- *                bilinear {enabled, storey, compression_ratio, preload_n} (optional)
+ *                bilinear {enabled, storey, compression_ratio, preload_n} (optional);
+ *                nonlinear: a list of elements {type: bilinear | cubic | gap | friction,
+ *                dofs: [i, j] (1-based, j = 0 the ground), side (only for an element between
+ *                interface DoFs or an interface DoF and the ground), parameters in SI}
+ *                (nonlinear.h; docs/config.md, "Nonlinear elements")
  *   split:       interface (1-based DoF list), mass_ratio p in (0, 1) (docs/method.md, "Errata of
  *                the seed paper", erratum 1) or a list of one p per interface DoF, physical /
  *                numerical (1-based lists, physical may be empty; for a chain
@@ -31,6 +35,7 @@
 #include "rths/beam.h"
 #include "rths/config.h"
 #include "rths/model.h"
+#include "rths/nonlinear.h"
 #include <stddef.h>
 
 /* Where the numerical substructure is solved (split.numerical_solver). */
@@ -61,11 +66,19 @@ typedef struct rths_setup {
     double *forcing_shape;      /* n: force per unit forcing amplitude: 1 at forcing_dof (force), or
                                    -M 1 (base: N per m/s^2 of ground acceleration) */
     int chain;                  /* 1 when the structure was given as a storey chain */
-    /* Bilinear leg below `leg.upper_dof` (physical side), extension stiffness from the chain. */
+    /* 1 when the structure has any nonlinear element (structure.bilinear or structure.nonlinear,
+     * on either side): its truth is the shooting solution, not the analytic FRF. The name is the
+     * historical one (the bilinear leg was the only nonlinearity). */
     int has_bilinear;
+    /* structure.bilinear: the leg below `leg.upper_dof`, extension stiffness from the chain (also
+     * nonlinear[0] when enabled) */
     rths_bilinear_leg leg;
-    double preload_n;     /* static force on the interface DoF (shaker preload), N */
-    double *static_force; /* n: preload_n at the (first) interface DoF, N */
+    double preload_n;     /* structure.bilinear's static force, N */
+    double *static_force; /* n: every element's preload (structure.bilinear's on the interface
+                             DoF when the leg is physical, on its upper storey when numerical), N */
+    /* Every nonlinear element, structure.bilinear's first; each on one side of the split. */
+    int n_nonlinear;
+    rths_nl_element nonlinear[RTHS_MAX_NONLINEAR];
     double frf_start_hz, frf_end_hz;
     int frf_points;
     rths_numerical_solver numerical_solver;
@@ -107,6 +120,9 @@ double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e);
  * rig + numerical - compensated = M_II: the hybrid test's interface mass is the assembly's. */
 double rths_setup_compensation_mass(const rths_setup *s, int d, int e);
 const char *rths_interface_mass_name(rths_interface_mass mode);
+
+/* Nonlinear elements on the numerical (numerical = 1) or physical (0) side. */
+int rths_setup_nonlinear_count(const rths_setup *s, int numerical);
 
 /* The DoFs a model's tables report, ascending, 0-based (malloc'ed; NULL when out of memory). */
 int *rths_setup_output_dofs(const rths_setup *s, int *count);

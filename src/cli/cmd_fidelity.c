@@ -297,8 +297,16 @@ int rths_cmd_fidelity(int argc, char **argv) {
         goto done;
     if (setup.has_bilinear) {
         /* the frequency-domain model is linear: the leg's extension stiffness is what it sees */
-        static const char note[] = "the bilinear leg is not modelled: the structure is taken as "
-                                   "linear with the leg's extension stiffness";
+        static const char leg_note[] = "the bilinear leg is not modelled: the structure is taken "
+                                       "as linear with the leg's extension stiffness";
+        static const char elements_note[] = "the nonlinear elements are not modelled: the "
+                                            "structure is taken as linear (K and C without their "
+                                            "forces)";
+        /* structure.bilinear alone keeps its note; structure.nonlinear's elements get theirs */
+        int leg_only = setup.n_nonlinear == 1 && setup.nonlinear[0].type == RTHS_NL_BILINEAR &&
+                       setup.leg.upper_dof == setup.nonlinear[0].dof_i &&
+                       setup.leg.stiffness_n_per_m > 0;
+        const char *note = leg_only ? leg_note : elements_note;
         json_object_object_add(summary, "note", json_object_new_string(note));
         rths_cli_print(&cli, "note: %s\n", note);
     }

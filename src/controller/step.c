@@ -3,6 +3,7 @@
 #include "rths/controller.h"
 
 #include "controller/spsc.h"
+#include "rths/nonlinear.h"
 
 #include <math.h>
 #include <stdatomic.h>
@@ -15,6 +16,19 @@
 #define MAX_INPUTS (RTHS_MAX_INTERFACE_DOFS + 1)
 #define MAX_IFACE RTHS_MAX_INTERFACE_DOFS
 #define MAX_OUT RTHS_MAX_OUTPUT_DOFS
+#define MAX_NL RTHS_MAX_NONLINEAR
+/* Newton steps per sample at most for the nonlinear elements' end-of-sample forces: a smooth
+ * element converges quadratically from the explicit guess in 2-3, a kink in 1-2 once its side is
+ * known (docs/method.md, "Nonlinear elements in the real-time step") */
+#define NL_NEWTON_STEPS 6
+
+/* A numerical-side nonlinear element as the step sees it (nonlinear.h): its coordinate is
+ * z[off + i] - z[off + j] (off 0: the deformation, nn: its rate; j < 0: the ground). */
+typedef struct {
+    rths_nl_element el;
+    int i, j, off;
+    int kink; /* bilinear or gap: the crossing located inside the sample (FOH moments) */
+} nl_state;
 
 /* Where an output DoF's displacement comes from (output.dofs, rths_period.output_dof). */
 enum {
@@ -71,6 +85,16 @@ struct rths_controller {
     double ad[MAX_STATE * MAX_STATE], b_prev[MAX_STATE * MAX_INPUTS],
         b_curr[MAX_STATE * MAX_INPUTS];
     double z[MAX_STATE], u_prev[MAX_INPUTS];
+    /* Nonlinear elements of the numerical substructure (n_nl 0: none, and the step is the linear
+     * one): their forces enter as further inputs of the same discretisation, bg_prev / bg_curr
+     * (nx x n_nl); sg_prev / sg_curr = C bg (n_nl x n_nl, C the elements' coordinate rows);
+     * static_step: the discretised static forces on numerical DoFs per step (nx) */
+    int n_nl, nl_foh, has_static;
+    nl_state nl[MAX_NL];
+    double bg_prev[MAX_STATE * MAX_NL], bg_curr[MAX_STATE * MAX_NL];
+    double sg_prev[MAX_NL * MAX_NL], sg_curr[MAX_NL * MAX_NL];
+    double static_step[MAX_STATE];
+    int nl_newton_max; /* the most Newton steps one sample took (bench: worst-case cost) */
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
@@ -190,7 +214,16 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
                             "at most %d (RTHS_REALTIME_MAX_DOFS): set controller.reduction.method "
                             "to craig_bampton (or auto), or split.numerical_solver to frequency",
                             n, RTHS_REALTIME_MAX_DOFS);
-    const int ni = c->ni, n_in = c->n_inputs;
+    if (!rc && reduce && c->n_nl > 0)
+        rc = rths_error_set(err, RTHS_EINPUT,
+                            "the numerical substructure has nonlinear elements and would be "
+                            "reduced (controller.reduction): a Craig-Bampton reduction must keep "
+                            "their DoFs as interface DoFs, which it does not yet; set "
+                            "controller.reduction.method to none");
+    const int ni = c->ni, n_in_lin = c->n_inputs;
+    /* further inputs: one per nonlinear element (its force's direction e_i - e_j), then the
+     * static forces on numerical DoFs (a constant input of 1) */
+    const int n_in = n_in_lin + c->n_nl + c->has_static;
     double *input = rc ? NULL : rths_mat_new(s->nn, n_in), *a = NULL, *b = NULL;
     if (!rc && !input) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) {
@@ -206,6 +239,16 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
                 forcing[s->n_int + i] = setup->forcing_shape[s->num_dofs[i]];
         } else if (!forcing_physical) {
             forcing[c->forcing_index] = 1.0;
+        }
+        for (int e = 0; e < c->n_nl; e++) {
+            double *col = input + (size_t)(n_in_lin + e) * s->nn;
+            col[c->nl[e].i] = -1.0; /* the element pulls DoF i with -g, pushes j with +g */
+            if (c->nl[e].j >= 0) col[c->nl[e].j] = 1.0;
+        }
+        if (c->has_static) {
+            double *col = input + (size_t)(n_in_lin + c->n_nl) * s->nn;
+            for (int i = 0; i < s->n_num; i++)
+                col[s->n_int + i] = setup->static_force[s->num_dofs[i]];
         }
     }
     double *reduced_input = !rc && reduce ? rths_mat_new(n, n_in) : NULL;
@@ -230,13 +273,68 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
     }
     if (!rc) rc = rths_discretise(c->nx, n_in, a, b, c->h, c->opt.scheme, &d, err);
     if (!rc) {
-        memcpy(c->ad, d.ad, sizeof(double) * (size_t)(c->nx * c->nx));
-        memcpy(c->b_prev, d.b_prev, sizeof(double) * (size_t)(c->nx * n_in));
-        memcpy(c->b_curr, d.b_curr, sizeof(double) * (size_t)(c->nx * n_in));
+        const size_t nx = (size_t)c->nx;
+        memcpy(c->ad, d.ad, sizeof(double) * nx * nx);
+        memcpy(c->b_prev, d.b_prev, sizeof(double) * nx * (size_t)n_in_lin);
+        memcpy(c->b_curr, d.b_curr, sizeof(double) * nx * (size_t)n_in_lin);
+        memcpy(c->bg_prev, d.b_prev + nx * n_in_lin, sizeof(double) * nx * (size_t)c->n_nl);
+        memcpy(c->bg_curr, d.b_curr + nx * n_in_lin, sizeof(double) * nx * (size_t)c->n_nl);
+        for (size_t i = 0; c->has_static && i < nx; i++)
+            c->static_step[i] = d.b_prev[i + nx * (size_t)(n_in_lin + c->n_nl)] +
+                                d.b_curr[i + nx * (size_t)(n_in_lin + c->n_nl)];
+        /* sg = C bg: each element's coordinate's response to each element's force */
+        for (int e = 0; e < c->n_nl; e++)
+            for (int f = 0; f < c->n_nl; f++) {
+                const nl_state *ne = &c->nl[e];
+                const double *bp = c->bg_prev + nx * (size_t)f, *bc = c->bg_curr + nx * (size_t)f;
+                c->sg_prev[e + f * MAX_NL] =
+                    bp[ne->off + ne->i] - (ne->j >= 0 ? bp[ne->off + ne->j] : 0.0);
+                c->sg_curr[e + f * MAX_NL] =
+                    bc[ne->off + ne->i] - (ne->j >= 0 ? bc[ne->off + ne->j] : 0.0);
+            }
+        c->nl_foh = d.scheme == RTHS_SCHEME_EXACT_FOH;
     }
     free(a), free(b), free(input), free(reduced_input);
     rths_discrete_free(&d);
     rths_reduced_free(&red);
+    return rc;
+}
+
+/* The numerical side's nonlinear elements in the numerical substructure's DoF order (interface
+ * DoFs, then numerical ones), and whether static forces act on its numerical DoFs. */
+static int numerical_elements(rths_controller *c, const rths_setup *setup, rths_error *err) {
+    const rths_split *s = &setup->split;
+    int n = setup->assembly.n;
+    int *to_num = malloc(sizeof(int) * (size_t)n);
+    if (!to_num) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < n; i++)
+        to_num[i] = -1;
+    for (int d = 0; d < s->n_int; d++)
+        to_num[s->int_dofs[d]] = d;
+    for (int i = 0; i < s->n_num; i++)
+        to_num[s->num_dofs[i]] = s->n_int + i;
+    int rc = RTHS_OK;
+    c->n_nl = 0;
+    for (int e = 0; e < setup->n_nonlinear && !rc; e++) {
+        const rths_nl_element *el = &setup->nonlinear[e];
+        if (!el->numerical) continue;
+        nl_state *ns = &c->nl[c->n_nl];
+        ns->el = *el;
+        ns->i = to_num[el->dof_i];
+        ns->j = el->dof_j >= 0 ? to_num[el->dof_j] : -1;
+        ns->off = rths_nl_on_rate(el) ? s->nn : 0;
+        ns->kink = el->type == RTHS_NL_BILINEAR || el->type == RTHS_NL_GAP;
+        if (ns->i < 0 || (el->dof_j >= 0 && ns->j < 0))
+            rc = rths_error_set(err, RTHS_EINPUT,
+                                "nonlinear element %d (DoFs %d-%d) is on the numerical side but "
+                                "joins a physical DoF",
+                                e + 1, el->dof_i + 1, el->dof_j + 1);
+        c->n_nl++;
+    }
+    c->has_static = 0;
+    for (int i = 0; i < s->n_num && setup->static_force; i++)
+        c->has_static |= setup->static_force[s->num_dofs[i]] != 0;
+    free(to_num);
     return rc;
 }
 
@@ -335,6 +433,10 @@ static int grounding_stable(const rths_controller *c, const rths_split *s, rths_
                           "%.3g and kd below %.3g for that DoF (m/h^2 / 10, m/h / 4)",
                           radius, worst + 1, s->int_dofs[worst] + 1, m, c->gkp[worst],
                           c->gkd[worst], 0.1 * m / (c->h * c->h), 0.25 * m / c->h);
+}
+
+int rths_controller_nonlinear_newton_steps(const rths_controller *c) {
+    return c->nl_newton_max;
 }
 
 int rths_controller_numerical_dofs(const rths_controller *c) {
@@ -472,6 +574,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         rc = rths_error_set(err, RTHS_EINPUT,
                             "forcing.type: base with split.numerical_solver: frequency is not "
                             "supported (the host's receptance takes a force on one DoF)");
+    if (!rc && !c->host_numerical) rc = numerical_elements(c, setup, err);
     if (!rc && !c->host_numerical) rc = numerical_stiffness_definite(s, err);
     if (!rc && !c->host_numerical) rc = build_numerical(c, setup, forcing_physical, base, err);
     if (!rc && !c->host_numerical) rc = grounding_stable(c, s, err);
@@ -790,6 +893,147 @@ static double grounding_force(rths_controller *c, int d, double x) {
     return f_ctrl;
 }
 
+/* An element's coordinate (deformation or rate) in state z. */
+static inline double nl_coordinate(const nl_state *ns, const double *z) {
+    return z[ns->off + ns->i] - (ns->j >= 0 ? z[ns->off + ns->j] : 0.0);
+}
+
+/* The force of a kink element over a sample whose coordinate runs linearly from y0 to y1, as the
+ * first-order hold the exact FOH discretisation takes: the straight line with the profile's own
+ * mean and first moment (its L2 projection), endpoint values *a, *b and db/dy1 in *db, da/dy1 in
+ * *da. Without a crossing the profile is that line; with one (the kink located inside the
+ * sample at s* = y0 / (y0 - y1)) its moments are those of the triangle on the contact side, and
+ * what the line misses is the profile's second moment against the sample's curvature of
+ * e^{A (h - s)}, O((omega h)^2) of one sample's kink. */
+static void kink_hold(double k, double y0, double y1, double *a, double *b, double *da,
+                      double *db) {
+    if (y0 <= 0 && y1 <= 0) {
+        *a = k * y0, *b = k * y1, *da = 0, *db = k;
+        return;
+    }
+    if (y0 >= 0 && y1 >= 0) {
+        *a = *b = *da = *db = 0;
+        return;
+    }
+    const double inv = 1.0 / (y0 - y1), sc = y0 * inv, ds = y0 * inv * inv;
+    double m0, m1, dm0, dm1; /* int_0^1 g ds, int_0^1 s g ds and their y1-derivatives */
+    if (y0 < 0) {            /* in contact until s* */
+        m0 = 0.5 * k * y0 * sc;
+        m1 = k * y0 * sc * sc / 6;
+        dm0 = 0.5 * k * y0 * ds;
+        dm1 = k * y0 * sc * ds / 3;
+    } else { /* in contact from s* */
+        m0 = 0.5 * k * (y0 + y1) - 0.5 * k * y0 * sc;
+        m1 = k * (y0 / 6 + y1 / 3) - k * y0 * sc * sc / 6;
+        dm0 = 0.5 * k - 0.5 * k * y0 * ds;
+        dm1 = k / 3 - k * y0 * sc * ds / 3;
+    }
+    *a = 4 * m0 - 6 * m1, *b = 6 * m1 - 2 * m0;
+    *da = 4 * dm0 - 6 * dm1, *db = 6 * dm1 - 2 * dm0;
+}
+
+/* Element e's hold over the sample: endpoint forces (a, b) and their y1-derivatives. A kink under
+ * the FOH by its moments; otherwise the endpoint forces themselves (the FOH's trapezoid: implicit
+ * trapezoidal in the force, second order). */
+static void element_hold(const rths_controller *c, const nl_state *ns, double y0, double y1,
+                         double *a, double *b, double *da, double *db) {
+    if (ns->kink && c->nl_foh) {
+        kink_hold(ns->el.k, y0 + ns->el.clearance_m, y1 + ns->el.clearance_m, a, b, da, db);
+        return;
+    }
+    *a = rths_nl_force(&ns->el, y0, NULL);
+    *b = rths_nl_force(&ns->el, y1, db);
+    *da = 0;
+}
+
+/* Solves the n x n system J x = r in place (Gaussian elimination with partial pivoting, n <=
+ * MAX_NL, leading dimension MAX_NL): no LAPACK per sample. Returns 0, -1 when singular. */
+static int small_solve(int n, double *J, double *r) {
+    for (int col = 0; col < n; col++) {
+        int piv = col;
+        for (int i = col + 1; i < n; i++)
+            if (fabs(J[i + col * MAX_NL]) > fabs(J[piv + col * MAX_NL])) piv = i;
+        if (!(fabs(J[piv + col * MAX_NL]) > 0)) return -1;
+        if (piv != col) {
+            for (int j = 0; j < n; j++) {
+                double t = J[col + j * MAX_NL];
+                J[col + j * MAX_NL] = J[piv + j * MAX_NL];
+                J[piv + j * MAX_NL] = t;
+            }
+            double t = r[col];
+            r[col] = r[piv];
+            r[piv] = t;
+        }
+        for (int i = col + 1; i < n; i++) {
+            double f = J[i + col * MAX_NL] / J[col + col * MAX_NL];
+            for (int j = col; j < n; j++)
+                J[i + j * MAX_NL] -= f * J[col + j * MAX_NL];
+            r[i] -= f * r[col];
+        }
+    }
+    for (int i = n - 1; i >= 0; i--) {
+        double sum = r[i];
+        for (int j = i + 1; j < n; j++)
+            sum -= J[i + j * MAX_NL] * r[j];
+        r[i] = sum / J[i + i * MAX_NL];
+    }
+    return 0;
+}
+
+/* The nonlinear elements' contribution to the sample's end state: next holds the linear step
+ * from z (the state at the sample's start); the elements' end coordinates y1 solve
+ * y1 = C next + S_prev a(y0, y1) + S_curr b(y0, y1) by at most NL_NEWTON_STEPS Newton steps
+ * from the explicit guess (end forces = start forces), then next += bg_prev a + bg_curr b. */
+static void advance_nonlinear(rths_controller *c, double *next) {
+    const int m = c->n_nl, nx = c->nx;
+    double y0[MAX_NL], yl[MAX_NL], y1[MAX_NL], a[MAX_NL], b[MAX_NL], da[MAX_NL], db[MAX_NL];
+    double J[MAX_NL * MAX_NL], r[MAX_NL];
+    double scale = 0;
+    for (int e = 0; e < m; e++) {
+        y0[e] = nl_coordinate(&c->nl[e], c->z);
+        yl[e] = nl_coordinate(&c->nl[e], next);
+        a[e] = b[e] = rths_nl_force(&c->nl[e].el, y0[e], NULL);
+        scale = fmax(scale, fmax(fabs(y0[e]), fabs(yl[e])));
+    }
+    for (int e = 0; e < m; e++) {
+        y1[e] = yl[e];
+        for (int f = 0; f < m; f++)
+            y1[e] += (c->sg_prev[e + f * MAX_NL] + c->sg_curr[e + f * MAX_NL]) * a[f];
+    }
+    const double tol = 1e-13 * scale;
+    int steps = 0;
+    for (; steps < NL_NEWTON_STEPS; steps++) {
+        for (int e = 0; e < m; e++)
+            element_hold(c, &c->nl[e], y0[e], y1[e], &a[e], &b[e], &da[e], &db[e]);
+        double worst = 0;
+        for (int e = 0; e < m; e++) {
+            double sum = yl[e] - y1[e];
+            for (int f = 0; f < m; f++) {
+                sum += c->sg_prev[e + f * MAX_NL] * a[f] + c->sg_curr[e + f * MAX_NL] * b[f];
+                J[e + f * MAX_NL] =
+                    c->sg_prev[e + f * MAX_NL] * da[f] + c->sg_curr[e + f * MAX_NL] * db[f];
+            }
+            J[e + e * MAX_NL] -= 1.0;
+            r[e] = -sum;
+            worst = fmax(worst, fabs(sum));
+        }
+        if (worst <= tol) break;
+        if (small_solve(m, J, r)) break;
+        for (int e = 0; e < m; e++)
+            y1[e] += r[e];
+    }
+    if (steps == NL_NEWTON_STEPS)
+        for (int e = 0; e < m; e++) /* the forces of the last iterate */
+            element_hold(c, &c->nl[e], y0[e], y1[e], &a[e], &b[e], &da[e], &db[e]);
+    if (steps > c->nl_newton_max) c->nl_newton_max = steps;
+    for (int f = 0; f < m; f++) {
+        const double *bp = c->bg_prev + (size_t)f * (size_t)nx,
+                     *bc = c->bg_curr + (size_t)f * (size_t)nx;
+        for (int i = 0; i < nx; i++)
+            next[i] += bp[i] * a[f] + bc[i] * b[f];
+    }
+}
+
 /* One step of the discretised numerical substructure under inputs u; its interface
  * displacements and velocities after the step. */
 static void advance_numerical(rths_controller *c, const double *u, double *xi, double *xi_dot) {
@@ -808,6 +1052,10 @@ static void advance_numerical(rths_controller *c, const double *u, double *xi, d
             sum += bp[i + (size_t)j * (size_t)nx] * up[j] + bc[i + (size_t)j * (size_t)nx] * u[j];
         next[i] = sum;
     }
+    if (c->has_static)
+        for (int i = 0; i < nx; i++)
+            next[i] += c->static_step[i];
+    if (c->n_nl) advance_nonlinear(c, next);
     /* element by element: a handful of doubles, where a libc call would cost more than the copy */
     for (int i = 0; i < nx; i++)
         c->z[i] = next[i];

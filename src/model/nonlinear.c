@@ -1,7 +1,8 @@
-/* Periodic response of the true assembly with a bilinear leg: shooting on the full model with
- * pseudo-arclength continuation in frequency. This is the independent truth the hybrid test of the
- * bilinear rig is judged against: it never touches the hybrid loop, only (M, C, K) and the leg. */
-#include "rths/model.h"
+/* Periodic response of the true assembly with nonlinear elements (nonlinear.h): shooting on the
+ * full model with pseudo-arclength continuation in frequency. This is the independent truth the
+ * hybrid test of a nonlinear structure is judged against: it never touches the hybrid loop, only
+ * (M, C, K) and the elements. */
+#include "rths/nonlinear.h"
 
 #include <lapacke.h>
 #include <math.h>
@@ -11,32 +12,80 @@
 typedef struct {
     int n, nx;
     const rths_assembly *a;
-    const rths_bilinear_leg *leg;
-    double *minv;    /* M^{-1} */
-    double *minv_k;  /* M^{-1} K */
-    double *minv_c;  /* M^{-1} C */
-    double *minv_fs; /* M^{-1} static force */
-    double *minv_f;  /* M^{-1} harmonic force amplitude */
-    double *minv_b;  /* M^{-1} (e_upper - e_lower) */
-    double extra_k;  /* (ratio - 1) k: added stiffness in compression */
+    int count;                 /* elements */
+    const rths_nl_element *el; /* count of them */
+    double *minv_k;            /* M^{-1} K */
+    double *minv_c;            /* M^{-1} C */
+    double *minv_fs;           /* M^{-1} static force */
+    double *minv_f;            /* M^{-1} harmonic force amplitude */
+    double *minv_b;            /* n x count: M^{-1} (e_i - e_j) per element */
     int steps;
     double *stages; /* 6 nx: integrate()'s state, RK4 stages and scratch */
 } shooter;
 
-static double leg_extension(const shooter *s, const double *q) {
-    double lower = s->leg->lower_dof >= 0 ? q[s->leg->lower_dof] : 0.0;
-    return q[s->leg->upper_dof] - lower;
+const char *rths_nl_type_name(rths_nl_type t) {
+    static const char *const names[RTHS_NL_TYPE_COUNT] = {"bilinear", "cubic", "gap", "friction"};
+    return t >= 0 && t < RTHS_NL_TYPE_COUNT ? names[t] : "?";
+}
+
+int rths_nl_on_rate(const rths_nl_element *e) {
+    return e->type == RTHS_NL_FRICTION;
+}
+
+double rths_nl_force(const rths_nl_element *e, double y, double *slope) {
+    double g = 0, dg = 0;
+    switch (e->type) {
+    case RTHS_NL_BILINEAR:
+    case RTHS_NL_GAP:
+        if (y + e->clearance_m < 0) {
+            g = e->k * (y + e->clearance_m);
+            dg = e->k;
+        }
+        break;
+    case RTHS_NL_CUBIC:
+        g = e->k * y * y * y;
+        dg = 3 * e->k * y * y;
+        break;
+    case RTHS_NL_FRICTION: {
+        double t = tanh(y / e->v_reg_m_s);
+        g = e->force_n * t;
+        dg = e->force_n * (1 - t * t) / e->v_reg_m_s;
+        break;
+    }
+    default:
+        break;
+    }
+    if (slope) *slope = dg;
+    return g;
+}
+
+rths_nl_element rths_nl_from_leg(const rths_bilinear_leg *leg) {
+    return (rths_nl_element){.type = RTHS_NL_BILINEAR,
+                             .dof_i = leg->upper_dof,
+                             .dof_j = leg->lower_dof,
+                             .k = (leg->ratio - 1) * leg->stiffness_n_per_m,
+                             .leg_stiffness_n_per_m = leg->stiffness_n_per_m,
+                             .ratio = leg->ratio};
+}
+
+/* The element's coordinate in state x = (q, v): the deformation, or its rate for friction. */
+static double element_coordinate(const rths_nl_element *e, int n, const double *x) {
+    int off = rths_nl_on_rate(e) ? n : 0;
+    return x[off + e->dof_i] - (e->dof_j >= 0 ? x[off + e->dof_j] : 0.0);
 }
 
 /* x' = f(t, x): x = (q, v). */
 static void rhs(const shooter *s, double wt, const double *x, double *dx) {
     int n = s->n;
     const double *q = x, *v = x + n;
-    double d = leg_extension(s, q);
-    double g = d < 0 ? s->extra_k * d : 0.0;
+    double g[RTHS_MAX_NONLINEAR];
+    for (int e = 0; e < s->count; e++)
+        g[e] = rths_nl_force(&s->el[e], element_coordinate(&s->el[e], n, x), NULL);
     double c = cos(wt);
     for (int i = 0; i < n; i++) {
-        double acc = s->minv_fs[i] + s->minv_f[i] * c - g * s->minv_b[i];
+        double acc = s->minv_fs[i] + s->minv_f[i] * c;
+        for (int e = 0; e < s->count; e++)
+            acc -= g[e] * s->minv_b[i + (size_t)e * n];
         for (int j = 0; j < n; j++)
             acc -= RTHS_AT(s->minv_k, n, i, j) * q[j] + RTHS_AT(s->minv_c, n, i, j) * v[j];
         dx[i] = v[i];
@@ -44,18 +93,22 @@ static void rhs(const shooter *s, double wt, const double *x, double *dx) {
     }
 }
 
-/* dPhi = J(x) Phi, J = [[0, I], [-M^{-1}(K + K_g), -M^{-1} C]]. */
+/* dPhi = J(x) Phi, J = [[0, I], [-M^{-1}(K + K_g), -M^{-1}(C + C_g)]]. */
 static void rhs_var(const shooter *s, const double *x, const double *phi, double *dphi) {
     int n = s->n, nx = s->nx;
-    double d = leg_extension(s, x);
-    int compressed = d < 0;
-    int lo = s->leg->lower_dof, up = s->leg->upper_dof;
+    double slope[RTHS_MAX_NONLINEAR];
+    for (int e = 0; e < s->count; e++)
+        rths_nl_force(&s->el[e], element_coordinate(&s->el[e], n, x), &slope[e]);
     for (int col = 0; col < nx; col++) {
         const double *p = phi + (size_t)col * nx;
         double *dp = dphi + (size_t)col * nx;
-        double dd = p[up] - (lo >= 0 ? p[lo] : 0.0);
+        double dg[RTHS_MAX_NONLINEAR];
+        for (int e = 0; e < s->count; e++)
+            dg[e] = slope[e] * element_coordinate(&s->el[e], n, p);
         for (int i = 0; i < n; i++) {
-            double acc = compressed ? -s->extra_k * dd * s->minv_b[i] : 0.0;
+            double acc = 0;
+            for (int e = 0; e < s->count; e++)
+                acc -= dg[e] * s->minv_b[i + (size_t)e * n];
             for (int j = 0; j < n; j++)
                 acc -= RTHS_AT(s->minv_k, n, i, j) * p[j] + RTHS_AT(s->minv_c, n, i, j) * p[n + j];
             dp[i] = p[n + i];
@@ -134,32 +187,92 @@ static void integrate(const shooter *s, const double *x0, double omega, double *
     free(pk);
 }
 
-int rths_bilinear_static(const rths_assembly *a, const rths_bilinear_leg *leg,
-                         const double *static_force, double *q_out, rths_error *err) {
+/* The tangent stiffness K + sum_e g_e'(d) b_e b_e^T of the deformation-driven elements at q. */
+static void tangent_stiffness(const rths_assembly *a, int count, const rths_nl_element *el,
+                              const double *q, double *kt, double *g_out) {
     int n = a->n;
-    double *k = rths_mat_new(n, n);
-    if (!k) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    /* The restoring force is piecewise linear: try each side and keep the consistent one. */
-    for (int side = 0; side < 2; side++) {
-        memcpy(k, a->stiffness, (size_t)n * n * sizeof(double));
-        double extra = side == 0 ? (leg->ratio - 1) * leg->stiffness_n_per_m : 0.0;
-        int lo = leg->lower_dof, up = leg->upper_dof;
-        RTHS_AT(k, n, up, up) += extra;
-        if (lo >= 0) {
-            RTHS_AT(k, n, lo, lo) += extra;
-            RTHS_AT(k, n, lo, up) -= extra;
-            RTHS_AT(k, n, up, lo) -= extra;
-        }
-        memcpy(q_out, static_force, (size_t)n * sizeof(double));
-        if (rths_mat_solve(n, 1, k, q_out) != 0) continue;
-        double d = q_out[up] - (lo >= 0 ? q_out[lo] : 0.0);
-        if ((side == 0 && d <= 0) || (side == 1 && d >= 0)) {
-            free(k);
-            return RTHS_OK;
+    memcpy(kt, a->stiffness, (size_t)n * n * sizeof(double));
+    memset(g_out, 0, (size_t)n * sizeof(double));
+    for (int e = 0; e < count; e++) {
+        if (rths_nl_on_rate(&el[e])) continue;
+        int i = el[e].dof_i, j = el[e].dof_j;
+        double slope, g = rths_nl_force(&el[e], q[i] - (j >= 0 ? q[j] : 0.0), &slope);
+        g_out[i] += g;
+        RTHS_AT(kt, n, i, i) += slope;
+        if (j >= 0) {
+            g_out[j] -= g;
+            RTHS_AT(kt, n, j, j) += slope;
+            RTHS_AT(kt, n, i, j) -= slope;
+            RTHS_AT(kt, n, j, i) -= slope;
         }
     }
-    free(k);
-    return rths_error_set(err, RTHS_EFAIL, "no static equilibrium found for the bilinear leg");
+}
+
+int rths_nonlinear_static(const rths_assembly *a, int count, const rths_nl_element *el,
+                          const double *static_force, double *q_out, rths_error *err) {
+    int n = a->n;
+    double *kt = rths_mat_new(n, n), *r = malloc((size_t)n * sizeof *r),
+           *g = malloc((size_t)n * sizeof *g);
+    int rc = kt && r && g ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    /* Newton from the linear solution; a piecewise-linear restoring force converges in a few
+     * steps once the active sides are found, a cubic one quadratically near the root. Steps are
+     * halved while they do not reduce the residual (a stiffening spring overshoots from afar). */
+    memset(q_out, 0, (size_t)n * sizeof(double));
+    double scale = 0;
+    for (int i = 0; i < n; i++)
+        scale = fmax(scale, fabs(static_force[i]));
+    int converged = scale == 0;
+    for (int it = 0; it < 200 && !rc && !converged; it++) {
+        tangent_stiffness(a, count, el, q_out, kt, g);
+        double norm = 0;
+        for (int i = 0; i < n; i++) {
+            double ku = 0;
+            for (int j = 0; j < n; j++)
+                ku += RTHS_AT(a->stiffness, n, i, j) * q_out[j];
+            r[i] = static_force[i] - ku - g[i];
+            norm = fmax(norm, fabs(r[i]));
+        }
+        if (norm <= 1e-12 * scale) {
+            converged = 1;
+            break;
+        }
+        if (rths_mat_solve(n, 1, kt, r) != 0) break;
+        for (int i = 0; i < n; i++)
+            q_out[i] += r[i];
+    }
+    /* Piecewise-linear elements only: once Newton has found the active pieces, the equilibrium
+     * is one linear solve with their stiffness (and their clearances' constant forces); it is
+     * taken as the answer, so the seed's leg gets exactly the solve of its stiff side. */
+    int piecewise = 1;
+    for (int e = 0; e < count; e++)
+        piecewise &= el[e].type == RTHS_NL_BILINEAR || el[e].type == RTHS_NL_GAP ||
+                     el[e].type == RTHS_NL_FRICTION;
+    if (!rc && converged && piecewise && scale > 0) {
+        tangent_stiffness(a, count, el, q_out, kt, g);
+        memcpy(r, static_force, (size_t)n * sizeof(double));
+        for (int e = 0; e < count; e++) {
+            if (rths_nl_on_rate(&el[e])) continue;
+            int i = el[e].dof_i, j = el[e].dof_j;
+            double slope;
+            rths_nl_force(&el[e], q_out[i] - (j >= 0 ? q_out[j] : 0.0), &slope);
+            double offset = slope * el[e].clearance_m;
+            if (offset == 0) continue;
+            r[i] -= offset;
+            if (j >= 0) r[j] += offset;
+        }
+        if (rths_mat_solve(n, 1, kt, r) == 0) memcpy(q_out, r, (size_t)n * sizeof(double));
+    }
+    free(kt), free(r), free(g);
+    if (!rc && !converged)
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "no static equilibrium found for the nonlinear elements");
+    return rc;
+}
+
+int rths_bilinear_static(const rths_assembly *a, const rths_bilinear_leg *leg,
+                         const double *static_force, double *q_out, rths_error *err) {
+    rths_nl_element e = rths_nl_from_leg(leg);
+    return rths_nonlinear_static(a, 1, &e, static_force, q_out, err);
 }
 
 void rths_periodic_points_free(rths_periodic_point *pts, int n) {
@@ -293,29 +406,34 @@ static int problem_alloc(shoot_problem *p) {
     return p->s->stages && p->sx && p->res_x && p->g && p->ipiv && p->floquet ? 0 : -1;
 }
 
-/* First guess x0 (nx) at start_hz: the linearisation about the static point; returns the
- * response's size (for the unknowns' scales) or -1 with err set. */
+/* First guess x0 (nx) at start_hz: the linearisation about the static point (the elements'
+ * tangent stiffness there, friction's tangent damping at rest); returns the response's size (for
+ * the unknowns' scales) or -1 with err set. */
 static double first_guess(const shooter *s, const double *static_force, const double *force,
                           double w0, double *x0, rths_error *err) {
     const rths_assembly *a = s->a;
-    const rths_bilinear_leg *leg = s->leg;
     int n = s->n;
-    double *qs = malloc((size_t)n * sizeof *qs), *klin = rths_mat_dup(a->stiffness, n, n);
+    double *qs = malloc((size_t)n * sizeof *qs), *klin = rths_mat_new(n, n),
+           *clin = rths_mat_dup(a->damping, n, n), *g = malloc((size_t)n * sizeof *g);
     double complex *x = malloc((size_t)n * sizeof *x);
     double amp = -1;
-    if (!qs || !klin || !x)
+    if (!qs || !klin || !clin || !g || !x)
         rths_error_set(err, RTHS_EFAIL, "out of memory");
-    else if (!rths_bilinear_static(a, leg, static_force, qs, err)) {
-        double d = qs[leg->upper_dof] - (leg->lower_dof >= 0 ? qs[leg->lower_dof] : 0.0);
-        double extra = d < 0 ? s->extra_k : 0.0;
-        int lo = leg->lower_dof, up = leg->upper_dof;
-        RTHS_AT(klin, n, up, up) += extra;
-        if (lo >= 0) {
-            RTHS_AT(klin, n, lo, lo) += extra;
-            RTHS_AT(klin, n, lo, up) -= extra;
-            RTHS_AT(klin, n, up, lo) -= extra;
+    else if (!rths_nonlinear_static(a, s->count, s->el, static_force, qs, err)) {
+        tangent_stiffness(a, s->count, s->el, qs, klin, g);
+        for (int e = 0; e < s->count; e++) {
+            if (!rths_nl_on_rate(&s->el[e])) continue;
+            double slope;
+            rths_nl_force(&s->el[e], 0.0, &slope);
+            int i = s->el[e].dof_i, j = s->el[e].dof_j;
+            RTHS_AT(clin, n, i, i) += slope;
+            if (j >= 0) {
+                RTHS_AT(clin, n, j, j) += slope;
+                RTHS_AT(clin, n, i, j) -= slope;
+                RTHS_AT(clin, n, j, i) -= slope;
+            }
         }
-        if (!rths_frf(n, a->mass, a->damping, klin, force, w0, x, err)) {
+        if (!rths_frf(n, a->mass, clin, klin, force, w0, x, err)) {
             amp = 0;
             for (int i = 0; i < n; i++) {
                 x0[i] = qs[i] + creal(x[i]);
@@ -324,7 +442,7 @@ static double first_guess(const shooter *s, const double *static_force, const do
             }
         }
     }
-    free(qs), free(klin), free(x);
+    free(qs), free(klin), free(clin), free(g), free(x);
     return amp;
 }
 
@@ -385,20 +503,25 @@ static int trace(shoot_problem *p, const rths_shooting_options *opt, double *y, 
     return rc;
 }
 
-int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
-                      const double *static_force, const double *force,
-                      const rths_shooting_options *opt, rths_periodic_point **out, int *n_out,
-                      rths_error *err) {
+int rths_nonlinear_frf(const rths_assembly *a, int count, const rths_nl_element *el,
+                       const double *static_force, const double *force,
+                       const rths_shooting_options *opt, rths_periodic_point **out, int *n_out,
+                       rths_error *err) {
     int n = a->n, nx = 2 * n, rc = RTHS_OK;
     *out = NULL;
     *n_out = 0;
-    shooter s = {.n = n,
-                 .nx = nx,
-                 .a = a,
-                 .leg = leg,
-                 .steps = opt->steps_per_period,
-                 .extra_k = (leg->ratio - 1) * leg->stiffness_n_per_m};
-    double *rhsm = rths_mat_new(n, 2 * n + 3);
+    if (count < 0 || count > RTHS_MAX_NONLINEAR)
+        return rths_error_set(err, RTHS_EINPUT, "%d nonlinear elements: at most %d", count,
+                              RTHS_MAX_NONLINEAR);
+    for (int e = 0; e < count; e++)
+        if (el[e].dof_i < 0 || el[e].dof_i >= n || el[e].dof_j < -1 || el[e].dof_j >= n ||
+            el[e].dof_i == el[e].dof_j)
+            return rths_error_set(err, RTHS_EINPUT, "nonlinear element %d: DoFs out of range",
+                                  e + 1);
+    shooter s = {
+        .n = n, .nx = nx, .a = a, .count = count, .el = el, .steps = opt->steps_per_period};
+    size_t cols = 2 * (size_t)n + 2 + (size_t)count;
+    double *rhsm = rths_mat_new(n, (int)cols);
     double *mm = rths_mat_dup(a->mass, n, n);
     if (!rhsm || !mm) {
         free(rhsm), free(mm);
@@ -410,9 +533,11 @@ int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
     memcpy(rhsm + 2 * nn, static_force, (size_t)n * sizeof(double));
     memcpy(rhsm + 2 * nn + n, force, (size_t)n * sizeof(double));
     double *b = rhsm + 2 * nn + 2 * n;
-    b[leg->upper_dof] = 1.0;
-    if (leg->lower_dof >= 0) b[leg->lower_dof] = -1.0;
-    if (rths_mat_solve(n, 2 * n + 3, mm, rhsm) != 0) {
+    for (int e = 0; e < count; e++) {
+        b[el[e].dof_i + (size_t)e * n] = 1.0;
+        if (el[e].dof_j >= 0) b[el[e].dof_j + (size_t)e * n] = -1.0;
+    }
+    if (rths_mat_solve(n, (int)cols, mm, rhsm) != 0) {
         free(rhsm), free(mm);
         return rths_error_set(err, RTHS_EINPUT, "mass matrix is singular");
     }
@@ -459,4 +584,12 @@ done:
     problem_free(&p);
     free(y), free(phi), free(rhsm);
     return rc;
+}
+
+int rths_bilinear_frf(const rths_assembly *a, const rths_bilinear_leg *leg,
+                      const double *static_force, const double *force,
+                      const rths_shooting_options *opt, rths_periodic_point **out, int *n_out,
+                      rths_error *err) {
+    rths_nl_element e = rths_nl_from_leg(leg);
+    return rths_nonlinear_frf(a, 1, &e, static_force, force, opt, out, n_out, err);
 }

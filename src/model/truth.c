@@ -30,7 +30,8 @@ static int truth_alloc(rths_truth_curve *t, int n, rths_error *err) {
     return rths_error_set(err, RTHS_EFAIL, "out of memory");
 }
 
-/* Bilinear leg: shooting with pseudo-arclength through the folds, every harmonic kept. */
+/* Nonlinear elements (either side): shooting with pseudo-arclength through the folds, every
+ * harmonic kept. */
 static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_truth_curve *t,
                           rths_error *err) {
     int iface = s->split.int_dofs[0], n = s->assembly.n;
@@ -41,8 +42,8 @@ static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_
                                  .max_points = 4000};
     rths_periodic_point *pp = NULL;
     int count = 0;
-    int rc =
-        rths_bilinear_frf(&s->assembly, &s->leg, s->static_force, s->force, &opt, &pp, &count, err);
+    int rc = rths_nonlinear_frf(&s->assembly, s->n_nonlinear, s->nonlinear, s->static_force,
+                                s->force, &opt, &pp, &count, err);
     if (!rc) rc = truth_alloc(t, count, err);
     if (!rc && !(t->max_floquet = calloc((size_t)count, sizeof(double)))) {
         rths_truth_free(t);

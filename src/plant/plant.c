@@ -495,15 +495,34 @@ static int plant_leg_and_loads(rths_plant *p, const rths_setup *setup, const int
             if (s->phys_dofs[i] == setup->forcing_dof) p->forcing_index = i;
     }
     p->leg_upper = -1;
-    if (!setup->has_bilinear) return RTHS_OK;
-    p->leg_upper = to_phys[setup->leg.upper_dof];
-    p->leg_lower = setup->leg.lower_dof < 0 ? -1 : to_phys[setup->leg.lower_dof];
-    if (p->leg_upper < 0 || (setup->leg.lower_dof >= 0 && p->leg_lower < 0))
+    /* the physical side's nonlinearity: one bilinear leg (its kink located inside the sample);
+     * the numerical side's elements are the controller's */
+    const rths_nl_element *leg = NULL;
+    for (int e = 0; e < setup->n_nonlinear; e++) {
+        const rths_nl_element *el = &setup->nonlinear[e];
+        if (el->numerical) continue;
+        if (el->type != RTHS_NL_BILINEAR || leg)
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "the virtual plant models one bilinear leg on the physical "
+                                  "side; nonlinear element %d (%s, DoFs %d-%d) on the physical "
+                                  "side is not modelled by it (place it on the numerical side)",
+                                  e + 1, rths_nl_type_name(el->type), el->dof_i + 1, el->dof_j + 1);
+        leg = el;
+    }
+    if (!leg) return RTHS_OK;
+    p->leg_upper = to_phys[leg->dof_i];
+    p->leg_lower = leg->dof_j < 0 ? -1 : to_phys[leg->dof_j];
+    if (p->leg_upper < 0 || (leg->dof_j >= 0 && p->leg_lower < 0))
         return rths_error_set(err, RTHS_EINPUT, "the bilinear leg must join physical DoFs");
-    p->leg_k = setup->leg.stiffness_n_per_m;
-    p->leg_ratio = setup->leg.ratio;
-    p->leg_extra_k = (setup->leg.ratio - 1) * setup->leg.stiffness_n_per_m;
+    p->leg_k = leg->leg_stiffness_n_per_m;
+    p->leg_ratio = leg->ratio;
+    p->leg_extra_k = leg->k;
     return RTHS_OK;
+}
+
+/* 1 when the physical side carries a nonlinear element (the plant's bilinear leg). */
+static int physical_nonlinear(const rths_setup *setup) {
+    return rths_setup_nonlinear_count(setup, 0) > 0;
 }
 
 /* The rows of accel_rows: a sensor reads only the interface DoFs' accelerations, so the plant
@@ -577,7 +596,7 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
                               "(one actuator each, RTHS_MAX_INTERFACE_DOFS in signals.h)",
                               s->n_int, RTHS_MAX_INTERFACE_DOFS);
     if (s->n_int > 1 && (opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION ||
-                         opt->substeps_per_sample > 0 || setup->has_bilinear))
+                         opt->substeps_per_sample > 0 || physical_nonlinear(setup)))
         return rths_error_set(err, RTHS_EINPUT,
                               "with %d interface DoFs the virtual plant runs shakers on the exact "
                               "integrator of a linear structure (rig.actuator: transfer_function, "
@@ -585,7 +604,7 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
                               s->n_int);
     if ((setup->actuator_transform || setup->sensor_transform) &&
         (opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION || opt->substeps_per_sample > 0 ||
-         setup->has_bilinear))
+         physical_nonlinear(setup)))
         return rths_error_set(err, RTHS_EINPUT,
                               "actuator and sensor transforms (rig.actuators, rig.lasers) run "
                               "shakers on the exact integrator of a linear structure (not with "
@@ -596,7 +615,7 @@ int rths_plant_create(const rths_setup *setup, const rths_plant_options *opt, do
         opt->armature_mass_kg < 0 || opt->substeps_per_sample < 0)
         return rths_error_set(err, RTHS_EINPUT, "invalid shaker options");
     int tf = opt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION;
-    if (tf && (opt->substeps_per_sample > 0 || setup->has_bilinear))
+    if (tf && (opt->substeps_per_sample > 0 || physical_nonlinear(setup)))
         return rths_error_set(err, RTHS_EINPUT,
                               "the transfer_function actuator runs on the exact plant integrator "
                               "of a linear structure (rig.plant_integrator: rk4 and the bilinear "
