@@ -107,6 +107,8 @@ typedef struct rths_tune_rule {
     double grounding_gain_factor;    /* 2: the grounding gains times this must still be stable */
     double grounding_max_radius;     /* 0.99 at those gains */
     double grounding_decay_fraction; /* 0.9: of the fastest decay of the numerical side found */
+    double pd_decay_fraction; /* 0.9, several interface DoFs: of the fastest decay of the coupled
+                                 physical loop's slowest transient found for a loop's gains */
     double delay_s; /* < 0 (default): the rig's delay as the virtual rig holds it, whole samples;
                        else the physical loop's transport delay, s (fraction of a sample kept) */
 } rths_tune_rule;

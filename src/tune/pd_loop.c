@@ -600,3 +600,72 @@ int rths_pd_loop_best(const rths_pd_loop *loop, double min_gm_db, double min_pm_
     *kp = kps[0], *kd = kds[0];
     return rc;
 }
+
+/* Several interface DoFs (docs/method.md, "Tuning the gains"): loop d's pick with the others
+ * closed at kp, kd. Every pair of the grid above whose loop meets both margins and whose coupled
+ * loop is stable at the gains and at margin_factor times all of them is a candidate; its figure
+ * is the decay rate of the coupled loop's slowest transient, -ln(spectral radius) per sample
+ * (what the host's steady-state detection waits for after each new target); the pick is the
+ * widest bandwidth (ties: the larger kp) among the candidates that reach decay_fraction of the
+ * fastest decay found. kp[d], kd[d] are overwritten. */
+int rths_pd_loop_best_decay_dof(const rths_pd_loop *loop, int d, double *kp, double *kd,
+                                double margin_factor, double decay_fraction, double min_gm_db,
+                                double min_pm_deg, rths_loop_margins *best, rths_error *err) {
+    enum { KD_STEPS = 46, KP_STEPS = 221 };
+    double complex *pe = malloc(sizeof *pe * GRID_POINTS);
+    rths_loop_margins *cand = malloc(sizeof *cand * KD_STEPS * KP_STEPS);
+    double *ckp = malloc(sizeof *ckp * KD_STEPS * KP_STEPS),
+           *ckd = malloc(sizeof *ckd * KD_STEPS * KP_STEPS);
+    int rc = pe && cand && ckp && ckd ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc && effective_plant(loop, d, kp, kd, pe))
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "the loop of interface DoF %d with the others closed could not be "
+                            "formed",
+                            d + 1);
+    int n = 0;
+    double best_decay = 0;
+    for (int i = -1; !rc && i < KD_STEPS - 1; i++) {
+        double kd_try = i < 0 ? 0.0 : pow(10.0, -4 + 0.25 * i);
+        for (int j = 0; !rc && j < KP_STEPS; j++) {
+            double kp_try = pow(10.0, -2 + 0.05 * j);
+            rths_loop_margins m;
+            frequency_margins(loop, pe, kp_try, kd_try, &m);
+            if (!(m.gain_margin_db >= min_gm_db && m.phase_margin_deg >= min_pm_deg)) continue;
+            double kps[RTHS_MAX_INTERFACE_DOFS], kds[RTHS_MAX_INTERFACE_DOFS];
+            memcpy(kps, kp, sizeof(double) * (size_t)loop->ni);
+            memcpy(kds, kd, sizeof(double) * (size_t)loop->ni);
+            kps[d] = kp_try, kds[d] = kd_try;
+            m.spectral_radius = rths_pd_loop_radius_dofs(loop, kps, kds);
+            if (m.spectral_radius < 0)
+                rc = rths_error_set(err, RTHS_EFAIL,
+                                    "the eigenvalues of the closed PD loop could not be computed");
+            if (rc || !(m.spectral_radius < 1)) continue;
+            for (int e = 0; e < loop->ni; e++)
+                kps[e] *= margin_factor, kds[e] *= margin_factor;
+            if (!(rths_pd_loop_radius_dofs(loop, kps, kds) < 1)) continue;
+            m.stable = 1;
+            cand[n] = m, ckp[n] = kp_try, ckd[n] = kd_try;
+            if (-log(m.spectral_radius) > best_decay) best_decay = -log(m.spectral_radius);
+            n++;
+        }
+    }
+    int pick = -1;
+    for (int c = 0; !rc && c < n; c++) {
+        if (!(-log(cand[c].spectral_radius) >= decay_fraction * best_decay)) continue;
+        if (pick < 0 || cand[c].bandwidth_hz > cand[pick].bandwidth_hz * (1 + 1e-9) ||
+            (cand[c].bandwidth_hz >= cand[pick].bandwidth_hz * (1 - 1e-9) && ckp[c] > ckp[pick]))
+            pick = c;
+    }
+    if (!rc && pick < 0)
+        rc = rths_error_set(err, RTHS_EFAIL,
+                            "no PD gains (kp 1e-2 .. 1e9, kd 0 .. 1e7) of interface DoF %d keep "
+                            "its loop's gain margin at %g dB and phase margin at %g deg with the "
+                            "coupled loop stable at %g times every gain",
+                            d + 1, min_gm_db, min_pm_deg, margin_factor);
+    if (!rc) {
+        *best = cand[pick];
+        kp[d] = ckp[pick], kd[d] = ckd[pick];
+    }
+    free(pe), free(cand), free(ckp), free(ckd);
+    return rc;
+}

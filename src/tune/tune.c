@@ -16,6 +16,7 @@ void rths_tune_rule_defaults(rths_tune_rule *rule) {
     rule->grounding_gain_factor = 2.0;
     rule->grounding_max_radius = 1.0;
     rule->grounding_decay_fraction = 0.9;
+    rule->pd_decay_fraction = 0.9;
     rule->delay_s = -1;
 }
 
@@ -281,8 +282,9 @@ static int tune_pd_dofs(const rths_pd_loop *loop, const rths_tune_rule *rule, rt
         changed = 0;
         for (int d = 0; d < ni && !rc; d++) {
             double was_kp = kp[d], was_kd = kd[d];
-            rc = rths_pd_loop_best_dof(loop, d, kp, kd, 1, margin_factor, rule->min_gain_margin_db,
-                                       rule->min_phase_margin_deg, &out->tuned_dof[d], err);
+            rc = rths_pd_loop_best_decay_dof(loop, d, kp, kd, margin_factor,
+                                             rule->pd_decay_fraction, rule->min_gain_margin_db,
+                                             rule->min_phase_margin_deg, &out->tuned_dof[d], err);
             changed |= kp[d] != was_kp || kd[d] != was_kd;
         }
     }

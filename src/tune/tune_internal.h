@@ -14,4 +14,11 @@ int rths_pd_loop_best_dof(const rths_pd_loop *loop, int d, double *kp, double *k
                           double margin_factor, double min_gm_db, double min_pm_deg,
                           rths_loop_margins *best, rths_error *err);
 
+/* Several DoFs: the pick among the pairs meeting both margins with the coupled loop stable at the
+ * gains and at margin_factor times them, the widest bandwidth among those whose coupled loop's
+ * slowest transient decays at decay_fraction of the fastest rate found (pd_loop.c). */
+int rths_pd_loop_best_decay_dof(const rths_pd_loop *loop, int d, double *kp, double *kd,
+                                double margin_factor, double decay_fraction, double min_gm_db,
+                                double min_pm_deg, rths_loop_margins *best, rths_error *err);
+
 #endif
