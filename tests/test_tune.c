@@ -258,6 +258,37 @@ static void test_gain_margin_is_the_radius_boundary(void **state) {
     rths_config_free(cfg);
 }
 
+/* The virtual rig (plant.c and step.c) with the gains in o, rig noise on, the target at rest and
+ * the limits wide but for 1 mm of displacement: whether a limit trips within 30000 samples
+ * (asserted as expected: outside the loop's boundary it must, inside it must not). */
+static void rig_trips_as_expected(const rths_setup *s, const rths_controller_options *gains,
+                                  const rths_plant_options *popt, int outside, double factor,
+                                  const char *boundary) {
+    rths_controller_options o = *gains;
+    o.demand_limit_v = 1e6;
+    o.force_limit_n = 1e9;
+    o.displacement_limit_m = 1e-3;
+    o.ramp_time_s = 0;
+    rths_plant_options p = *popt;
+    p.noise = 1;
+    rths_sample_loop *sl;
+    rths_error err;
+    if (rths_sample_loop_create(s, &o, &p, &sl, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(rths_sample_loop_arm(sl), RTHS_OK);
+    long tripped_at = -1;
+    for (long k = 0; k < 30000 && tripped_at < 0; k++) {
+        rths_sample_loop_run(sl, NULL);
+        if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK) tripped_at = k;
+    }
+    print_message("  %s %s (x%.3f): %s\n", outside ? "outside" : "inside", boundary, factor,
+                  tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
+    if (outside)
+        assert_true(tripped_at >= 0);
+    else
+        assert_true(tripped_at < 0);
+    rths_sample_loop_destroy(sl);
+}
+
 /* End to end on the virtual rig itself (plant.c and step.c, not this module's model): with rig
  * noise on and the target at rest, the configured PD gains scaled together to 5 % beyond the
  * loop's boundary grow until a limit trips, 5 % inside stay quiet for 30000 samples. The seed's
@@ -297,28 +328,7 @@ static void rig_agrees(const char *example, const char *const *sets, int n_sets)
         rths_controller_options o = copt;
         o.kp_v_per_m = f * kp0;
         o.kd_v_s_per_m = f * kd0;
-        o.demand_limit_v = 1e6;
-        o.force_limit_n = 1e9;
-        o.displacement_limit_m = 1e-3;
-        o.ramp_time_s = 0;
-        rths_plant_options p = popt;
-        p.noise = 1;
-        rths_sample_loop *sl;
-        if (rths_sample_loop_create(&s, &o, &p, &sl, &err)) fail_msg("%s", err.msg);
-        assert_int_equal(rths_sample_loop_arm(sl), RTHS_OK);
-        long tripped_at = -1;
-        for (long k = 0; k < 30000 && tripped_at < 0; k++) {
-            rths_sample_loop_run(sl, NULL);
-            if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK)
-                tripped_at = k;
-        }
-        print_message("  %s the boundary (x%.3f): %s\n", outside ? "outside" : "inside", f,
-                      tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
-        if (outside)
-            assert_true(tripped_at >= 0);
-        else
-            assert_true(tripped_at < 0);
-        rths_sample_loop_destroy(sl);
+        rig_trips_as_expected(&s, &o, &popt, outside, f, "the boundary");
     }
     rths_setup_free(&s);
     rths_config_free(cfg);
@@ -482,28 +492,7 @@ static void tune_dofs_check(const char *example) {
             o.grounding_kp_dof[d] = r.grounding_kp[d];
             o.grounding_kd_dof[d] = r.grounding_kd[d];
         }
-        o.demand_limit_v = 1e6;
-        o.force_limit_n = 1e9;
-        o.displacement_limit_m = 1e-3;
-        o.ramp_time_s = 0;
-        rths_plant_options p = popt;
-        p.noise = 1;
-        rths_sample_loop *sl;
-        if (rths_sample_loop_create(&s, &o, &p, &sl, &err)) fail_msg("%s", err.msg);
-        assert_int_equal(rths_sample_loop_arm(sl), RTHS_OK);
-        long tripped_at = -1;
-        for (long k = 0; k < 30000 && tripped_at < 0; k++) {
-            rths_sample_loop_run(sl, NULL);
-            if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK)
-                tripped_at = k;
-        }
-        print_message("  %s the coupled boundary (x%.3f): %s\n", outside ? "outside" : "inside", f,
-                      tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
-        if (outside)
-            assert_true(tripped_at >= 0);
-        else
-            assert_true(tripped_at < 0);
-        rths_sample_loop_destroy(sl);
+        rig_trips_as_expected(&s, &o, &popt, outside, f, "the coupled boundary");
     }
     rths_setup_free(&s);
     rths_config_free(cfg);
