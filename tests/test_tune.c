@@ -258,6 +258,37 @@ static void test_gain_margin_is_the_radius_boundary(void **state) {
     rths_config_free(cfg);
 }
 
+/* The virtual rig (plant.c and step.c) with the gains in o, rig noise on, the target at rest and
+ * the limits wide but for 1 mm of displacement: whether a limit trips within 30000 samples
+ * (asserted as expected: outside the loop's boundary it must, inside it must not). */
+static void rig_trips_as_expected(const rths_setup *s, const rths_controller_options *gains,
+                                  const rths_plant_options *popt, int outside, double factor,
+                                  const char *boundary) {
+    rths_controller_options o = *gains;
+    o.demand_limit_v = 1e6;
+    o.force_limit_n = 1e9;
+    o.displacement_limit_m = 1e-3;
+    o.ramp_time_s = 0;
+    rths_plant_options p = *popt;
+    p.noise = 1;
+    rths_sample_loop *sl;
+    rths_error err;
+    if (rths_sample_loop_create(s, &o, &p, &sl, &err)) fail_msg("%s", err.msg);
+    assert_int_equal(rths_sample_loop_arm(sl), RTHS_OK);
+    long tripped_at = -1;
+    for (long k = 0; k < 30000 && tripped_at < 0; k++) {
+        rths_sample_loop_run(sl, NULL);
+        if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK) tripped_at = k;
+    }
+    print_message("  %s %s (x%.3f): %s\n", outside ? "outside" : "inside", boundary, factor,
+                  tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
+    if (outside)
+        assert_true(tripped_at >= 0);
+    else
+        assert_true(tripped_at < 0);
+    rths_sample_loop_destroy(sl);
+}
+
 /* End to end on the virtual rig itself (plant.c and step.c, not this module's model): with rig
  * noise on and the target at rest, the configured PD gains scaled together to 5 % beyond the
  * loop's boundary grow until a limit trips, 5 % inside stay quiet for 30000 samples. The seed's
@@ -297,28 +328,7 @@ static void rig_agrees(const char *example, const char *const *sets, int n_sets)
         rths_controller_options o = copt;
         o.kp_v_per_m = f * kp0;
         o.kd_v_s_per_m = f * kd0;
-        o.demand_limit_v = 1e6;
-        o.force_limit_n = 1e9;
-        o.displacement_limit_m = 1e-3;
-        o.ramp_time_s = 0;
-        rths_plant_options p = popt;
-        p.noise = 1;
-        rths_sample_loop *sl;
-        if (rths_sample_loop_create(&s, &o, &p, &sl, &err)) fail_msg("%s", err.msg);
-        assert_int_equal(rths_sample_loop_arm(sl), RTHS_OK);
-        long tripped_at = -1;
-        for (long k = 0; k < 30000 && tripped_at < 0; k++) {
-            rths_sample_loop_run(sl, NULL);
-            if (rths_controller_fault(rths_sample_loop_controller(sl)) != RTHS_RIG_OK)
-                tripped_at = k;
-        }
-        print_message("  %s the boundary (x%.3f): %s\n", outside ? "outside" : "inside", f,
-                      tripped_at >= 0 ? "tripped" : "quiet for 30000 samples");
-        if (outside)
-            assert_true(tripped_at >= 0);
-        else
-            assert_true(tripped_at < 0);
-        rths_sample_loop_destroy(sl);
+        rig_trips_as_expected(&s, &o, &popt, outside, f, "the boundary");
     }
     rths_setup_free(&s);
     rths_config_free(cfg);
@@ -399,6 +409,105 @@ static void test_tune_seed(void **state) {
     rths_config_free(cfg);
 }
 
+/* Several interface DoFs (docs/method.md, "Tuning the gains"): the two-interface building (two
+ * shakers on two storeys) and the cantilever with two shakers (a translation and a rotation at
+ * the cut, actuator and sensor transforms, the armatures at the actuators' points). The tuned
+ * gains meet the rule loop by loop (others closed) and the coupled loop is stable with every gain
+ * doubled; each loop's gain margin is where the coupled spectral radius reaches 1 when that
+ * loop's gains alone are scaled (1 %), which checks the broken-loop formula against the
+ * eigenvalues; and the virtual rig itself (plant.c with the transforms and armatures, step.c's
+ * PD through the inverse transforms), noise on and the target at rest, stays quiet for 30000
+ * samples with every tuned gain at 0.95 times the coupled boundary and trips a limit at 1.05
+ * times it, the boundary at least 2 (6 dB) times the tuned gains. */
+static void tune_dofs_check(const char *example) {
+    rths_config *cfg;
+    rths_setup s;
+    rths_controller_options copt;
+    rths_plant_options popt;
+    rths_error err;
+    if (rths_config_load(rths_test_source_path(example), NULL, 0, &cfg, &err) ||
+        rths_setup_read(cfg, &s, &err))
+        fail_msg("%s", err.msg);
+    rths_controller_defaults(&copt);
+    rths_plant_defaults(&popt);
+    if (rths_sample_loop_config_read(cfg, &copt, &popt, &err)) fail_msg("%s", err.msg);
+    popt.actuator.dac_bits = 0;
+    rths_tune_rule rule;
+    rths_tune_rule_defaults(&rule);
+    rths_tune_result r;
+    if (rths_tune(&s, &copt, &popt, &rule, &r, &err)) fail_msg("%s", err.msg);
+    const int ni = r.n_int;
+    assert_int_equal(ni, 2);
+    print_message("%s: tuned kp [%g, %g], kd [%g, %g], coupled radius %.6f, coupled margin "
+                  "%.2f dB; grounding [%g, %g], [%g, %g]\n",
+                  example, r.kp[0], r.kp[1], r.kd[0], r.kd[1], r.tuned.spectral_radius,
+                  r.coupled_gain_margin_db, r.grounding_kp[0], r.grounding_kp[1], r.grounding_kd[0],
+                  r.grounding_kd[1]);
+    assert_true(r.tuned.stable && r.tuned.spectral_radius < 1);
+    assert_true(r.coupled_gain_margin_db >= 6);
+    assert_true(r.coupled_radius_at_margin < 1);
+    assert_true(r.grounding_radius < 1 && r.grounding_radius_margin < 1);
+    rths_pd_loop *loop;
+    if (rths_pd_loop_from_setup(&s, &copt, &popt, -1, &loop, &err)) fail_msg("%s", err.msg);
+    for (int d = 0; d < ni; d++) {
+        const rths_loop_margins *m = &r.tuned_dof[d];
+        print_message("  loop %d: GM %.2f dB at %.1f Hz, PM %.1f deg at %.1f Hz, bandwidth "
+                      "%.1f Hz\n",
+                      d + 1, m->gain_margin_db, m->gain_margin_hz, m->phase_margin_deg,
+                      m->crossover_hz, m->bandwidth_hz);
+        assert_true(r.kp[d] > 0);
+        assert_true(m->gain_margin_db >= 6 && m->phase_margin_deg >= 45);
+        double c = pow(10.0, m->gain_margin_db / 20), kp[2] = {r.kp[0], r.kp[1]},
+               kd[2] = {r.kd[0], r.kd[1]};
+        kp[d] = 0.99 * c * r.kp[d], kd[d] = 0.99 * c * r.kd[d];
+        double inside = rths_pd_loop_radius_dofs(loop, kp, kd);
+        kp[d] = 1.01 * c * r.kp[d], kd[d] = 1.01 * c * r.kd[d];
+        double outside = rths_pd_loop_radius_dofs(loop, kp, kd);
+        print_message("  loop %d's gains alone at 0.99 / 1.01 x its margin: radius %.6f / %.6f\n",
+                      d + 1, inside, outside);
+        assert_true(inside < 1);
+        assert_true(outside > 1);
+    }
+    /* the coupled boundary: every gain scaled together */
+    double lo = 1, hi = 1e3, kp[2], kd[2];
+    for (int it = 0; it < 60; it++) {
+        double mid = sqrt(lo * hi);
+        for (int d = 0; d < ni; d++)
+            kp[d] = mid * r.kp[d], kd[d] = mid * r.kd[d];
+        if (rths_pd_loop_radius_dofs(loop, kp, kd) < 1)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    rths_pd_loop_destroy(loop);
+    print_message("  coupled boundary at %.4f x the tuned gains (%.2f dB)\n", lo, 20 * log10(lo));
+    assert_true(lo >= 2);
+    assert_close(20 * log10(lo), r.coupled_gain_margin_db, 0.02);
+    for (int outside = 0; outside <= 1; outside++) {
+        double f = (outside ? 1.05 : 0.95) * lo;
+        rths_controller_options o = copt;
+        for (int d = 0; d < ni; d++) {
+            o.kp_dof_v_per_m[d] = f * r.kp[d];
+            o.kd_dof_v_s_per_m[d] = f * r.kd[d];
+            o.grounding_kp_dof[d] = r.grounding_kp[d];
+            o.grounding_kd_dof[d] = r.grounding_kd[d];
+        }
+        rig_trips_as_expected(&s, &o, &popt, outside, f, "the coupled boundary");
+    }
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+static void test_tune_two_interface_storeys(void **state) {
+    (void)state;
+    tune_dofs_check("examples/two_interface_storeys.yaml");
+}
+
+static void test_tune_cantilever_two_shakers(void **state) {
+    (void)state;
+    tune_dofs_check("examples/cantilever_two_shakers.yaml");
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_free_mass_matches_jury),
@@ -408,6 +517,8 @@ int main(void) {
         cmocka_unit_test(test_virtual_rig_agrees),
         cmocka_unit_test(test_grounding_matches_controller),
         cmocka_unit_test(test_tune_seed),
+        cmocka_unit_test(test_tune_two_interface_storeys),
+        cmocka_unit_test(test_tune_cantilever_two_shakers),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

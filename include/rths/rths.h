@@ -106,6 +106,17 @@ int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result 
 int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result **out,
                    rths_error *err);
 
+/* rths tune: PD and grounding gains from the model (docs/method.md, "Tuning the gains"), every
+ * interface DoF. delay_s < 0: the configured delay as the virtual rig holds it (whole samples);
+ * otherwise the physical loop's delay, s, in [0, 0.1] (as --delay). Table "loop" (frequency_hz,
+ * then the configured and the tuned loop's *_loop_gain_db, *_loop_phase_deg, *_sensitivity_db;
+ * with several interface DoFs each loop's, broken with the others closed, prefixed dof<d>_),
+ * equal to the CLI's loop.csv; the summary as summary.json, its "tuned_yaml" the keys to paste.
+ * out_dir as for rths_api_model (also tuned.yaml there). RTHS_EFAIL when no gains meet the
+ * rule. */
+int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_dir,
+                  rths_result **out, rths_error *err);
+
 /* Reads a finished (or interrupted) run folder: every *.csv as a table, summary.json and
  * config.yaml as text. */
 int rths_api_read_run(const char *dir, rths_result **out, rths_error *err);
@@ -185,6 +196,18 @@ int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_cha
                            const char *config_path, const char *const *overrides, int n_overrides,
                            rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
                            rths_error *err);
+struct rths_controller_options;
+struct rths_plant_options;
+struct rths_tune_result;
+/* rths_api_tune's result from the setup and the controller and rig options read from the
+ * configuration: table "loop" and the summary naming config_path and the overrides; tuned_yaml
+ * (may be NULL) receives the keys to paste (free()); tune (may be NULL) the tuning's numbers. */
+int rths_api_tune_compute(const struct rths_setup *setup,
+                          const struct rths_controller_options *copt,
+                          const struct rths_plant_options *popt, double delay_s,
+                          const char *config_path, const char *const *overrides, int n_overrides,
+                          rths_result **out, char **tuned_yaml, struct rths_tune_result *tune,
+                          rths_error *err);
 /* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
  * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);

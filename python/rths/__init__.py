@@ -33,7 +33,7 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "IncompleteRunWarning", "model", "chart", "frf", "frf_available", "read_run", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "tune", "frf", "frf_available", "read_run", "library_release"]
 
 def _c():
     global _LIB
@@ -313,6 +313,24 @@ def chart(cfg, out=None):
     .critical, equal to the CLI's CSV files. out: also write a run folder there."""
     cfg = _config(cfg)
     return _run(_c().rths_api_chart, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
+
+
+def tune(cfg, delay=None, out=None):
+    """PD and grounding gains from the model (rths tune), every interface DoF: result.loop (the
+    configured and the tuned loop's gain, phase and sensitivity, equal to the CLI's loop.csv),
+    result.summary (summary.json: "current", "tuned", their margins; with several interface DoFs
+    "loops" per DoF and the coupled loop's "coupled_gain_margin_db") and
+    result.summary["tuned_yaml"], the keys to paste. delay: the physical loop's transport delay, s,
+    in [0, 0.1] (a lab's measured delay, as --delay); None: the configured one as the virtual rig
+    holds it. out: also write a run folder there (with tuned.yaml). No gains meeting the rule
+    raise RunError."""
+    cfg = _config(cfg)
+    if delay is not None:
+        delay = float(delay)
+        if not 0 <= delay <= 0.1:
+            raise InputError(2, f"delay {delay!r} s: must be in [0, 0.1]")
+    return _run(_c().rths_api_tune, cfg._handle, -1.0 if delay is None else delay,
                 None if out is None else os.fsencode(_path("out", out)))
 
 

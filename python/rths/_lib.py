@@ -90,6 +90,7 @@ def _declare(lib):
         "rths_api_free": (None, [c_void_p]),
         "rths_api_model": (c_int, [c_void_p, c_char_p, handle, err]),
         "rths_api_chart": (c_int, [c_void_p, c_char_p, handle, err]),
+        "rths_api_tune": (c_int, [c_void_p, ctypes.c_double, c_char_p, handle, err]),
         "rths_api_read_run": (c_int, [c_char_p, handle, err]),
         "rths_api_frf_options_default": (None, [ctypes.POINTER(FrfOptions)]),
         "rths_api_frf_available": (c_int, []),

@@ -16,42 +16,49 @@ void rths_tune_rule_defaults(rths_tune_rule *rule) {
     rule->grounding_gain_factor = 2.0;
     rule->grounding_max_radius = 1.0;
     rule->grounding_decay_fraction = 0.9;
+    rule->pd_decay_fraction = 0.9;
     rule->delay_s = -1;
 }
 
-/* The setup's physical substructure on the rig: the interface element the rig's mass
- * (rig.interface_mass, setup.h). */
+/* The setup's physical substructure on the rig: the interface block the rig's mass
+ * (rig.interface_mass, setup.h), the actuators' armatures through the actuator transform. The
+ * sensor transform cancels against the controller's inverse of it (tune.h). */
 int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_options *copt,
                             const rths_plant_options *popt, double delay_s, rths_pd_loop **out,
                             rths_error *err) {
     *out = NULL;
     const rths_split *s = &setup->split;
-    if (s->n_int != 1)
+    const int ni = s->n_int, n = s->np;
+    if (ni < 1 || ni > RTHS_MAX_INTERFACE_DOFS || ni > n)
         return rths_error_set(err, RTHS_EINPUT,
-                              "the gain tuning models one interface DoF; this split has %d "
-                              "(split.interface)",
-                              s->n_int);
-    if (setup->actuator_transform || setup->sensor_transform)
+                              "the gain tuning models 1 to %d physical interface DoFs; this split "
+                              "has %d (split.interface)",
+                              RTHS_MAX_INTERFACE_DOFS, ni);
+    if (ni > 1 && popt->actuator.model == RTHS_ACTUATOR_TRANSFER_FUNCTION)
         return rths_error_set(err, RTHS_EINPUT,
-                              "the gain tuning does not model actuator or sensor transforms "
-                              "(rig.actuators, rig.lasers); remove them to tune");
-    int n = s->np;
+                              "rig.actuator.model: transfer_function drives one interface DoF "
+                              "(the virtual plant's limit); this split has %d (split.interface)",
+                              ni);
     double *m = malloc(sizeof(double) * (size_t)n * (size_t)n);
     if (!m) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     memcpy(m, s->mass_phys, sizeof(double) * (size_t)n * (size_t)n);
-    RTHS_AT(m, n, n - 1, n - 1) = rths_setup_rig_interface_mass(setup, 0, 0);
+    for (int d = 0; d < ni; d++)
+        for (int e = 0; e < ni; e++)
+            RTHS_AT(m, n, n - ni + d, n - ni + e) = rths_setup_rig_interface_mass(setup, d, e);
     /* the virtual rig's delay line holds whole samples (plant.c: rounded) */
     rths_plant_options rig = *popt;
     rig.delay_s = delay_s >= 0
                       ? delay_s
                       : lround(popt->delay_s * copt->sample_rate_hz) / copt->sample_rate_hz;
     rths_pd_loop_spec spec = {.n = n,
+                              .ni = ni,
                               .mass = m,
                               .damping = s->damping_phys,
                               .stiffness = s->stiffness_phys,
                               .sample_rate_hz = copt->sample_rate_hz,
                               .velocity_cutoff_hz = copt->velocity_cutoff_hz,
-                              .rig = &rig};
+                              .rig = &rig,
+                              .actuator_transform = setup->actuator_transform};
     int rc = rths_pd_loop_create(&spec, out, err);
     free(m);
     return rc;
@@ -221,6 +228,71 @@ static int tune_grounding(const rths_setup *setup, const rths_controller_options
     return RTHS_OK;
 }
 
+/* The coupled loop's gain margin: the largest factor c on every PD gain together with the loop
+ * still stable, bisected in log c over [1e-3, 1e3] to 0.1 %, in dB; 60 dB when stable at 1e3,
+ * -INFINITY when unstable at 1e-3. */
+static double coupled_gain_margin_db(const rths_pd_loop *loop, const double *kp, const double *kd) {
+    const int ni = rths_pd_loop_dofs(loop);
+    double lo = 1e-3, hi = 1e3, kps[RTHS_MAX_INTERFACE_DOFS], kds[RTHS_MAX_INTERFACE_DOFS];
+    for (int it = -2; it < 40 && hi / lo > 1.001; it++) {
+        double c = it == -2 ? lo : it == -1 ? hi : sqrt(lo * hi);
+        for (int d = 0; d < ni; d++)
+            kps[d] = c * kp[d], kds[d] = c * kd[d];
+        double r = rths_pd_loop_radius_dofs(loop, kps, kds);
+        if (it == -2 && !(r < 1)) return -INFINITY;
+        if (it == -1 && r < 1) return 60;
+        if (it >= 0) {
+            if (r < 1)
+                lo = c;
+            else
+                hi = c;
+        }
+    }
+    return 20 * log10(lo);
+}
+
+/* Several interface DoFs: loop at a time (docs/method.md, "Tuning the gains"). The start is the
+ * configured gains, scaled down when needed until the coupled loop has the rule's gain margin
+ * (with the other loops open, the physical substructure may be free and a loop alone has no
+ * stable state to check); then passes in which each loop in turn takes the rule's pick with the
+ * others closed at their current gains, the coupled loop's spectral radius checked, until a
+ * pass changes nothing (at most 6). */
+static int tune_pd_dofs(const rths_pd_loop *loop, const rths_tune_rule *rule, rths_tune_result *out,
+                        rths_error *err) {
+    const int ni = rths_pd_loop_dofs(loop);
+    double *kp = out->kp, *kd = out->kd;
+    double start_db = coupled_gain_margin_db(loop, out->current_kp, out->current_kd);
+    if (!isfinite(start_db) || start_db < -59)
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the gain tuning of %d interface DoFs starts from the configured PD "
+                              "gains (controller.kp_per_dof, kd_per_dof), and those leave the "
+                              "coupled physical loop unstable even at 1e-3 times them: give a "
+                              "pair per DoF that is stable at some scale",
+                              ni);
+    double scale = start_db < rule->min_gain_margin_db
+                       ? pow(10.0, (start_db - rule->min_gain_margin_db) / 20)
+                       : 1.0;
+    for (int d = 0; d < ni; d++)
+        kp[d] = scale * out->current_kp[d], kd[d] = scale * out->current_kd[d];
+    /* the coupled loop's stated margin: stable with every gain times this too */
+    const double margin_factor = pow(10.0, rule->min_gain_margin_db / 20);
+    int rc = RTHS_OK;
+    out->sweeps = 0;
+    for (int changed = 1; !rc && changed && out->sweeps < 6; out->sweeps++) {
+        changed = 0;
+        for (int d = 0; d < ni && !rc; d++) {
+            double was_kp = kp[d], was_kd = kd[d];
+            rc = rths_pd_loop_best_decay_dof(loop, d, kp, kd, margin_factor,
+                                             rule->pd_decay_fraction, rule->min_gain_margin_db,
+                                             rule->min_phase_margin_deg, &out->tuned_dof[d], err);
+            changed |= kp[d] != was_kp || kd[d] != was_kd;
+        }
+    }
+    for (int d = 0; d < ni && !rc; d++)
+        rc = rths_pd_loop_margins_dof(loop, d, kp, kd, &out->tuned_dof[d], err);
+    return rc;
+}
+
 int rths_tune(const rths_setup *setup, const rths_controller_options *copt,
               const rths_plant_options *popt, const rths_tune_rule *rule, rths_tune_result *out,
               rths_error *err) {
@@ -229,19 +301,53 @@ int rths_tune(const rths_setup *setup, const rths_controller_options *copt,
         return rths_error_set(err, RTHS_EINPUT,
                               "split.numerical_solver: frequency has no grounding loop to tune; "
                               "the gain tuning needs the controller's own numerical substructure");
+    if (copt->gain_matrix_rows > 0)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "controller.kp_matrix and kd_matrix are set; the gain tuning gives "
+                              "a PD per interface DoF (controller.kp_per_dof, kd_per_dof): remove "
+                              "the matrices to tune");
     rths_pd_loop *loop = NULL;
     int rc = rths_pd_loop_from_setup(setup, copt, popt, rule->delay_s, &loop, err);
     if (rc) return rc;
-    out->n_int = setup->split.n_int;
+    const int ni = out->n_int = setup->split.n_int;
     out->delay_samples = rths_pd_loop_delay_samples(loop);
     out->delay_fraction = rths_pd_loop_delay_fraction(loop);
-    double gkp, gkd;
-    configured_gains(copt, 0, &out->current_kp_v_per_m, &out->current_kd_v_s_per_m, &gkp, &gkd);
-    rc = rths_pd_loop_margins(loop, out->current_kp_v_per_m, out->current_kd_v_s_per_m,
-                              &out->current, err);
-    if (!rc)
+    for (int d = 0; d < ni; d++) {
+        double gkp, gkd;
+        configured_gains(copt, d, &out->current_kp[d], &out->current_kd[d], &gkp, &gkd);
+    }
+    out->current_kp_v_per_m = out->current_kp[0];
+    out->current_kd_v_s_per_m = out->current_kd[0];
+    for (int d = 0; d < ni && !rc; d++)
+        rc = rths_pd_loop_margins_dof(loop, d, out->current_kp, out->current_kd,
+                                      &out->current_dof[d], err);
+    if (!rc && ni == 1) {
         rc = rths_pd_loop_best(loop, rule->min_gain_margin_db, rule->min_phase_margin_deg,
-                               &out->kp_v_per_m, &out->kd_v_s_per_m, &out->tuned, err);
+                               &out->kp[0], &out->kd[0], &out->tuned_dof[0], err);
+        out->sweeps = 1;
+    } else if (!rc) {
+        rc = tune_pd_dofs(loop, rule, out, err);
+    }
+    if (!rc) {
+        out->current = out->current_dof[0];
+        out->tuned = out->tuned_dof[0];
+        out->kp_v_per_m = out->kp[0];
+        out->kd_v_s_per_m = out->kd[0];
+        out->coupled_gain_margin_db = coupled_gain_margin_db(loop, out->kp, out->kd);
+        out->current_coupled_gain_margin_db =
+            coupled_gain_margin_db(loop, out->current_kp, out->current_kd);
+        double c = pow(10.0, rule->min_gain_margin_db / 20), kps[RTHS_MAX_INTERFACE_DOFS],
+               kds[RTHS_MAX_INTERFACE_DOFS];
+        for (int d = 0; d < ni; d++)
+            kps[d] = c * out->kp[d], kds[d] = c * out->kd[d];
+        out->coupled_radius_at_margin = rths_pd_loop_radius_dofs(loop, kps, kds);
+        /* one DoF: the rule's frequency-domain gain margin is this one (tests/test_tune.c) */
+        if (ni > 1 && !(out->coupled_gain_margin_db >= rule->min_gain_margin_db))
+            rc = rths_error_set(err, RTHS_EFAIL,
+                                "the tuned PD gains leave the coupled physical loop (every "
+                                "interface DoF closed) a gain margin of %.2f dB, below %g dB",
+                                out->coupled_gain_margin_db, rule->min_gain_margin_db);
+    }
     rths_pd_loop_destroy(loop);
     if (rc) return rc;
     out->lowest_mode_hz = lowest_mode_hz(setup, err);
