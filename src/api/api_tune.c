@@ -351,6 +351,9 @@ int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_di
     if (rc) return rc;
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
+    /* the gains are designed from the loop's model; where the sites' controllers run plays no
+     * part in it (a multi-site config tunes as one rig) */
+    rths_config_mark_known(c, "rig.sites");
     if (!(rc = rths_sample_loop_config_read(c, &copt, &popt, err)))
         rc = rths_api_check_config(c, NULL, err);
     if (!rc)

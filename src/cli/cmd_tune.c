@@ -111,6 +111,7 @@ int rths_cmd_tune(int argc, char **argv) {
     rths_controller_defaults(&copt);
     rths_plant_defaults(&popt);
     rths_tune_result tuned;
+    rths_config_mark_known(cfg, "rig.sites"); /* as in rths_api_tune: sites play no part */
     rc = rths_sample_loop_config_read(cfg, &copt, &popt, &err);
     if (!rc) rc = rths_cli_check_config(cfg, &err);
     if (!rc)
