@@ -37,7 +37,7 @@ static void test_fit_recovers_steady_state_noise_free(void **state) {
     double y[SERIES * 16], ainf[SERIES], se[SERIES];
     transient_fit fit;
     synthetic(K, 0, NULL, a, y);
-    assert_int_equal(transient_fit_series(SERIES, K, y, 4, NULL, 0, &fit, ainf, se), 0);
+    assert_int_equal(transient_fit_series(SERIES, K, y, 4, NULL, 0, &fit, ainf, se, NULL), 0);
     for (int i = 0; i < SERIES; i++)
         assert_close(ainf[i], a[i], 1e-8);
     assert_true(fit.order >= 3);
@@ -62,7 +62,7 @@ static void test_fit_standard_error_coverage(void **state) {
     for (int s = 0; s < SEEDS; s++) {
         synthetic(K, 2e-3, &rng, a, y);
         transient_fit fit;
-        assert_int_equal(transient_fit_series(SERIES, K, y, 4, NULL, 0, &fit, ainf, se), 0);
+        assert_int_equal(transient_fit_series(SERIES, K, y, 4, NULL, 0, &fit, ainf, se, NULL), 0);
         for (int i = 0; i < SERIES; i++) {
             double dev = fabs(ainf[i] - a[i]) / se[i];
             for (int k = 1; k <= 3; k++)

@@ -301,12 +301,15 @@ static double pole_variance(int n, const double *u, const double *shared_cov) {
 }
 
 int transient_fit_series(int m, int K, const double *y, int max_order, const double *prior_var,
-                         double prior_dof, transient_fit *fit, double *a_inf, double *se) {
+                         double prior_dof, transient_fit *fit, double *a_inf, double *se,
+                         double *noise_var) {
     memset(fit, 0, sizeof *fit);
     if (m < 1 || K < 3) return -1;
     if (max_order > NMAX) max_order = NMAX;
-    /* every series keeps at least 3 degrees of freedom of its own */
-    while (max_order > 0 && K - 1 - max_order < 3)
+    /* every series keeps at least as many degrees of freedom of its own as the decaying terms
+     * take, and 3 more: a fit that nearly interpolates its record can follow a misfit exactly
+     * and report a small residual for it */
+    while (max_order > 0 && K - 1 - max_order < max_order + 3)
         max_order--;
     double *w = malloc(sizeof(double) * (size_t)m), *B = malloc(sizeof(double) * (size_t)K * NMAX),
            *r = malloc(sizeof(double) * (size_t)m * K);
@@ -373,6 +376,7 @@ int transient_fit_series(int m, int K, const double *y, int max_order, const dou
         double pd = prior_var && prior_dof > 0 ? prior_dof : 0.0;
         double var = (rss + pv) / (dof_own + pd);
         a_inf[i] = theta[0];
+        if (noise_var) noise_var[i] = var;
         se[i] = var * Ainv[0]; /* variance for now; the poles' part added below */
         w[i] = var > 0 ? 1.0 / var : 0.0;
         if (var > 0) {

@@ -10,7 +10,7 @@
 
 #include <complex.h>
 
-enum { TRANSIENT_FIT_MAX_ORDER = 4 };
+enum { TRANSIENT_FIT_MAX_ORDER = 8 };
 
 typedef struct transient_fit {
     int order;   /* n, the decaying terms fitted (0: none, the series' mean) */
@@ -33,9 +33,11 @@ typedef struct transient_fit {
  * poles, choosing the order by the Bayesian information criterion. prior_var (may be NULL): each
  * series' per-period noise variance measured elsewhere, with prior_dof degrees of freedom, pooled
  * with the residual's. Writes a_inf[i] and se[i] (standard error including the poles' own
- * uncertainty) and the fit. Returns 0, or -1 when nothing could be fitted (K too small). */
+ * uncertainty), noise_var[i] (may be NULL: the per-period noise variance the standard error
+ * assumed) and the fit. Returns 0, or -1 when nothing could be fitted (K too small). */
 int transient_fit_series(int m, int K, const double *y, int max_order, const double *prior_var,
-                         double prior_dof, transient_fit *fit, double *a_inf, double *se);
+                         double prior_dof, transient_fit *fit, double *a_inf, double *se,
+                         double *noise_var);
 
 /* One more series with the poles of `fit` held (the other harmonics, output DoFs): its
  * steady-state value and standard error; the poles' uncertainty enters as in the fit. */
