@@ -384,6 +384,10 @@ static const double FIT_MAX_POLE = 0.99;
 /* Residuals whose lag-1 autocorrelation exceeds this are not white: the model misses part of
  * the transient (white noise gives about -(1 + order) / K, 3 / sqrt(m K) either side). */
 static const double FIT_MAX_LAG1 = 0.5;
+/* ... unless they are this small against the settle tolerance: a fit that extrapolates a slow
+ * term can carry its residual's misfit into the steady state many times over, so only a
+ * residual far below the tolerance (noise off, rounding) is waived */
+static const double FIT_NEGLIGIBLE_RESIDUAL = 0.03;
 
 /* The coefficient of series (d, side, harmonic k, cos/sin) of a period. */
 static double period_coefficient(const rths_period *p, int d, int side, int k, int c) {
@@ -480,13 +484,18 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
     rths_period *rec = malloc(sizeof(rths_period) * (size_t)cap);
     int m = 4 * harmonics * dofs, rc = RTHS_OK, have_prev = 0;
     double *y = malloc(sizeof(double) * (size_t)m * cap);
-    double a[NC], se[NC], var[NC], prev_a[NC], prev_se[NC], prior[NC];
+    /* every fit's steady state and standard error by the periods read (0: none) */
+    double *hist_a = calloc((size_t)m * (cap + 1), sizeof(double)),
+           *hist_se = calloc((size_t)m * (cap + 1), sizeof(double));
+    int *hist_ok = calloc((size_t)cap + 1, sizeof(int));
+    double a[NC], se[NC], var[NC], prior[NC];
+    const double *prev_a = a, *prev_se = se;
     int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
     transient_fit fit = {0};
     *accepted = 0;
     snprintf(why, why_size, "no fit within %d periods", cap);
-    if (!rec || !y) {
-        free(rec), free(y);
+    if (!rec || !y || !hist_a || !hist_se || !hist_ok) {
+        free(rec), free(y), free(hist_a), free(hist_se), free(hist_ok);
         return rths_error_set(err, RTHS_EFAIL, "fitted evaluation: out of memory");
     }
     int count = 0;
@@ -521,6 +530,16 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
         }
         if (transient_fit_series(m, K, y, FIT_MAX_ORDER, prior_var, prior_dof, &fit, a, se, var))
             continue;
+        /* the window compared with: the fit of three quarters of the periods read (a misfit
+         * moves the steady state as the record grows, by more than one period shows) */
+        int older = (3 * count + 3) / 4;
+        while (older > 0 && !hist_ok[older])
+            older--;
+        have_prev = older > 0 && older < count;
+        if (have_prev) {
+            prev_a = hist_a + (size_t)older * m;
+            prev_se = hist_se + (size_t)older * m;
+        }
         int ok = 1;
         const char *failed = NULL;
         double min_tol = INFINITY;
@@ -558,8 +577,9 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
                 if (!failed) failed = "the standard error above its goal";
             }
         }
-        int trusted = fit.max_abs_z < FIT_MAX_POLE &&
-                      (fit.lag1 <= FIT_MAX_LAG1 || fit.rms_residual <= 0.3 * min_tol);
+        int trusted =
+            fit.max_abs_z < FIT_MAX_POLE &&
+            (fit.lag1 <= FIT_MAX_LAG1 || fit.rms_residual <= FIT_NEGLIGIBLE_RESIDUAL * min_tol);
         if (!trusted) {
             ok = 0;
             failed = fit.max_abs_z >= FIT_MAX_POLE ? "a pole too close to 1 per period"
@@ -595,12 +615,12 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             break;
         }
         if (out_of_time) break;
-        memcpy(prev_a, a, sizeof(double) * (size_t)m);
-        memcpy(prev_se, se, sizeof(double) * (size_t)m);
-        have_prev = 1;
+        memcpy(hist_a + (size_t)count * m, a, sizeof(double) * (size_t)m);
+        memcpy(hist_se + (size_t)count * m, se, sizeof(double) * (size_t)m);
+        hist_ok[count] = 1;
     }
     if (!*accepted) out->wait_periods += count; /* read, then waited on by the fallback */
-    free(rec), free(y);
+    free(rec), free(y), free(hist_a), free(hist_se), free(hist_ok);
     return rc;
 }
 
