@@ -49,7 +49,8 @@ typedef struct rths_settle_options {
     int strategy;
     int fit_max_periods; /* fit: periods fitted at most before falling back to waiting */
     /* Accuracy on demand (iteration.target_rel_se, iteration.max_rig_s_per_point): > 0, the
-     * relative standard error of every interface DoF's physical fundamental amplitude an
+     * relative standard error of every interface DoF's fundamental amplitude, physical and
+     * numerical side (the reported amplitude carries both), an
      * evaluation extends its averaging (wait) or its fitted record (fit) to reach, within at
      * most max_rig_s_per_point rig seconds of the evaluation; when the time runs out first the
      * evaluation is flagged (rths_evaluation.se_target_missed) and noted. 0: off. */
@@ -113,8 +114,8 @@ typedef struct rths_evaluation {
      * per period */
     int fitted, fit_fallback, fit_order;
     double fit_max_pole;
-    /* accuracy on demand: the largest relative standard error of an interface DoF's physical
-     * fundamental amplitude, and 1 when it stayed above target_rel_se within
+    /* accuracy on demand: the largest relative standard error of an interface DoF's
+     * fundamental amplitude (either side), and 1 when it stayed above target_rel_se within
      * max_rig_s_per_point */
     double amplitude_rel_se;
     int se_target_missed;

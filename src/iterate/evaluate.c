@@ -362,14 +362,18 @@ static double amplitude_rel_se(const rths_fourier *x, const rths_fourier *se) {
     return hypot(x->a[1] * se->a[1], x->b[1] * se->b[1]) / (amp * amp);
 }
 
-/* The largest relative amplitude standard error over the evaluation's interface DoFs. */
+/* The largest relative amplitude standard error over the evaluation's interface DoFs and both
+ * sides: the amplitude a point reports (extrapolated to zero mismatch, docs/method.md, "The
+ * matched estimate at zero mismatch") carries the numerical side's noise too, often the larger. */
 static double worst_amplitude_rel_se(const rths_evaluation *ev) {
     int dofs = ev->interface_dofs > 1 ? ev->interface_dofs : 1;
     double worst = 0;
     for (int d = 0; d < dofs; d++) {
         const rths_fourier *x = dofs > 1 ? &ev->phys_dof[d] : &ev->phys;
         const rths_fourier *se = dofs > 1 ? &ev->phys_dof_se[d] : &ev->phys_se;
-        worst = fmax(worst, amplitude_rel_se(x, se));
+        const rths_fourier *xn = dofs > 1 ? &ev->num_dof[d] : &ev->num;
+        const rths_fourier *sen = dofs > 1 ? &ev->num_dof_se[d] : &ev->num_se;
+        worst = fmax(worst, fmax(amplitude_rel_se(x, se), amplitude_rel_se(xn, sen)));
     }
     return worst;
 }
@@ -564,10 +568,13 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
                 if (!failed) failed = "the steady state moved between windows";
             }
             if (opt->target_rel_se > 0) {
-                int i0 = d * 4 * harmonics; /* harmonic 1, physical cos, sin */
-                rths_fourier x = {0}, xs = {0};
-                x.a[1] = a[i0], x.b[1] = a[i0 + 1], xs.a[1] = se[i0], xs.b[1] = se[i0 + 1];
-                double r = amplitude_rel_se(&x, &xs);
+                double r = 0;
+                for (int side = 0; side < 2; side++) {
+                    int i0 = d * 4 * harmonics + 2 * side; /* harmonic 1: cos, sin */
+                    rths_fourier x = {0}, xs = {0};
+                    x.a[1] = a[i0], x.b[1] = a[i0 + 1], xs.a[1] = se[i0], xs.b[1] = se[i0 + 1];
+                    r = fmax(r, amplitude_rel_se(&x, &xs));
+                }
                 if (r > opt->target_rel_se) {
                     ok = 0;
                     if (!failed) failed = "the standard error above iteration.target_rel_se";
