@@ -392,6 +392,7 @@ static const double FIT_MAX_LAG1 = 0.5;
  * term can carry its residual's misfit into the steady state many times over, so only a
  * residual far below the tolerance (noise off, rounding) is waived */
 static const double FIT_NEGLIGIBLE_RESIDUAL = 0.03;
+static const double FIT_SE_FLOOR_OF_TOLERANCE = 0.1;
 
 /* The coefficient of series (d, side, harmonic k, cos/sin) of a period. */
 static double period_coefficient(const rths_period *p, int d, int side, int k, int c) {
@@ -551,18 +552,23 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             double a_norm, se_norm, da_norm, prev_se_norm;
             group_norms(a, d, harmonics, &a_norm);
             group_norms(se, d, harmonics, &se_norm);
-            /* the noise the goal allows for is the host's model's (measured from earlier
-             * evaluations), never the fit's own residual: a misfit would widen its own goal */
+            /* the noise the goal allows for is the smaller of the host's model's (measured
+             * from earlier evaluations) and the fit's own residual's: a misfit must not widen
+             * its own goal, nor a transient the averagings took for noise widen the model's */
             double var_sum = 0, diff[NC];
-            for (int i = 0; prior_var && i < 4 * harmonics; i++)
-                var_sum += prior_var[d * 4 * harmonics + i];
+            for (int i = 0; prior_var && i < 4 * harmonics; i++) /* the smaller: see above */
+                var_sum += fmin(prior_var[d * 4 * harmonics + i], var[d * 4 * harmonics + i]);
             for (int i = 0; i < m; i++)
                 diff[i] = a[i] - prev_a[i];
             group_norms(diff, d, harmonics, &da_norm);
             group_norms(prev_se, d, harmonics, &prev_se_norm);
             double tol = fmax(opt->abs_tolerance_m, opt->rel_tolerance * a_norm);
             min_tol = fmin(min_tol, tol);
-            double goal = fmax(tol, sqrt(var_sum / n_avg));
+            /* the standard error's own floor is a tenth of the settle tolerance: it enters the
+             * corrector's tolerance (noise_factor times it), which near a resonance lets a
+             * mismatch of that size through many times amplified; waiting's remaining-transient
+             * bound, a bias, does not */
+            double goal = fmax(FIT_SE_FLOOR_OF_TOLERANCE * tol, sqrt(var_sum / n_avg));
             if (!have_prev || da_norm > tol + 3 * prev_se_norm) {
                 ok = 0;
                 if (!failed) failed = "the steady state moved between windows";
