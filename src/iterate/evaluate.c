@@ -585,7 +585,9 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
                     ok = 0;
                     if (!failed) failed = "the standard error above iteration.target_rel_se";
                 }
-            } else if (se_norm > goal) {
+            }
+            /* a target tightens the goal, never loosens it */
+            if (se_norm > goal) {
                 ok = 0;
                 if (!failed) failed = "the standard error above its goal";
             }
