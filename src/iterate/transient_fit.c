@@ -413,7 +413,7 @@ done:
 }
 
 void transient_fit_apply(const transient_fit *fit, const double *y, double *a_inf, double *se) {
-    int n = fit->order, K = fit->periods, g = 1 + n;
+    int n = fit->order, K = fit->periods;
     *a_inf = NAN;
     *se = INFINITY;
     if (!fit->ok) return;
@@ -434,7 +434,6 @@ void transient_fit_apply(const transient_fit *fit, const double *y, double *a_in
         schur_terms(n, K, B, Ainv, D, u, NULL, 0);
         v += pole_variance(n, u, fit->shared_cov);
     }
-    (void)g;
     *a_inf = theta[0];
     *se = sqrt(v);
 done:
