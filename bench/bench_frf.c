@@ -1,12 +1,14 @@
-/* `paper` vs `default` strategy, same rig and tolerance, on the linear example (12-14 Hz,
- * p = 0.5) and the bilinear example (3 N, through both folds), each with the default sensor noise
- * and with the laboratory preset (rig.noise: lab): evaluations and rig seconds per point, wall
- * seconds for the curve, the largest error against the truth (the analytic FRF; the shooting
- * solution in the demo's (10 ln f, ln A) measure) and the share of points within 3 standard errors
- * of the truth at their frequency on their branch (those farther than 5 mHz from a fold). Goal:
- * default needs at most a third of paper's rig time per point, at equal or better accuracy; under
- * lab noise at most 3 evaluations per point (median). The two-interface example (two shakers, 4
- * unknowns per point): default at most 2 evaluations per point (median) with the default noise. */
+/* `paper` vs `default` strategy, and `default` with the fitted evaluation
+ * (iteration.settle.strategy: fit, docs/method.md "The fitted evaluation"), same rig and tolerance,
+ * on the linear example (12-14 Hz, p = 0.5) and the bilinear example (3 N, through both folds),
+ * each with the default sensor noise and with the laboratory preset (rig.noise: lab): evaluations
+ * and rig seconds per point, wall seconds for the curve, the largest error against the truth (the
+ * analytic FRF; the shooting solution in the demo's (10 ln f, ln A) measure) and the share of
+ * points within 3 standard errors of the truth at their frequency on their branch (those farther
+ * than 5 mHz from a fold). Goal: default needs at most a third of paper's rig time per point, at
+ * equal or better accuracy; under lab noise at most 3 evaluations per point (median). The
+ * two-interface example (two shakers, 4 unknowns per point): default at most 2 evaluations per
+ * point (median) with the default noise. */
 #include "rths/run.h"
 #include "rths/truth.h"
 
@@ -19,7 +21,7 @@ enum { MAX_POINTS = 1600 };
 
 typedef struct {
     int n, evals[MAX_POINTS], compared, within_3se;
-    double rig_s;
+    double rig_s, periods;
     const rths_setup *setup;
     const rths_truth_curve *truth;
 } collected;
@@ -31,6 +33,7 @@ static int collect(void *user, const rths_point *pt, int is_update) {
     if (is_update || pt->index >= MAX_POINTS) return 0;
     c->evals[c->n++] = pt->evaluations;
     c->rig_s += pt->rig_time_s;
+    c->periods += pt->rig_time_s * pt->sol.frequency_hz;
     double f = pt->sol.frequency_hz, a = pt->sol.amplitude_m;
     double truth = rths_truth_branch_amplitude_m(c->setup, c->truth, f, a, NULL);
     if (isfinite(truth) && rths_truth_fold_distance_hz(c->truth, f) > 5e-3) {
@@ -46,7 +49,7 @@ static int cmp_int(const void *a, const void *b) {
 
 typedef struct {
     int points, evaluations;
-    double median_evals, mean_evals, rig_per_point, wall, max_error, within_3se;
+    double median_evals, mean_evals, rig_per_point, periods_per_point, wall, max_error, within_3se;
 } outcome;
 
 static void summarise(const collected *c, const rths_run_frf_result *r, outcome *o) {
@@ -61,20 +64,25 @@ static void summarise(const collected *c, const rths_run_frf_result *r, outcome 
     o->median_evals = n ? (n % 2 ? sorted[n / 2] : 0.5 * (sorted[n / 2 - 1] + sorted[n / 2])) : 0;
     o->mean_evals = n ? (double)o->evaluations / n : 0;
     o->rig_per_point = n ? c->rig_s / n : 0;
+    o->periods_per_point = n ? c->periods / n : 0;
     o->within_3se = c->compared ? (double)c->within_3se / c->compared : 0;
     free(sorted);
 }
 
-/* One whole test of an example through rths_run_frf (as rths frf runs it) into a scratch folder. */
-static int run(const char *example, int paper, int lab, outcome *o) {
+/* One whole test of an example through rths_run_frf (as rths frf runs it) into a scratch folder;
+ * strategy 0 paper, 1 default, 2 default with the fitted evaluation. */
+enum { STRATEGIES = 3 };
+static int run(const char *example, int strategy, int lab, outcome *o) {
+    int paper = strategy == 0;
     const char *dir = getenv("RTHS_SOURCE_DIR");
     char path[1024], out[] = "/tmp/rths_bench_frf_XXXXXX";
     snprintf(path, sizeof path, "%s/examples/%s", dir ? dir : ".", example);
-    const char *overrides[RTHS_RUN_PAPER_OVERRIDES + 1];
+    const char *overrides[RTHS_RUN_PAPER_OVERRIDES + 2];
     int n_overrides = 0;
     for (int i = 0; paper && i < RTHS_RUN_PAPER_OVERRIDES; i++)
         overrides[n_overrides++] = rths_run_paper_overrides[i];
     if (lab) overrides[n_overrides++] = "rig.noise=lab";
+    if (strategy == 2) overrides[n_overrides++] = "iteration.settle.strategy=fit";
     rths_config *cfg;
     rths_setup s;
     rths_error err;
@@ -115,20 +123,24 @@ static int run(const char *example, int paper, int lab, outcome *o) {
 
 static void print_table(const char *title, const outcome *o) {
     printf("\n%s\n", title);
-    printf("%-34s %12s %12s %10s\n", "", "paper", "default", "ratio");
-    printf("%-34s %12d %12d\n", "points", o[0].points, o[1].points);
-    printf("%-34s %12.1f %12.1f %10.2f\n", "evaluations per point, median", o[0].median_evals,
-           o[1].median_evals, o[1].median_evals / o[0].median_evals);
-    printf("%-34s %12.2f %12.2f %10.2f\n", "evaluations per point, mean", o[0].mean_evals,
-           o[1].mean_evals, o[1].mean_evals / o[0].mean_evals);
-    printf("%-34s %12.2f %12.2f %10.2f\n", "rig seconds per point", o[0].rig_per_point,
-           o[1].rig_per_point, o[1].rig_per_point / o[0].rig_per_point);
-    printf("%-34s %12.2f %12.2f %10.2f\n", "wall seconds, continuation", o[0].wall, o[1].wall,
-           o[1].wall / o[0].wall);
-    printf("%-34s %11.3f%% %11.3f%%\n", "max error vs truth", 100 * o[0].max_error,
-           100 * o[1].max_error);
-    printf("%-34s %11.1f%% %11.1f%%\n", "within 3 SE (> 5 mHz from folds)", 100 * o[0].within_3se,
-           100 * o[1].within_3se);
+    printf("%-34s %12s %12s %12s %10s\n", "", "paper", "default", "fit", "fit/def");
+    printf("%-34s %12d %12d %12d\n", "points", o[0].points, o[1].points, o[2].points);
+    printf("%-34s %12.1f %12.1f %12.1f %10.2f\n", "evaluations per point, median",
+           o[0].median_evals, o[1].median_evals, o[2].median_evals,
+           o[2].median_evals / o[1].median_evals);
+    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "evaluations per point, mean", o[0].mean_evals,
+           o[1].mean_evals, o[2].mean_evals, o[2].mean_evals / o[1].mean_evals);
+    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "rig seconds per point", o[0].rig_per_point,
+           o[1].rig_per_point, o[2].rig_per_point, o[2].rig_per_point / o[1].rig_per_point);
+    printf("%-34s %12.1f %12.1f %12.1f %10.2f\n", "forcing periods per point",
+           o[0].periods_per_point, o[1].periods_per_point, o[2].periods_per_point,
+           o[2].periods_per_point / o[1].periods_per_point);
+    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "wall seconds, continuation", o[0].wall,
+           o[1].wall, o[2].wall, o[2].wall / o[1].wall);
+    printf("%-34s %11.3f%% %11.3f%% %11.3f%%\n", "max error vs truth", 100 * o[0].max_error,
+           100 * o[1].max_error, 100 * o[2].max_error);
+    printf("%-34s %11.1f%% %11.1f%% %11.1f%%\n", "within 3 SE (> 5 mHz from folds)",
+           100 * o[0].within_3se, 100 * o[1].within_3se, 100 * o[2].within_3se);
 }
 
 void rths_bench_frf(void) {
@@ -151,10 +163,10 @@ void rths_bench_frf(void) {
          0},
     };
     for (size_t k = 0; k < sizeof cases / sizeof cases[0]; k++) {
-        outcome o[2];
+        outcome o[STRATEGIES];
         int failed = 0;
-        for (int i = 0; i < 2 && !failed; i++)
-            failed = run(cases[k].example, i == 0, cases[k].lab, &o[i]) != 0;
+        for (int i = 0; i < STRATEGIES && !failed; i++)
+            failed = run(cases[k].example, i, cases[k].lab, &o[i]) != 0;
         if (!failed) print_table(cases[k].title, o);
     }
 }

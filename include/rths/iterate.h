@@ -41,7 +41,32 @@ typedef struct rths_settle_options {
      * saturated converter sample, or late samples beyond this share, make the evaluation
      * re-measure once; if the re-measurement is corrupted too, the evaluation fails. */
     double max_late_share;
+    /* How an evaluation reaches the steady state (docs/method.md, "The fitted evaluation";
+     * iteration.settle.strategy): RTHS_SETTLE_WAIT (0, the default) waits for the transient to
+     * decay and averages; RTHS_SETTLE_FIT fits the periods since the change as steady state plus
+     * decaying terms with shared poles and stops once the steady state's standard error is
+     * within its goal, falling back to waiting when the fit is not trustworthy. */
+    int strategy;
+    int fit_max_periods; /* fit: periods fitted at most before falling back to waiting */
+    /* Accuracy on demand (iteration.target_rel_se, iteration.max_rig_s_per_point): > 0, the
+     * relative standard error of every interface DoF's fundamental amplitude, physical and
+     * numerical side (the reported amplitude carries both), an
+     * evaluation extends its averaging (wait) or its fitted record (fit) to reach, within at
+     * most max_rig_s_per_point rig seconds of the evaluation; when the time runs out first the
+     * evaluation is flagged (rths_evaluation.se_target_missed) and noted. 0: off. */
+    double target_rel_se;
+    double max_rig_s_per_point;
+    /* Optional: receives one line per fallback or missed accuracy target (for run.log). */
+    void (*note)(void *user, const char *line);
+    void *note_user;
 } rths_settle_options;
+
+enum { RTHS_SETTLE_WAIT = 0, RTHS_SETTLE_FIT = 1 };
+/* Defaults where the options leave 0 (rths_settle_defaults zeroes them): the fit falls back to
+ * waiting after 60 periods it cannot trust; accuracy on demand costs at most 120 rig s an
+ * evaluation. */
+#define RTHS_SETTLE_FIT_MAX_PERIODS 60
+#define RTHS_SETTLE_MAX_RIG_S_PER_POINT 120.0
 
 /* The host's noise model (docs/method.md, "One evaluation"): the period-to-period scatter of
  * every coefficient the steady-state test compares (physical and numerical, per interface DoF and
@@ -82,6 +107,18 @@ typedef struct rths_evaluation {
     /* 1: the re-measurement was corrupted too and the evaluation failed (its error names the
      * counts); the corrector then stops with RTHS_CORRECTOR_REFUSED */
     int refused;
+    /* the fitted evaluation (rths_settle_options.strategy RTHS_SETTLE_FIT): 1 when the steady
+     * state is the fit's (average_periods then holds the periods' worth of averaging its standard
+     * error equals, wait_periods the rest); fit_fallback 1 when the fit was not trustworthy and
+     * the evaluation waited instead; the fit's order (decaying terms) and largest pole modulus
+     * per period */
+    int fitted, fit_fallback, fit_order;
+    double fit_max_pole;
+    /* accuracy on demand: the largest relative standard error of an interface DoF's
+     * fundamental amplitude (either side), and 1 when it stayed above target_rel_se within
+     * max_rig_s_per_point */
+    double amplitude_rel_se;
+    int se_target_missed;
 } rths_evaluation;
 
 /* Sets the forcing frequency (if it changed) and target, waits for steady state, averages. */

@@ -1,9 +1,13 @@
 /* One evaluation of the rig-backed zero problem: steady state, averaging, the residual record;
  * and the corrector's use of a record (noise pooling, LTI history, tolerance, arclength row). */
 #include "iterate/corrector_internal.h"
+#include "iterate/transient_fit.h"
 
 #include <complex.h>
 #include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 /* ---- one evaluation ---- */
@@ -333,6 +337,361 @@ static void noise_model_add(rths_noise_model *noise, const average_scatter *sc, 
     noise->dof = dof;
 }
 
+/* One line to the caller's log (rths_settle_options.note), if it gave one. */
+static void note(const rths_settle_options *opt, const char *fmt, ...) {
+    if (!opt->note) return;
+    char line[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(line, sizeof line, fmt, ap);
+    va_end(ap);
+    opt->note(opt->note_user, line);
+}
+
+/* The rig time an evaluation may spend on iteration.target_rel_se. */
+static double max_rig_s(const rths_settle_options *opt) {
+    return opt->max_rig_s_per_point > 0 ? opt->max_rig_s_per_point
+                                        : RTHS_SETTLE_MAX_RIG_S_PER_POINT;
+}
+
+/* Relative standard error of interface DoF d's physical fundamental amplitude |x| =
+ * hypot(a1, b1): sqrt((a se_a)^2 + (b se_b)^2) / |x| (first order). */
+static double amplitude_rel_se(const rths_fourier *x, const rths_fourier *se) {
+    double amp = hypot(x->a[1], x->b[1]);
+    if (!(amp > 0)) return INFINITY;
+    return hypot(x->a[1] * se->a[1], x->b[1] * se->b[1]) / (amp * amp);
+}
+
+/* The largest relative amplitude standard error over the evaluation's interface DoFs and both
+ * sides: the amplitude a point reports (extrapolated to zero mismatch, docs/method.md, "The
+ * matched estimate at zero mismatch") carries the numerical side's noise too, often the larger. */
+static double worst_amplitude_rel_se(const rths_evaluation *ev) {
+    int dofs = ev->interface_dofs > 1 ? ev->interface_dofs : 1;
+    double worst = 0;
+    for (int d = 0; d < dofs; d++) {
+        const rths_fourier *x = dofs > 1 ? &ev->phys_dof[d] : &ev->phys;
+        const rths_fourier *se = dofs > 1 ? &ev->phys_dof_se[d] : &ev->phys_se;
+        const rths_fourier *xn = dofs > 1 ? &ev->num_dof[d] : &ev->num;
+        const rths_fourier *sen = dofs > 1 ? &ev->num_dof_se[d] : &ev->num_se;
+        worst = fmax(worst, fmax(amplitude_rel_se(x, se), amplitude_rel_se(xn, sen)));
+    }
+    return worst;
+}
+
+/* ---- the fitted evaluation (docs/method.md, "The fitted evaluation") ---- */
+
+/* Periods after the change left out of the fit: the change itself falls inside the first. */
+enum { FIT_SKIP_PERIODS = 1, FIT_MIN_PERIODS = 8, FIT_MAX_ORDER = 8 };
+/* A pole this close to 1 per period is a transient the record cannot separate from the steady
+ * state (its term and the constant are nearly the same column): leave it to waiting. */
+static const double FIT_MAX_POLE = 0.99;
+/* Residuals whose lag-1 autocorrelation exceeds this are not white: the model misses part of
+ * the transient (white noise gives about -(1 + order) / K, 3 / sqrt(m K) either side). */
+static const double FIT_MAX_LAG1 = 0.5;
+/* ... unless they are this small against the settle tolerance: a fit that extrapolates a slow
+ * term can carry its residual's misfit into the steady state many times over, so only a
+ * residual far below the tolerance (noise off, rounding) is waived */
+static const double FIT_NEGLIGIBLE_RESIDUAL = 0.03;
+static const double FIT_SE_FLOOR_OF_TOLERANCE = 0.1;
+
+/* The coefficient of series (d, side, harmonic k, cos/sin) of a period. */
+static double period_coefficient(const rths_period *p, int d, int side, int k, int c) {
+    const rths_fourier *f =
+        d ? (side ? &p->num_dof[d] : &p->phys_dof[d]) : (side ? &p->num : &p->phys);
+    return c ? f->b[k] : f->a[k];
+}
+
+/* Per interface DoF group of the matched vector (coefficient_vector's order: the first DoF's 4N,
+ * then each further DoF's 4N): norms of a and se, and of the change from the previous fit. */
+static void group_norms(const double *v, int d, int harmonics, double *out_norm) {
+    double s = 0;
+    for (int i = 0; i < 4 * harmonics; i++)
+        s += v[d * 4 * harmonics + i] * v[d * 4 * harmonics + i];
+    *out_norm = sqrt(s);
+}
+
+/* Fills out's means and standard errors from the fit of the periods rec[0..K) (every
+ * coefficient the evaluation reports: the matched ones from the fit itself, the others with its
+ * poles held). */
+static void fit_fill(const transient_fit *fit, const rths_period *rec, int K, int dofs,
+                     int harmonics, const double *a_matched, const double *se_matched,
+                     rths_evaluation *out) {
+    enum { H = RTHS_MAX_HARMONICS + 1 };
+    double *y = malloc(sizeof(double) * (size_t)K);
+    if (!y) return;
+    for (int d = 0; d < dofs; d++)
+        for (int side = 0; side < 2; side++)
+            for (int k = 0; k < H; k++)
+                for (int c = 0; c < 2; c++) {
+                    double a, e;
+                    if (c == 1 && k == 0) {
+                        a = 0, e = 0;
+                    } else if (k >= 1 && k <= harmonics) {
+                        int i = d * 4 * harmonics + (k - 1) * 4 + side * 2 + c;
+                        a = a_matched[i], e = se_matched[i];
+                    } else {
+                        for (int q = 0; q < K; q++)
+                            y[q] = period_coefficient(&rec[q], d, side, k, c);
+                        transient_fit_apply(fit, y, &a, &e);
+                    }
+                    rths_fourier *mean = d ? (side ? &out->num_dof[d] : &out->phys_dof[d])
+                                           : (side ? &out->num : &out->phys);
+                    rths_fourier *se = d ? (side ? &out->num_dof_se[d] : &out->phys_dof_se[d])
+                                         : (side ? &out->num_se : &out->phys_se);
+                    if (c)
+                        mean->b[k] = a, se->b[k] = e;
+                    else
+                        mean->a[k] = a, se->a[k] = e;
+                }
+    int n_out = rec[0].output_dofs <= RTHS_MAX_OUTPUT_DOFS ? rec[0].output_dofs : 0;
+    out->output_dofs = n_out;
+    for (int j = 0; j < n_out; j++)
+        for (int k = 0; k < H; k++)
+            for (int c = 0; c < 2; c++) {
+                double a = 0, e = 0;
+                if (!(c == 1 && k == 0)) {
+                    for (int q = 0; q < K; q++)
+                        y[q] = c ? rec[q].output_dof[j].b[k] : rec[q].output_dof[j].a[k];
+                    transient_fit_apply(fit, y, &a, &e);
+                }
+                if (c)
+                    out->output_dof[j].b[k] = a, out->output_dof_se[j].b[k] = e;
+                else
+                    out->output_dof[j].a[k] = a, out->output_dof_se[j].a[k] = e;
+            }
+    if (dofs > 1) {
+        out->interface_dofs = dofs;
+        out->phys_dof[0] = out->phys, out->num_dof[0] = out->num;
+        out->phys_dof_se[0] = out->phys_se, out->num_dof_se[0] = out->num_se;
+    }
+    free(y);
+}
+
+/* Runs periods from the change and fits them after each (transient_fit_series) until the
+ * steady state is trustworthy and its standard error within its goal: per interface DoF,
+ *  - every pole of the fit within FIT_MAX_POLE per period,
+ *  - the residuals white (lag-1 autocorrelation at most FIT_MAX_LAG1), or too small to matter
+ *    (their rms per period within 0.3 times the smallest settle tolerance),
+ *  - the steady state stable across windows: the fit of one period fewer within the settle
+ *    tolerance max(abs_tolerance_m, rel_tolerance ||a_d||) plus 3 of its standard errors,
+ *  - the standard error norm within max(the settle tolerance, what averaging average_periods
+ *    periods of the fitted noise would give), or with target_rel_se, the physical amplitude's
+ *    relative standard error within it.
+ * *accepted 0: the fit was not trustworthy within fit_max_periods (or, with target_rel_se, the
+ * rig time ran out before it was); *why names the failed test. */
+static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
+                          int harmonics, int dofs, double t0, rths_evaluation *out,
+                          integrity_counts *cnt, average_scatter *scatter, int *accepted, char *why,
+                          size_t why_size, rths_error *err) {
+    enum { NC = RTHS_NOISE_COEFFICIENTS };
+    int cap = opt->fit_max_periods > 0 ? opt->fit_max_periods : RTHS_SETTLE_FIT_MAX_PERIODS;
+    if (cap < FIT_SKIP_PERIODS + FIT_MIN_PERIODS + 1) cap = FIT_SKIP_PERIODS + FIT_MIN_PERIODS + 1;
+    rths_period *rec = malloc(sizeof(rths_period) * (size_t)cap);
+    int m = 4 * harmonics * dofs, rc = RTHS_OK, have_prev = 0;
+    double *y = malloc(sizeof(double) * (size_t)m * cap);
+    /* every fit's steady state and standard error by the periods read (0: none) */
+    double *hist_a = calloc((size_t)m * (cap + 1), sizeof(double)),
+           *hist_se = calloc((size_t)m * (cap + 1), sizeof(double));
+    int *hist_ok = calloc((size_t)cap + 1, sizeof(int));
+    double a[NC], se[NC], var[NC], prior[NC];
+    const double *prev_a = a, *prev_se = se;
+    int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
+    transient_fit fit = {0};
+    *accepted = 0;
+    snprintf(why, why_size, "no fit within %d periods", cap);
+    if (!rec || !y || !hist_a || !hist_se || !hist_ok) {
+        free(rec), free(y), free(hist_a), free(hist_se), free(hist_ok);
+        return rths_error_set(err, RTHS_EFAIL, "fitted evaluation: out of memory");
+    }
+    int count = 0;
+    long samples = 0;
+    while (count < cap) {
+        if ((rc = rths_rig_run_periods(rig, 1, &rec[count], err))) break;
+        count_period(cnt, &rec[count]);
+        count++;
+        /* the record fitted: all but the first quarter (at least FIT_SKIP_PERIODS): the fast
+         * terms right after the change (the numerical side's own ringing) need many poles and
+         * are gone a few periods later, while the slow ones stay in the rest */
+        int skip = count / 4 > FIT_SKIP_PERIODS ? count / 4 : FIT_SKIP_PERIODS;
+        int K = count - skip;
+        if (K < FIT_MIN_PERIODS) continue;
+        const rths_period *first = &rec[skip];
+        samples = 0;
+        for (int q = 0; q < K; q++) {
+            double v[NC];
+            coefficient_vector(&first[q], harmonics, v);
+            for (int i = 0; i < m; i++)
+                y[(size_t)i * K + q] = v[i];
+            samples += first[q].samples;
+        }
+        double mean_samples = (double)samples / K;
+        const double *prior_var = NULL;
+        double prior_dof = 0;
+        if (noise && noise->coefficients == m && noise->dof > 0 && mean_samples > 0) {
+            for (int i = 0; i < m; i++)
+                prior[i] = noise->variance_x_samples[i] / mean_samples;
+            prior_var = prior;
+            prior_dof = noise->dof;
+        }
+        if (transient_fit_series(m, K, y, FIT_MAX_ORDER, prior_var, prior_dof, &fit, a, se, var))
+            continue;
+        /* the window compared with: the fit of three quarters of the periods read (a misfit
+         * moves the steady state as the record grows, by more than one period shows) */
+        int older = (3 * count + 3) / 4;
+        while (older > 0 && !hist_ok[older])
+            older--;
+        have_prev = older > 0 && older < count;
+        if (have_prev) {
+            prev_a = hist_a + (size_t)older * m;
+            prev_se = hist_se + (size_t)older * m;
+        }
+        int ok = 1;
+        const char *failed = NULL;
+        double min_tol = INFINITY;
+        for (int d = 0; d < dofs; d++) {
+            double a_norm, se_norm, da_norm, prev_se_norm;
+            group_norms(a, d, harmonics, &a_norm);
+            group_norms(se, d, harmonics, &se_norm);
+            /* the noise the goal allows for is the smaller of the host's model's (measured
+             * from earlier evaluations) and the fit's own residual's: a misfit must not widen
+             * its own goal, nor a transient the averagings took for noise widen the model's */
+            double var_sum = 0, diff[NC];
+            for (int i = 0; prior_var && i < 4 * harmonics; i++) /* the smaller: see above */
+                var_sum += fmin(prior_var[d * 4 * harmonics + i], var[d * 4 * harmonics + i]);
+            for (int i = 0; i < m; i++)
+                diff[i] = a[i] - prev_a[i];
+            group_norms(diff, d, harmonics, &da_norm);
+            group_norms(prev_se, d, harmonics, &prev_se_norm);
+            double tol = fmax(opt->abs_tolerance_m, opt->rel_tolerance * a_norm);
+            min_tol = fmin(min_tol, tol);
+            /* the standard error's own floor is a tenth of the settle tolerance: it enters the
+             * corrector's tolerance (noise_factor times it), which near a resonance lets a
+             * mismatch of that size through many times amplified; waiting's remaining-transient
+             * bound, a bias, does not */
+            double goal = fmax(FIT_SE_FLOOR_OF_TOLERANCE * tol, sqrt(var_sum / n_avg));
+            if (!have_prev || da_norm > tol + 3 * prev_se_norm) {
+                ok = 0;
+                if (!failed) failed = "the steady state moved between windows";
+            }
+            if (opt->target_rel_se > 0) {
+                double r = 0;
+                for (int side = 0; side < 2; side++) {
+                    int i0 = d * 4 * harmonics + 2 * side; /* harmonic 1: cos, sin */
+                    rths_fourier x = {0}, xs = {0};
+                    x.a[1] = a[i0], x.b[1] = a[i0 + 1], xs.a[1] = se[i0], xs.b[1] = se[i0 + 1];
+                    r = fmax(r, amplitude_rel_se(&x, &xs));
+                }
+                if (r > opt->target_rel_se) {
+                    ok = 0;
+                    if (!failed) failed = "the standard error above iteration.target_rel_se";
+                }
+            }
+            /* a target tightens the goal, never loosens it */
+            if (se_norm > goal) {
+                ok = 0;
+                if (!failed) failed = "the standard error above its goal";
+            }
+        }
+        int trusted =
+            fit.max_abs_z < FIT_MAX_POLE &&
+            (fit.lag1 <= FIT_MAX_LAG1 || fit.rms_residual <= FIT_NEGLIGIBLE_RESIDUAL * min_tol);
+        if (!trusted) {
+            ok = 0;
+            failed = fit.max_abs_z >= FIT_MAX_POLE ? "a pole too close to 1 per period"
+                                                   : "the residuals not white";
+        }
+        snprintf(why, why_size,
+                 "%s after %d periods (order %d, largest pole %.4f per period, residual lag-1 "
+                 "autocorrelation %.2f)",
+                 failed ? failed : "accepted", count, fit.order, fit.max_abs_z, fit.lag1);
+        int out_of_time = opt->target_rel_se > 0 && rths_rig_time_s(rig) - t0 >= max_rig_s(opt);
+        if (ok || (out_of_time && trusted && have_prev && failed &&
+                   strcmp(failed, "the standard error above iteration.target_rel_se") == 0)) {
+            fit_fill(&fit, first, K, dofs, harmonics, a, se, out);
+            /* the averaging the standard error is worth: var / se^2 periods (pooled over the
+             * matched coefficients), so a pooling of se^2 n (n - 1) counts the noise right */
+            double vs = 0, ss = 0;
+            for (int i = 0; i < m; i++)
+                vs += var[i], ss += se[i] * se[i];
+            int n_eff = ss > 0 ? (int)lround(vs / ss) : K;
+            if (n_eff < 2) n_eff = 2;
+            if (n_eff > K) n_eff = K;
+            out->average_periods = n_eff;
+            out->wait_periods += count - n_eff;
+            out->fitted = 1;
+            out->fit_order = fit.order;
+            out->fit_max_pole = fit.max_abs_z;
+            out->se_target_missed = !ok;
+            /* the fit's residual scatter does not join the noise model: a misfit would pass for
+             * noise there and widen the goal of the next fits (the noise is measured by the
+             * averagings of waiting evaluations alone) */
+            memset(scatter, 0, sizeof *scatter);
+            *accepted = 1;
+            break;
+        }
+        if (out_of_time) break;
+        memcpy(hist_a + (size_t)count * m, a, sizeof(double) * (size_t)m);
+        memcpy(hist_se + (size_t)count * m, se, sizeof(double) * (size_t)m);
+        hist_ok[count] = 1;
+    }
+    if (!*accepted) out->wait_periods += count; /* read, then waited on by the fallback */
+    free(rec), free(y), free(hist_a), free(hist_se), free(hist_ok);
+    return rc;
+}
+
+/* Accuracy on demand for the waiting strategy: the averaging extended by average_periods at a
+ * time (the blocks' means weighted by their periods, their standard errors combined as
+ * independent) until every interface DoF's physical amplitude has relative standard error at
+ * most target_rel_se, or the evaluation's rig time reaches max_rig_s_per_point. */
+static void combine_fourier(rths_fourier *mean, rths_fourier *se, const rths_fourier *mean2,
+                            const rths_fourier *se2, double w1, double w2) {
+    for (int k = 0; k <= RTHS_MAX_HARMONICS; k++) {
+        mean->a[k] = w1 * mean->a[k] + w2 * mean2->a[k];
+        mean->b[k] = w1 * mean->b[k] + w2 * mean2->b[k];
+        se->a[k] = hypot(w1 * se->a[k], w2 * se2->a[k]);
+        se->b[k] = hypot(w1 * se->b[k], w2 * se2->b[k]);
+    }
+}
+
+static int extend_average(rths_rig *rig, const rths_settle_options *opt, double t0,
+                          rths_evaluation *out, integrity_counts *cnt, average_scatter *scatter,
+                          rths_error *err) {
+    int block = opt->average_periods > 0 ? opt->average_periods : 1;
+    while (worst_amplitude_rel_se(out) > opt->target_rel_se) {
+        if (rths_rig_time_s(rig) - t0 >= max_rig_s(opt)) return RTHS_OK;
+        rths_evaluation more;
+        average_scatter sc2;
+        memset(&more, 0, sizeof more);
+        int rc = average_periods(rig, block, &more, cnt, &sc2, err);
+        if (rc) return rc;
+        double n1 = out->average_periods, n2 = block, w1 = n1 / (n1 + n2), w2 = n2 / (n1 + n2);
+        combine_fourier(&out->phys, &out->phys_se, &more.phys, &more.phys_se, w1, w2);
+        combine_fourier(&out->num, &out->num_se, &more.num, &more.num_se, w1, w2);
+        int dofs = out->interface_dofs > 1 ? out->interface_dofs : 0;
+        for (int d = 0; d < dofs; d++) {
+            combine_fourier(&out->phys_dof[d], &out->phys_dof_se[d], &more.phys_dof[d],
+                            &more.phys_dof_se[d], w1, w2);
+            combine_fourier(&out->num_dof[d], &out->num_dof_se[d], &more.num_dof[d],
+                            &more.num_dof_se[d], w1, w2);
+        }
+        for (int j = 0; j < out->output_dofs && j < more.output_dofs; j++)
+            combine_fourier(&out->output_dof[j], &out->output_dof_se[j], &more.output_dof[j],
+                            &more.output_dof_se[j], w1, w2);
+        if (dofs > 1) {
+            out->phys = out->phys_dof[0], out->num = out->num_dof[0];
+            out->phys_se = out->phys_dof_se[0], out->num_se = out->num_dof_se[0];
+        }
+        out->average_periods += block;
+        for (int d = 0; d < RTHS_MAX_INTERFACE_DOFS; d++)
+            for (int k = 0; k <= RTHS_MAX_HARMONICS; k++)
+                for (int s2 = 0; s2 < 2; s2++)
+                    for (int c = 0; c < 2; c++)
+                        scatter->var_sum[d][k][s2][c] += sc2.var_sum[d][k][s2][c];
+        scatter->terms += sc2.terms;
+    }
+    return RTHS_OK;
+}
+
 /* Whether a measurement's samples were all good enough for the coupling to hold. */
 static int integrity_ok(const integrity_counts *cnt, const rths_settle_options *opt) {
     return cnt->clipped == 0 && cnt->saturated == 0 &&
@@ -366,14 +725,49 @@ int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_nois
      * a new wait for steady state: a transient's brief clip (a large step of the target) is gone
      * by then; one that persists is the rig's state at this target and fails the evaluation */
     for (int attempt = 0; attempt < 2; attempt++) {
-        int waited = 0, steady = 0;
+        int waited = 0, steady = 0, fitted = 0;
         average_scatter scatter = {0};
         cnt = (integrity_counts){0};
-        rc = wait_steady(rig, opt, noise, harmonics, &waited, &steady, &cnt, err);
-        if (!rc) rc = average_periods(rig, n_avg, out, &cnt, &scatter, err);
+        if (attempt == 0 && opt->strategy == RTHS_SETTLE_FIT) {
+            char why[256];
+            rc = fit_evaluation(rig, opt, noise, harmonics, dofs, t0, out, &cnt, &scatter, &fitted,
+                                why, sizeof why, err);
+            if (!rc && fitted) {
+                steady = 1;
+                if (out->se_target_missed)
+                    note(opt,
+                         "evaluation at %.6g Hz: relative amplitude standard error %.3g above "
+                         "iteration.target_rel_se %.3g after %.3g rig s "
+                         "(iteration.max_rig_s_per_point %.3g): the rig's noise cannot meet it",
+                         frequency_hz, worst_amplitude_rel_se(out), opt->target_rel_se,
+                         rths_rig_time_s(rig) - t0, max_rig_s(opt));
+            } else if (!rc) {
+                /* the periods already read count as waiting; the fallback waits on from here */
+                out->fit_fallback = 1;
+                note(opt, "evaluation at %.6g Hz: transient fit not trusted (%s): waiting instead",
+                     frequency_hz, why);
+            }
+        }
+        if (!rc && !fitted) {
+            rc = wait_steady(rig, opt, noise, harmonics, &waited, &steady, &cnt, err);
+            if (!rc) rc = average_periods(rig, n_avg, out, &cnt, &scatter, err);
+            out->average_periods = n_avg;
+            if (!rc && opt->target_rel_se > 0) {
+                rc = extend_average(rig, opt, t0, out, &cnt, &scatter, err);
+                if (!rc && worst_amplitude_rel_se(out) > opt->target_rel_se) {
+                    out->se_target_missed = 1;
+                    note(opt,
+                         "evaluation at %.6g Hz: relative amplitude standard error %.3g above "
+                         "iteration.target_rel_se %.3g after %.3g rig s "
+                         "(iteration.max_rig_s_per_point %.3g): the rig's noise cannot meet it",
+                         frequency_hz, worst_amplitude_rel_se(out), opt->target_rel_se,
+                         rths_rig_time_s(rig) - t0, max_rig_s(opt));
+                }
+            }
+        }
         out->wait_periods += waited;
-        out->average_periods = n_avg;
         out->steady = steady;
+        out->amplitude_rel_se = worst_amplitude_rel_se(out);
         out->late_samples += cnt.late;
         out->clipped_demand_samples += cnt.clipped;
         out->saturated_sensor_samples += cnt.saturated;

@@ -15,6 +15,32 @@ static int trust_growth_read(rths_config *cfg, rths_newton_options *newton, rths
     return rc;
 }
 
+/* The fitted evaluation and accuracy on demand (docs/method.md, "The fitted evaluation";
+ * docs/config.md, iteration.settle.strategy, iteration.target_rel_se). */
+static int settle_strategy_read(rths_config *cfg, rths_settle_options *settle, rths_error *err) {
+    static const char *const strategies[] = {"wait", "fit", NULL};
+    long v;
+    int rc;
+    if ((rc = rths_config_get_choice(cfg, "iteration.settle.strategy", 0, settle->strategy,
+                                     strategies, &settle->strategy, err)))
+        return rc;
+    if ((rc = rths_config_get_int(cfg, "iteration.settle.fit_max_periods", 0,
+                                  settle->fit_max_periods > 0 ? settle->fit_max_periods
+                                                              : RTHS_SETTLE_FIT_MAX_PERIODS,
+                                  8, 100000, &v, err)))
+        return rc;
+    settle->fit_max_periods = (int)v;
+    if ((rc = rths_config_get_double(cfg, "iteration.target_rel_se", 0, settle->target_rel_se, 0.0,
+                                     1.0, &settle->target_rel_se, err)) ||
+        (rc = rths_config_get_double(cfg, "iteration.max_rig_s_per_point", 0,
+                                     settle->max_rig_s_per_point > 0
+                                         ? settle->max_rig_s_per_point
+                                         : RTHS_SETTLE_MAX_RIG_S_PER_POINT,
+                                     1e-3, 1e6, &settle->max_rig_s_per_point, err)))
+        return rc;
+    return RTHS_OK;
+}
+
 int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
                              rths_newton_options *newton, int *harmonics, rths_error *err) {
     long v;
@@ -77,5 +103,5 @@ int rths_iterate_config_read(rths_config *cfg, rths_settle_options *settle,
         (rc = rths_config_get_double(cfg, "iteration.min_snr", 0, newton->min_snr, 0.0, 1e6,
                                      &newton->min_snr, err)))
         return rc;
-    return RTHS_OK;
+    return settle_strategy_read(cfg, settle, err);
 }
