@@ -3,6 +3,7 @@
 #include "run/frf_internal.h"
 
 #include "rths/rig_virtual.h"
+#include "run/frf_receptance.h"
 
 #include <json-c/json.h>
 #include <math.h>
@@ -168,14 +169,18 @@ static void floquet_row(const frf_state *run, int i, double *out) {
     out[3] = f ? f->trustworthy : NAN;
 }
 
-/* The leading and per-DoF columns, the optional blocks, then the tail (run.h): the tail always
- * ends the row, so a run without an option writes the columns before it as before. */
+/* The leading and per-DoF columns, the optional blocks, the tail (run.h), then the receptance
+ * (frf_receptance.h): the receptance came last, after the tail, so every column before it keeps
+ * its position (gnuplot scripts and tests address frf.csv's columns by number). */
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
     int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs);
     int head = fixed - RTHS_RUN_FRF_TAIL_COLUMNS, columns = head;
-    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS];
+    frf_receptance_columns rec;
+    frf_receptance_columns_init(&rec, run->setup);
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
+                      FRF_RECEPTANCE_MAX_COLUMNS];
     for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
@@ -187,16 +192,21 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     int tail = columns;
     for (int k = 0; k < RTHS_RUN_FRF_TAIL_COLUMNS; k++)
         names[columns++] = rths_run_frf_column_name(dofs, head + k);
+    const int rec_at = columns;
+    for (int k = 0; k < rec.count; k++)
+        names[columns++] = rec.names[k];
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS],
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
+                   FRF_RECEPTANCE_MAX_COLUMNS],
             tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         memcpy(tail_values, row + head, sizeof tail_values);
         if (run->floquet.enabled) floquet_row(run, i, row + head);
         frf_dof_columns_row(&run->dof_cols, &run->pts[i], row + dof_at);
         memcpy(row + tail, tail_values, sizeof tail_values);
+        frf_receptance_row(&rec, run->setup, &run->pts[i], row + rec_at);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
@@ -205,12 +215,16 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
 }
 
 /* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
- * also dof<d>_amplitude_m of each (frf.csv's names). */
+ * also dof<d>_amplitude_m of each (frf.csv's names); output.dofs' columns; then the receptance of
+ * every interface DoF (frf.csv's names; NaN with a bilinear leg). */
 int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                         rths_error *err) {
     const frf_dof_columns *oc = &run->dof_cols;
-    const char *header[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
-        "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
+    frf_receptance_columns rec;
+    frf_receptance_columns_init(&rec, run->setup);
+    const char
+        *header[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS + FRF_RECEPTANCE_MAX_COLUMNS] = {
+            "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
         header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_LEADING_COLUMNS +
@@ -219,14 +233,18 @@ int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth
     rths_csv *csv = NULL;
     for (int k = 0; k < oc->count; k++)
         header[5 + dofs + k] = frf_dof_column_name(oc, k);
-    int rc = path ? rths_csv_open(path, 5 + dofs + oc->count, header, &csv, err)
+    const int rec_at = 5 + dofs + oc->count;
+    for (int k = 0; k < rec.count; k++)
+        header[rec_at + k] = rec.names[k];
+    int rc = path ? rths_csv_open(path, rec_at + rec.count, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
-            t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
+        double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS + FRF_RECEPTANCE_MAX_COLUMNS] =
+            {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         for (int d = 0; d < dofs; d++)
             row[5 + d] = t->amp_dof_m[d * t->n + j];
         frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + 5 + dofs);
+        frf_receptance_truth_row(&rec, run->setup, t->freq_hz[j], row + rec_at);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
