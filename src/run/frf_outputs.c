@@ -211,12 +211,15 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     }
     rc = rths_csv_finish(csv, rc, err);
     free(path);
+    /* the same points as a receptance for modal-analysis packages, and their modes */
+    if (!rc) rc = frf_write_modal_outputs(rep, run, err);
     return rc;
 }
 
 /* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
- * also dof<d>_amplitude_m of each (frf.csv's names); output.dofs' columns; then the receptance of
- * every interface DoF (frf.csv's names; NaN with a bilinear leg). */
+ * also dof<d>_amplitude_m of each (frf.csv's names); the receptance of every interface DoF
+ * (frf.csv's names; NaN with a bilinear leg); then output.dofs' columns, which end the row as
+ * before (tests/cli/frf_output_dofs.sh reads them from the end). */
 int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                         rths_error *err) {
     const frf_dof_columns *oc = &run->dof_cols;
@@ -232,19 +235,19 @@ int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
     for (int k = 0; k < oc->count; k++)
-        header[5 + dofs + k] = frf_dof_column_name(oc, k);
-    const int rec_at = 5 + dofs + oc->count;
+        header[5 + dofs + rec.count + k] = frf_dof_column_name(oc, k);
+    const int rec_at = 5 + dofs;
     for (int k = 0; k < rec.count; k++)
         header[rec_at + k] = rec.names[k];
-    int rc = path ? rths_csv_open(path, rec_at + rec.count, header, &csv, err)
+    int rc = path ? rths_csv_open(path, rec_at + rec.count + oc->count, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
         double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS + FRF_RECEPTANCE_MAX_COLUMNS] =
             {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         for (int d = 0; d < dofs; d++)
             row[5 + d] = t->amp_dof_m[d * t->n + j];
-        frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + 5 + dofs);
         frf_receptance_truth_row(&rec, run->setup, t->freq_hz[j], row + rec_at);
+        frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + rec_at + rec.count);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
