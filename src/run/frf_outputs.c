@@ -1,5 +1,5 @@
-/* The FRF test's outputs: frf.csv, truth.csv, the figures (frf, iterations, lissajous with
- * trace.csv) and summary.json. */
+/* The FRF test's outputs: frf.csv, truth.csv, the Lissajous figure with trace.csv, and
+ * summary.json (the other figures: frf_figures.c; modal.csv and frf.uff: frf_modal.c). */
 #include "run/frf_internal.h"
 
 #include "rths/rig_virtual.h"
@@ -253,112 +253,6 @@ int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth
     rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
-}
-
-/* Several interface DoFs: the other DoFs' truth (truth.csv) and hybrid points (frf.csv's
- * dof<d>_amplitude_m), one colour each, appended to the plot command. */
-static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t, char *out,
-                                 size_t size) {
-    static const char *const colour[RTHS_MAX_INTERFACE_DOFS] = {"#1f77b4", "#2ca02c", "#ff7f0e",
-                                                                "#9467bd"};
-    int dofs = t->dofs, used = 0;
-    for (int d = 1; d < dofs && d < RTHS_MAX_INTERFACE_DOFS && used < (int)size; d++) {
-        int dof = run->setup->split.int_dofs[d] + 1;
-        /* a rotation (a beam's theta) in rad on the right-hand axis */
-        int rot = rths_setup_dof_is_rotation(run->setup, dof - 1);
-        const char *axes = rot ? " axes x1y2" : "", *unit = rot ? ", rad, right axis" : "";
-        used += snprintf(out + used, size - (size_t)used,
-                         ", \\\n     'truth.csv' using 1:%d skip 1%s with lines lw 2 lc rgb '%s' "
-                         "title 'true assembly, interface DoF %d (DoF %d%s)', \\\n"
-                         "     'frf.csv' using 2:%d skip 1%s with points pt 7 ps 0.8 lc rgb '%s' "
-                         "title 'hybrid test, interface DoF %d (DoF %d%s)'",
-                         6 + d, axes, colour[d], d + 1, dof, unit,
-                         RTHS_RUN_FRF_LEADING_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes,
-                         colour[d], d + 1, dof, unit);
-    }
-}
-
-int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
-                 const char *title, rths_error *err) {
-    /* Interface errors are tiny next to the response: magnify them so the largest bar is about
-     * 5 % of the peak, and say by how much in the legend (the seed used a fixed 2x). */
-    double max_amp = 0, max_err = 0;
-    for (int i = 0; i < run->n; i++) {
-        max_amp = fmax(max_amp, run->pts[i].sol.amplitude_m);
-        max_err = fmax(max_err, frf_harmonic_error(&run->pts[i], 1));
-    }
-    double mag = 1;
-    if (max_err > 0) {
-        mag = 0.05 * max_amp / max_err;
-        double decade = pow(10, floor(log10(mag)));
-        mag = mag >= 1 ? floor(mag / decade) * decade : 1;
-    }
-    int any_unstable = 0, any_fold = 0, any_unstable_pt = 0;
-    for (int j = 0; j < t->n; j++)
-        any_unstable |= !t->stable[j];
-    for (int i = 0; i < run->n; i++) {
-        any_fold |= run->pts[i].fold;
-        any_unstable_pt |= !rths_point_stable(&run->pts[i]);
-    }
-    char body[8192], more[2048] = "", first[64] = "", y2[160] = "";
-    interface_dof_curves(run, t, more, sizeof more);
-    for (int d = 1; d < run->setup->split.n_int; d++)
-        if (rths_setup_dof_is_rotation(run->setup, run->setup->split.int_dofs[d]))
-            snprintf(y2, sizeof y2,
-                     "set y2label 'Interface rotation amplitude, fundamental (rad)'\nset y2tics\n"
-                     "set ytics nomirror\nset format y2 '%%.1e'\n");
-    if (run->setup->split.n_int > 1) /* several interface DoFs: name the first as the others */
-        snprintf(first, sizeof first, ", interface DoF 1 (DoF %d)",
-                 run->setup->split.int_dofs[0] + 1);
-    snprintf(body, sizeof body,
-             "set datafile separator ','\n"
-             "set title \"%s\" noenhanced\n"
-             "set xlabel 'Forcing frequency (Hz)'\n"
-             "set ylabel 'Interface displacement amplitude, fundamental (m)'\n"
-             "set format y '%%.1e'\n"
-             "%s"
-             "set grid\n"
-             "set key below\n"
-             "set bmargin 8\n"
-             "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
-             "'black' title 'true assembly%s%s'%s, \\\n"
-             "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
-             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s%s (bars: interface error x %g)'%s%s%s\n",
-             title, y2, first, any_unstable ? ", stable" : "",
-             any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
-                            "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
-                          : "",
-             mag, first, any_unstable_pt ? ", stable" : "", mag,
-             any_unstable_pt ? ", \\\n     'frf.csv' using 2:($24 == 0 ? $3 : 1/0) skip 1 with "
-                               "points pt 6 ps 1.0 lw 1.5 lc rgb '#1f77b4' title 'hybrid test, "
-                               "unstable (fold-based label)'"
-                             : "",
-             any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
-                        "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
-                      : "",
-             more);
-    int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
-    if (rc) return rc;
-    int max_iterations = 0;
-    for (int i = 0; i < run->n; i++)
-        max_iterations =
-            run->pts[i].iterations > max_iterations ? run->pts[i].iterations : max_iterations;
-    /* the range hugs the bars: no empty tick left of 0 */
-    snprintf(body, sizeof body,
-             "set datafile separator ','\n"
-             "set title 'Newton iterations per accepted point'\n"
-             "set xlabel 'Iterations to converge'\n"
-             "set ylabel 'Number of points'\n"
-             "set boxwidth 0.8\n"
-             "set style fill solid 0.6\n"
-             "set xtics 1\n"
-             "set xrange [-0.6:%g]\n"
-             "set grid ytics\n"
-             "set yrange [0:*]\n"
-             "plot 'frf.csv' using 16:(1) skip 1 smooth frequency with boxes lc rgb '#1f77b4' "
-             "title 'points'\n",
-             max_iterations + 0.6);
-    return rths_plot(rep, rths_report_dir(rep), "iterations", 900, 600, body, err);
 }
 
 /* trace.csv: time_s, x_phys_m, x_num_m, target_m, force_n, demand (the first interface DoF);
