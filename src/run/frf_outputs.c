@@ -180,7 +180,7 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     frf_receptance_columns rec;
     frf_receptance_columns_init(&rec, run->setup);
     const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
-                      FRF_RECEPTANCE_MAX_COLUMNS];
+                      FRF_RECEPTANCE_MAX_COLUMNS + 1];
     for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
@@ -195,11 +195,12 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     const int rec_at = columns;
     for (int k = 0; k < rec.count; k++)
         names[columns++] = rec.names[k];
+    names[columns++] = "true_amplitude_m";
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
         double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
-                   FRF_RECEPTANCE_MAX_COLUMNS],
+                   FRF_RECEPTANCE_MAX_COLUMNS + 1],
             tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         memcpy(tail_values, row + head, sizeof tail_values);
@@ -207,6 +208,13 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
         frf_dof_columns_row(&run->dof_cols, &run->pts[i], row + dof_at);
         memcpy(row + tail, tail_values, sizeof tail_values);
         frf_receptance_row(&rec, run->setup, &run->pts[i], row + rec_at);
+        /* the truth at the point's frequency on its branch (the first interface DoF) */
+        const rths_solution *sol = &run->pts[i].sol;
+        row[rec_at + rec.count] =
+            run->setup->has_bilinear
+                ? rths_truth_branch_amplitude_m(run->setup, &run->truth, sol->frequency_hz,
+                                                sol->amplitude_m, NULL)
+                : rths_truth_linear_amplitude_m(run->setup, sol->frequency_hz);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);

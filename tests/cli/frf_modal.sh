@@ -42,7 +42,7 @@ if names[:29] != ["point", "frequency_hz", "amplitude_m", "numerical_amplitude_m
                   "converged", "fold", "segment", "amplitude_se_m", "measured_amplitude_m",
                   "se_honest", "stable", "late_samples", "clipped_demand_samples",
                   "saturated_sensor_samples", "resumed", "below_noise_floor"] \
-        or names[29:] != ["receptance_real_m_per_n", "receptance_imag_m_per_n"]:
+        or names[29:] != ["receptance_real_m_per_n", "receptance_imag_m_per_n", "true_amplitude_m"]:
     bad.append("frf.csv header %s" % names)
 h = np.array([complex(float(r["receptance_real_m_per_n"]), float(r["receptance_imag_m_per_n"]))
               for r in rows])
@@ -58,6 +58,10 @@ if amp_err > 1e-12 or phase_err > 0.01:
 hyb_err = np.max(np.abs(h - np.array([truth(x) for x in f])) / np.abs(h))
 if hyb_err > 0.01:
     bad.append("hybrid receptance vs numpy: %.2e" % hyb_err)
+true_amp = np.array([float(r["true_amplitude_m"]) for r in rows])
+ta_err = np.max(np.abs(true_amp / np.abs([truth(x) for x in f]) - 1))
+if ta_err > 1e-9:
+    bad.append("true_amplitude_m vs numpy: %.1e" % ta_err)
 t = list(csv.DictReader(open(d + "/truth.csv")))
 t_err = max(abs(complex(float(r["receptance_real_m_per_n"]), float(r["receptance_imag_m_per_n"]))
                 / truth(float(r["frequency_hz"])) - 1) for r in t)
