@@ -158,7 +158,7 @@ static int plot_frf(rths_report *rep, const frf_state *run, const rths_truth_cur
         }
     }
     /* a right-hand axis (rotations) takes its labels' room: the legends go further right */
-    double key_x = rot_axis ? 0.80 : KEY_X;
+    double key_x = rot_axis ? 0.785 : KEY_X;
     char unit[2][24], err_unit[24];
     double scale[2];
     scale[0] = dof_unit(s, 0, max_amp[0], unit[0], sizeof unit[0]);
@@ -219,7 +219,7 @@ static int plot_frf(rths_report *rep, const frf_state *run, const rths_truth_cur
         int rot = rths_setup_dof_is_rotation(s, dof);
         const char *axes = rot ? " axes x1y2" : "";
         char what[64];
-        snprintf(what, sizeof what, "interface DoF %d%s", d + 1, rot ? " (right axis)" : "");
+        snprintf(what, sizeof what, "interface DoF %d%s", d + 1, rot ? " (right)" : "");
         fprintf(g,
                 ", \\\n  'truth.csv' using 1:(column('dof%d_amplitude_m') * %g)%s with lines lw 2 "
                 "lc rgb '%s' title 'truth, %s', \\\n"
@@ -239,7 +239,7 @@ static int plot_frf(rths_report *rep, const frf_state *run, const rths_truth_cur
                "lw 1 notitle");
     /* several DoFs: each drawn shifted in frequency by a fraction of the span, so bars that
      * coincide stay visible (said in the panel's legend) */
-    double shift = dofs > 1 ? 0.004 * (hi - lo) : 0;
+    double shift = dofs > 1 ? 0.012 * (hi - lo) : 0;
     for (int d = 0; d < dofs; d++) {
         char which[48] = "(A - A_{true}) / A_{true}, ±3 SE";
         if (dofs > 1)
@@ -279,7 +279,7 @@ static int plot_frf(rths_report *rep, const frf_state *run, const rths_truth_cur
                 "? column('dof%d_interface_error_m') * %g : 1/0)%s with points pt 7 ps 0.7 lc rgb "
                 "'%s' title '|x_{phys} - x_{num}|, DoF %d%s'",
                 d + 1, d + 1, rot ? rot_err_scale : err_scale, rot ? " axes x1y2" : "",
-                rths_plot_colour(d), d + 1, rot ? " (right axis)" : "");
+                rths_plot_colour(d), d + 1, rot ? " (right)" : "");
     }
     fprintf(g, "\nunset multiplot\n");
     (void)min_err;
