@@ -398,9 +398,12 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
         fprintf(g,
                 "set format x '%%g'\nset xlabel 'Forcing frequency (Hz)'\n"
                 "set ylabel \"Deviation from\\ntruth (%%)\"\n"
-                "plot $rec%d using 1:8:9 with yerrorbars pt 7 ps 0.7 lc rgb '%s' title "
-                "'|H - H_{true}| / |H_{true}|, ±3 SE'\n",
-                d + 1, rths_plot_colour(d));
+                "plot 0 with lines lc rgb 'black' notitle, \\\n"
+                "  $rec%d using 1:8:9 with yerrorbars pt 7 ps 0.7 lc rgb '%s' title "
+                "'%s'\n",
+                d + 1, rths_plot_colour(d),
+                s->has_bilinear ? "no analytic truth (bilinear leg)"
+                                : "|H - H_{true}| / |H_{true}|, ±3 SE");
     }
     fprintf(g, "unset multiplot\n");
     int rc = fclose(g) ? rths_error_set(err, RTHS_EFAIL, "out of memory") : 0;
