@@ -206,7 +206,7 @@ static int plot_frf(rths_report *rep, const frf_state *run, const rths_truth_cur
         fprintf(g,
                 ", \\\n  'frf.csv' using 'frequency_hz':(column('stable') == 0 ? "
                 "column('amplitude_m') * %g : 1/0) with points pt 6 ps 1.0 lw 1.5 lc rgb '%s' "
-                "title 'hybrid test, unstable (fold-based label)'",
+                "title 'hybrid, unstable (fold label)'",
                 scale[0], rths_plot_colour(0));
     if (any_fold)
         fprintf(g,
@@ -374,10 +374,11 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
                 "set format x ''\nset xlabel ''\nset logscale y\nset format y '%%g'\n"
                 "set ylabel '|H| (%s)'\n"
                 "plot 'truth.csv' using 1:(sqrt(column('%s')**2 + column('%s')**2) * %g) with "
-                "lines lw 2 lc rgb 'black' title 'true assembly', \\\n"
+                "lines lw 2 lc rgb 'black' title '%s', \\\n"
                 "  $rec%d using 1:2:3 with yerrorbars pt 7 ps 0.7 lc rgb '%s' title "
                 "'hybrid test'\n",
-                unit, re, im, scale, d + 1, rths_plot_colour(d));
+                unit, re, im, scale, s->has_bilinear ? "" : "true assembly", d + 1,
+                rths_plot_colour(d));
         /* phase */
         panel(g, 0.53, 0.29, NULL, KEY_X);
         fprintf(g, "set lmargin at screen %.4f\nset rmargin at screen %.4f\nunset key\n", left,
@@ -444,11 +445,11 @@ static int plot_nyquist(rths_report *rep, const frf_state *run, const rths_truth
         fprintf(g,
                 "set xlabel 'Re H (%s)'\nset ylabel 'Im H (%s)'\n"
                 "plot 'truth.csv' using (column('%s') * %g):(column('%s') * %g) with lines lw 2 "
-                "lc rgb 'black' title 'true assembly', \\\n"
+                "lc rgb 'black' title '%s', \\\n"
                 "  $rec%d using 6:7:3:3 with xyerrorbars pt 7 ps 0.7 lc rgb '%s' title "
                 "'hybrid test, ±3 SE bars'\n",
-                unit, unit, rec.names[2 * d], scale, rec.names[2 * d + 1], scale, d + 1,
-                rths_plot_colour(d));
+                unit, unit, rec.names[2 * d], scale, rec.names[2 * d + 1], scale,
+                s->has_bilinear ? "" : "true assembly", d + 1, rths_plot_colour(d));
     }
     fprintf(g, "unset multiplot\n");
     int rc = fclose(g) ? rths_error_set(err, RTHS_EFAIL, "out of memory") : 0;
