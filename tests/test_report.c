@@ -363,8 +363,32 @@ static void test_report_folder(void **state) {
     assert_int_equal(rths_progress_enabled(0), isatty(2) ? 1 : 0);
 }
 
+/* The figures' unit per magnitude (rths_plot_unit): the SI unit scaled by a power of 1000 so the
+ * largest value reads between 1 and 1000; zero or non-finite magnitudes keep the SI unit. */
+static void test_plot_unit(void **state) {
+    (void)state;
+    static const struct {
+        double max_abs;
+        const char *si, *label;
+        double scale;
+    } cases[] = {{3.4e-4, "m", "µm", 1e6},     {0.5, "m", "mm", 1e3},    {1.2, "m", "m", 1},
+                 {2e-3, "m", "mm", 1e3},       {5e-10, "m", "pm", 1e12}, {3e-3, "rad", "mrad", 1e3},
+                 {3.4e-4, "m/N", "µm/N", 1e6}, {0, "m", "m", 1},         {NAN, "s", "s", 1},
+                 {1.5e-4, "s", "µs", 1e6},     {1e-20, "m", "pm", 1e12}};
+    for (size_t i = 0; i < sizeof cases / sizeof cases[0]; i++) {
+        char label[24];
+        double scale = rths_plot_unit(cases[i].max_abs, cases[i].si, label, sizeof label);
+        assert_string_equal(label, cases[i].label);
+        assert_rel(scale, cases[i].scale, 1e-12);
+    }
+    /* the palette cycles, and a negative index is the first colour */
+    assert_string_equal(rths_plot_colour(0), rths_plot_colour(5));
+    assert_string_equal(rths_plot_colour(-1), rths_plot_colour(0));
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_plot_unit),
         cmocka_unit_test(test_csv_round_trip),
         cmocka_unit_test(test_atomic_abort_and_replace),
         cmocka_unit_test(test_json_summary),

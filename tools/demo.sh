@@ -33,25 +33,59 @@ for p in 0.33 0.5 0.67; do
         "$(json "$s" points_within_3_standard_errors)" "$(json "$s" points)"
 done
 cat >"$out/frf_mass_ratios.gp.tmp" <<'GP'
+# The three mass ratios measure the same truth, so their points coincide: the top panel nests
+# their markers (large open circle, open square, small dot), the panels below draw each p shifted
+# by -0.01, 0, +0.01 Hz. Bars are +-3 standard errors (the figures' convention, docs/method.md).
 set datafile separator ','
-set title 'Hybrid test of the seed building around its second mode, three mass ratios p'
-set xlabel 'Forcing frequency (Hz)'
-set ylabel 'Storey 3 (interface) displacement amplitude (m)'
-set format y '%.1e'
+set datafile columnheaders
 set grid
-set key top left box opaque
-plot 'linear_p0.5/truth.csv' using 1:2 skip 1 with lines lw 2 lc rgb 'black' title 'true assembly (analytic)', \
-     'linear_p0.33/frf.csv' using 2:3 skip 1 with points pt 7 ps 1.0 lc rgb '#1f77b4' title 'hybrid, p = 0.33', \
-     'linear_p0.5/frf.csv' using 2:3 skip 1 with points pt 5 ps 0.9 lc rgb '#ff7f0e' title 'hybrid, p = 0.5', \
-     'linear_p0.67/frf.csv' using 2:3 skip 1 with points pt 9 ps 1.1 lc rgb '#2ca02c' title 'hybrid, p = 0.67'
+set xrange [11.8:14.2]
+set multiplot title 'Hybrid test of the seed building around its second mode, three mass ratios p'
+set lmargin at screen 0.09
+set rmargin at screen 0.72
+set arrow from first 13.4731, graph 0 to first 13.4731, graph 1 nohead dt 3 lw 1.2 lc rgb 'gray40' back
+set tmargin at screen 0.93
+set bmargin at screen 0.50
+set key at screen 0.735, screen 0.93 left top Left reverse samplen 2 spacing 1.1
+set label 1 'mode 2: 13.4731 Hz' at first 13.4731, graph 0.05 left offset 0.6,0 font ',10' tc rgb 'gray25' front
+set label 2 "the three p coincide:\nmarkers nested, below\nshifted by -0.01, 0, +0.01 Hz" at screen 0.735, screen 0.74 left font ',10'
+set format x ''
+set ylabel 'Storey 3 (interface) amplitude (µm)'
+set yrange [0:*]
+plot 'linear_p0.5/truth.csv' using 1:(column('amplitude_m') * 1e6) with lines lw 2 lc rgb 'black' title 'true assembly (analytic)', \
+     'linear_p0.33/frf.csv' using 'frequency_hz':(column('amplitude_m') * 1e6) with points pt 6 ps 2.2 lw 1.5 lc rgb '#1f77b4' title 'hybrid, p = 0.33', \
+     'linear_p0.5/frf.csv' using 'frequency_hz':(column('amplitude_m') * 1e6) with points pt 4 ps 1.3 lw 1.5 lc rgb '#ff7f0e' title 'hybrid, p = 0.5', \
+     'linear_p0.67/frf.csv' using 'frequency_hz':(column('amplitude_m') * 1e6) with points pt 7 ps 0.6 lc rgb '#2ca02c' title 'hybrid, p = 0.67'
+unset label
+set yrange [*:*]
+set tmargin at screen 0.46
+set bmargin at screen 0.27
+set key at screen 0.735, screen 0.46
+set ylabel "Deviation from\ntruth (%)"
+plot 0 with lines lc rgb 'black' notitle, \
+     'linear_p0.33/frf.csv' using (column('frequency_hz') - 0.01):(100 * (column('amplitude_m') / column('true_amplitude_m') - 1)):(300 * column('amplitude_se_m') / column('true_amplitude_m')) with yerrorbars pt 6 ps 0.8 lc rgb '#1f77b4' title 'p = 0.33, ±3 SE', \
+     'linear_p0.5/frf.csv' using 'frequency_hz':(100 * (column('amplitude_m') / column('true_amplitude_m') - 1)):(300 * column('amplitude_se_m') / column('true_amplitude_m')) with yerrorbars pt 4 ps 0.8 lc rgb '#ff7f0e' title 'p = 0.5', \
+     'linear_p0.67/frf.csv' using (column('frequency_hz') + 0.01):(100 * (column('amplitude_m') / column('true_amplitude_m') - 1)):(300 * column('amplitude_se_m') / column('true_amplitude_m')) with yerrorbars pt 7 ps 0.6 lc rgb '#2ca02c' title 'p = 0.67'
+set tmargin at screen 0.23
+set bmargin at screen 0.07
+set key at screen 0.735, screen 0.23
+set format x '%g'
+set xlabel 'Forcing frequency (Hz)'
+set logscale y
+set format y '10^{%T}'
+set ylabel "Interface error,\nfundamental (nm)"
+plot 'linear_p0.33/frf.csv' using (column('frequency_hz') - 0.01):(column('interface_error_m') > 0 ? column('interface_error_m') * 1e9 : 1/0) with points pt 6 ps 0.8 lc rgb '#1f77b4' title 'p = 0.33', \
+     'linear_p0.5/frf.csv' using 'frequency_hz':(column('interface_error_m') > 0 ? column('interface_error_m') * 1e9 : 1/0) with points pt 4 ps 0.8 lc rgb '#ff7f0e' title 'p = 0.5', \
+     'linear_p0.67/frf.csv' using (column('frequency_hz') + 0.01):(column('interface_error_m') > 0 ? column('interface_error_m') * 1e9 : 1/0) with points pt 7 ps 0.6 lc rgb '#2ca02c' title 'p = 0.67'
+unset multiplot
 GP
 {
-    echo "set terminal pngcairo size 1200,800 font 'DejaVu Sans,12' enhanced"
+    echo "set terminal pngcairo size 1300,1100 font 'DejaVu Sans,12' enhanced"
     echo "set output 'frf_mass_ratios.png'"
     cat "$out/frf_mass_ratios.gp.tmp"
-    echo "set terminal svg size 1200,800 font 'DejaVu Sans,12' enhanced background rgb 'white'"
+    echo "set terminal svg size 1300,1100 font 'DejaVu Sans,12' enhanced background rgb 'white'"
     echo "set output 'frf_mass_ratios.svg'"
-    echo "replot"
+    cat "$out/frf_mass_ratios.gp.tmp"
     echo "unset output"
 } >"$out/frf_mass_ratios.gp"
 rm -f "$out/frf_mass_ratios.gp.tmp"
@@ -99,4 +133,6 @@ PY
 echo
 echo "Figures: $out/model/true_frf.png, $out/frf_mass_ratios.png, $out/bilinear/frf.png,"
 echo "         $out/bilinear/iterations.png, $out/linear_p0.5/lissajous.png,"
+echo "         $out/linear_p0.5/bode.png, $out/linear_p0.5/nyquist.png,"
 echo "         $out/cantilever/frf.png (CSV and .gp beside each)"
+echo "Modes identified from the hybrid FRF: $out/linear_p0.5/modal.csv (UFF58: frf.uff)"

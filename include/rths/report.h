@@ -87,6 +87,16 @@ struct json_object *rths_json_summary_new(const char *command);
 int rths_plot(rths_report *rep, const char *dir, const char *basename, int width_px, int height_px,
               const char *body, rths_error *err);
 
+/* The figures' convention (docs/method.md, "Figures"): error bars are +-3 standard errors; the
+ * interface error has its own panel; a deviation-from-truth panel under every FRF; legends
+ * outside the plot area; units chosen per magnitude. rths_plot_unit picks the unit for values of
+ * magnitude up to max_abs in an SI unit si ("m", "rad", "m/N", ...): the SI unit scaled by a
+ * power of 1000 (m, mm, µm, nm, pm) so that max_abs reads between 1 and 1000 in it; the label
+ * (UTF-8, at most 23 bytes) into label, the factor SI values are multiplied by returned. */
+double rths_plot_unit(double max_abs, const char *si, char *label, size_t size);
+/* Colour of the d-th curve (0-based, cycling): the figures' one palette. */
+const char *rths_plot_colour(int d);
+
 /* ---- tables read back from CSV ---- */
 
 /* A CSV file written by rths_csv_*: named columns of doubles ("nan" reads as NaN). */

@@ -81,36 +81,43 @@ static int plot(rths_report *rep, const rths_chart *c, double p_ess, const rths_
     if (isfinite(p_ess))
         snprintf(ess_line, sizeof ess_line,
                  ", \\\n  %.17g with lines lw 3 dt 2 lc rgb '#e6b800' title "
-                 "'essential-spectrum limit p = %.4f'",
+                 "'essential spectrum: p = %.4f'",
                  p_ess, p_ess);
     double dtau = (c->tau[c->nt - 1] - c->tau[0]) / (c->nt - 1);
     double dp = c->np > 1 ? (c->p[c->np - 1] - c->p[0]) / (c->np - 1) : 0.01;
+    /* the figures' convention (report.h): the delay in a unit that fits its magnitude, the
+     * legend right of the plot, clear of the axis labels */
+    char unit[24];
+    double scale =
+        rths_plot_unit(fmax(fabs(c->tau[0]), fabs(c->tau[c->nt - 1])), "s", unit, sizeof unit);
     char body[4096];
     snprintf(body, sizeof body,
              "set datafile separator ','\n"
              "set title 'Delayed-feedback hybrid test of the %d-DoF structure, interface DoF %s: "
-             "stability chart (green: stable)'\n"
-             "set xlabel 'feedback delay {/Symbol t} (s)'\n"
-             "set ylabel 'mass ratio p = numerical share of the interface mass'\n"
-             "set format x '%%.1e'\n"
+             "stability chart'\n"
+             "set xlabel 'Feedback delay {/Symbol t} (%s)'\n"
+             "set ylabel 'Mass ratio p (numerical share of the interface mass)'\n"
              "set xrange [%.17g:%.17g]\n"
              "set yrange [%.17g:%.17g]\n"
-             "set key outside bottom center horizontal\n"
+             "set lmargin at screen 0.08\nset rmargin at screen 0.70\n"
+             "set key at screen 0.72, graph 1 left top Left reverse samplen 2 spacing 1.2\n"
              "set palette defined (0 '#ffffff', 1 '#9be39b')\n"
              "set cbrange [0:1]\n"
              "unset colorbox\n"
              "set grid front\n"
-             "plot 'chart.csv' skip 1 using 1:2:4 with image notitle, \\\n"
+             "plot 'chart.csv' skip 1 using ($1 * %g):2:4 with image notitle, \\\n"
              "  1/0 with boxes fs solid lc rgb '#9be39b' title 'stable', \\\n"
-             "  'boundary_curves.dat' using 1:2 with linespoints "
+             "  1/0 with boxes fs solid border lc rgb '#bbbbbb' fc rgb '#ffffff' title 'unstable', "
+             "\\\n"
+             "  'boundary_curves.dat' using ($1 * %g):2 with linespoints "
              "lw 2 pt 7 ps 0.25 lc rgb '#d62728' title 'boundary D(i{/Symbol w}) = 0 (MDBM)', "
              "\\\n"
-             "  'critical.csv' skip 1 using ($2 > 0 ? $2 : 1/0):1 with lines lw 1.5 dt 3 lc rgb "
-             "'#000000' title "
-             "'critical delay'%s\n",
-             sp->n, ifaces, c->tau[0] - 0.5 * dtau, c->tau[c->nt - 1] + 0.5 * dtau,
-             c->p[0] - 0.5 * dp, c->p[c->np - 1] + 0.5 * dp, ess_line);
-    return rths_plot(rep, rths_report_dir(rep), "chart", 1000, 800, body, err);
+             "  'critical.csv' skip 1 using ($2 > 0 ? $2 * %g : 1/0):1 with lines lw 1.5 dt 3 lc "
+             "rgb '#000000' title 'critical delay'%s\n",
+             sp->n, ifaces, unit, scale * (c->tau[0] - 0.5 * dtau),
+             scale * (c->tau[c->nt - 1] + 0.5 * dtau), c->p[0] - 0.5 * dp,
+             c->p[c->np - 1] + 0.5 * dp, scale, scale, scale, ess_line);
+    return rths_plot(rep, rths_report_dir(rep), "chart", 1300, 800, body, err);
 }
 
 /* The chart, its tables and summary are computed by the library (rths_api_chart_compute, the same

@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <json-c/json.h>
 #include <locale.h>
+#include <math.h>
 #include <spawn.h>
 #include <stdarg.h>
 #include <stdlib.h>
@@ -704,6 +705,23 @@ int rths_plot(rths_report *rep, const char *dir, const char *basename, int width
                      WIFEXITED(status) ? WEXITSTATUS(status) : -1);
     free(gp);
     return RTHS_OK;
+}
+
+double rths_plot_unit(double max_abs, const char *si, char *label, size_t size) {
+    static const char *const prefix[] = {"", "m", "µ", "n", "p"};
+    int k = 0;
+    if (isfinite(max_abs) && max_abs > 0)
+        while (k < 4 && max_abs * pow(1e3, k) < 1)
+            k++;
+    /* "m" with the milli prefix reads "mm"; an SI unit that starts with a prefix letter of its own
+     * ("m/N") still takes it in front: "mm/N", "µm/N" */
+    snprintf(label, size, "%s%s", prefix[k], si);
+    return pow(1e3, k);
+}
+
+const char *rths_plot_colour(int d) {
+    static const char *const colour[] = {"#1f77b4", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b"};
+    return colour[(d < 0 ? 0 : d) % 5];
 }
 
 int rths_progress_enabled(int quiet) {

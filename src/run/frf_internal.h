@@ -100,6 +100,10 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err);
 /* frf_absolute.c: absolute.csv for a base-excited run (absolute interface displacement, hybrid
  * and true, beside the relative one frf.csv reports). */
 int frf_write_absolute_csv(rths_report *rep, const frf_state *run, rths_error *err);
+/* frf_modal.c: frf.uff (the measured receptance, universal file format 58) and, for a linear
+ * structure, modal.csv (the modes in the tested range identified from it beside the truth's);
+ * called at the end of frf_write_frf_csv. A failed identification is logged, not an error. */
+int frf_write_modal_outputs(rths_report *rep, const frf_state *run, rths_error *err);
 int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                         rths_error *err);
 int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,

@@ -1,8 +1,9 @@
-/* The FRF test's outputs: frf.csv, truth.csv, the figures (frf, iterations, lissajous with
- * trace.csv) and summary.json. */
+/* The FRF test's outputs: frf.csv, truth.csv, the Lissajous figure with trace.csv, and
+ * summary.json (the other figures: frf_figures.c; modal.csv and frf.uff: frf_modal.c). */
 #include "run/frf_internal.h"
 
 #include "rths/rig_virtual.h"
+#include "run/frf_receptance.h"
 
 #include <json-c/json.h>
 #include <math.h>
@@ -168,14 +169,18 @@ static void floquet_row(const frf_state *run, int i, double *out) {
     out[3] = f ? f->trustworthy : NAN;
 }
 
-/* The leading and per-DoF columns, the optional blocks, then the tail (run.h): the tail always
- * ends the row, so a run without an option writes the columns before it as before. */
+/* The leading and per-DoF columns, the optional blocks, the tail (run.h), then the receptance
+ * (frf_receptance.h): the receptance came last, after the tail, so every column before it keeps
+ * its position (gnuplot scripts and tests address frf.csv's columns by number). */
 int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     char *path = rths_report_path(rep, "frf.csv");
     rths_csv *csv = NULL;
     int dofs = run->setup->split.n_int, fixed = rths_run_frf_column_count(dofs);
     int head = fixed - RTHS_RUN_FRF_TAIL_COLUMNS, columns = head;
-    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS];
+    frf_receptance_columns rec;
+    frf_receptance_columns_init(&rec, run->setup);
+    const char *names[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
+                      FRF_RECEPTANCE_MAX_COLUMNS + 1];
     for (int i = 0; i < head; i++)
         names[i] = rths_run_frf_column_name(dofs, i);
     if (run->floquet.enabled)
@@ -187,30 +192,50 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     int tail = columns;
     for (int k = 0; k < RTHS_RUN_FRF_TAIL_COLUMNS; k++)
         names[columns++] = rths_run_frf_column_name(dofs, head + k);
+    const int rec_at = columns;
+    for (int k = 0; k < rec.count; k++)
+        names[columns++] = rec.names[k];
+    names[columns++] = "true_amplitude_m";
     int rc = path ? rths_csv_open(path, columns, names, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int i = 0; i < run->n && !rc; i++) {
-        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS],
+        double row[RTHS_RUN_FRF_MAX_COLUMNS + FRF_EXTRA_COLUMNS + FRF_DOF_MAX_COLUMNS +
+                   FRF_RECEPTANCE_MAX_COLUMNS + 1],
             tail_values[RTHS_RUN_FRF_TAIL_COLUMNS];
         rths_run_frf_row_dofs(&run->pts[i], dofs, row);
         memcpy(tail_values, row + head, sizeof tail_values);
         if (run->floquet.enabled) floquet_row(run, i, row + head);
         frf_dof_columns_row(&run->dof_cols, &run->pts[i], row + dof_at);
         memcpy(row + tail, tail_values, sizeof tail_values);
+        frf_receptance_row(&rec, run->setup, &run->pts[i], row + rec_at);
+        /* the truth at the point's frequency on its branch (the first interface DoF) */
+        const rths_solution *sol = &run->pts[i].sol;
+        row[rec_at + rec.count] =
+            run->setup->has_bilinear
+                ? rths_truth_branch_amplitude_m(run->setup, &run->truth, sol->frequency_hz,
+                                                sol->amplitude_m, NULL)
+                : rths_truth_linear_amplitude_m(run->setup, sol->frequency_hz);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing frf.csv failed");
     }
     rc = rths_csv_finish(csv, rc, err);
     free(path);
+    /* the same points as a receptance for modal-analysis packages, and their modes */
+    if (!rc) rc = frf_write_modal_outputs(rep, run, err);
     return rc;
 }
 
 /* truth.csv: the first interface DoF's curve; with several interface DoFs (a linear structure)
- * also dof<d>_amplitude_m of each (frf.csv's names). */
+ * also dof<d>_amplitude_m of each (frf.csv's names); the receptance of every interface DoF
+ * (frf.csv's names; NaN with a bilinear leg); then output.dofs' columns, which end the row as
+ * before (tests/cli/frf_output_dofs.sh reads them from the end). */
 int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                         rths_error *err) {
     const frf_dof_columns *oc = &run->dof_cols;
-    const char *header[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
-        "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
+    frf_receptance_columns rec;
+    frf_receptance_columns_init(&rec, run->setup);
+    const char
+        *header[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS + FRF_RECEPTANCE_MAX_COLUMNS] = {
+            "frequency_hz", "amplitude_m", "amplitude_h2_m", "amplitude_h3_m", "stable"};
     int dofs = dof_columns(t->dofs);
     for (int d = 0; d < dofs; d++)
         header[5 + d] = rths_run_frf_column_name(dofs, RTHS_RUN_FRF_LEADING_COLUMNS +
@@ -218,126 +243,24 @@ int frf_write_truth_csv(rths_report *rep, const frf_state *run, const rths_truth
     char *path = rths_report_path(rep, "truth.csv");
     rths_csv *csv = NULL;
     for (int k = 0; k < oc->count; k++)
-        header[5 + dofs + k] = frf_dof_column_name(oc, k);
-    int rc = path ? rths_csv_open(path, 5 + dofs + oc->count, header, &csv, err)
+        header[5 + dofs + rec.count + k] = frf_dof_column_name(oc, k);
+    const int rec_at = 5 + dofs;
+    for (int k = 0; k < rec.count; k++)
+        header[rec_at + k] = rec.names[k];
+    int rc = path ? rths_csv_open(path, rec_at + rec.count + oc->count, header, &csv, err)
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
     for (int j = 0; j < t->n && !rc; j++) {
-        double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS] = {
-            t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
+        double row[5 + RTHS_MAX_INTERFACE_DOFS + FRF_DOF_MAX_COLUMNS + FRF_RECEPTANCE_MAX_COLUMNS] =
+            {t->freq_hz[j], t->amp_m[j], t->amp_h2_m[j], t->amp_h3_m[j], t->stable[j]};
         for (int d = 0; d < dofs; d++)
             row[5 + d] = t->amp_dof_m[d * t->n + j];
-        frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + 5 + dofs);
+        frf_receptance_truth_row(&rec, run->setup, t->freq_hz[j], row + rec_at);
+        frf_dof_columns_truth_row(oc, run->setup, t->freq_hz[j], row + rec_at + rec.count);
         if (rths_csv_row(csv, row)) rc = rths_error_set(err, RTHS_EFAIL, "writing truth.csv");
     }
     rc = rths_csv_finish(csv, rc, err);
     free(path);
     return rc;
-}
-
-/* Several interface DoFs: the other DoFs' truth (truth.csv) and hybrid points (frf.csv's
- * dof<d>_amplitude_m), one colour each, appended to the plot command. */
-static void interface_dof_curves(const frf_state *run, const rths_truth_curve *t, char *out,
-                                 size_t size) {
-    static const char *const colour[RTHS_MAX_INTERFACE_DOFS] = {"#1f77b4", "#2ca02c", "#ff7f0e",
-                                                                "#9467bd"};
-    int dofs = t->dofs, used = 0;
-    for (int d = 1; d < dofs && d < RTHS_MAX_INTERFACE_DOFS && used < (int)size; d++) {
-        int dof = run->setup->split.int_dofs[d] + 1;
-        /* a rotation (a beam's theta) in rad on the right-hand axis */
-        int rot = rths_setup_dof_is_rotation(run->setup, dof - 1);
-        const char *axes = rot ? " axes x1y2" : "", *unit = rot ? ", rad, right axis" : "";
-        used += snprintf(out + used, size - (size_t)used,
-                         ", \\\n     'truth.csv' using 1:%d skip 1%s with lines lw 2 lc rgb '%s' "
-                         "title 'true assembly, interface DoF %d (DoF %d%s)', \\\n"
-                         "     'frf.csv' using 2:%d skip 1%s with points pt 7 ps 0.8 lc rgb '%s' "
-                         "title 'hybrid test, interface DoF %d (DoF %d%s)'",
-                         6 + d, axes, colour[d], d + 1, dof, unit,
-                         RTHS_RUN_FRF_LEADING_COLUMNS + 1 + RTHS_RUN_FRF_DOF_COLUMNS * d, axes,
-                         colour[d], d + 1, dof, unit);
-    }
-}
-
-int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
-                 const char *title, rths_error *err) {
-    /* Interface errors are tiny next to the response: magnify them so the largest bar is about
-     * 5 % of the peak, and say by how much in the legend (the seed used a fixed 2x). */
-    double max_amp = 0, max_err = 0;
-    for (int i = 0; i < run->n; i++) {
-        max_amp = fmax(max_amp, run->pts[i].sol.amplitude_m);
-        max_err = fmax(max_err, frf_harmonic_error(&run->pts[i], 1));
-    }
-    double mag = 1;
-    if (max_err > 0) {
-        mag = 0.05 * max_amp / max_err;
-        double decade = pow(10, floor(log10(mag)));
-        mag = mag >= 1 ? floor(mag / decade) * decade : 1;
-    }
-    int any_unstable = 0, any_fold = 0, any_unstable_pt = 0;
-    for (int j = 0; j < t->n; j++)
-        any_unstable |= !t->stable[j];
-    for (int i = 0; i < run->n; i++) {
-        any_fold |= run->pts[i].fold;
-        any_unstable_pt |= !rths_point_stable(&run->pts[i]);
-    }
-    char body[8192], more[2048] = "", first[64] = "", y2[160] = "";
-    interface_dof_curves(run, t, more, sizeof more);
-    for (int d = 1; d < run->setup->split.n_int; d++)
-        if (rths_setup_dof_is_rotation(run->setup, run->setup->split.int_dofs[d]))
-            snprintf(y2, sizeof y2,
-                     "set y2label 'Interface rotation amplitude, fundamental (rad)'\nset y2tics\n"
-                     "set ytics nomirror\nset format y2 '%%.1e'\n");
-    if (run->setup->split.n_int > 1) /* several interface DoFs: name the first as the others */
-        snprintf(first, sizeof first, ", interface DoF 1 (DoF %d)",
-                 run->setup->split.int_dofs[0] + 1);
-    snprintf(body, sizeof body,
-             "set datafile separator ','\n"
-             "set title \"%s\" noenhanced\n"
-             "set xlabel 'Forcing frequency (Hz)'\n"
-             "set ylabel 'Interface displacement amplitude, fundamental (m)'\n"
-             "set format y '%%.1e'\n"
-             "%s"
-             "set grid\n"
-             "set key below\n"
-             "set bmargin 8\n"
-             "plot 'truth.csv' using 1:($5 == 1 ? $2 : 1/0) skip 1 with lines lw 2 lc rgb "
-             "'black' title 'true assembly%s%s'%s, \\\n"
-             "     'frf.csv' using 2:($24 == 1 ? $3 : 1/0):($6 * %g) skip 1 with yerrorbars pt 7 "
-             "ps 0.8 lc rgb '#1f77b4' title 'hybrid test%s%s (bars: interface error x %g)'%s%s%s\n",
-             title, y2, first, any_unstable ? ", stable" : "",
-             any_unstable ? ", \\\n     'truth.csv' using 1:($5 == 0 ? $2 : 1/0) skip 1 with "
-                            "lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, unstable'"
-                          : "",
-             mag, first, any_unstable_pt ? ", stable" : "", mag,
-             any_unstable_pt ? ", \\\n     'frf.csv' using 2:($24 == 0 ? $3 : 1/0) skip 1 with "
-                               "points pt 6 ps 1.0 lw 1.5 lc rgb '#1f77b4' title 'hybrid test, "
-                               "unstable (fold-based label)'"
-                             : "",
-             any_fold ? ", \\\n     'frf.csv' using 2:($19 == 1 ? $3 : 1/0) skip 1 with points "
-                        "pt 6 ps 3 lw 2 lc rgb '#d62728' title 'fold located after this point'"
-                      : "",
-             more);
-    int rc = rths_plot(rep, rths_report_dir(rep), "frf", 1200, 800, body, err);
-    if (rc) return rc;
-    int max_iterations = 0;
-    for (int i = 0; i < run->n; i++)
-        max_iterations =
-            run->pts[i].iterations > max_iterations ? run->pts[i].iterations : max_iterations;
-    /* the range hugs the bars: no empty tick left of 0 */
-    snprintf(body, sizeof body,
-             "set datafile separator ','\n"
-             "set title 'Newton iterations per accepted point'\n"
-             "set xlabel 'Iterations to converge'\n"
-             "set ylabel 'Number of points'\n"
-             "set boxwidth 0.8\n"
-             "set style fill solid 0.6\n"
-             "set xtics 1\n"
-             "set xrange [-0.6:%g]\n"
-             "set grid ytics\n"
-             "set yrange [0:*]\n"
-             "plot 'frf.csv' using 16:(1) skip 1 smooth frequency with boxes lc rgb '#1f77b4' "
-             "title 'points'\n",
-             max_iterations + 0.6);
-    return rths_plot(rep, rths_report_dir(rep), "iterations", 900, 600, body, err);
 }
 
 /* trace.csv: time_s, x_phys_m, x_num_m, target_m, force_n, demand (the first interface DoF);
@@ -398,18 +321,22 @@ static int lissajous_row(char *out, size_t size, const rths_setup *setup, int d,
                     "set xlabel 'Time (s)'\n"
                     "set ylabel '%s (%s)'\n"
                     "set size nosquare\n"
-                    "set key below\n"
+                    /* the legend in a band left free above the traces, clear of the data and
+                       of the axis labels */
+                    "set offsets 0, 0, graph 0.3, 0\n"
+                    "set key inside top center horizontal samplen 2\n"
                     "set title '%s: time traces'\n"
-                    "plot 'trace.csv' using 1:($%d * %g) skip 1 with lines lw 2 title 'physical', "
-                    "\\\n"
-                    "     'trace.csv' using 1:($%d * %g) skip 1 with lines lw 2 dt 2 title "
-                    "'numerical', \\\n"
+                    "plot 'trace.csv' using 1:($%d * %g) skip 1 with lines lw 2 lc rgb '#1f77b4' "
+                    "title 'physical', \\\n"
+                    "     'trace.csv' using 1:($%d * %g) skip 1 with lines lw 2 dt 2 lc rgb "
+                    "'#ff7f0e' title 'numerical', \\\n"
                     "     'trace.csv' using 1:($%d * %g) skip 1 with lines lw 1 lc rgb 'gray50' "
                     "title 'target x^*'\n"
                     "set xlabel 'Physical (%s)'\n"
                     "set ylabel 'Numerical (%s)'\n"
                     "set title '%s: numerical against physical'\n"
                     "set size square\n"
+                    "set offsets 0, 0, 0, 0\n"
                     "unset key\n"
                     "plot 'trace.csv' using ($%d * %g):($%d * %g) skip 1 with lines lw 2 lc rgb "
                     "'#1f77b4'\n",
