@@ -47,11 +47,14 @@ async function points() {
   const api = JSON.parse(r.body);
   const ref = csv(csvPath);
   if (api.source !== source) fail(`/api/points source '${api.source}', expected '${source}'`);
-  if (JSON.stringify(api.columns) !== JSON.stringify(ref.columns)) fail(`/api/points columns ${api.columns} != ${ref.columns}`);
+  // journal.jsonl carries run.h's fixed columns; frf.csv adds the receptance, truth and
+  // output-DoF columns after them, so a run in progress is compared on the journal's columns
+  const want = source === "journal.jsonl" ? ref.columns.slice(0, api.columns.length) : ref.columns;
+  if (JSON.stringify(api.columns) !== JSON.stringify(want)) fail(`/api/points columns ${api.columns} != ${want}`);
   if (api.points.length !== ref.rows.length) return fail(`/api/points: ${api.points.length} points, csv ${ref.rows.length}`);
   let compared = 0;
   for (let i = 0; i < ref.rows.length; i++)
-    for (let c = 0; c < ref.columns.length; c++) {
+    for (let c = 0; c < want.length; c++) {
       const j = api.points[i][ref.columns[c]];
       if (!same(ref.rows[i][c], j)) return fail(`/api/points point ${i} ${ref.columns[c]}: ${j} != ${ref.rows[i][c]}`);
       compared++;
