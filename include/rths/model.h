@@ -315,9 +315,11 @@ int rths_sparse_model_modes(const rths_sparse_model *m, rths_sparse_modes *out,
 void rths_sparse_modes_free(rths_sparse_modes *m);
 
 /* The FRF of a sparse model at out_dofs: modal (the modes' dynamic response plus the static
- * response of every mode not computed: x = sum_r phi_r p_r / (w_r^2 - w^2 + 2 i z_r w_r w) +
- * K^-1 f - sum_r phi_r p_r / w_r^2, p_r = phi_r^T f; exact below the computed modes up to the
- * dropped modes' dynamic amplification) or direct (one complex symmetric LDL^T of
+ * response of every mode not computed and its first dynamic correction:
+ * x = sum_r phi_r p_r / (w_r^2 - w^2 + 2 i z_r w_r w) + R0 f + w^2 R1 f, p_r = phi_r^T f,
+ * R0 = K^-1 - sum_r phi_r phi_r^T / w_r^2, R1 = K^-1 M K^-1 - sum_r phi_r phi_r^T / w_r^4:
+ * exact for damping the modes decouple up to (w / w_first dropped)^4 of the dropped modes'
+ * static share) or direct (one complex symmetric LDL^T of
  * K + i w C - w^2 M per frequency, one symbolic analysis). */
 typedef struct rths_sparse_frf rths_sparse_frf;
 int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *modes,

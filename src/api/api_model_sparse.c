@@ -209,6 +209,8 @@ static struct json_object *summary(const rths_sparse_model *m, const rths_sparse
     json_object_object_add(solver, "modes_max_relative_residual",
                            json_object_new_double(modes->max_residual));
     json_object_object_add(solver, "sturm_count", json_object_new_int(modes->sturm_below));
+    json_object_object_add(solver, "sturm_shift_rad2_s2",
+                           json_object_new_double(modes->sturm_shift));
     json_object_object_add(solver, "modal_damping_coupling_max",
                            json_object_new_double(modes->max_damping_coupling));
     json_object_object_add(solver, "frf_method", json_object_new_string(t->frf_method));
@@ -275,7 +277,7 @@ int rths_api_model_compute_sparse(const rths_sparse_model *m, const rths_model_c
     if (!rc) rc = rths_sparse_frf_create(m, &modes, k_factor, n_out, dofs, &sweep, err);
     snprintf(t.frf_method, sizeof t.frf_method, "%s",
              m->frf_direct ? "direct: sparse complex LDL^T per frequency"
-                           : "modal: lowest modes + static residual");
+                           : "modal: lowest modes + residual of the rest (2 moments)");
     if (!rc) rc = rths_result_new(&r, err);
     if (!rc) rc = modes_table(r, &modes, dofs, n_out, err);
     if (!rc) rc = frf_table(r, m, sweep, dofs, n_out, freqs, count, &peak_amp, &peak_hz, err);

@@ -529,6 +529,7 @@ struct rths_sparse_frf {
     double *omega2, *two_zeta_omega; /* count */
     double *modal_out;               /* count x n_out: phi_r(out_o) p_r */
     double *residual_out;            /* n_out: static response of the modes not computed */
+    double *residual2_out; /* n_out: their next moment, times w^2 (sparse_model.c, frf_create) */
     rths_sparse_factor *complex_factor;
     const rths_sparse_sym *terms[3];
     double complex *rhs;
@@ -542,6 +543,7 @@ void rths_sparse_frf_destroy(rths_sparse_frf *s) {
     free(s->two_zeta_omega);
     free(s->modal_out);
     free(s->residual_out);
+    free(s->residual2_out);
     free(s->rhs);
     rths_sparse_factor_destroy(s->complex_factor);
     free(s);
@@ -562,17 +564,30 @@ int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *
     s->two_zeta_omega = malloc(sizeof(double) * (size_t)(count + 1));
     s->modal_out = malloc(sizeof(double) * (size_t)(count + 1) * (size_t)(n_out + 1));
     s->residual_out = calloc((size_t)n_out + 1, sizeof(double));
-    double *x = malloc(sizeof(double) * (size_t)n);
-    int rc = s->out_dofs && s->omega2 && s->two_zeta_omega && s->modal_out && s->residual_out && x
+    s->residual2_out = calloc((size_t)n_out + 1, sizeof(double));
+    double *x = malloc(sizeof(double) * (size_t)n), *y = malloc(sizeof(double) * (size_t)n);
+    int rc = s->out_dofs && s->omega2 && s->two_zeta_omega && s->modal_out && s->residual_out &&
+                     s->residual2_out && x && y
                  ? RTHS_OK
                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
     if (!rc) memcpy(s->out_dofs, out_dofs, sizeof(int) * (size_t)n_out);
     if (!rc && k_factor) {
-        /* the static response K^-1 f, less what the computed modes carry of it */
+        /* The modes not computed (j) respond with sum_j phi_j p_j / (w_j^2 - w^2), expanded in
+         * w^2 / w_j^2 (undamped: their damping changes it by 2 z_j w / w_j, below the first
+         * term's error): sum_j phi_j p_j / w_j^2 + w^2 sum_j phi_j p_j / w_j^4 + ...; the two
+         * sums are the static response K^-1 f and its next moment K^-1 M K^-1 f, each less what
+         * the computed modes carry of them. Two sparse solves with the factor of K; the error
+         * left is of order (w / w_first dropped)^4 of the dropped modes' static share. */
         memcpy(x, m->force, sizeof(double) * (size_t)n);
         rc = rths_sparse_solve_real(k_factor, x, 1, err);
-        for (int o = 0; o < n_out && !rc; o++)
+        if (!rc) {
+            rths_sparse_symv(&m->mass, x, y);
+            rc = rths_sparse_solve_real(k_factor, y, 1, err);
+        }
+        for (int o = 0; o < n_out && !rc; o++) {
             s->residual_out[o] = x[out_dofs[o]];
+            s->residual2_out[o] = y[out_dofs[o]];
+        }
         for (int r = 0; r < count && !rc; r++) {
             const double *phi = modes->shapes + (size_t)r * n;
             double p = dot(n, phi, m->force);
@@ -582,10 +597,12 @@ int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *
                 double c = phi[out_dofs[o]] * p;
                 s->modal_out[(size_t)r * n_out + o] = c;
                 s->residual_out[o] -= c / s->omega2[r];
+                s->residual2_out[o] -= c / (s->omega2[r] * s->omega2[r]);
             }
         }
     }
     free(x);
+    free(y);
     if (rc) {
         rths_sparse_frf_destroy(s);
         return rc;
@@ -599,7 +616,7 @@ int rths_sparse_frf_eval(rths_sparse_frf *s, double omega_rad_s, double complex 
     if (s->model->frf_direct) return rths_sparse_frf_direct(s, omega_rad_s, x_out, err);
     double w = omega_rad_s;
     for (int o = 0; o < s->n_out; o++)
-        x_out[o] = s->residual_out[o];
+        x_out[o] = s->residual_out[o] + w * w * s->residual2_out[o];
     for (int r = 0; r < s->count; r++) {
         double complex h = 1.0 / (s->omega2[r] - w * w + I * s->two_zeta_omega[r] * w);
         const double *c = s->modal_out + (size_t)r * s->n_out;
