@@ -287,6 +287,10 @@ typedef struct rths_sparse_model {
  * at the band's end, and their static part is exact: rths_sparse_frf). */
 #define RTHS_SPARSE_MODEL_MODES_MARGIN 1.5
 
+/* model.frf.check_points' default: 1 up to this many DoFs, 0 above (each check is a direct
+ * complex solve, as costly as the modes' factorisations together). */
+#define RTHS_SPARSE_MODEL_CHECK_UP_TO 20000
+
 /* Reads the model; choice->stiffness is taken over (emptied). Errors as rths_setup_read's. */
 int rths_sparse_model_read(rths_config *cfg, rths_model_choice *choice, rths_sparse_model *out,
                            rths_error *err);
@@ -304,12 +308,13 @@ typedef struct rths_sparse_modes {
     int sturm_below;     /* eigenvalues below the midpoint past the last mode (LDL^T inertia) */
     double sturm_shift;  /* that midpoint, rad^2/s^2 */
     double max_damping_coupling; /* max |phi_r^T C phi_s| / sqrt(c_rr c_ss), r != s */
+    double *static_x, *static_y; /* n: K^-1 f and K^-1 M K^-1 f (the model's force) */
     rths_sparse_eigs_stats stats;
     double check_s; /* residuals, Sturm count and damping */
 } rths_sparse_modes;
 
-/* Modes of m; *k_factor (when not NULL) receives the factor of K (terms K, M; refactorised at
- * shift 0) for the static solves of rths_sparse_frf_create. */
+/* Modes of m, their checks and the static responses to m's force; *k_factor (when not NULL)
+ * receives the factor of K (terms K, M; refactorised at shift 0) for further solves. */
 int rths_sparse_model_modes(const rths_sparse_model *m, rths_sparse_modes *out,
                             rths_sparse_factor **k_factor, rths_error *err);
 void rths_sparse_modes_free(rths_sparse_modes *m);
@@ -322,9 +327,8 @@ void rths_sparse_modes_free(rths_sparse_modes *m);
  * static share) or direct (one complex symmetric LDL^T of
  * K + i w C - w^2 M per frequency, one symbolic analysis). */
 typedef struct rths_sparse_frf rths_sparse_frf;
-int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *modes,
-                           rths_sparse_factor *k_factor, int n_out, const int *out_dofs,
-                           rths_sparse_frf **out, rths_error *err);
+int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *modes, int n_out,
+                           const int *out_dofs, rths_sparse_frf **out, rths_error *err);
 int rths_sparse_frf_eval(rths_sparse_frf *s, double omega_rad_s, double complex *x_out,
                          rths_error *err);
 int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double complex *x_out,

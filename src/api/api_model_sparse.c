@@ -240,13 +240,12 @@ int rths_api_model_compute_sparse(const rths_sparse_model *m, const rths_model_c
     *out = NULL;
     rths_api_sparse_model_timing t = {0};
     rths_sparse_modes modes = {0};
-    rths_sparse_factor *k_factor = NULL;
     rths_sparse_frf *sweep = NULL;
     rths_result *r = NULL;
     double *freqs = NULL, peak_amp = 0, peak_hz = 0;
     int count = 0, n_out = 0, *dofs = NULL;
     t.read_s = choice_read_s + m->read_matrices_s;
-    int rc = rths_sparse_model_modes(m, &modes, &k_factor, err);
+    int rc = rths_sparse_model_modes(m, &modes, NULL, err);
     if (!rc) {
         t.order_s = modes.stats.analysis_s;
         t.factor_s = modes.stats.factor_s;
@@ -274,7 +273,7 @@ int rths_api_model_compute_sparse(const rths_sparse_model *m, const rths_model_c
     }
     if (!rc && !(dofs = rths_sparse_model_output_dofs(m, &n_out)))
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    if (!rc) rc = rths_sparse_frf_create(m, &modes, k_factor, n_out, dofs, &sweep, err);
+    if (!rc) rc = rths_sparse_frf_create(m, &modes, n_out, dofs, &sweep, err);
     snprintf(t.frf_method, sizeof t.frf_method, "%s",
              m->frf_direct ? "direct: sparse complex LDL^T per frequency"
                            : "modal: lowest modes + residual of the rest (2 moments)");
@@ -296,7 +295,6 @@ int rths_api_model_compute_sparse(const rths_sparse_model *m, const rths_model_c
     free(freqs);
     free(dofs);
     rths_sparse_frf_destroy(sweep);
-    rths_sparse_factor_destroy(k_factor);
     if (timing) *timing = t;
     rths_sparse_modes_free(&modes);
     if (rc) {
