@@ -39,13 +39,51 @@ static const char usage[] =
 /* At most this many modes are marked in the figure (and printed): the rest are in modes.csv. */
 #define MODES_SHOWN 40
 
-/* roles: every DoF's side (the dense setup's or the sparse model's); forcing: in words. */
+/* At most this many curves in the figure (a beam's 74 output DoFs drew 74 curves nobody could
+ * tell apart): the interface, the forcing DoF and the physical side first, then DoFs spread
+ * evenly over the rest; every DoF stays in true_frf.csv. */
+#define FIGURE_CURVES 8
+
+/* Which of the n_out output DoFs the figure draws (drawn[k] = 1). */
+static void choose_curves(const rths_dof_role *roles, int forcing_dof, const int *dofs, int n_out,
+                          char *drawn) {
+    int chosen = 0;
+    for (int k = 0; k < n_out; k++)
+        drawn[k] = n_out <= FIGURE_CURVES;
+    if (n_out <= FIGURE_CURVES) return;
+    for (int pass = 0; pass < 3; pass++)
+        for (int k = 0; k < n_out && chosen < FIGURE_CURVES; k++) {
+            int i = dofs[k];
+            int want = pass == 0   ? roles[i] == RTHS_DOF_INTERFACE
+                       : pass == 1 ? i == forcing_dof
+                                   : roles[i] == RTHS_DOF_PHYSICAL;
+            if (want && !drawn[k]) drawn[k] = 1, chosen++;
+        }
+    int left = FIGURE_CURVES - chosen;
+    for (int j = 0; j < left; j++) {
+        /* spread evenly; a DoF drawn already passes the turn to the next one not drawn (n_out >
+         * FIGURE_CURVES: there always is one) */
+        int k = (int)(((long)j * 2 + 1) * n_out / (2L * left));
+        for (int t = 0; t < n_out && drawn[k]; t++)
+            k = (k + 1) % n_out;
+        drawn[k] = 1;
+    }
+}
+
+/* roles: every DoF's side (the dense setup's or the sparse model's); forcing: in words;
+ * forcing_dof: 0-based, -1 for a base excitation. */
 static int plot_frf(rths_report *rep, const rths_dof_role *roles, const char *forcing,
-                    const double *mode_hz, int n_modes, const int *dofs, int n_out, double f_lo,
-                    double f_hi, rths_error *err) {
+                    int forcing_dof, const double *mode_hz, int n_modes, const int *dofs, int n_out,
+                    double f_lo, double f_hi, rths_error *err) {
+    char *drawn = malloc((size_t)n_out + 1);
+    if (!drawn) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    choose_curves(roles, forcing_dof, dofs, n_out, drawn);
     size_t cap = 4096 + (size_t)(n_out + MODES_SHOWN) * 256;
     char *body = malloc(cap);
-    if (!body) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!body) {
+        free(drawn);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
     size_t len = (size_t)snprintf(body, cap,
                                   "set datafile separator ','\n"
                                   "set title 'True assembly: response to %s (analytic)'\n"
@@ -65,20 +103,23 @@ static int plot_frf(rths_report *rep, const rths_dof_role *roles, const char *fo
                                 mode_hz[r], mode_hz[r]);
     }
     if (len < cap) len += (size_t)snprintf(body + len, cap - len, "plot ");
-    for (int k = 0; k < n_out && len < cap; k++) {
+    for (int k = 0, first = 1; k < n_out && len < cap; k++) {
+        if (!drawn[k]) continue;
         int i = dofs[k];
         const char *role = roles[i] == RTHS_DOF_INTERFACE  ? "interface"
                            : roles[i] == RTHS_DOF_PHYSICAL ? "physical"
                                                            : "numerical";
         len += (size_t)snprintf(body + len, cap - len,
                                 "%s'true_frf.csv' using 1:%d skip 1 with lines lw %d title "
-                                "'x_%d (%s)'",
-                                k ? ", \\\n     " : "", 2 + 2 * k,
+                                "'x_{%d} (%s)'",
+                                first ? "" : ", \\\n     ", 2 + 2 * k,
                                 roles[i] == RTHS_DOF_INTERFACE ? 3 : 1, i + 1, role);
+        first = 0;
     }
     if (len < cap) snprintf(body + len, cap - len, "\n");
     int rc = rths_plot(rep, rths_report_dir(rep), "true_frf", 1200, 800, body, err);
     free(body);
+    free(drawn);
     return rc;
 }
 
@@ -151,7 +192,7 @@ static int model_sparse(const rths_cli *cli, int argc, char **argv, rths_config 
         const double *f = rths_result_column(result, frf, 0);
         interface_peak(result, model.int_dofs[0], &peak_amp, &peak_hz);
         rc =
-            plot_frf(rep, model.roles, forcing,
+            plot_frf(rep, model.roles, forcing, model.base_excitation ? -1 : model.forcing_dof,
                      rths_result_column(result, modes, column_index(result, modes, "frequency_hz")),
                      rths_result_rows(result, modes), dofs, n_out, f[0],
                      f[rths_result_rows(result, frf) - 1], err);
@@ -279,7 +320,7 @@ int rths_cmd_model(int argc, char **argv) {
         const double *f = rths_result_column(result, frf, 0);
         interface_peak(result, setup.split.int_dofs[0], &peak_amp, &peak_hz);
         rc =
-            plot_frf(rep, setup.roles, forcing,
+            plot_frf(rep, setup.roles, forcing, setup.base_excitation ? -1 : setup.forcing_dof,
                      rths_result_column(result, modes, column_index(result, modes, "frequency_hz")),
                      rths_result_rows(result, modes), dofs, n_out, f[0],
                      f[rths_result_rows(result, frf) - 1], &err);

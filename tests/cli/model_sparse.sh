@@ -127,6 +127,23 @@ grep -Eq "^Solver: dense \(n = [0-9]+ <= 1000; half-bandwidth" "$work/d.out" ||
 grep -Eq "^Solver: sparse \(n = 1232 > 1000 and the pattern is not banded \(half-bandwidth [0-9]+ > n / 8 = 154\)\)" \
     "$work/b.out" || fail "1232 DoFs: auto did not take sparse: $(head -n 1 "$work/b.out")"
 
+# the figure (issue 28): at most 8 curves, the interface, forcing and physical DoFs among them,
+# subscripts braced (gnuplot's enhanced text sets x_10 as x with subscript 1 and a 0 after it)
+/usr/bin/python3 "$gen" --nx 2 --ny 1 --nz 1 --seed 3 --specimen 2000 3e5 "$work/tiny" \
+    >"$work/gen.log" 2>&1 || fail "gen_frame3d.py (tiny)"
+"$bin" model "$work/tiny/frame.yaml" --out "$work/t" --quiet --set model.frf.points=20 ||
+    fail "rths model (14 DoFs) failed"
+curves=$(grep -c "title 'x_{" "$work/t/true_frf.gp")
+[ "$curves" -eq 16 ] || fail "figure: $curves curves in true_frf.gp (8 per terminal expected)"
+grep -q "title 'x_[0-9]" "$work/t/true_frf.gp" && fail "figure: an unbraced subscript"
+iface=$(sed -n 's/^  interface: \[\([0-9]*\)\]/\1/p' "$work/tiny/frame.yaml")
+forced=$(sed -n 's/^  dof: \([0-9]*\)/\1/p' "$work/tiny/frame.yaml")
+for d in "$iface" "$forced" 13 14; do
+    grep -q "title 'x_{$d} " "$work/t/true_frf.gp" || fail "figure: DoF $d not drawn"
+done
+[ "$(head -n 1 "$work/t/true_frf.csv" | tr ',' '\n' | grep -c _amplitude_m)" -eq 14 ] ||
+    fail "true_frf.csv: not every DoF of a 14-DoF model"
+
 # bad input
 printf 'structure:\n  storeys:\n    mass_kg: [1, 1]\n    damping_n_s_per_m: [1, 1]\n    stiffness_n_per_m: [100, 100]\nsplit:\n  interface: [1]\n  mass_ratio: 0.5\nforcing:\n  dof: 2\n  amplitude_n: 1\nmodel:\n  solver: sparse\n' >"$work/chain.yaml"
 refused model "sparse on a storey chain" "model.solver.*Matrix Market" "$work/chain.yaml"
