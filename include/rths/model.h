@@ -337,6 +337,15 @@ int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double comple
 double rths_sparse_frf_direct_s(const rths_sparse_frf *s);
 void rths_sparse_frf_destroy(rths_sparse_frf *s);
 
+/* The numerical substructure of a sparse model, as rths_split_create makes it (order: interface
+ * DoFs, then internal numerical ones, each ascending; *dofs_out their assembly indices, nn of
+ * them): the interface mass block times the model's p (one p for every interface DoF), of C and K
+ * the interface diagonal minus the couplings to numerical DoFs (the coupling rule), every other
+ * entry among these DoFs as it is. */
+int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym *mass,
+                                     rths_sparse_sym *damping, rths_sparse_sym *stiffness,
+                                     int **dofs_out, int *nn_out, rths_error *err);
+
 /* Peak resident memory of the process so far, MB (getrusage ru_maxrss). */
 double rths_peak_memory_mb(void);
 

@@ -673,3 +673,74 @@ int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double comple
 double rths_sparse_frf_direct_s(const rths_sparse_frf *s) {
     return s ? s->direct_s : 0;
 }
+
+/* ---- the numerical substructure ---- */
+
+int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym *mass,
+                                     rths_sparse_sym *damping, rths_sparse_sym *stiffness,
+                                     int **dofs_out, int *nn_out, rths_error *err) {
+    int n = m->n, nn = 0;
+    memset(mass, 0, sizeof *mass);
+    memset(damping, 0, sizeof *damping);
+    memset(stiffness, 0, sizeof *stiffness);
+    *dofs_out = NULL;
+    *nn_out = 0;
+    int *map = malloc(sizeof(int) * (size_t)n), *dofs = malloc(sizeof(int) * (size_t)n);
+    double *diag = calloc((size_t)n, sizeof(double));
+    const rths_sparse_sym *src[3] = {&m->mass, &m->damping, &m->stiffness};
+    rths_sparse_sym *dst[3] = {mass, damping, stiffness};
+    long cap = 0;
+    for (int k = 0; k < 3; k++)
+        if (src[k]->colptr[n] + n > cap) cap = src[k]->colptr[n] + n;
+    int *ti = malloc(sizeof(int) * (size_t)cap), *tj = malloc(sizeof(int) * (size_t)cap);
+    double *tv = malloc(sizeof(double) * (size_t)cap);
+    int rc = map && dofs && diag && ti && tj && tv
+                 ? RTHS_OK
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    /* the split's order: interface DoFs, then the internal numerical ones, each ascending */
+    for (int pass = 0; pass < 2 && !rc; pass++)
+        for (int i = 0; i < n; i++) {
+            rths_dof_role want = pass == 0 ? RTHS_DOF_INTERFACE : RTHS_DOF_NUMERICAL;
+            if (pass == 0) map[i] = -1;
+            if (m->roles[i] == want) map[i] = nn, dofs[nn++] = i;
+        }
+    for (int k = 0; k < 3 && !rc; k++) {
+        const rths_sparse_sym *a = src[k];
+        long t = 0;
+        memset(diag, 0, sizeof(double) * (size_t)n);
+        for (int j = 0; j < n; j++)
+            for (int e = a->colptr[j]; e < a->colptr[j + 1]; e++) {
+                int i = a->rowidx[e];
+                if (map[i] < 0 || map[j] < 0) continue;
+                int ii = m->roles[i] == RTHS_DOF_INTERFACE, ij = m->roles[j] == RTHS_DOF_INTERFACE;
+                double v = a->value[e];
+                if (ii && ij) {
+                    /* the interface block: p M_II of the mass (rths_split_create); of C and K
+                     * only what joins the interface to numerical DoFs (the coupling rule,
+                     * added below) */
+                    if (k == 0) ti[t] = map[i], tj[t] = map[j], tv[t++] = m->mass_ratio * v;
+                    continue;
+                }
+                if (k > 0 && ii != ij) diag[ii ? i : j] -= v;
+                ti[t] = map[i], tj[t] = map[j], tv[t++] = v;
+            }
+        if (k > 0)
+            for (int d = 0; d < m->n_int; d++)
+                ti[t] = tj[t] = map[m->int_dofs[d]], tv[t++] = diag[m->int_dofs[d]];
+        rc = rths_sparse_from_triplets(nn, t, ti, tj, tv, dst[k], err);
+    }
+    free(map);
+    free(diag);
+    free(ti);
+    free(tj);
+    free(tv);
+    if (rc) {
+        free(dofs);
+        for (int k = 0; k < 3; k++)
+            rths_sparse_free(dst[k]);
+        return rc;
+    }
+    *dofs_out = dofs;
+    *nn_out = nn;
+    return RTHS_OK;
+}
