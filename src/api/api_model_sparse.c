@@ -269,6 +269,8 @@ int rths_api_model_compute_sparse(const rths_sparse_model *m, const rths_model_c
                            .frequency_hz = modes.frequency_hz,
                            .damping_ratio = modes.damping_ratio};
         double end = m->frf_end_hz > 0 ? m->frf_end_hz : modes.frequency_hz[modes.count - 1];
+        t.highest_mode_hz = modes.frequency_hz[modes.count - 1];
+        t.frf_end_hz = end;
         rc = rths_frf_grid(&view, m->frf_start_hz, end, m->frf_points, &freqs, &count, err);
     }
     if (!rc && !(dofs = rths_sparse_model_output_dofs(m, &n_out)))

@@ -26,6 +26,7 @@ typedef struct rths_api_sparse_model_timing {
     double modes_max_residual, damping_coupling, sturm_shift;
     int sturm_below;
     char ordering[16];
+    double highest_mode_hz, frf_end_hz; /* the modal FRF leaves out modes between these */
 } rths_api_sparse_model_timing;
 
 /* Tables "modes" (the lowest model.modes modes) and "true_frf", the summary (with the path's

@@ -216,6 +216,19 @@ static int model_sparse(const rths_cli *cli, int argc, char **argv, rths_config 
                        sqrt(timing.sturm_shift) / (2 * M_PI), timing.sturm_below);
         rths_cli_print(cli, "FRF: %s, %d frequencies; %s\n", timing.frf_method, timing.frf_points,
                        check);
+        if (!model.frf_direct && timing.frf_end_hz > timing.highest_mode_hz) {
+            /* modes above the highest computed one but inside the range are left out */
+            rths_cli_print(cli,
+                           "Warning: the FRF range ends at %g Hz, above the highest mode "
+                           "computed (%.4f Hz): the modal FRF leaves out any mode between; raise "
+                           "model.modes, drop it (every mode below 1.5 x model.frf.end_hz is then "
+                           "computed) or lower model.frf.end_hz\n",
+                           timing.frf_end_hz, timing.highest_mode_hz);
+            rths_report_log(rep,
+                            "warning: FRF range ends at %g Hz, above the highest mode computed "
+                            "(%.6g Hz)",
+                            timing.frf_end_hz, timing.highest_mode_hz);
+        }
         rths_cli_print(cli,
                        "Interface (DoF %d) peak: %.4g m at %.4f Hz; %d frequencies in "
                        "%s/true_frf.csv\n",

@@ -144,6 +144,14 @@ done
 [ "$(head -n 1 "$work/t/true_frf.csv" | tr ',' '\n' | grep -c _amplitude_m)" -eq 14 ] ||
     fail "true_frf.csv: not every DoF of a 14-DoF model"
 
+# a range beyond the computed modes is said, on the console and in run.log
+"$bin" model "$work/f/frame.yaml" --out "$work/w" --set model.solver=sparse --set model.modes=4 \
+    --set model.frf.end_hz=6 --set model.frf.points=20 --set model.frf.check_points=0 \
+    >"$work/w.out" 2>&1 || fail "rths model (4 modes, 6 Hz) failed"
+grep -q "^Warning: the FRF range ends at 6 Hz, above the highest mode computed" "$work/w.out" ||
+    fail "no warning for a range above the computed modes"
+grep -q "warning: FRF range ends at 6 Hz" "$work/w/run.log" || fail "run.log: no range warning"
+
 # bad input
 printf 'structure:\n  storeys:\n    mass_kg: [1, 1]\n    damping_n_s_per_m: [1, 1]\n    stiffness_n_per_m: [100, 100]\nsplit:\n  interface: [1]\n  mass_ratio: 0.5\nforcing:\n  dof: 2\n  amplitude_n: 1\nmodel:\n  solver: sparse\n' >"$work/chain.yaml"
 refused model "sparse on a storey chain" "model.solver.*Matrix Market" "$work/chain.yaml"
