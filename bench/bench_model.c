@@ -9,7 +9,15 @@
  * plant alone (read + advance per sample; without noise too, which shows what the five sensors'
  * normal draws cost) and the whole virtual rig (controller step + plant,
  * 2000 forcing periods at 13.47 Hz after 20 untimed), exact integrator against RK4 x 8, as samples
- * per second and real-time factor at the seed's 10 kHz. */
+ * per second and real-time factor at the seed's 10 kHz.
+ *
+ * model (second table): `rths model`'s sparse path (model.h, "large sparse models") on 3-D frames
+ * from tools/gen_frame3d.py with nodes numbered at random and a two-storey specimen tied to a roof
+ * node (issue 26's acceptance case: 50 x 5 column lines x 40 storeys, 60 000 DoFs; 67 storeys,
+ * 100 500 DoFs; and 10 080 DoFs): each stage's wall time (read, order, factor, eigen, checks,
+ * FRF over the default grid) and the peak memory so far. Run from the source tree (the generator
+ * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases. */
+#include "rths/model.h"
 #include "rths/rig_virtual.h"
 
 #include <complex.h>
@@ -92,6 +100,87 @@ static void bench_model_size(int n) {
     rths_assembly_free(&a);
 }
 
+static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
+    char dir[] = "/tmp/rths_bench_model_XXXXXX", cmd[512], cfg_path[300];
+    if (!mkdtemp(dir)) {
+        perror("mkdtemp");
+        return;
+    }
+    snprintf(cmd, sizeof cmd,
+             "/usr/bin/python3 tools/gen_frame3d.py --nx %d --ny %d --nz %d --seed 1 --specimen "
+             "20000 2e6 %s >/dev/null",
+             nx, ny, nz, dir);
+    if (system(cmd)) {
+        fprintf(stderr, "bench model: %s failed (run rths_bench from the source tree)\n", cmd);
+        return;
+    }
+    snprintf(cfg_path, sizeof cfg_path, "%s/frame.yaml", dir);
+    rths_error err;
+    rths_config *cfg = NULL;
+    rths_model_choice choice;
+    rths_sparse_model model;
+    rths_sparse_modes modes;
+    rths_sparse_frf *sweep = NULL;
+    double *freqs = NULL;
+    int count = 0, n_out = 0, *dofs = NULL;
+    double t0 = rths_monotonic_s();
+    if (rths_config_load(cfg_path, NULL, 0, &cfg, &err) ||
+        rths_model_choose_solver(cfg, &choice, &err) ||
+        rths_sparse_model_read(cfg, &choice, &model, &err)) {
+        fprintf(stderr, "bench model: %s\n", err.msg);
+        return;
+    }
+    double read_s = rths_monotonic_s() - t0;
+    if (rths_sparse_model_modes(&model, &modes, NULL, &err)) {
+        fprintf(stderr, "bench model: %s\n", err.msg);
+        return;
+    }
+    double t1 = rths_monotonic_s();
+    rths_modes view = {.n = modes.count,
+                       .omega_rad_s = modes.omega_rad_s,
+                       .frequency_hz = modes.frequency_hz,
+                       .damping_ratio = modes.damping_ratio};
+    dofs = rths_sparse_model_output_dofs(&model, &n_out);
+    if (!dofs ||
+        rths_frf_grid(&view, 0, modes.frequency_hz[modes.count - 1], 0, &freqs, &count, &err) ||
+        rths_sparse_frf_create(&model, &modes, n_out, dofs, &sweep, &err)) {
+        fprintf(stderr, "bench model: FRF: %s\n", err.msg);
+        return;
+    }
+    double complex *x = calloc((size_t)n_out, sizeof *x);
+    for (int j = 0; x && j < count; j++)
+        rths_sparse_frf_eval(sweep, 2 * M_PI * freqs[j], x, &err);
+    double frf_s = rths_monotonic_s() - t1;
+    printf("%-6s %8d %7.2f %8.2f %7.2f %8.2f %8.2f %7.3f %5d %8.2f %8.0f  %d/%d %.2g\n", label,
+           model.n, read_s, modes.stats.analysis_s, modes.stats.factor_s, modes.stats.lanczos_s,
+           modes.check_s, frf_s, count, rths_monotonic_s() - t0, rths_peak_memory_mb(),
+           modes.sturm_below, modes.count, modes.max_residual);
+    fflush(stdout);
+    free(x);
+    free(freqs);
+    free(dofs);
+    rths_sparse_frf_destroy(sweep);
+    rths_sparse_modes_free(&modes);
+    rths_sparse_model_free(&model);
+    rths_model_choice_free(&choice);
+    rths_config_free(cfg);
+    snprintf(cmd, sizeof cmd, "rm -rf %s", dir);
+    if (system(cmd)) fprintf(stderr, "bench model: could not remove %s\n", dir);
+}
+
+static void bench_model_sparse(void) {
+    const char *max_env = getenv("RTHS_BENCH_MODEL_MAX_DOFS");
+    long max_dofs = max_env ? atol(max_env) : 200000;
+    printf("\nrths model's sparse path on 3-D frames with a two-storey specimen "
+           "(tools/gen_frame3d.py, random numbering), lowest 20 modes, wall seconds:\n");
+    printf("%-6s %8s %7s %8s %7s %8s %8s %7s %5s %8s %8s  %s\n", "case", "dofs", "read_s",
+           "order_s", "fact_s", "eigen_s", "checks_s", "frf_s", "freqs", "total_s", "peak_MB",
+           "sturm/modes residual");
+    bench_sparse_frame("10k", 10, 6, 28);
+    if (max_dofs >= 60000) bench_sparse_frame("60k", 50, 5, 40);
+    if (max_dofs >= 100000) bench_sparse_frame("100k", 50, 5, 67);
+}
+
 void rths_bench_model(void) {
     printf("rths model's work on the rod chain (seed storeys 1-3 + a rod of n - 3 elements), "
            "wall seconds; FRF at %d frequencies, 4 DoFs written:\n",
@@ -104,6 +193,7 @@ void rths_bench_model(void) {
         fflush(stdout);
     }
     printf("(dense_frf_s: the former dense complex solve at every frequency, extrapolated)\n");
+    bench_model_sparse();
 }
 
 static int load_seed(const char *const *ov, int n_ov, rths_config **cfg, rths_setup *s) {

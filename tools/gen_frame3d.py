@@ -162,6 +162,11 @@ def main():
     p.add_argument("--rho-beam-kg-m3", type=float, default=7850.0 * 20)
     p.add_argument("--rayleigh-alpha", type=float, default=0.05, help="C = alpha M + beta K, 1/s")
     p.add_argument("--rayleigh-beta", type=float, default=1e-4, help="s")
+    p.add_argument("--specimen", type=float, nargs=2, metavar=("MASS_KG", "STIFFNESS_N_PER_M"),
+                   help="a two-storey lumped specimen on the rig: storeys of MASS_KG joined to "
+                   "the ground, to each other and (the upper one) to ux of the interface roof "
+                   "node by springs of STIFFNESS_N_PER_M; its two DoFs come last, the split "
+                   "makes them physical")
     args = p.parse_args()
     for name in ("nx", "ny", "nz", "elements_per_member"):
         if getattr(args, name) < 1:
@@ -207,8 +212,32 @@ def main():
     uniq, inverse = np.unique(key, return_inverse=True)
     kv = np.bincount(inverse, weights=k_el.ravel()[keep], minlength=len(uniq))
     mv = np.bincount(inverse, weights=m_el.ravel()[keep], minlength=len(uniq))
+    ur, uc = uniq % n, uniq // n
+    # the roof node of the first and of the last column line: interface and forcing
+    roof = args.nz * args.elements_per_member
+    first = nodes[("c", 0, 0, roof)]
+    last = nodes[("c", args.nx - 1, args.ny - 1, roof)]
+    specimen = None
+    if args.specimen:
+        # two storeys s1, s2 (the last DoFs): ground -k- s1 -k- s2 -k- ux of the interface node
+        ms, ks = args.specimen
+        if not (ms > 0 and ks > 0):
+            sys.exit("gen_frame3d.py: --specimen mass and stiffness must be > 0")
+        tie = node_dof0[first]
+        s1, s2 = n, n + 1
+        n += 2
+        er = np.array([s1, s2, s2, tie, s2])
+        ec = np.array([s1, s1, s2, tie, tie])
+        ek = np.array([2 * ks, -ks, 2 * ks, ks, -ks])
+        em = np.array([ms, 0.0, ms, 0.0, 0.0])
+        key = np.concatenate([uc * n + ur, ec * n + er])
+        uniq, inverse = np.unique(key, return_inverse=True)
+        kv = np.bincount(inverse, weights=np.concatenate([kv, ek]), minlength=len(uniq))
+        mv = np.bincount(inverse, weights=np.concatenate([mv, em]), minlength=len(uniq))
+        ur, uc = uniq % n, uniq // n
+        specimen = (s1, s2)
     cv = args.rayleigh_alpha * mv + args.rayleigh_beta * kv
-    ur, uc = uniq % n + 1, uniq // n + 1
+    ur, uc = ur + 1, uc + 1
 
     os.makedirs(args.out_dir, exist_ok=True)
 
@@ -228,10 +257,6 @@ def main():
     write("mass_kg.mtx", mv, "mass (kg, kg m, kg m^2)")
     write("damping_n_s_per_m.mtx", cv, "Rayleigh damping %g M + %g K" % (args.rayleigh_alpha,
                                                                            args.rayleigh_beta))
-    # the roof node of the first and of the last column line: interface and forcing
-    roof = args.nz * args.elements_per_member
-    first = nodes[("c", 0, 0, roof)]
-    last = nodes[("c", args.nx - 1, args.ny - 1, roof)]
     with open(os.path.join(args.out_dir, "frame.yaml"), "w") as f:
         f.write("# A %d x %d x %d frame of 3-D beam elements (%d DoFs), tools/gen_frame3d.py.\n"
                 "# Skeleton: interface = ux of the roof node over column line (1,1); the force\n"
@@ -241,11 +266,16 @@ def main():
                 "    damping_n_s_per_m: damping_n_s_per_m.mtx\n"
                 "    stiffness_n_per_m: stiffness_n_per_m.mtx\n")
         f.write("split:\n  interface: [%d]\n" % (node_dof0[first] + 1))
+        if specimen:
+            f.write("  physical: [%d, %d]\n  mass_ratio: 0.5\n" % (specimen[0] + 1,
+                                                                 specimen[1] + 1))
         f.write("forcing:\n  dof: %d\n  amplitude_n: 1.0\n" % (node_dof0[last] + 1))
     with open(os.path.join(args.out_dir, "frame_info.txt"), "w") as f:
         f.write("dofs %d\nnodes %d\nfree_nodes %d\nelements %d\nelement_mass_kg %.17g\n"
                 "stored_entries %d\nmass %s\n" % (n, n_nodes, len(free_nodes), len(elements),
                                                    element_mass, len(uniq), args.mass))
+        if specimen:
+            f.write("specimen_first_dof %d\n" % (specimen[0] + 1))
         f.write("# node x_m y_m z_m first_dof (1-based; ux uy uz rx ry rz follow; 0: fixed)\n")
         for i in range(n_nodes):
             f.write("%d %.17g %.17g %.17g %d\n" % (i + 1, coords[i, 0], coords[i, 1],

@@ -6,7 +6,9 @@
 #ifndef RTHS_MODEL_H
 #define RTHS_MODEL_H
 
+#include "rths/config.h"
 #include "rths/core.h"
+#include "rths/sparse.h"
 
 #include <complex.h>
 
@@ -216,5 +218,135 @@ void rths_periodic_points_free(rths_periodic_point *pts, int n);
 /* Static equilibrium under static_force (Newton on the piecewise-linear restoring force). */
 int rths_bilinear_static(const rths_assembly *a, const rths_bilinear_leg *leg,
                          const double *static_force, double *q_out, rths_error *err);
+
+/* ---- large sparse models (docs/architecture.md, "Sparse algebra") ----
+ *
+ * `rths model` on a structure given as Matrix Market files too large or too scattered for the
+ * dense and banded paths: the matrices stay in compressed sparse form (sparse.h), the lowest
+ * modes come from shift-invert Lanczos, the FRF from those modes plus the static response of the
+ * rest (or one sparse complex solve per frequency). */
+
+/* auto: models up to this many DoFs take the dense / banded path (all modes, exact FRF), as
+ * before sparse models existed. */
+#define RTHS_MODEL_DENSE_UP_TO 1000
+
+typedef enum {
+    RTHS_MODEL_SOLVER_DENSE = 0, /* dsygvd on the dense matrices */
+    RTHS_MODEL_SOLVER_BANDED,    /* dsbgvd on band storage (half-bandwidth <= n / 8) */
+    RTHS_MODEL_SOLVER_SPARSE     /* MUMPS + ARPACK on compressed sparse matrices */
+} rths_model_solver;
+const char *rths_model_solver_name(rths_model_solver s);
+
+typedef struct rths_model_choice {
+    rths_model_solver solver;
+    int n;              /* DoFs (0 until known) */
+    int half_bandwidth; /* of the stiffness pattern, -1 when not measured */
+    char reason[320];   /* why, in words, for the console and run.log */
+    /* the stiffness read while choosing (sparse only; taken over by rths_sparse_model_read) */
+    rths_sparse_sym stiffness;
+} rths_model_choice;
+
+/* Chooses the path for `rths model` from model.solver (auto | dense | sparse) and, for a
+ * structure.matrices given as Matrix Market files, the declared order and the stiffness's
+ * half-bandwidth: auto takes sparse when n > RTHS_MODEL_DENSE_UP_TO and the pattern is not
+ * banded (half-bandwidth > n / 8) or n > RTHS_MTX_MAX_DIM; dense / banded otherwise (decided on
+ * the assembly by rths_model_choice_dense). Nothing of the declared size is read for dense. */
+int rths_model_choose_solver(rths_config *cfg, rths_model_choice *out, rths_error *err);
+/* The dense path's choice on an assembly (the one rths_modal_analysis makes), why in out. */
+void rths_model_choice_dense(const rths_assembly *a, const char *why, rths_model_choice *out);
+void rths_model_choice_free(rths_model_choice *c);
+
+/* A structure given as Matrix Market files, kept sparse, with its split, forcing and ranges read
+ * from the same keys as rths_setup_read (structure.matrices, split.interface / physical /
+ * numerical / mass_ratio, forcing, model.frf) plus model.modes (how many lowest modes, default
+ * 20) and model.frf.solver (modal | direct), model.frf.check_points. */
+typedef struct rths_sparse_model {
+    int n;
+    rths_sparse_sym mass, damping, stiffness; /* lower triangles */
+    rths_dof_role *roles;                     /* n */
+    int n_int, *int_dofs;                     /* ascending, 0-based */
+    double mass_ratio;                        /* the first interface DoF's p */
+    int forcing_dof;                          /* 0-based; n - 1 for base excitation */
+    double forcing_amplitude_n;               /* N, or m/s^2 for base excitation */
+    int base_excitation;
+    double *force; /* n: the forcing's load vector, N */
+    double frf_start_hz, frf_end_hz;
+    int frf_points;
+    int modes_wanted;       /* model.modes: how many lowest modes (default 20) */
+    double modes_below_hz;  /* > 0 (model.frf.end_hz given, model.modes not): every mode below
+                               this instead, at most RTHS_SPARSE_MODEL_MAX_MODES */
+    int frf_direct;         /* model.frf.solver: direct (one complex solve per frequency) */
+    int frf_check_points;   /* model.frf.check_points: direct solves checking the modal FRF */
+    double read_matrices_s; /* seconds spent reading the three files */
+} rths_sparse_model;
+
+/* The most modes the sparse path computes (Lanczos basis of twice as many vectors of n). */
+#define RTHS_SPARSE_MODEL_MAX_MODES 400
+/* With model.frf.end_hz and no model.modes: every mode below this multiple of the band's end,
+ * so the modes above the band respond almost statically (amplification 1 / (1 - 1 / 1.5^2) = 1.8
+ * at the band's end, and their static part is exact: rths_sparse_frf). */
+#define RTHS_SPARSE_MODEL_MODES_MARGIN 1.5
+
+/* model.frf.check_points' default: 1 up to this many DoFs, 0 above (each check is a direct
+ * complex solve, as costly as the modes' factorisations together). */
+#define RTHS_SPARSE_MODEL_CHECK_UP_TO 20000
+
+/* Reads the model; choice->stiffness is taken over (emptied). Errors as rths_setup_read's. */
+int rths_sparse_model_read(rths_config *cfg, rths_model_choice *choice, rths_sparse_model *out,
+                           rths_error *err);
+void rths_sparse_model_free(rths_sparse_model *m);
+/* The DoFs a model's tables report (rths_setup_output_dofs's rule), malloc'ed. */
+int *rths_sparse_model_output_dofs(const rths_sparse_model *m, int *count);
+void rths_sparse_model_forcing_text(const rths_sparse_model *m, char *buf, size_t size);
+
+/* The lowest modes_wanted modes, mass-normalised, with their checks. */
+typedef struct rths_sparse_modes {
+    int n, count;
+    double *omega_rad_s, *frequency_hz, *damping_ratio; /* count */
+    double *shapes;                                     /* n x count */
+    double max_residual; /* max over modes of ||K phi - lambda M phi|| / ||K phi|| */
+    int sturm_below;     /* eigenvalues below the midpoint past the last mode (LDL^T inertia) */
+    double sturm_shift;  /* that midpoint, rad^2/s^2 */
+    double max_damping_coupling; /* max |phi_r^T C phi_s| / sqrt(c_rr c_ss), r != s */
+    double *static_x, *static_y; /* n: K^-1 f and K^-1 M K^-1 f (the model's force) */
+    rths_sparse_eigs_stats stats;
+    double check_s; /* residuals, Sturm count and damping */
+} rths_sparse_modes;
+
+/* Modes of m, their checks and the static responses to m's force; *k_factor (when not NULL)
+ * receives the factor of K (terms K, M; refactorised at shift 0) for further solves. */
+int rths_sparse_model_modes(const rths_sparse_model *m, rths_sparse_modes *out,
+                            rths_sparse_factor **k_factor, rths_error *err);
+void rths_sparse_modes_free(rths_sparse_modes *m);
+
+/* The FRF of a sparse model at out_dofs: modal (the modes' dynamic response plus the static
+ * response of every mode not computed and its first dynamic correction:
+ * x = sum_r phi_r p_r / (w_r^2 - w^2 + 2 i z_r w_r w) + R0 f + w^2 R1 f, p_r = phi_r^T f,
+ * R0 = K^-1 - sum_r phi_r phi_r^T / w_r^2, R1 = K^-1 M K^-1 - sum_r phi_r phi_r^T / w_r^4:
+ * exact for damping the modes decouple up to (w / w_first dropped)^4 of the dropped modes'
+ * static share) or direct (one complex symmetric LDL^T of
+ * K + i w C - w^2 M per frequency, one symbolic analysis). */
+typedef struct rths_sparse_frf rths_sparse_frf;
+int rths_sparse_frf_create(const rths_sparse_model *m, const rths_sparse_modes *modes, int n_out,
+                           const int *out_dofs, rths_sparse_frf **out, rths_error *err);
+int rths_sparse_frf_eval(rths_sparse_frf *s, double omega_rad_s, double complex *x_out,
+                         rths_error *err);
+int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double complex *x_out,
+                           rths_error *err);
+/* Seconds spent in direct solves so far (symbolic analysis, factorisations, solves). */
+double rths_sparse_frf_direct_s(const rths_sparse_frf *s);
+void rths_sparse_frf_destroy(rths_sparse_frf *s);
+
+/* The numerical substructure of a sparse model, as rths_split_create makes it (order: interface
+ * DoFs, then internal numerical ones, each ascending; *dofs_out their assembly indices, nn of
+ * them): the interface mass block times the model's p (one p for every interface DoF), of C and K
+ * the interface diagonal minus the couplings to numerical DoFs (the coupling rule), every other
+ * entry among these DoFs as it is. */
+int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym *mass,
+                                     rths_sparse_sym *damping, rths_sparse_sym *stiffness,
+                                     int **dofs_out, int *nn_out, rths_error *err);
+
+/* Peak resident memory of the process so far, MB (getrusage ru_maxrss). */
+double rths_peak_memory_mb(void);
 
 #endif

@@ -46,4 +46,8 @@ int rths_mtx_read_checked(const char *path, int flags, double **out, int *rows, 
  * anything of that order is allocated. Errors as rths_mtx_read's. */
 int rths_mtx_read_sparse(const char *path, int flags, rths_sparse_sym *out, rths_error *err);
 
+/* The order a file declares (header and size line only, nothing else read): how `rths model`
+ * chooses between the dense and the sparse path before reading a large file. */
+int rths_mtx_read_size(const char *path, int *rows, int *cols, rths_error *err);
+
 #endif

@@ -98,4 +98,18 @@ int rths_numerical_receptance_eval(void *ctx, double omega_rad_s,
                                    double complex *forced_m_per_n, rths_error *err);
 void rths_numerical_receptance_destroy(rths_numerical_receptance *r);
 
+/* The same for a large sparse numerical substructure (M, C, K of order nn in compressed sparse
+ * form, e.g. from rths_sparse_model_numerical_side): one sparse complex symmetric LDL^T per
+ * frequency on one symbolic analysis, one solve with the interface's unit force; the forcing's
+ * response by reciprocity from the same solve. interface_index, forcing_index: in the matrices'
+ * order (forcing_index -1: none). The matrices are copied. */
+typedef struct rths_sparse_receptance rths_sparse_receptance;
+int rths_sparse_receptance_create(const rths_sparse_sym *mass, const rths_sparse_sym *damping,
+                                  const rths_sparse_sym *stiffness, int interface_index,
+                                  int forcing_index, rths_sparse_receptance **out, rths_error *err);
+/* An rths_receptance_fn (iterate.h) with ctx the object. */
+int rths_sparse_receptance_eval(void *ctx, double omega_rad_s, double complex *receptance_m_per_n,
+                                double complex *forced_m_per_n, rths_error *err);
+void rths_sparse_receptance_destroy(rths_sparse_receptance *r);
+
 #endif

@@ -106,5 +106,12 @@ typedef struct {
 int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
                      const rths_sparse_eigs_options *opt, double **lambda_out, double **phi_out,
                      int *found, rths_sparse_eigs_stats *stats, rths_error *err);
+/* The same, handing out (when factor_out is not NULL and it succeeds) the factor it used: terms
+ * (K, M), its last real factorisation K - shift M, so a caller can solve with K (shift 0) or
+ * refactorise K - s M without a second symbolic analysis. Destroy it after use. */
+int rths_sparse_eigs_keep(const rths_sparse_sym *k, const rths_sparse_sym *m,
+                          const rths_sparse_eigs_options *opt, double **lambda_out,
+                          double **phi_out, int *found, rths_sparse_eigs_stats *stats,
+                          rths_sparse_factor **factor_out, rths_error *err);
 
 #endif

@@ -2,6 +2,7 @@
  * `rths model`'s tables and summary: the command calls rths_api_model_compute and writes its
  * result with rths_api_result_write, as rths_api_model does. */
 #include "api/api_internal.h"
+#include "api/api_model_sparse.h"
 
 #include <complex.h>
 #include <json-c/json.h>
@@ -208,6 +209,31 @@ int rths_api_model_compute(const rths_setup *setup, const char *config_path,
     return RTHS_OK;
 }
 
+/* rths_api_model on the sparse path (rths_model_choose_solver chose it on c): the structure
+ * never reaches rths_setup_read, which forms dense matrices. */
+static int api_model_sparse(const rths_api_config *cfg, rths_config *c, rths_model_choice *choice,
+                            double choice_read_s, const char *out_dir, rths_result **out,
+                            rths_error *err) {
+    static const char *const own[] = {"structure", "split", "forcing", "model", NULL};
+    rths_sparse_model model;
+    rths_result *r = NULL;
+    int rc = rths_sparse_model_read(c, choice, &model, err);
+    if (rc) return rc;
+    rc = rths_api_check_config(c, own, err);
+    if (!rc)
+        rc = rths_api_model_compute_sparse(&model, choice, choice_read_s, cfg->path,
+                                           (const char *const *)cfg->overrides, cfg->n_overrides,
+                                           &r, NULL, err);
+    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "model", err);
+    rths_sparse_model_free(&model);
+    if (rc) {
+        rths_result_free(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
+}
+
 int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result **out,
                    rths_error *err) {
     *out = NULL;
@@ -216,9 +242,27 @@ int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result 
     rths_config *c;
     rths_setup setup;
     rths_result *r = NULL;
-    int rc = rths_api_load(cfg, &c, &setup, err);
+    /* the path first (model.solver, a Matrix Market structure's size and pattern): a sparse
+     * model is read without rths_setup_read */
+    double t0 = rths_monotonic_s();
+    rths_model_choice choice;
+    int rc =
+        rths_config_load(cfg->path, (const char *const *)cfg->overrides, cfg->n_overrides, &c, err);
     if (rc) return rc;
-    rc = rths_api_check_config(c, own, err);
+    rc = rths_model_choose_solver(c, &choice, err);
+    if (!rc && choice.solver == RTHS_MODEL_SOLVER_SPARSE)
+        rc = api_model_sparse(cfg, c, &choice, rths_monotonic_s() - t0, out_dir, out, err);
+    int sparse = !rc && choice.solver == RTHS_MODEL_SOLVER_SPARSE;
+    rths_model_choice_free(&choice);
+    rths_config_free(c);
+    if (rc || sparse) return rc;
+    rc = rths_api_load(cfg, &c, &setup, err);
+    if (rc) return rc;
+    /* model.solver, read on this configuration too so the key check knows it */
+    static const char *const solvers[] = {"auto", "dense", "sparse", NULL};
+    int asked = 0;
+    rc = rths_config_get_choice(c, "model.solver", 0, 0, solvers, &asked, err);
+    if (!rc) rc = rths_api_check_config(c, own, err);
     if (!rc)
         rc = rths_api_model_compute(&setup, cfg->path, (const char *const *)cfg->overrides,
                                     cfg->n_overrides, &r, NULL, err);

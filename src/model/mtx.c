@@ -412,3 +412,17 @@ int rths_mtx_read_sparse(const char *path, int flags, rths_sparse_sym *out, rths
     if (rc) rths_sparse_free(out);
     return rc;
 }
+
+int rths_mtx_read_size(const char *path, int *rows, int *cols, rths_error *err) {
+    mtx_reader r = {.path = path};
+    mtx_kind kind = {0};
+    long entries = 0;
+    *rows = *cols = 0;
+    r.f = fopen(path, "r");
+    if (!r.f) return rths_error_set(err, RTHS_EINPUT, "%s: cannot open: %s", path, strerror(errno));
+    int rc = parse_header(&r, &kind, err);
+    if (!rc) rc = read_size(&r, &kind, RTHS_MTX_MAX_SPARSE_DIM, rows, cols, &entries, err);
+    free(r.line);
+    fclose(r.f);
+    return rc;
+}

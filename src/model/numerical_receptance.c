@@ -109,3 +109,92 @@ int rths_numerical_receptance_eval(void *ctx, double omega_rad_s,
     if (!rc && r->forcing) rc = rths_frf_sweep_eval(r->forcing, omega_rad_s, forced_m_per_n, err);
     return rc;
 }
+
+/* ---- a large sparse numerical substructure (reduce.h) ---- */
+
+struct rths_sparse_receptance {
+    rths_sparse_sym mass, damping, stiffness; /* copies: the factor points at them */
+    const rths_sparse_sym *terms[3];
+    rths_sparse_factor *factor;
+    int interface_index, forcing_index;
+    double complex *x; /* n */
+};
+
+void rths_sparse_receptance_destroy(rths_sparse_receptance *r) {
+    if (!r) return;
+    rths_sparse_factor_destroy(r->factor);
+    rths_sparse_free(&r->mass);
+    rths_sparse_free(&r->damping);
+    rths_sparse_free(&r->stiffness);
+    free(r->x);
+    free(r);
+}
+
+static int sparse_copy(const rths_sparse_sym *a, rths_sparse_sym *out) {
+    int n = a->n, nnz = a->colptr[n];
+    out->n = n;
+    out->colptr = malloc(sizeof(int) * (size_t)(n + 1));
+    out->rowidx = malloc(sizeof(int) * (size_t)(nnz > 0 ? nnz : 1));
+    out->value = malloc(sizeof(double) * (size_t)(nnz > 0 ? nnz : 1));
+    if (!out->colptr || !out->rowidx || !out->value) return -1;
+    memcpy(out->colptr, a->colptr, sizeof(int) * (size_t)(n + 1));
+    memcpy(out->rowidx, a->rowidx, sizeof(int) * (size_t)nnz);
+    memcpy(out->value, a->value, sizeof(double) * (size_t)nnz);
+    return 0;
+}
+
+int rths_sparse_receptance_create(const rths_sparse_sym *mass, const rths_sparse_sym *damping,
+                                  const rths_sparse_sym *stiffness, int interface_index,
+                                  int forcing_index, rths_sparse_receptance **out,
+                                  rths_error *err) {
+    *out = NULL;
+    int n = stiffness->n;
+    if (mass->n != n || damping->n != n)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "sparse receptance: M, C, K of orders %d, %d, %d differ", mass->n,
+                              damping->n, n);
+    if (interface_index < 0 || interface_index >= n || forcing_index >= n)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "sparse receptance: interface index %d or forcing index %d outside "
+                              "0..%d",
+                              interface_index, forcing_index, n - 1);
+    rths_sparse_receptance *r = calloc(1, sizeof *r);
+    if (!r) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    r->interface_index = interface_index;
+    r->forcing_index = forcing_index;
+    r->x = malloc(sizeof(double complex) * (size_t)n);
+    int rc = r->x && !sparse_copy(mass, &r->mass) && !sparse_copy(damping, &r->damping) &&
+                     !sparse_copy(stiffness, &r->stiffness)
+                 ? RTHS_OK
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    r->terms[0] = &r->stiffness;
+    r->terms[1] = &r->damping;
+    r->terms[2] = &r->mass;
+    if (!rc) rc = rths_sparse_factor_create(3, r->terms, RTHS_SPARSE_ORDER_AUTO, &r->factor, err);
+    if (rc) {
+        rths_sparse_receptance_destroy(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
+}
+
+/* One complex symmetric LDL^T of D(w) = K + i w C - w^2 M (the symbolic analysis made at the
+ * first call is reused) and one solve D x = e_interface: the receptance is x at the interface
+ * and, D being symmetric (reciprocity), the interface's response to a unit force at the forcing
+ * DoF is x at the forcing DoF. */
+int rths_sparse_receptance_eval(void *ctx, double omega_rad_s, double complex *receptance_m_per_n,
+                                double complex *forced_m_per_n, rths_error *err) {
+    rths_sparse_receptance *r = ctx;
+    double w = omega_rad_s;
+    double complex coef[3] = {1, I * w, -w * w};
+    int rc = rths_sparse_factor_complex(r->factor, coef, err);
+    if (rc) return rc;
+    memset(r->x, 0, sizeof(double complex) * (size_t)r->stiffness.n);
+    r->x[r->interface_index] = 1;
+    rc = rths_sparse_solve_complex(r->factor, r->x, 1, err);
+    if (rc) return rc;
+    *receptance_m_per_n = r->x[r->interface_index];
+    *forced_m_per_n = r->forcing_index >= 0 ? r->x[r->forcing_index] : 0;
+    return RTHS_OK;
+}

@@ -54,6 +54,14 @@ static void sort_modes(int n, int count, double *lambda, double *phi, double *tm
 int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
                      const rths_sparse_eigs_options *opt, double **lambda_out, double **phi_out,
                      int *found, rths_sparse_eigs_stats *stats, rths_error *err) {
+    return rths_sparse_eigs_keep(k, m, opt, lambda_out, phi_out, found, stats, NULL, err);
+}
+
+int rths_sparse_eigs_keep(const rths_sparse_sym *k, const rths_sparse_sym *m,
+                          const rths_sparse_eigs_options *opt, double **lambda_out,
+                          double **phi_out, int *found, rths_sparse_eigs_stats *stats,
+                          rths_sparse_factor **factor_out, rths_error *err) {
+    if (factor_out) *factor_out = NULL;
     *lambda_out = NULL;
     if (stats) memset(stats, 0, sizeof *stats);
     if (phi_out) *phi_out = NULL;
@@ -206,6 +214,10 @@ int rths_sparse_eigs(const rths_sparse_sym *k, const rths_sparse_sym *m,
         z = NULL;
     }
     *found = nev;
+    if (factor_out) {
+        *factor_out = f;
+        f = NULL;
+    }
 done:
     free(resid);
     free(v);

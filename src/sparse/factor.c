@@ -20,7 +20,9 @@
 
 struct rths_sparse_factor {
     int n, count;
-    const rths_sparse_sym *const *terms;
+    /* the caller's term pointers, copied (the terms themselves are referenced): a factor may
+     * outlive the array it was created from (rths_sparse_eigs_keep hands its factor out) */
+    const rths_sparse_sym **terms;
     rths_sparse_ordering ordering;
     long nnz;       /* union pattern, lower triangle */
     int *irn, *jcn; /* 1-based */
@@ -109,7 +111,13 @@ int rths_sparse_factor_create(int count, const rths_sparse_sym *const *terms,
     if (!f) return rths_error_set(err, RTHS_EFAIL, "sparse factor: out of memory");
     f->n = n;
     f->count = count;
-    f->terms = terms;
+    f->terms = malloc((size_t)count * sizeof *f->terms);
+    if (!f->terms) {
+        free(f);
+        return rths_error_set(err, RTHS_EFAIL, "sparse factor: out of memory");
+    }
+    for (int k = 0; k < count; k++)
+        f->terms[k] = terms[k];
     f->ordering = ordering;
     f->stats.ordering_used =
         ordering == RTHS_SPARSE_ORDER_AUTO ? RTHS_SPARSE_ORDER_SCOTCH : ordering;
@@ -184,6 +192,7 @@ void rths_sparse_factor_destroy(rths_sparse_factor *f) {
         for (int k = 0; k < f->count; k++)
             free(f->where[k]);
     free(f->where);
+    free(f->terms);
     free(f->irn);
     free(f->jcn);
     free(f->a_real);
