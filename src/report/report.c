@@ -666,14 +666,16 @@ int rths_plot(rths_report *rep, const char *dir, const char *basename, int width
     }
     /* The same body twice: a PNG for viewing, an SVG for papers. Paths are relative to dir, so
      * the script reruns anywhere the data are (cd DIR && gnuplot NAME.gp). */
-    fprintf(f,
-            "# rths figure: run 'gnuplot %s.gp' in this folder to remake %s.png and %s.svg\n"
-            "set terminal pngcairo size %d,%d font 'DejaVu Sans,14' enhanced\n"
-            "set output '%s.png'\n%s\n"
-            "set terminal svg size %d,%d font 'DejaVu Sans,14' enhanced background rgb 'white'\n"
-            "set output '%s.svg'\n%s\nunset output\n",
-            basename, basename, basename, width_px, height_px, basename, body, width_px, height_px,
-            basename, body);
+    fprintf(
+        f,
+        "# rths figure: run 'gnuplot %s.gp' in this folder to remake %s.png and %s.svg\n"
+        "set terminal pngcairo size %d,%d font 'DejaVu Sans,14' enhanced\n"
+        "set output '%s.png'\n%s\n"
+        "reset\n" /* the SVG starts from the state the PNG started from (no log scale left over) */
+        "set terminal svg size %d,%d font 'DejaVu Sans,14' enhanced background rgb 'white'\n"
+        "set output '%s.svg'\n%s\nunset output\n",
+        basename, basename, basename, width_px, height_px, basename, body, width_px, height_px,
+        basename, body);
     rc = rths_atomic_commit(a, err);
     if (rc) {
         free(gp);

@@ -27,7 +27,7 @@ grep -q experimental_floquet "$work/off/summary.json" && fail "floquet summary w
 # 2. on: from 13.8 Hz over the upper fold (14.006 Hz) into the unstable branch
 "$bin" frf "$bil" --out "$work/on" --quiet --set stability.experimental_floquet=true \
     --set continuation.start_hz=13.8 --set continuation.max_points=22 || fail "run with the option"
-head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,floquet_max_abs_se,stable_experimental,floquet_trustworthy,late_samples,clipped_demand_samples,saturated_sensor_samples,resumed,below_noise_floor$' \
+head -n 1 "$work/on/frf.csv" | grep -q ',stable,floquet_max_abs_experimental,floquet_max_abs_se,stable_experimental,floquet_trustworthy,late_samples,clipped_demand_samples,saturated_sensor_samples,resumed,below_noise_floor,' \
     || fail "frf.csv lacks the floquet columns"
 # the experimental_floquet block alone (summary.json has keys of the same names above it)
 sed -n '/"experimental_floquet"/,/}/p' "$work/on/summary.json" > "$work/floquet.json"
