@@ -69,8 +69,12 @@ void rths_model_choice_dense(const rths_assembly *a, const char *why, rths_model
     out->half_bandwidth = b;
     /* the rule of rths_modal_analysis (dsbgvd is wrong for n = 1: dense there) */
     out->solver = n > 1 && b <= n / 8 ? RTHS_MODEL_SOLVER_BANDED : RTHS_MODEL_SOLVER_DENSE;
-    snprintf(out->reason, sizeof out->reason, "%s; half-bandwidth %d %s n / 8 = %d", why, b,
-             b <= n / 8 ? "<=" : ">", n / 8);
+    if (out->solver == RTHS_MODEL_SOLVER_BANDED)
+        snprintf(out->reason, sizeof out->reason, "%s; half-bandwidth %d <= n / 8 = %d: banded",
+                 why, b, n / 8);
+    else
+        snprintf(out->reason, sizeof out->reason,
+                 "%s; half-bandwidth %d, banded only when at most n / 8 = %d", why, b, n / 8);
 }
 
 void rths_model_choice_free(rths_model_choice *c) {

@@ -396,6 +396,8 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
         fprintf(g, "set lmargin at screen %.4f\nset rmargin at screen %.4f\n", left, right);
         if (d > 0) fprintf(g, "unset key\n");
         mode_lines(g, modes, lo, hi, 0);
+        /* with a bilinear leg the panel has no data: a fixed range keeps gnuplot from warning */
+        fprintf(g, "set yrange %s\n", s->has_bilinear ? "[-1:1]" : "[*:*]");
         fprintf(g,
                 "set format x '%%g'\nset xlabel 'Forcing frequency (Hz)'\n"
                 "set ylabel \"Deviation from\\ntruth (%%)\"\n"
