@@ -209,7 +209,7 @@ static int write_uff(rths_report *rep, const frf_state *run, const frf_receptanc
         }
         int dof = s->split.int_dofs[d];
         int rot = rths_setup_dof_is_rotation(s, dof);
-        char id1[96];
+        char id1[128]; /* the UFF58 writer cuts ID lines to the format's 80 columns */
         snprintf(id1, sizeof id1, "rths hybrid test: receptance of interface DoF %d (DoF %d), %s",
                  d + 1, dof + 1, rec->unit[d]);
         /* planar models: translations along X (direction 1), rotations about Y (5); the
