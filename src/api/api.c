@@ -544,3 +544,16 @@ int rths_api_read_run(const char *dir, rths_result **out, rths_error *err) {
     *out = r;
     return RTHS_OK;
 }
+
+struct json_object *rths_api_summary_new(const char *command, const char *config_path,
+                                         const char *const *overrides, int n_overrides) {
+    json_object *root = rths_json_summary_new(command);
+    if (!root) return NULL;
+    if (config_path)
+        json_object_object_add(root, "config_file", json_object_new_string(config_path));
+    json_object *sets = json_object_new_array();
+    for (int i = 0; i < n_overrides; i++)
+        json_object_array_add(sets, json_object_new_string(overrides[i]));
+    json_object_object_add(root, "overrides", sets);
+    return root;
+}

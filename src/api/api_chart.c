@@ -200,16 +200,7 @@ int rths_api_chart_compute(const rths_setup *setup, const rths_chart_options *op
     if (!rc) rc = rths_result_new(&r, err);
     if (!rc) rc = chart_tables(r, &chart, err);
     if (!rc) {
-        json_object *summary = rths_json_summary_new("chart");
-        if (summary && config_path)
-            json_object_object_add(summary, "config_file", json_object_new_string(config_path));
-        json_object *sets = json_object_new_array();
-        for (int i = 0; i < n_overrides; i++)
-            json_object_array_add(sets, json_object_new_string(overrides[i]));
-        if (summary)
-            json_object_object_add(summary, "overrides", sets);
-        else
-            json_object_put(sets);
+        json_object *summary = rths_api_summary_new("chart", config_path, overrides, n_overrides);
         if (summary) chart_summary_add(summary, &o, &chart, setup, &pr, &f);
         rc = rths_result_set_summary(r, summary, err);
     }

@@ -39,6 +39,10 @@ int rths_result_take_table(rths_result *r, rths_table *t, rths_error *err);
 /* A table from column arrays (copied). */
 int rths_result_add_columns(rths_result *r, const char *name, int rows, int columns,
                             const char *const *names, const double *const *data, rths_error *err);
+/* The summary every command's result starts with: rths_json_summary_new(command) plus who asked
+ * (config_file when config_path is given, overrides). NULL when out of memory. */
+struct json_object *rths_api_summary_new(const char *command, const char *config_path,
+                                         const char *const *overrides, int n_overrides);
 /* summary (consumed: json_object_put) becomes r's summary text. */
 int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_error *err);
 /* Writes r as the run folder dir of command: config.yaml, one CSV per table, summary.json,

@@ -142,14 +142,8 @@ static int frf_table(rths_result *r, const rths_setup *s, rths_frf_sweep *sweep,
 static struct json_object *model_summary(const rths_setup *s, const rths_modes *m, int points,
                                          double peak_amp, double peak_hz, const char *config_path,
                                          const char *const *overrides, int n_overrides) {
-    json_object *root = rths_json_summary_new("model");
+    json_object *root = rths_api_summary_new("model", config_path, overrides, n_overrides);
     if (!root) return NULL;
-    if (config_path)
-        json_object_object_add(root, "config_file", json_object_new_string(config_path));
-    json_object *sets = json_object_new_array();
-    for (int i = 0; i < n_overrides; i++)
-        json_object_array_add(sets, json_object_new_string(overrides[i]));
-    json_object_object_add(root, "overrides", sets);
     rths_model_summary_add(root, s, m, points, peak_amp, peak_hz);
     return root;
 }

@@ -162,14 +162,8 @@ static struct json_object *summary(const rths_sparse_model *m, const rths_sparse
                                    const rths_api_sparse_model_timing *t, double peak_amp,
                                    double peak_hz, const char *config_path,
                                    const char *const *overrides, int n_overrides) {
-    json_object *root = rths_json_summary_new("model");
+    json_object *root = rths_api_summary_new("model", config_path, overrides, n_overrides);
     if (!root) return NULL;
-    if (config_path)
-        json_object_object_add(root, "config_file", json_object_new_string(config_path));
-    json_object *sets = json_object_new_array();
-    for (int i = 0; i < n_overrides; i++)
-        json_object_array_add(sets, json_object_new_string(overrides[i]));
-    json_object_object_add(root, "overrides", sets);
     json_object *list = json_object_new_array();
     for (int r = 0; r < modes->count; r++) {
         json_object *mode = json_object_new_object();

@@ -308,16 +308,7 @@ int rths_api_tune_compute(const rths_setup *setup, const rths_controller_options
     if (!rc) rc = rths_pd_loop_from_setup(setup, copt, popt, rule.delay_s, &loop, err);
     if (!rc) rc = loop_table(res, loop, r, err);
     if (!rc) {
-        json_object *summary = rths_json_summary_new("tune");
-        if (summary && config_path)
-            json_object_object_add(summary, "config_file", json_object_new_string(config_path));
-        json_object *sets = json_object_new_array();
-        for (int i = 0; i < n_overrides; i++)
-            json_object_array_add(sets, json_object_new_string(overrides[i]));
-        if (summary)
-            json_object_object_add(summary, "overrides", sets);
-        else
-            json_object_put(sets);
+        json_object *summary = rths_api_summary_new("tune", config_path, overrides, n_overrides);
         if (summary) tune_summary_add(summary, setup, r, &rule, text);
         rc = rths_result_set_summary(res, summary, err);
     }
