@@ -13,6 +13,7 @@
 #include <math.h>
 #include <hdf5.h>
 #include <matio.h>
+#include <poll.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
@@ -20,6 +21,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 /* MATLAB names: a letter first, then letters, digits, '_'; at most 63 characters. */
@@ -357,6 +359,10 @@ static int write_tmp(const char *tmp, const char *dir, const char *const *csv_na
  * rths.frf) failed intermittently with HDF5 lock errors. */
 static pthread_mutex_t writer_lock = PTHREAD_MUTEX_INITIALIZER;
 
+/* A results.mat of a long campaign is a few MB, written in well under a second; ten minutes is a
+ * stall, not a slow disk. */
+enum { WRITER_LIMIT_S = 600 };
+
 /* The write runs in a child process. A write that fails inside HDF5 (disk full, `ulimit -f`) leaves
  * the library's open-file table in a state that crashes its own clean-up at exit (SIGSEGV in
  * H5F__close_cb, exit 139), and no HDF5 call can close that file again: the child takes that state
@@ -365,6 +371,9 @@ static pthread_mutex_t writer_lock = PTHREAD_MUTEX_INITIALIZER;
  * replaced by on_hdf5_error. The child's message comes back through a pipe. */
 static int write_in_child(const char *tmp, const char *dir, const char *const *csv_names, int n_csv,
                           const rths_table *extra, int n_extra, rths_error *err) {
+    /* test hook: a writer that never finishes, stopped after 1 s */
+    const char *stall_env = getenv("RTHS_TEST_MAT_WRITER_STALL");
+    int stall_for_test = stall_env && !strcmp(stall_env, "1");
     int fds[2];
     if (pipe2(fds, O_CLOEXEC))
         return rths_error_set(err, RTHS_EFAIL, "cannot start the writer: %s", strerror(errno));
@@ -385,6 +394,7 @@ static int write_in_child(const char *tmp, const char *dir, const char *const *c
         H5Eset_auto2(H5E_DEFAULT, on_hdf5_error, &hdf5);
         static rths_error child_err;
         rths_error_clear(&child_err);
+        if (stall_for_test) pause(); /* stopped by the watchdog */
         int rc = write_tmp(tmp, dir, csv_names, n_csv, extra, n_extra, &hdf5, &child_err);
         if (rc) {
             size_t len = strlen(child_err.msg), done = 0;
@@ -397,19 +407,55 @@ static int write_in_child(const char *tmp, const char *dir, const char *const *c
         _exit(rc ? RTHS_EFAIL : RTHS_OK);
     }
     close(fds[1]);
+    /* The parent watches the child, not only the pipe: another thread of the caller forking at the
+     * same time (Python running a subprocess) keeps a copy of the pipe's write end, so EOF may come
+     * late; and a child that stalls (a lock held by another thread at fork time stays held in the
+     * child) is killed after WRITER_LIMIT_S and reported, never waited for without end. */
+    int limit_s = stall_for_test ? 1 : WRITER_LIMIT_S;
     char message[RTHS_ERROR_MSG_LEN];
     size_t got = 0;
-    for (;;) {
-        ssize_t r = read(fds[0], message + got, sizeof message - 1 - got);
-        if (r > 0 && (got += (size_t)r) < sizeof message - 1) continue;
-        if (r < 0 && errno == EINTR) continue;
-        break;
+    int status = 0, exited = 0, stalled = 0, eof = 0;
+    struct timespec start;
+    clock_gettime(CLOCK_MONOTONIC, &start);
+    while (!exited) {
+        pid_t w = waitpid(pid, &status, WNOHANG);
+        if (w == pid || (w < 0 && errno != EINTR)) {
+            exited = 1;
+            fcntl(fds[0], F_SETFL, O_NONBLOCK); /* the rest of the message, without waiting */
+        } else {
+            struct timespec now;
+            clock_gettime(CLOCK_MONOTONIC, &now);
+            if ((double)(now.tv_sec - start.tv_sec) > limit_s) {
+                kill(pid, SIGKILL);
+                while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+                }
+                stalled = 1;
+                break;
+            }
+            struct pollfd readable = {.fd = fds[0], .events = POLLIN};
+            if (eof || poll(&readable, 1, 100) <= 0) {
+                if (eof) nanosleep(&(struct timespec){0, 10000000}, NULL); /* closing, exiting */
+                continue;
+            }
+        }
+        for (;;) {
+            char chunk[512];
+            ssize_t r = read(fds[0], chunk, sizeof chunk);
+            if (r < 0 && errno == EINTR) continue;
+            if (r == 0) eof = 1;
+            if (r <= 0) break;
+            size_t keep = sizeof message - 1 - got;
+            if ((size_t)r < keep) keep = (size_t)r;
+            memcpy(message + got, chunk, keep);
+            got += keep;
+            if (!exited) break; /* back to watching the child */
+        }
     }
     close(fds[0]);
     message[got] = 0;
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
-    }
+    if (stalled)
+        return rths_error_set(err, RTHS_EFAIL, "the writer did not finish within %d s and was stopped",
+                              limit_s);
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return RTHS_OK;
     if (WIFSIGNALED(status))
         return rths_error_set(err, RTHS_EFAIL, "the writer died of signal %d (%s)",
