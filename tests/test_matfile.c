@@ -247,7 +247,8 @@ static void test_writer_stall(void **state) {
     assert_int_equal(rc, RTHS_EFAIL);
     char want[400];
     snprintf(want, sizeof want,
-             "cannot write %s/results.mat: the writer did not finish within 1 s and was stopped", run);
+             "cannot write %s/results.mat: the writer did not finish within 1 s and was stopped",
+             run);
     assert_string_equal(err.msg, want);
     assert_false(has_name_with(run, ".tmp"));
     char path[340];

@@ -454,8 +454,8 @@ static int write_in_child(const char *tmp, const char *dir, const char *const *c
     close(fds[0]);
     message[got] = 0;
     if (stalled)
-        return rths_error_set(err, RTHS_EFAIL, "the writer did not finish within %d s and was stopped",
-                              limit_s);
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the writer did not finish within %d s and was stopped", limit_s);
     if (WIFEXITED(status) && WEXITSTATUS(status) == 0) return RTHS_OK;
     if (WIFSIGNALED(status))
         return rths_error_set(err, RTHS_EFAIL, "the writer died of signal %d (%s)",

@@ -40,7 +40,8 @@ void frf_receptance_row(const frf_receptance_columns *cols, const rths_setup *s,
                         const rths_point *pt, double *row);
 void frf_receptance_truth_row(const frf_receptance_columns *cols, const rths_setup *s, double f_hz,
                               double *row);
-/* The truth's receptance of interface DoF d at f_hz (NaN with a bilinear leg). */
-double complex frf_receptance_truth(const rths_setup *s, int d, double f_hz);
+/* The truth's receptance of every reported interface DoF at f_hz, from one solve (NaN and -1 with
+ * a bilinear leg). */
+int frf_receptance_truth_all(const rths_setup *s, double f_hz, double complex *h);
 
 #endif
