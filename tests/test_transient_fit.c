@@ -306,6 +306,57 @@ static void test_target_rel_se(void **state) {
         }
 }
 
+/* The per-point budget (rths_settle_options.tally): two evaluations of one point against a
+ * target of 1e-6 (1800 rig s of averaging) with max_rig_s_per_point 20 s. The first spends the
+ * point's 20 s (plus at most one averaging block); the second starts with it spent, so it only
+ * reaches steady state (about 7 s waiting, 2-3 s fitted: well under the 20 s an evaluation of its
+ * own would spend again), is flagged, and the fit still takes it (a spent budget is no reason to
+ * fall back to waiting). The tally counts both, flags both and sums their rig time. */
+static void test_point_budget(void **state) {
+    (void)state;
+    for (int strategy = RTHS_SETTLE_WAIT; strategy <= RTHS_SETTLE_FIT; strategy++) {
+        mock *mk;
+        rths_rig *rig = mock_rig(0, 2e-8, 31, &mk);
+        rths_settle_options st;
+        rths_settle_defaults(&st, 0);
+        int notes = 0;
+        st.note = note_count;
+        st.note_user = &notes;
+        rths_noise_model noise = {0};
+        rths_evaluation ev[2];
+        rths_error err;
+        double a = 1e-4, b = 0;
+        assert_int_equal(
+            rths_evaluate_noise(rig, &st, &noise, 1, 1, 10.0, 1.0, &a, &b, &ev[0], &err), RTHS_OK);
+        rths_settle_tally tally = {0};
+        st.tally = &tally;
+        st.strategy = strategy;
+        st.target_rel_se = 1e-6;
+        st.max_rig_s_per_point = 20.0;
+        for (int k = 0; k < 2; k++) {
+            a = k ? 1.4e-4 : 1.5e-4, b = 2e-5;
+            assert_int_equal(
+                rths_evaluate_noise(rig, &st, &noise, 1, 1, 10.0, 1.0, &a, &b, &ev[k], &err),
+                RTHS_OK);
+            printf("point budget, strategy %d, evaluation %d: missed %d fitted %d fallback %d rig "
+                   "%.2f s, tally %.2f s\n",
+                   strategy, k, ev[k].se_target_missed, ev[k].fitted, ev[k].fit_fallback,
+                   ev[k].rig_time_s, tally.rig_time_s);
+            assert_int_equal(ev[k].se_target_missed, 1);
+        }
+        assert_true(ev[0].rig_time_s >= 20.0 && ev[0].rig_time_s <= 20.0 + 0.1 * 8);
+        assert_true(ev[1].rig_time_s < 10.0);
+        if (strategy == RTHS_SETTLE_FIT) assert_int_equal(ev[1].fitted, 1);
+        assert_int_equal(tally.evaluations, 2);
+        assert_int_equal(tally.se_target_missed, 2);
+        assert_int_equal(tally.fitted, ev[0].fitted + ev[1].fitted);
+        assert_int_equal(tally.fit_fallbacks, ev[0].fit_fallback + ev[1].fit_fallback);
+        assert_close(tally.rig_time_s, ev[0].rig_time_s + ev[1].rig_time_s, 1e-9);
+        assert_true(notes >= 2);
+        rths_rig_destroy(rig);
+    }
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fit_recovers_steady_state_noise_free),
@@ -313,6 +364,7 @@ int main(void) {
         cmocka_unit_test(test_fit_strategy_geometric),
         cmocka_unit_test(test_fit_strategy_falls_back),
         cmocka_unit_test(test_target_rel_se),
+        cmocka_unit_test(test_point_budget),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -58,6 +58,11 @@ typedef struct rths_point {
      * with a fresh noise stream, so it is not the point the uninterrupted run would have
      * measured (docs/journal.md, "What a resume restores") */
     int resumed;
+    /* How the point's evaluations reached steady state, failed attempts included (fitted,
+     * fallen back to waiting and why, stopped above iteration.target_rel_se) and their rig
+     * time: filled by a caller that keeps an rths_settle_tally over the point (rths frf), kept
+     * by the journal (docs/journal.md); zero otherwise */
+    rths_settle_tally settle;
 } rths_point;
 
 typedef struct rths_fold {

@@ -22,6 +22,19 @@
 #define RTHS_MAX_MATCHED_HARMONICS 3
 #define RTHS_LTI_HISTORY 12
 
+/* What the evaluations did since the caller last cleared it (rths_settle_options.tally): a
+ * caller that clears it at the start of every point (rths frf) learns how the point's
+ * evaluations reached steady state, and its max_rig_s_per_point then bounds the point. */
+#define RTHS_SETTLE_REASON_LEN 256
+typedef struct rths_settle_tally {
+    int evaluations;
+    int fitted;           /* the steady state from the transient fit (RTHS_SETTLE_FIT) */
+    int fit_fallbacks;    /* the fit not trusted: the evaluation waited instead */
+    int se_target_missed; /* stopped above target_rel_se: the rig time ran out */
+    double rig_time_s;    /* their rig time, failed evaluations included */
+    char fallback_reason[RTHS_SETTLE_REASON_LEN]; /* the last fallback's reason ("": none) */
+} rths_settle_tally;
+
 /* How one evaluation waits for steady state and averages (docs/method.md, "Iteration and
  * continuation"). */
 typedef struct rths_settle_options {
@@ -52,13 +65,18 @@ typedef struct rths_settle_options {
      * relative standard error of every interface DoF's fundamental amplitude, physical and
      * numerical side (the reported amplitude carries both), an
      * evaluation extends its averaging (wait) or its fitted record (fit) to reach, within at
-     * most max_rig_s_per_point rig seconds of the evaluation; when the time runs out first the
-     * evaluation is flagged (rths_evaluation.se_target_missed) and noted. 0: off. */
+     * most max_rig_s_per_point rig seconds; when the time runs out first the evaluation is
+     * flagged (rths_evaluation.se_target_missed) and noted. With a tally (below) the seconds
+     * are the point's: those the tally's evaluations spent count against it, so an evaluation
+     * that starts with the point's budget spent waits for steady state only, and is flagged
+     * when that does not meet the target; without one they are the evaluation's. 0: off. */
     double target_rel_se;
     double max_rig_s_per_point;
     /* Optional: receives one line per fallback or missed accuracy target (for run.log). */
     void (*note)(void *user, const char *line);
     void *note_user;
+    /* Optional: every evaluation adds itself here (the caller clears it per point). */
+    rths_settle_tally *tally;
 } rths_settle_options;
 
 enum { RTHS_SETTLE_WAIT = 0, RTHS_SETTLE_FIT = 1 };

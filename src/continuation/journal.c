@@ -208,6 +208,24 @@ int rths_journal_append(rths_journal *j, const rths_point *pt, int is_update, rt
                            json_object_new_int64(acc->saturated_sensor_samples));
     json_object_object_add(o, "samples_read", json_object_new_int64(acc->samples_read));
     if (pt->resumed) json_object_object_add(o, "resumed", json_object_new_int(1));
+    /* how the accepted evaluation reached steady state, and the point's evaluations all
+     * together (rths_point.settle; optional on reading: docs/journal.md) */
+    json_object_object_add(o, "eval_fitted", json_object_new_int(e->fitted));
+    json_object_object_add(o, "eval_fit_fallback", json_object_new_int(e->fit_fallback));
+    json_object_object_add(o, "eval_fit_order", json_object_new_int(e->fit_order));
+    json_object_object_add(o, "eval_fit_max_pole", json_object_new_double(e->fit_max_pole));
+    json_object_object_add(o, "eval_amplitude_rel_se", json_object_new_double(e->amplitude_rel_se));
+    json_object_object_add(o, "eval_se_target_missed", json_object_new_int(e->se_target_missed));
+    const rths_settle_tally *t = &pt->settle;
+    json_object_object_add(o, "settle_evaluations", json_object_new_int(t->evaluations));
+    json_object_object_add(o, "fitted_evaluations", json_object_new_int(t->fitted));
+    json_object_object_add(o, "fit_fallback_evaluations", json_object_new_int(t->fit_fallbacks));
+    json_object_object_add(o, "se_target_missed_evaluations",
+                           json_object_new_int(t->se_target_missed));
+    json_object_object_add(o, "settle_rig_time_s", json_object_new_double(t->rig_time_s));
+    if (t->fallback_reason[0])
+        json_object_object_add(o, "fit_fallback_reason",
+                               json_object_new_string(t->fallback_reason));
     if (pt->sol.below_noise_floor)
         json_object_object_add(o, "below_noise_floor", json_object_new_int(1));
     int rc = write_line(j, o, err);
@@ -426,6 +444,47 @@ static int get_flat_corrector(json_object *o, int harmonics, rths_corrector_save
     return 0;
 }
 
+/* An optional number (added within format 3): absent reads as 0. */
+static int get_opt_dbl(json_object *o, const char *key, double *out) {
+    json_object *v;
+    *out = 0;
+    return json_object_object_get_ex(o, key, &v) ? get_dbl(o, key, out) : 0;
+}
+
+/* Added within format 3, optional (absent: 0, a journal that said nothing of it): how the
+ * accepted evaluation and the point's evaluations reached steady state. */
+static int get_settle(json_object *o, rths_point *pt) {
+    rths_evaluation *e = &pt->sol.eval;
+    rths_settle_tally *t = &pt->settle;
+    long v[9];
+    static const char *const keys[9] = {"eval_fitted",
+                                        "eval_fit_fallback",
+                                        "eval_se_target_missed",
+                                        "eval_fit_order",
+                                        "settle_evaluations",
+                                        "fitted_evaluations",
+                                        "fit_fallback_evaluations",
+                                        "se_target_missed_evaluations",
+                                        NULL};
+    for (int i = 0; keys[i]; i++)
+        if (get_count(o, keys[i], &v[i]) || v[i] > 1000000 || (i < 3 && v[i] > 1))
+            return refuse(keys[i]);
+    e->fitted = (int)v[0], e->fit_fallback = (int)v[1], e->se_target_missed = (int)v[2];
+    e->fit_order = (int)v[3];
+    t->evaluations = (int)v[4], t->fitted = (int)v[5], t->fit_fallbacks = (int)v[6];
+    t->se_target_missed = (int)v[7];
+    if (get_opt_dbl(o, "eval_fit_max_pole", &e->fit_max_pole) ||
+        get_opt_dbl(o, "eval_amplitude_rel_se", &e->amplitude_rel_se) ||
+        get_opt_dbl(o, "settle_rig_time_s", &t->rig_time_s))
+        return -1;
+    json_object *r;
+    if (json_object_object_get_ex(o, "fit_fallback_reason", &r)) {
+        if (!json_object_is_type(r, json_type_string)) return refuse("fit_fallback_reason");
+        snprintf(t->fallback_reason, sizeof t->fallback_reason, "%s", json_object_get_string(r));
+    }
+    return 0;
+}
+
 static int parse_point(json_object *o, int format, rths_point *pt) {
     memset(pt, 0, sizeof *pt);
     rths_solution *s = &pt->sol;
@@ -478,6 +537,7 @@ static int parse_point(json_object *o, int format, rths_point *pt) {
         return refuse(honest > 1 ? "amplitude_se_honest" : resumed > 1 ? "resumed" : bad_key);
     s->amplitude_se_honest = (int)honest;
     pt->resumed = (int)resumed;
+    if (get_settle(o, pt)) return -1;
     rths_residual_from_evaluation(e, &pt->residual);
     return 0;
 }

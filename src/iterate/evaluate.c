@@ -348,10 +348,28 @@ static void note(const rths_settle_options *opt, const char *fmt, ...) {
     opt->note(opt->note_user, line);
 }
 
-/* The rig time an evaluation may spend on iteration.target_rel_se. */
+/* The rig time an evaluation may spend on iteration.target_rel_se: the point's, with a tally
+ * (rths_settle_options.tally), else the evaluation's. */
 static double max_rig_s(const rths_settle_options *opt) {
     return opt->max_rig_s_per_point > 0 ? opt->max_rig_s_per_point
                                         : RTHS_SETTLE_MAX_RIG_S_PER_POINT;
+}
+
+/* The rig time spent against that budget: the tally's evaluations' (the point's so far) and
+ * this one's since t0. */
+static double rig_s_spent(const rths_settle_options *opt, rths_rig *rig, double t0) {
+    return (opt->tally ? opt->tally->rig_time_s : 0.0) + rths_rig_time_s(rig) - t0;
+}
+
+/* The note of a target the budget could not meet. */
+static void note_target_missed(const rths_settle_options *opt, double frequency_hz, double rel_se,
+                               double spent_s) {
+    note(opt,
+         "evaluation at %.6g Hz: relative amplitude standard error %.3g above "
+         "iteration.target_rel_se %.3g after %.3g rig s%s (iteration.max_rig_s_per_point %.3g): "
+         "the rig's noise cannot meet it",
+         frequency_hz, rel_se, opt->target_rel_se, spent_s, opt->tally ? " of the point's" : "",
+         max_rig_s(opt));
 }
 
 /* Relative standard error of interface DoF d's physical fundamental amplitude |x| =
@@ -604,7 +622,7 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
                  "%s after %d periods (order %d, largest pole %.4f per period, residual lag-1 "
                  "autocorrelation %.2f)",
                  failed ? failed : "accepted", count, fit.order, fit.max_abs_z, fit.lag1);
-        int out_of_time = opt->target_rel_se > 0 && rths_rig_time_s(rig) - t0 >= max_rig_s(opt);
+        int out_of_time = opt->target_rel_se > 0 && rig_s_spent(opt, rig, t0) >= max_rig_s(opt);
         if (ok || (out_of_time && trusted && have_prev && failed &&
                    strcmp(failed, "the standard error above iteration.target_rel_se") == 0)) {
             fit_fill(&fit, first, K, dofs, harmonics, a, se, out);
@@ -629,7 +647,10 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             *accepted = 1;
             break;
         }
-        if (out_of_time) break;
+        /* out of the point's time, a fit that is otherwise trusted was taken above; one that is
+         * not goes on to fit_max_periods (the budget bounds the target's extension, not the
+         * settling), unless this evaluation alone has spent the budget */
+        if (out_of_time && rths_rig_time_s(rig) - t0 >= max_rig_s(opt)) break;
         memcpy(hist_a + (size_t)count * m, a, sizeof(double) * (size_t)m);
         memcpy(hist_se + (size_t)count * m, se, sizeof(double) * (size_t)m);
         hist_ok[count] = 1;
@@ -658,7 +679,7 @@ static int extend_average(rths_rig *rig, const rths_settle_options *opt, double 
                           rths_error *err) {
     int block = opt->average_periods > 0 ? opt->average_periods : 1;
     while (worst_amplitude_rel_se(out) > opt->target_rel_se) {
-        if (rths_rig_time_s(rig) - t0 >= max_rig_s(opt)) return RTHS_OK;
+        if (rig_s_spent(opt, rig, t0) >= max_rig_s(opt)) return RTHS_OK;
         rths_evaluation more;
         average_scatter sc2;
         memset(&more, 0, sizeof more);
@@ -698,11 +719,10 @@ static int integrity_ok(const integrity_counts *cnt, const rths_settle_options *
            (double)cnt->late <= opt->max_late_share * (double)cnt->samples;
 }
 
-int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
-                        int harmonics, int dofs, double frequency_hz, double amplitude_n,
-                        const double *target_a, const double *target_b, rths_evaluation *out,
-                        rths_error *err) {
-    memset(out, 0, sizeof *out);
+static int evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
+                          int harmonics, int dofs, double frequency_hz, double amplitude_n,
+                          const double *target_a, const double *target_b, rths_evaluation *out,
+                          rths_error *err) {
     out->harmonics = harmonics;
     out->frequency_hz = frequency_hz;
     if (!(isfinite(frequency_hz) && frequency_hz > 0))
@@ -735,17 +755,16 @@ int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_nois
             if (!rc && fitted) {
                 steady = 1;
                 if (out->se_target_missed)
-                    note(opt,
-                         "evaluation at %.6g Hz: relative amplitude standard error %.3g above "
-                         "iteration.target_rel_se %.3g after %.3g rig s "
-                         "(iteration.max_rig_s_per_point %.3g): the rig's noise cannot meet it",
-                         frequency_hz, worst_amplitude_rel_se(out), opt->target_rel_se,
-                         rths_rig_time_s(rig) - t0, max_rig_s(opt));
+                    note_target_missed(opt, frequency_hz, worst_amplitude_rel_se(out),
+                                       rig_s_spent(opt, rig, t0));
             } else if (!rc) {
                 /* the periods already read count as waiting; the fallback waits on from here */
                 out->fit_fallback = 1;
                 note(opt, "evaluation at %.6g Hz: transient fit not trusted (%s): waiting instead",
                      frequency_hz, why);
+                if (opt->tally)
+                    snprintf(opt->tally->fallback_reason, sizeof opt->tally->fallback_reason, "%s",
+                             why);
             }
         }
         if (!rc && !fitted) {
@@ -756,12 +775,8 @@ int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_nois
                 rc = extend_average(rig, opt, t0, out, &cnt, &scatter, err);
                 if (!rc && worst_amplitude_rel_se(out) > opt->target_rel_se) {
                     out->se_target_missed = 1;
-                    note(opt,
-                         "evaluation at %.6g Hz: relative amplitude standard error %.3g above "
-                         "iteration.target_rel_se %.3g after %.3g rig s "
-                         "(iteration.max_rig_s_per_point %.3g): the rig's noise cannot meet it",
-                         frequency_hz, worst_amplitude_rel_se(out), opt->target_rel_se,
-                         rths_rig_time_s(rig) - t0, max_rig_s(opt));
+                    note_target_missed(opt, frequency_hz, worst_amplitude_rel_se(out),
+                                       rig_s_spent(opt, rig, t0));
                 }
             }
         }
@@ -793,6 +808,24 @@ int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_nois
         "forcing, narrow the range, or widen the converter or demand ranges)",
         frequency_hz, cnt.samples, cnt.clipped, cnt.saturated, cnt.late,
         cnt.samples > 0 ? (double)cnt.late / (double)cnt.samples : 0.0, opt->max_late_share);
+}
+
+int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_noise_model *noise,
+                        int harmonics, int dofs, double frequency_hz, double amplitude_n,
+                        const double *target_a, const double *target_b, rths_evaluation *out,
+                        rths_error *err) {
+    memset(out, 0, sizeof *out);
+    int rc = evaluate_noise(rig, opt, noise, harmonics, dofs, frequency_hz, amplitude_n, target_a,
+                            target_b, out, err);
+    rths_settle_tally *t = opt->tally;
+    if (t) { /* failed evaluations too: their rig time is the point's */
+        t->evaluations++;
+        t->fitted += out->fitted;
+        t->fit_fallbacks += out->fit_fallback;
+        t->se_target_missed += out->se_target_missed;
+        t->rig_time_s += out->rig_time_s;
+    }
+    return rc;
 }
 
 /* Interface DoF d's physical and numerical means and standard errors. */

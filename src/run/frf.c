@@ -441,6 +441,36 @@ static int measure_floquet(frf_state *st, const rths_point *pt) {
     return RTHS_OK;
 }
 
+/* How a point's evaluations reached steady state, for its run.log line: "waited", or with
+ * iteration.settle.strategy fit how many were fitted and how many fell back (and the last
+ * reason), and with iteration.target_rel_se whether the point's accepted evaluation met it
+ * within the point's iteration.max_rig_s_per_point (docs/method.md, "The fitted evaluation"). */
+static void settle_text(const frf_state *st, const rths_point *pt, char *buf, size_t size) {
+    const rths_settle_tally *t = &pt->settle;
+    const rths_evaluation *e = &pt->sol.eval;
+    int len;
+    if (st->settle.strategy == RTHS_SETTLE_FIT)
+        len = snprintf(buf, size, "%s; of %d evaluations %d fitted, %d fell back to waiting%s%s",
+                       e->fitted ? "fitted" : "waited", t->evaluations, t->fitted, t->fit_fallbacks,
+                       t->fallback_reason[0] ? " (last: " : "",
+                       t->fallback_reason[0] ? t->fallback_reason : "");
+    else
+        len = snprintf(buf, size, "waited");
+    if (len > 0 && (size_t)len < size && t->fallback_reason[0] &&
+        st->settle.strategy == RTHS_SETTLE_FIT)
+        len += snprintf(buf + len, size - (size_t)len, ")");
+    if (len > 0 && (size_t)len < size && st->settle.target_rel_se > 0)
+        snprintf(buf + len, size - (size_t)len,
+                 e->se_target_missed
+                     ? "; iteration.target_rel_se %.3g NOT met (relative standard error %.3g "
+                       "after %.3g of the point's %.3g rig s)"
+                     : "; iteration.target_rel_se %.3g met (relative standard error %.3g, %.3g of "
+                       "the point's %.3g rig s)",
+                 st->settle.target_rel_se, e->amplitude_rel_se, t->rig_time_s,
+                 st->settle.max_rig_s_per_point > 0 ? st->settle.max_rig_s_per_point
+                                                    : RTHS_SETTLE_MAX_RIG_S_PER_POINT);
+}
+
 /* One run.log line per accepted point, written (and flushed) as it is accepted, so a run under
  * nohup shows its progress with tail -f: frequency, amplitude and its standard error, the
  * evaluations and rig time the point took; with several interface DoFs every DoF's amplitude; in
@@ -460,11 +490,13 @@ static void log_point(frf_state *st, const rths_point *pt) {
         len += snprintf(extra + len, sizeof extra - (size_t)len, "%s%.1f s",
                         k ? ", " : "; sites' rig time ", info.rig_time_s);
     }
+    char how[RTHS_SETTLE_REASON_LEN + 200];
+    settle_text(st, pt, how, sizeof how);
     rths_report_log(st->rep,
                     "point %d accepted: %.6f Hz, amplitude %.6g m +- %.2g (SE), %d evaluations, "
-                    "%.2f s rig%s%s",
+                    "%.2f s rig%s; %s%s",
                     pt->index, sol->frequency_hz, sol->amplitude_m, sol->amplitude_se_m,
-                    pt->evaluations, pt->rig_time_s, sol->converged ? "" : ", not converged",
+                    pt->evaluations, pt->rig_time_s, sol->converged ? "" : ", not converged", how,
                     extra);
 }
 
@@ -525,9 +557,18 @@ static int add_sites_summary(frf_state *st, rths_error *err) {
     return rc;
 }
 
-static int on_point(void *user, const rths_point *pt, int is_update) {
+static int on_point(void *user, const rths_point *given, int is_update) {
     frf_state *st = user;
     rths_error err;
+    /* how its evaluations reached steady state: the tally kept over the point (a fold's update
+     * re-reports a point already remembered with it) */
+    rths_point with_settle = *given, *pt = &with_settle;
+    if (!is_update && st->settle.tally) {
+        pt->settle = *st->settle.tally;
+        memset(st->settle.tally, 0, sizeof *st->settle.tally);
+    } else if (is_update && given->index < st->n) {
+        pt->settle = st->pts[given->index].settle;
+    }
     if (rths_journal_append(st->journal, pt, is_update, &err)) {
         rths_report_log(st->rep, "%s", err.msg);
         st->point_err = err;
@@ -754,7 +795,12 @@ int rths_run_frf(const rths_run_frf_options *opt, const rths_run_callbacks *cb,
     int run_rc = RTHS_OK;
     rths_error run_err = {0};
     double t_start = rths_monotonic_s();
+    /* every point's evaluations tallied (cleared as each is accepted): how they reached steady
+     * state, and the point's iteration.max_rig_s_per_point (the trace after the run is none) */
+    rths_settle_tally tally = {0};
+    st.settle.tally = &tally;
     if (!rc) run_rc = run_continuation(&st, &run_err);
+    st.settle.tally = NULL;
     st.wall_time_s = rths_monotonic_s() - t_start;
     /* Whatever ended the run, everything accepted is written out. A run that accepted no point
      * (and was not cancelled) measured nothing: a failure, whatever stopped it. */

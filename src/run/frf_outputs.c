@@ -705,6 +705,44 @@ static json_object *integrity_json(const frf_state *run, const point_stats *ps) 
     return o;
 }
 
+/* How the points' evaluations reached steady state (rths_point.settle, journaled, so resumed
+ * points included; docs/method.md, "The fitted evaluation"): the accepted evaluations fitted or
+ * waited, the points with any fallback to waiting, and with iteration.target_rel_se the points
+ * whose accepted evaluation stayed above it within the point's iteration.max_rig_s_per_point. */
+static json_object *evaluation_json(const frf_state *run) {
+    int fitted = 0, fell_back = 0, missed = 0, evals = 0, evals_fitted = 0, evals_fallback = 0,
+        evals_missed = 0, over = 0;
+    double budget = run->settle.max_rig_s_per_point > 0 ? run->settle.max_rig_s_per_point
+                                                        : RTHS_SETTLE_MAX_RIG_S_PER_POINT;
+    for (int i = 0; i < run->n; i++) {
+        const rths_point *pt = &run->pts[i];
+        fitted += pt->sol.eval.fitted;
+        fell_back += pt->settle.fit_fallbacks > 0 || pt->sol.eval.fit_fallback;
+        missed += pt->sol.eval.se_target_missed;
+        evals += pt->settle.evaluations;
+        evals_fitted += pt->settle.fitted;
+        evals_fallback += pt->settle.fit_fallbacks;
+        evals_missed += pt->settle.se_target_missed;
+        over += pt->rig_time_s > budget;
+    }
+    json_object *o = json_object_new_object();
+    json_object_object_add(
+        o, "strategy",
+        json_object_new_string(run->settle.strategy == RTHS_SETTLE_FIT ? "fit" : "wait"));
+    json_object_object_add(o, "points_fitted", json_object_new_int(fitted));
+    json_object_object_add(o, "points_waited", json_object_new_int(run->n - fitted));
+    json_object_object_add(o, "points_with_fit_fallback", json_object_new_int(fell_back));
+    json_object_object_add(o, "evaluations", json_object_new_int(evals));
+    json_object_object_add(o, "evaluations_fitted", json_object_new_int(evals_fitted));
+    json_object_object_add(o, "evaluations_fit_fallback", json_object_new_int(evals_fallback));
+    json_object_object_add(o, "target_rel_se", json_object_new_double(run->settle.target_rel_se));
+    json_object_object_add(o, "max_rig_s_per_point", json_object_new_double(budget));
+    json_object_object_add(o, "points_se_target_missed", json_object_new_int(missed));
+    json_object_object_add(o, "evaluations_se_target_missed", json_object_new_int(evals_missed));
+    json_object_object_add(o, "points_over_max_rig_s", json_object_new_int(over));
+    return o;
+}
+
 void frf_log_integrity(frf_state *run) {
     rths_rig_integrity t;
     rths_rig_integrity_totals(run->rig, &t);
@@ -773,6 +811,7 @@ int frf_write_summary(frf_state *run, rths_error *err) {
     json_object_object_add(root, "points_measured_after_resume",
                            json_object_new_int(ps.measured_after_resume));
     json_object_object_add(root, "integrity", integrity_json(run, &ps));
+    json_object_object_add(root, "evaluation", evaluation_json(run));
     /* Totals over the accepted points (journal included on --resume); failed attempts are in
      * their point's counts, since a point's counters include its retries. */
     json_object_object_add(root, "evaluations_total", json_object_new_int(evaluations));
