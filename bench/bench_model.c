@@ -16,7 +16,14 @@
  * node (issue 26's acceptance case: 50 x 5 column lines x 40 storeys, 60 000 DoFs; 67 storeys,
  * 100 500 DoFs; and 10 080 DoFs): each stage's wall time (read, order, factor, eigen, checks,
  * FRF over the default grid) and the peak memory so far. Run from the source tree (the generator
- * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases. */
+ * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases.
+ *
+ * model (third table): on the same frames, the real-time reduction right in the band
+ * (krylov_reduce.h) over the band from half the first mode to the tenth, the error checked by
+ * RTHS_KRYLOV_CHECK_POINTS_DEFAULT full sparse complex solves of the numerical side: its wall time
+ * (the check's full solves, the basis), its size, the shifts used and the assembly's worst
+ * interface response error over the check grid. */
+#include "rths/krylov_reduce.h"
 #include "rths/model.h"
 #include "rths/rig_virtual.h"
 
@@ -100,6 +107,16 @@ static void bench_model_size(int n) {
     rths_assembly_free(&a);
 }
 
+typedef struct {
+    const char *label;
+    int n, nr;
+    double lo_hz, hi_hz, total_s, peak_mb;
+    rths_krylov_report rep;
+} reduction_row;
+enum { MAX_REDUCTION_ROWS = 4 };
+static reduction_row reductions[MAX_REDUCTION_ROWS];
+static int n_reductions;
+
 static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
     char dir[] = "/tmp/rths_bench_model_XXXXXX", cmd[512], cfg_path[300];
     if (!mkdtemp(dir)) {
@@ -151,6 +168,27 @@ static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
     for (int j = 0; x && j < count; j++)
         rths_sparse_frf_eval(sweep, 2 * M_PI * freqs[j], x, &err);
     double frf_s = rths_monotonic_s() - t1;
+    /* the reduction, reported in the third table */
+    if (n_reductions < MAX_REDUCTION_ROWS && modes.count >= 10) {
+        reduction_row *row = &reductions[n_reductions++];
+        rths_krylov_options ko;
+        rths_krylov_defaults(&ko);
+        ko.start_hz = 0.5 * modes.frequency_hz[0];
+        ko.end_hz = modes.frequency_hz[9];
+        rths_reduced red;
+        double t2 = rths_monotonic_s();
+        int rc = rths_sparse_model_krylov_reduce(&model, &ko, &red, NULL, &row->rep, &err);
+        *row = (reduction_row){.label = label,
+                               .n = model.n,
+                               .lo_hz = ko.start_hz,
+                               .hi_hz = ko.end_hz,
+                               .total_s = rths_monotonic_s() - t2,
+                               .nr = rc ? -1 : red.nr,
+                               .rep = row->rep,
+                               .peak_mb = rths_peak_memory_mb()};
+        if (rc) fprintf(stderr, "bench model: reduction: %s\n", err.msg);
+        rths_reduced_free(&red);
+    }
     printf("%-6s %8d %7.2f %8.2f %7.2f %8.2f %8.2f %7.3f %5d %8.2f %8.0f  %d/%d %.2g\n", label,
            model.n, read_s, modes.stats.analysis_s, modes.stats.factor_s, modes.stats.lanczos_s,
            modes.check_s, frf_s, count, rths_monotonic_s() - t0, rths_peak_memory_mb(),
@@ -179,6 +217,17 @@ static void bench_model_sparse(void) {
     bench_sparse_frame("10k", 10, 6, 28);
     if (max_dofs >= 60000) bench_sparse_frame("60k", 50, 5, 40);
     if (max_dofs >= 100000) bench_sparse_frame("100k", 50, 5, 67);
+    printf("\nthe real-time reduction right in the band (krylov_reduce.h) on the same frames, "
+           "band 0.5 f1 .. f10, %d check points, wall seconds:\n",
+           RTHS_KRYLOV_CHECK_POINTS_DEFAULT);
+    printf("%-6s %8s %15s %8s %8s %8s %4s %6s %10s %8s %8s\n", "case", "dofs", "band_hz", "check_s",
+           "basis_s", "total_s", "nr", "shifts", "max_error", "at_hz", "peak_MB");
+    for (int i = 0; i < n_reductions; i++) {
+        const reduction_row *r = &reductions[i];
+        printf("%-6s %8d %6.3f-%-8.3f %8.2f %8.2f %8.2f %4d %6d %10.2g %8.3f %8.0f\n", r->label,
+               r->n, r->lo_hz, r->hi_hz, r->rep.truth_s, r->rep.basis_s, r->total_s, r->nr,
+               r->rep.shifts, r->rep.max_error, r->rep.at_hz, r->peak_mb);
+    }
 }
 
 void rths_bench_model(void) {

@@ -28,13 +28,13 @@
  * 0.1 % of the full model's over the band. */
 #define RTHS_KRYLOV_MAX_ERROR_DEFAULT 1e-3
 /* controller.reduction.check_points' default: full sparse solves over the band. */
-#define RTHS_KRYLOV_CHECK_POINTS_DEFAULT 41
+#define RTHS_KRYLOV_CHECK_POINTS_DEFAULT 31
 
 typedef struct rths_krylov_options {
     double start_hz, end_hz; /* the tested band (the sweep's), start < end, start >= 0 */
-    int check_points;        /* full sparse solves, evenly spread over the band, ends included */
-    double max_error;        /* the largest relative interface response error accepted */
-    int max_size;            /* reduced DoFs at most (interface included) */
+    int check_points; /* exact solves (one factorisation each), evenly over the band, ends in */
+    double max_error; /* the largest relative interface response error accepted */
+    int max_size;     /* reduced DoFs at most (interface included) */
     /* 1: once within max_error, go on adding the worst check point's solves up to max_size
      * (the check sees only its grid: between its points, at a lightly damped resonance, the
      * error can be larger, and the real-time step's cost is set by its bound anyway); 0: stop */
@@ -72,8 +72,12 @@ typedef struct rths_krylov_report {
  * gives (n = nn, interface first and physical, n_modes = interior vectors, transform nn x nr,
  * dense mass / damping / stiffness nr x nr, mode_hz the Ritz frequencies of the interior,
  * first_dropped_hz INFINITY and dropped_mass_kg NAN: the modal bound does not apply).
- * The error, checked against one full sparse complex solve per check frequency (one symbolic
- * analysis), is, per check frequency and per input column (a unit force on each interface DoF,
+ * The error, checked against the exact response at each check frequency (one complex LDL^T of
+ * the interior D_ii(w) on one symbolic analysis, solved with [D_ib, f_i, G, H]: the numerical
+ * side's interface response by the Schur complement S = D_bb - D_bi D_ii^-1 D_ib, exactly a full
+ * solve's, and that point's candidate vectors kept, so choosing it as a shift costs nothing
+ * more: memory nn x (n_loads + 2 nb) complex per check point), is, per check frequency and per
+ * input column (a unit force on each interface DoF,
  * then each load), ||x_reduced - x|| / ||x|| of the interface displacements, x of the numerical
  * substructure alone or, with rest, of the assembly; its maximum over the grid goes to rep.
  * RTHS_EINPUT (out freed, rep filled) when it exceeds opt->max_error at opt->max_size. */

@@ -186,17 +186,11 @@ static int add_vector(builder *b, double *x) {
     return 1;
 }
 
-/* The candidates at omega: Re and Im of D_ii(omega)^-1 [f_i, G, H], in that order (the loads
- * first: the forcing's shapes matter most), each added while the basis has room. Returns how
- * many were added, or -1 with err set. */
-static int add_shift(builder *b, double omega, rths_error *err) {
-    int ni = b->ni, nc = b->nl + 2 * b->nb;
-    double complex coef[3] = {1, I * omega, -omega * omega};
-    if (rths_sparse_factor_complex(b->factor, coef, err)) return -1;
-    for (size_t e = 0; e < (size_t)ni * (size_t)nc; e++)
-        b->cx[e] = b->rhs[e];
-    if (rths_sparse_solve_complex(b->factor, b->cx, nc, err)) return -1;
-    int added = 0;
+/* The candidates of one frequency: Re and Im of the columns of sol (ni x (nl + 2 nb), the
+ * interior's solves D_ii(w)^-1 [f_i, G, H]) in that order (the loads first: the forcing's shapes
+ * matter most), each added while the basis has room. Returns how many were added, or -1. */
+static int add_candidates(builder *b, const double complex *sol, rths_error *err) {
+    int ni = b->ni, nc = b->nl + 2 * b->nb, added = 0;
     double *x = malloc(sizeof(double) * (size_t)ni);
     if (!x) {
         rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -204,7 +198,7 @@ static int add_shift(builder *b, double omega, rths_error *err) {
     }
     for (int c = 0; c < nc && b->k < b->max_basis; c++)
         for (int part = 0; part < 2 && b->k < b->max_basis; part++) {
-            const double complex *col = b->cx + (size_t)c * ni;
+            const double complex *col = sol + (size_t)c * ni;
             for (int i = 0; i < ni; i++)
                 x[i] = part ? cimag(col[i]) : creal(col[i]);
             added += add_vector(b, x);
@@ -300,85 +294,71 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
     if (mass->n != nn || damping->n != nn)
         return rths_error_set(err, RTHS_EINPUT, "Krylov reduction: M, C, K of orders %d, %d, %d",
                               mass->n, damping->n, nn);
-    if (nb < 1 || nb > nn || nl < 0 || (nl > 0 && !loads))
+    if (nb < 1 || nb >= nn || nl < 0 || (nl > 0 && !loads))
         return rths_error_set(err, RTHS_EINPUT,
-                              "Krylov reduction: %d interface DoFs of %d, %d loads", nb, nn, nl);
+                              "Krylov reduction: %d interface DoFs of %d (an interior needed), "
+                              "%d loads",
+                              nb, nn, nl);
     if (opt->max_size < nb || opt->max_size > RTHS_REALTIME_MAX_DOFS)
         return rths_error_set(err, RTHS_EINPUT,
                               "Krylov reduction: size bound %d outside %d..%d (the interface's "
                               "DoFs .. RTHS_REALTIME_MAX_DOFS)",
                               opt->max_size, nb, RTHS_REALTIME_MAX_DOFS);
-    if (!(opt->start_hz >= 0) || !(opt->end_hz > opt->start_hz) || np < 2 || np > 100000 ||
+    if (!(opt->start_hz >= 0) || !(opt->end_hz > opt->start_hz) || np < 2 || np > 10000 ||
         !(opt->max_error > 0))
         return rths_error_set(err, RTHS_EINPUT,
                               "Krylov reduction: band %g..%g Hz (0 <= start < end), %d check "
-                              "points (>= 2), max_error %g (> 0)",
+                              "points (2..10000), max_error %g (> 0)",
                               opt->start_hz, opt->end_hz, np, opt->max_error);
     builder b = {.nn = nn, .nb = nb, .ni = ni, .nl = nl, .full = {mass, damping, stiffness}};
     b.max_basis = opt->max_size - nb < ni ? opt->max_size - nb : ni;
+    const int ncand = nl + 2 * nb; /* candidate columns per frequency: f_i, G, H */
+    const int nsolve = nb + ncand; /* interior solves per check point: D_ib, then those */
     double *hz = malloc(sizeof(double) * (size_t)np);
     double complex *truth = malloc(sizeof(double complex) * (size_t)np * (size_t)(nb * nc));
     double complex *xr = malloc(sizeof(double complex) * (size_t)(nb * nc));
+    /* every check point's candidates, so a shift costs no further factorisation:
+     * ni x ncand complex per point */
+    double complex *cand =
+        malloc(sizeof(double complex) * (size_t)ni * (size_t)ncand * (size_t)(np + 1));
+    double complex *dib = malloc(sizeof(double complex) * (size_t)ni * (size_t)nb);
+    double complex *schur = malloc(sizeof(double complex) * (size_t)(nb * nb));
+    double *dense_bb[3] = {rths_mat_new(nb, nb), rths_mat_new(nb, nb), rths_mat_new(nb, nb)};
+    double *coupling[3] = {rths_mat_new(ni, nb), rths_mat_new(ni, nb), rths_mat_new(ni, nb)};
     double *reduced_loads = NULL;
     int *used = calloc((size_t)np, sizeof(int));
-    rths_sparse_factor *full_factor = NULL;
-    double complex *x = malloc(sizeof(double complex) * (size_t)nn * (size_t)nc);
-    b.psi = rths_mat_new(ni > 0 ? ni : 1, nb);
-    b.rhs = rths_mat_new(ni > 0 ? ni : 1, nl + 2 * nb);
-    b.v = rths_mat_new(ni > 0 ? ni : 1, b.max_basis > 0 ? b.max_basis : 1);
-    b.mv = rths_mat_new(ni > 0 ? ni : 1, b.max_basis > 0 ? b.max_basis : 1);
-    b.work = malloc(sizeof(double) * (size_t)(ni > 0 ? ni : 1));
-    b.cx = malloc(sizeof(double complex) * (size_t)(ni > 0 ? ni : 1) * (size_t)(nl + 2 * nb));
-    int rc = hz && truth && xr && used && x && b.psi && b.rhs && b.v && b.mv && b.work && b.cx
+    b.psi = rths_mat_new(ni, nb);
+    b.rhs = rths_mat_new(ni, ncand);
+    b.v = rths_mat_new(ni, b.max_basis > 0 ? b.max_basis : 1);
+    b.mv = rths_mat_new(ni, b.max_basis > 0 ? b.max_basis : 1);
+    b.work = malloc(sizeof(double) * (size_t)ni);
+    b.cx = malloc(sizeof(double complex) * (size_t)ni * (size_t)nsolve);
+    int rc = hz && truth && xr && cand && dib && schur && used && b.psi && b.rhs && b.v && b.mv &&
+                     b.work && b.cx
                  ? RTHS_OK
                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int t = 0; t < 3 && !rc; t++)
+        if (!dense_bb[t] || !coupling[t]) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
 
-    /* the truth: one full complex solve per check frequency, one symbolic analysis */
+    /* the interior: its blocks, the constraint modes, the right-hand sides f_i, G, H and the
+     * static candidates (D_ii(0) = K_ii) */
     double t0 = rths_monotonic_s();
-    const rths_sparse_sym *full_terms[3] = {stiffness, damping, mass};
-    if (!rc) rc = rths_sparse_factor_create(3, full_terms, opt->ordering, &full_factor, err);
-    for (int p = 0; p < np && !rc; p++) {
-        hz[p] = opt->start_hz + (opt->end_hz - opt->start_hz) * p / (np - 1);
-        double w = 2 * M_PI * hz[p];
-        double complex coef[3] = {1, I * w, -w * w};
-        rc = rths_sparse_factor_complex(full_factor, coef, err);
-        if (rc) break;
-        memset(x, 0, sizeof *x * (size_t)nn * (size_t)nc);
-        for (int c = 0; c < nb; c++)
-            RTHS_AT(x, nn, c, c) = 1;
-        for (int l = 0; l < nl; l++)
-            for (int i = 0; i < nn; i++)
-                RTHS_AT(x, nn, i, nb + l) = RTHS_AT(loads, nn, i, l);
-        rc = rths_sparse_solve_complex(full_factor, x, nc, err);
-        double complex *tp = truth + (size_t)p * (size_t)(nb * nc);
-        for (int c = 0; c < nc && !rc; c++)
-            for (int i = 0; i < nb; i++)
-                RTHS_AT(tp, nb, i, c) = RTHS_AT(x, nn, i, c);
-        if (!rc) rc = couple(nb, nl, tp, rest, w, err);
-    }
-    if (full_factor) rths_sparse_factor_destroy(full_factor);
-    free(x);
-    rep->truth_s = rths_monotonic_s() - t0;
-    rep->check_points = np;
-
-    /* the interior: its blocks, the constraint modes and the right-hand sides f_i, G, H */
-    t0 = rths_monotonic_s();
-    double *coupling[3] = {NULL, NULL, NULL};
     for (int t = 0; t < 3 && !rc; t++) {
-        coupling[t] = rths_mat_new(ni > 0 ? ni : 1, nb);
-        rc = coupling[t] ? split_blocks(b.full[t], nb, &b.inner[t], coupling[t], err)
-                         : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        rc = split_blocks(b.full[t], nb, &b.inner[t], coupling[t], err);
+        for (int j = 0; j < nb && !rc; j++)
+            for (int i = 0; i < nb; i++)
+                RTHS_AT(dense_bb[t], nb, i, j) = rths_sparse_get(b.full[t], i, j);
     }
     b.terms[0] = &b.inner[2], b.terms[1] = &b.inner[1], b.terms[2] = &b.inner[0];
-    if (!rc && ni > 0) rc = rths_sparse_factor_create(3, b.terms, opt->ordering, &b.factor, err);
-    if (!rc && ni > 0) {
+    if (!rc) rc = rths_sparse_factor_create(3, b.terms, opt->ordering, &b.factor, err);
+    if (!rc) {
         double coef[3] = {1, 0, 0};
         for (size_t e = 0; e < (size_t)ni * (size_t)nb; e++)
             b.psi[e] = -coupling[2][e];
         rc = rths_sparse_factor_real(b.factor, coef, err);
         if (!rc) rc = rths_sparse_solve_real(b.factor, b.psi, nb, err);
     }
-    if (!rc && ni > 0) {
+    if (!rc) {
         for (int l = 0; l < nl; l++)
             for (int i = 0; i < ni; i++)
                 RTHS_AT(b.rhs, ni, i, l) = RTHS_AT(loads, nn, nb + i, l);
@@ -389,25 +369,78 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
                 for (int i = 0; i < ni; i++)
                     col[i] += RTHS_AT(coupling[t], ni, i, c);
             }
+        double *stat = rths_mat_dup(b.rhs, ni, ncand);
+        rc = stat ? rths_sparse_solve_real(b.factor, stat, ncand, err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        double complex *c0 = cand + (size_t)np * ni * ncand; /* the static point: slot np */
+        for (size_t e = 0; !rc && e < (size_t)ni * (size_t)ncand; e++)
+            c0[e] = stat[e];
+        rths_mat_free(stat);
     }
-    for (int t = 0; t < 3; t++)
-        rths_mat_free(coupling[t]);
+    rep->basis_s = rths_monotonic_s() - t0;
 
-    /* greedy: the static solves, then each time the frequency where the reduced model is worst */
-    double next_omega = 0;
-    int next_p = -1;
+    /* each check point: one complex LDL^T of D_ii(w) and one solve with [D_ib, f_i, G, H]; the
+     * numerical side's interface response by the Schur complement S = D_bb - D_bi D_ii^-1 D_ib
+     * (exact: the same as one full solve), x_b = S^-1 (e_b | f_b - D_bi D_ii^-1 f_i) */
+    t0 = rths_monotonic_s();
+    for (int p = 0; p < np && !rc; p++) {
+        hz[p] = opt->start_hz + (opt->end_hz - opt->start_hz) * p / (np - 1);
+        double w = 2 * M_PI * hz[p];
+        double complex coef[3] = {1, I * w, -w * w};
+        rc = rths_sparse_factor_complex(b.factor, coef, err);
+        if (rc) break;
+        for (size_t e = 0; e < (size_t)ni * (size_t)nb; e++)
+            dib[e] = coupling[2][e] + I * w * coupling[1][e] - w * w * coupling[0][e];
+        memcpy(b.cx, dib, sizeof(double complex) * (size_t)ni * (size_t)nb);
+        for (size_t e = 0; e < (size_t)ni * (size_t)ncand; e++)
+            b.cx[(size_t)ni * nb + e] = b.rhs[e];
+        rc = rths_sparse_solve_complex(b.factor, b.cx, nsolve, err);
+        if (rc) break;
+        const double complex *y = b.cx, *z = b.cx + (size_t)ni * nb;
+        memcpy(cand + (size_t)p * ni * ncand, z, sizeof(double complex) * (size_t)ni * ncand);
+        double complex *tp = truth + (size_t)p * (size_t)(nb * nc);
+        for (int j = 0; j < nb; j++)
+            for (int i = 0; i < nb; i++) {
+                double complex sij = RTHS_AT(dense_bb[2], nb, i, j) +
+                                     I * w * RTHS_AT(dense_bb[1], nb, i, j) -
+                                     w * w * RTHS_AT(dense_bb[0], nb, i, j);
+                for (int k = 0; k < ni; k++)
+                    sij -= RTHS_AT(dib, ni, k, i) * RTHS_AT(y, ni, k, j);
+                RTHS_AT(schur, nb, i, j) = sij;
+                RTHS_AT(tp, nb, i, j) = i == j;
+            }
+        for (int l = 0; l < nl; l++)
+            for (int i = 0; i < nb; i++) {
+                double complex r = RTHS_AT(loads, nn, i, l);
+                for (int k = 0; k < ni; k++)
+                    r -= RTHS_AT(dib, ni, k, i) * RTHS_AT(z, ni, k, l);
+                RTHS_AT(tp, nb, i, nb + l) = r;
+            }
+        if (rths_cmat_solve(nb, nc, schur, tp))
+            rc = rths_error_set(err, RTHS_EFAIL,
+                                "Krylov reduction: the numerical side is singular at %g Hz", hz[p]);
+        if (!rc) rc = couple(nb, nl, tp, rest, w, err);
+    }
+    rep->truth_s = rths_monotonic_s() - t0;
+    rep->check_points = np;
+    for (int t = 0; t < 3; t++)
+        rths_mat_free(coupling[t]), rths_mat_free(dense_bb[t]);
+
+    /* greedy: the static candidates, then each time the worst check point's */
+    t0 = rths_monotonic_s();
+    int next_p = np; /* the static slot */
     for (;;) {
         if (rc) break;
         int added = 0;
-        if (ni > 0 && b.k < b.max_basis) {
-            added = add_shift(&b, next_omega, err);
+        if (b.k < b.max_basis) {
+            added = add_candidates(&b, cand + (size_t)next_p * ni * ncand, err);
             if (added < 0) {
                 rc = RTHS_EFAIL;
                 break;
             }
             if (rep->shifts < RTHS_REALTIME_MAX_DOFS)
-                rep->shift_hz[rep->shifts++] = next_omega / (2 * M_PI);
-            if (next_p >= 0) used[next_p] = 1;
+                rep->shift_hz[rep->shifts++] = next_p < np ? hz[next_p] : 0.0;
+            if (next_p < np) used[next_p] = 1;
         }
         rc = build_reduced(&b, out, err);
         free(reduced_loads);
@@ -415,9 +448,8 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
         if (!rc && !reduced_loads) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         if (!rc && nl > 0)
             rths_mat_mul(out->nr, nl, nn, 1.0, out->transform, 1, loads, 0, 0.0, reduced_loads);
-        double worst = 0;
+        double worst = 0, worst_free_e = -1;
         int worst_p = 0, worst_free = -1;
-        double worst_free_e = -1;
         for (int p = 0; p < np && !rc; p++) {
             rc = rths_krylov_interface_response(out, nl, reduced_loads, rest, 2 * M_PI * hz[p], xr,
                                                 err);
@@ -431,9 +463,9 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
                     den += creal(RTHS_AT(tp, nb, i, c) * conj(RTHS_AT(tp, nb, i, c)));
                 }
                 double ec = den > 0 ? sqrt(num / den) : (num > 0 ? INFINITY : 0);
-                if (ec > e) e = ec;
+                if (!(ec <= e)) e = ec; /* NAN counts as worst */
             }
-            if (!(e <= worst)) worst = e, worst_p = p; /* NAN counts as worst */
+            if (!(e <= worst)) worst = e, worst_p = p;
             if (!used[p] && !(e <= worst_free_e)) worst_free_e = e, worst_free = p;
         }
         if (rc) break;
@@ -443,7 +475,6 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
             (added == 0 && rep->shifts > 1))
             break;
         next_p = worst_free;
-        next_omega = 2 * M_PI * hz[worst_free];
     }
     /* the final basis as Ritz vectors (the same span: the same reduced response) */
     if (!rc && b.k > 0) {
@@ -455,7 +486,7 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
         free(ritz_hz);
     }
     rep->basis = b.k;
-    rep->basis_s = rths_monotonic_s() - t0;
+    rep->basis_s += rths_monotonic_s() - t0;
     if (!rc && !(rep->max_error <= opt->max_error))
         rc = rths_error_set(err, RTHS_EINPUT,
                             "Krylov reduction: the reduced numerical substructure (%d DoFs, at "
@@ -466,7 +497,8 @@ int rths_krylov_reduce(const rths_sparse_sym *mass, const rths_sparse_sym *dampi
                             nb + b.k, opt->max_size, 100 * rep->max_error, rep->at_hz,
                             100 * opt->max_error, np, opt->start_hz, opt->end_hz);
     builder_free(&b);
-    free(hz), free(truth), free(xr), free(used), free(reduced_loads);
+    free(hz), free(truth), free(xr), free(cand), free(dib), free(schur), free(used);
+    free(reduced_loads);
     if (rc) rths_reduced_free(out);
     return rc;
 }
