@@ -337,8 +337,34 @@ static void test_chain_krylov(void **state) {
     rths_sparse_free(&sm), rths_sparse_free(&sc), rths_sparse_free(&sk);
 }
 
+/* the keys: defaults, values, and a bad value refused naming the key and its range */
+static void test_config_keys(void **state) {
+    (void)state;
+    rths_config *cfg;
+    rths_error err;
+    rths_krylov_options opt;
+    assert_int_equal(rths_config_load(NULL, NULL, 0, &cfg, &err), 0);
+    rths_krylov_defaults(&opt);
+    assert_int_equal(rths_krylov_config_read(cfg, &opt, &err), 0);
+    assert_true(opt.max_error == 1e-3 && opt.check_points == 31 && opt.fill == 1);
+    rths_config_free(cfg);
+    const char *sets[] = {"controller.reduction.max_error=2e-4",
+                          "controller.reduction.check_points=61",
+                          "controller.reduction.fill=false"};
+    assert_int_equal(rths_config_load(NULL, sets, 3, &cfg, &err), 0);
+    assert_int_equal(rths_krylov_config_read(cfg, &opt, &err), 0);
+    assert_true(opt.max_error == 2e-4 && opt.check_points == 61 && opt.fill == 0);
+    rths_config_free(cfg);
+    const char *bad[] = {"controller.reduction.max_error=0"};
+    assert_int_equal(rths_config_load(NULL, bad, 1, &cfg, &err), 0);
+    assert_int_equal(rths_krylov_config_read(cfg, &opt, &err), RTHS_EINPUT);
+    assert_non_null(strstr(err.msg, "controller.reduction.max_error"));
+    rths_config_free(cfg);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
+        cmocka_unit_test(test_config_keys),
         cmocka_unit_test(test_chain_krylov),
         cmocka_unit_test(test_frame_krylov_vs_craig_bampton),
     };

@@ -20,6 +20,7 @@
 #ifndef RTHS_KRYLOV_REDUCE_H
 #define RTHS_KRYLOV_REDUCE_H
 
+#include "rths/config.h"
 #include "rths/model.h"
 #include "rths/reduce.h"
 #include "rths/sparse.h"
@@ -44,6 +45,10 @@ typedef struct rths_krylov_options {
 /* band 0-0 (to be set), RTHS_KRYLOV_CHECK_POINTS_DEFAULT, RTHS_KRYLOV_MAX_ERROR_DEFAULT,
  * RTHS_REALTIME_MAX_DOFS, fill 1, SCOTCH. */
 void rths_krylov_defaults(rths_krylov_options *opt);
+
+/* Reads controller.reduction.max_error (relative, (0, 1]), .check_points (2..10000) and .fill
+ * (bool) into opt (its values the defaults); the band is the caller's (the sweep's). */
+int rths_krylov_config_read(rths_config *cfg, rths_krylov_options *opt, rths_error *err);
 
 /* The rest of the assembly, attached at the interface (the physical side): dense matrices of
  * order nb + n_extra, the interface DoFs first (the same order as the numerical side's), so the

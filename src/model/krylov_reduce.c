@@ -20,6 +20,19 @@ void rths_krylov_defaults(rths_krylov_options *opt) {
                                  .ordering = RTHS_SPARSE_ORDER_AUTO};
 }
 
+int rths_krylov_config_read(rths_config *cfg, rths_krylov_options *opt, rths_error *err) {
+    long points = opt->check_points;
+    int rc = rths_config_get_double_ex(cfg, "controller.reduction.max_error", 0, opt->max_error, 0,
+                                       1, RTHS_CONFIG_LO_OPEN, &opt->max_error, err);
+    if (!rc)
+        rc = rths_config_get_int(cfg, "controller.reduction.check_points", 0, points, 2, 10000,
+                                 &points, err);
+    if (!rc)
+        rc = rths_config_get_bool(cfg, "controller.reduction.fill", 0, opt->fill, &opt->fill, err);
+    opt->check_points = (int)points;
+    return rc;
+}
+
 /* ---- the assembly's interface response from the numerical side's interface receptances ---- */
 
 /* x (nb x (nb + nl)): the numerical side's interface displacements under unit interface forces
