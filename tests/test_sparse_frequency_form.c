@@ -81,6 +81,35 @@ static void run_case(const char *dir, int base) {
     for (int i = 0; i < na; i++)
         f_rest[i] = m.force[ad[i]] - (i == 0 ? amp * f_num[0] : 0);
 
+    /* the physical side as the dense split makes it (rths_split_create on the dense assembly),
+     * order (physical, interface): rths_sparse_model_physical_side gives the same sums */
+    {
+        rths_assembly a;
+        if (rths_assembly_from_matrices(n, full[0], full[1], full[2], &a, &err))
+            fail_msg("%s", err.msg);
+        rths_split split;
+        if (rths_split_create(&a, m.roles, m.mass_ratio, NULL, NULL, &split, &err))
+            fail_msg("%s", err.msg);
+        double *pm[3];
+        int np;
+        if (rths_sparse_model_physical_side(&m, 100, &pm[0], &pm[1], &pm[2], &np, &err))
+            fail_msg("%s", err.msg);
+        assert_int_equal(np, split.np);
+        const double *want[3] = {split.mass_phys, split.damping_phys, split.stiffness_phys};
+        for (int t = 0; t < 3; t++) {
+            double scale = rths_mat_max_abs(want[t], np, np);
+            for (int e = 0; e < np * np; e++)
+                if (fabs(pm[t][e] - want[t][e]) > 1e-14 * scale)
+                    fail_msg("physical side %d entry %d: %.17g, dense split %.17g", t, e, pm[t][e],
+                             want[t][e]);
+            free(pm[t]);
+        }
+        assert_int_equal(rths_sparse_model_physical_side(&m, 2, &pm[0], &pm[1], &pm[2], &np, &err),
+                         RTHS_EINPUT);
+        assert_non_null(strstr(err.msg, "split.physical"));
+        rths_split_free(&split);
+        rths_assembly_free(&a);
+    }
     double complex *d = malloc(sizeof *d * (size_t)n * n), *x = malloc(sizeof *x * (size_t)n);
     double worst[4] = {0};
     for (int p = 0; p < POINTS; p++) {

@@ -346,6 +346,14 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
                                      rths_sparse_sym *damping, rths_sparse_sym *stiffness,
                                      int **dofs_out, int *nn_out, rths_error *err);
 
+/* The physical substructure of a sparse model as rths_split_create makes it (order: internal
+ * physical DoFs, then the interface, each ascending; np of them, dense np x np: the rig's side is
+ * small): the model minus the numerical side's interface block ((1 - p) M_II, and of C and K
+ * what is not the numerical side's by the coupling rule). RTHS_EINPUT above max_np DoFs. */
+int rths_sparse_model_physical_side(const rths_sparse_model *m, int max_np, double **mass,
+                                    double **damping, double **stiffness, int *np_out,
+                                    rths_error *err);
+
 /* The frequency form's numerical substructure of a sparse model (split.numerical_solver:
  * frequency; docs/method.md, "Numerical substructure integration"): per harmonic, the interface
  * receptance h = e_b^T D(w)^-1 e_b of the numerical side (rths_sparse_model_numerical_side, one

@@ -843,3 +843,53 @@ double rths_sparse_model_receptance_s(const rths_sparse_model_receptance *r, int
     if (analyses) *analyses = r->factor ? rths_sparse_factor_get_stats(r->factor).analyses : 0;
     return r->solve_s;
 }
+
+/* ---- the physical substructure (model.h) ---- */
+
+int rths_sparse_model_physical_side(const rths_sparse_model *m, int max_np, double **mass,
+                                    double **damping, double **stiffness, int *np_out,
+                                    rths_error *err) {
+    *mass = *damping = *stiffness = NULL;
+    *np_out = 0;
+    int n_phys = 0;
+    for (int i = 0; i < m->n; i++)
+        n_phys += m->roles[i] == RTHS_DOF_PHYSICAL;
+    int np = n_phys + m->n_int;
+    if (np > max_np)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the physical substructure has %d DoFs, more than the %d a rig's "
+                              "dense model takes (split.physical)",
+                              np, max_np);
+    rths_sparse_sym num[3];
+    int *dofs = NULL, nn = 0;
+    int rc = rths_sparse_model_numerical_side(m, &num[0], &num[1], &num[2], &dofs, &nn, err);
+    if (rc) return rc;
+    free(dofs); /* the numerical side's first n_int DoFs are the interface, ascending */
+    int *pd = malloc(sizeof(int) * (size_t)(np > 0 ? np : 1));
+    double *out[3] = {rths_mat_new(np, np), rths_mat_new(np, np), rths_mat_new(np, np)};
+    if (!pd || !out[0] || !out[1] || !out[2]) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    const rths_sparse_sym *full[3] = {&m->mass, &m->damping, &m->stiffness};
+    for (int i = 0, q = 0; i < m->n && !rc; i++)
+        if (m->roles[i] == RTHS_DOF_PHYSICAL) pd[q++] = i;
+    for (int d = 0; d < m->n_int && !rc; d++)
+        pd[n_phys + d] = m->int_dofs[d];
+    for (int t = 0; t < 3 && !rc; t++)
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++) {
+                double v = rths_sparse_get(full[t], pd[i], pd[j]);
+                if (i >= n_phys && j >= n_phys)
+                    v -= rths_sparse_get(&num[t], i - n_phys, j - n_phys);
+                RTHS_AT(out[t], np, i, j) = v;
+            }
+    free(pd);
+    for (int t = 0; t < 3; t++)
+        rths_sparse_free(&num[t]);
+    if (rc) {
+        for (int t = 0; t < 3; t++)
+            rths_mat_free(out[t]);
+        return rc;
+    }
+    *mass = out[0], *damping = out[1], *stiffness = out[2];
+    *np_out = np;
+    return RTHS_OK;
+}
