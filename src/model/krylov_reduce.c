@@ -524,52 +524,54 @@ int rths_sparse_model_krylov_reduce(const rths_sparse_model *m, const rths_krylo
     memset(out, 0, sizeof *out);
     *rep = (rths_krylov_report){.max_error = NAN, .at_hz = NAN};
     if (dofs_out) *dofs_out = NULL;
-    rths_sparse_sym nm, nc, nk;
-    int *dofs = NULL, nn = 0, nb = m->n_int;
-    int rc = rths_sparse_model_numerical_side(m, &nm, &nc, &nk, &dofs, &nn, err);
-    if (rc) return rc;
-    int np = 0;
-    for (int i = 0; i < m->n; i++)
-        np += m->roles[i] == RTHS_DOF_PHYSICAL;
     /* the physical side is what a rig carries: a few DoFs; dense here */
     enum { MAX_PHYSICAL = 2000 };
-    if (np > MAX_PHYSICAL)
-        rc = rths_error_set(err, RTHS_EINPUT,
-                            "Krylov reduction: the physical side has %d DoFs, more than the %d "
-                            "its dense check takes (split.physical)",
-                            np, MAX_PHYSICAL);
-    int na = rc ? 1 : nb + np;
-    int *rest_dofs = malloc(sizeof(int) * (size_t)na);
-    double *loads = malloc(sizeof(double) * (size_t)nn);
-    double *rm = rths_mat_new(na, na), *rc_ = rths_mat_new(na, na), *rk = rths_mat_new(na, na);
-    double *rl = rths_mat_new(na, 1);
-    if (!rc && (!rest_dofs || !loads || !rm || !rc_ || !rk || !rl)) {
+    double *phys[3];
+    int np = 0, nb = m->n_int;
+    int rc =
+        rths_sparse_model_physical_side(m, MAX_PHYSICAL, &phys[0], &phys[1], &phys[2], &np, err);
+    if (rc) return rc;
+    rths_sparse_sym nm, nc, nk;
+    int *dofs = NULL, nn = 0;
+    rc = rths_sparse_model_numerical_side(m, &nm, &nc, &nk, &dofs, &nn, err);
+    if (rc) {
+        for (int t = 0; t < 3; t++)
+            rths_mat_free(phys[t]);
+        return rc;
+    }
+    /* the attachment's order: interface first, then the internal physical DoFs (phys is in
+     * rths_split's order: internal physical, then interface) */
+    int n_phys = np - nb;
+    double *rest_m[3] = {rths_mat_new(np, np), rths_mat_new(np, np), rths_mat_new(np, np)};
+    double *loads = malloc(sizeof(double) * (size_t)nn), *rl = rths_mat_new(np, 1);
+    int *phys_dofs = malloc(sizeof(int) * (size_t)(n_phys > 0 ? n_phys : 1));
+    if (!rest_m[0] || !rest_m[1] || !rest_m[2] || !loads || !rl || !phys_dofs)
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    } else if (!rc) {
-        for (int d = 0; d < nb; d++)
-            rest_dofs[d] = m->int_dofs[d];
-        for (int i = 0, q = nb; i < m->n; i++)
-            if (m->roles[i] == RTHS_DOF_PHYSICAL) rest_dofs[q++] = i;
+    for (int i = 0, q = 0; i < m->n && !rc; i++)
+        if (m->roles[i] == RTHS_DOF_PHYSICAL) phys_dofs[q++] = i;
+#define FROM(a) ((a) < nb ? n_phys + (a) : (a)-nb)
+    for (int t = 0; t < 3 && !rc; t++)
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++)
+                RTHS_AT(rest_m[t], np, i, j) = RTHS_AT(phys[t], np, FROM(i), FROM(j));
+#undef FROM
+    if (!rc) {
         /* the load: the model's force where it acts, the interface's share on the numerical side
          * (either side would do: the check sums them) */
         for (int i = 0; i < nn; i++)
             loads[i] = m->force[dofs[i]];
-        for (int i = nb; i < na; i++)
-            rl[i] = m->force[rest_dofs[i]];
-        const rths_sparse_sym *full[3] = {&m->mass, &m->damping, &m->stiffness};
-        const rths_sparse_sym *num[3] = {&nm, &nc, &nk};
-        double *dst[3] = {rm, rc_, rk};
-        for (int t = 0; t < 3; t++)
-            for (int j = 0; j < na; j++)
-                for (int i = 0; i < na; i++)
-                    RTHS_AT(dst[t], na, i, j) =
-                        rths_sparse_get(full[t], rest_dofs[i], rest_dofs[j]) -
-                        (i < nb && j < nb ? rths_sparse_get(num[t], i, j) : 0);
-        rths_krylov_attachment rest = {
-            .n_extra = np, .mass = rm, .damping = rc_, .stiffness = rk, .loads = rl};
+        for (int i = 0; i < n_phys; i++)
+            rl[nb + i] = m->force[phys_dofs[i]];
+        rths_krylov_attachment rest = {.n_extra = n_phys,
+                                       .mass = rest_m[0],
+                                       .damping = rest_m[1],
+                                       .stiffness = rest_m[2],
+                                       .loads = rl};
         rc = rths_krylov_reduce(&nm, &nc, &nk, nb, 1, loads, &rest, opt, out, rep, err);
     }
-    free(rest_dofs), free(loads), free(rm), free(rc_), free(rk), free(rl);
+    for (int t = 0; t < 3; t++)
+        rths_mat_free(phys[t]), rths_mat_free(rest_m[t]);
+    free(loads), free(rl), free(phys_dofs);
     rths_sparse_free(&nm), rths_sparse_free(&nc), rths_sparse_free(&nk);
     if (!rc && dofs_out)
         *dofs_out = dofs;
