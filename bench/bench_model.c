@@ -18,11 +18,11 @@
  * FRF over the default grid) and the peak memory so far. Run from the source tree (the generator
  * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases.
  *
- * model (third table): on the same frames, the real-time reduction right in the band
- * (krylov_reduce.h) over the band from half the first mode to the tenth, the error checked by
- * RTHS_KRYLOV_CHECK_POINTS_DEFAULT full sparse complex solves of the numerical side: its wall time
- * (the check's full solves, the basis), its size, the shifts used and the assembly's worst
- * interface response error over the check grid. */
+ * model (a "reduce" line after each frame's row): on the same frames, the real-time reduction right
+ * in the band (krylov_reduce.h) over the band from half the first mode to the tenth, the error
+ * checked by RTHS_KRYLOV_CHECK_POINTS_DEFAULT full sparse complex solves of the numerical side: its
+ * wall time (the check's full solves, the basis), its size, the shifts used and the assembly's
+ * worst interface response error over the check grid. */
 #include "rths/krylov_reduce.h"
 #include "rths/model.h"
 #include "rths/rig_virtual.h"
@@ -173,7 +173,7 @@ static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
            modes.check_s, frf_s, count, rths_monotonic_s() - t0, rths_peak_memory_mb(),
            modes.sturm_below, modes.count, modes.max_residual);
     fflush(stdout);
-    /* the reduction, reported in the third table */
+    /* the reduction (krylov_reduce.h) over the band 0.5 f1 .. f10 */
     if (n_reductions < MAX_REDUCTION_ROWS && modes.count >= 10) {
         reduction_row *row = &reductions[n_reductions++];
         rths_krylov_options ko;
@@ -192,6 +192,13 @@ static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
                                .rep = row->rep,
                                .peak_mb = rths_peak_memory_mb()};
         if (rc) fprintf(stderr, "bench model: reduction: %s\n", err.msg);
+        /* printed at once: a large case's reduction takes minutes */
+        printf("reduce %-5s band %.3f-%.3f Hz: %d check points %.2f s, basis %.2f s, total %.2f "
+               "s; %d DoFs, %d shifts, max error %.2g at %.3f Hz; peak %.0f MB\n",
+               row->label, row->lo_hz, row->hi_hz, row->rep.check_points, row->rep.truth_s,
+               row->rep.basis_s, row->total_s, row->nr, row->rep.shifts, row->rep.max_error,
+               row->rep.at_hz, row->peak_mb);
+        fflush(stdout);
         rths_reduced_free(&red);
     }
     free(x);
@@ -217,17 +224,6 @@ static void bench_model_sparse(void) {
     bench_sparse_frame("10k", 10, 6, 28);
     if (max_dofs >= 60000) bench_sparse_frame("60k", 50, 5, 40);
     if (max_dofs >= 100000) bench_sparse_frame("100k", 50, 5, 67);
-    printf("\nthe real-time reduction right in the band (krylov_reduce.h) on the same frames, "
-           "band 0.5 f1 .. f10, %d check points, wall seconds:\n",
-           RTHS_KRYLOV_CHECK_POINTS_DEFAULT);
-    printf("%-6s %8s %15s %8s %8s %8s %4s %6s %10s %8s %8s\n", "case", "dofs", "band_hz", "check_s",
-           "basis_s", "total_s", "nr", "shifts", "max_error", "at_hz", "peak_MB");
-    for (int i = 0; i < n_reductions; i++) {
-        const reduction_row *r = &reductions[i];
-        printf("%-6s %8d %6.3f-%-8.3f %8.2f %8.2f %8.2f %4d %6d %10.2g %8.3f %8.0f\n", r->label,
-               r->n, r->lo_hz, r->hi_hz, r->rep.truth_s, r->rep.basis_s, r->total_s, r->nr,
-               r->rep.shifts, r->rep.max_error, r->rep.at_hz, r->peak_mb);
-    }
 }
 
 void rths_bench_model(void) {
