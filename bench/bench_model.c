@@ -16,7 +16,14 @@
  * node (issue 26's acceptance case: 50 x 5 column lines x 40 storeys, 60 000 DoFs; 67 storeys,
  * 100 500 DoFs; and 10 080 DoFs): each stage's wall time (read, order, factor, eigen, checks,
  * FRF over the default grid) and the peak memory so far. Run from the source tree (the generator
- * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases. */
+ * is called with /usr/bin/python3); RTHS_BENCH_MODEL_MAX_DOFS=20000 skips the large cases.
+ *
+ * model (a "reduce" line after each frame's row): on the same frames, the real-time reduction right
+ * in the band (krylov_reduce.h) over the band from half the first mode to the tenth, the error
+ * checked by RTHS_KRYLOV_CHECK_POINTS_DEFAULT full sparse complex solves of the numerical side: its
+ * wall time (the check's full solves, the basis), its size, the shifts used and the assembly's
+ * worst interface response error over the check grid. */
+#include "rths/krylov_reduce.h"
 #include "rths/model.h"
 #include "rths/rig_virtual.h"
 
@@ -100,6 +107,16 @@ static void bench_model_size(int n) {
     rths_assembly_free(&a);
 }
 
+typedef struct {
+    const char *label;
+    int n, nr;
+    double lo_hz, hi_hz, total_s, peak_mb;
+    rths_krylov_report rep;
+} reduction_row;
+enum { MAX_REDUCTION_ROWS = 4 };
+static reduction_row reductions[MAX_REDUCTION_ROWS];
+static int n_reductions;
+
 static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
     char dir[] = "/tmp/rths_bench_model_XXXXXX", cmd[512], cfg_path[300];
     if (!mkdtemp(dir)) {
@@ -156,6 +173,34 @@ static void bench_sparse_frame(const char *label, int nx, int ny, int nz) {
            modes.check_s, frf_s, count, rths_monotonic_s() - t0, rths_peak_memory_mb(),
            modes.sturm_below, modes.count, modes.max_residual);
     fflush(stdout);
+    /* the reduction (krylov_reduce.h) over the band 0.5 f1 .. f10 */
+    if (n_reductions < MAX_REDUCTION_ROWS && modes.count >= 10) {
+        reduction_row *row = &reductions[n_reductions++];
+        rths_krylov_options ko;
+        rths_krylov_defaults(&ko);
+        ko.start_hz = 0.5 * modes.frequency_hz[0];
+        ko.end_hz = modes.frequency_hz[9];
+        rths_reduced red;
+        double t2 = rths_monotonic_s();
+        int rc = rths_sparse_model_krylov_reduce(&model, &ko, &red, NULL, &row->rep, &err);
+        *row = (reduction_row){.label = label,
+                               .n = model.n,
+                               .lo_hz = ko.start_hz,
+                               .hi_hz = ko.end_hz,
+                               .total_s = rths_monotonic_s() - t2,
+                               .nr = rc ? -1 : red.nr,
+                               .rep = row->rep,
+                               .peak_mb = rths_peak_memory_mb()};
+        if (rc) fprintf(stderr, "bench model: reduction: %s\n", err.msg);
+        /* printed at once: a large case's reduction takes minutes */
+        printf("reduce %-5s band %.3f-%.3f Hz: %d check points %.2f s, basis %.2f s, total %.2f "
+               "s; %d DoFs, %d shifts, max error %.2g at %.3f Hz; peak %.0f MB\n",
+               row->label, row->lo_hz, row->hi_hz, row->rep.check_points, row->rep.truth_s,
+               row->rep.basis_s, row->total_s, row->nr, row->rep.shifts, row->rep.max_error,
+               row->rep.at_hz, row->peak_mb);
+        fflush(stdout);
+        rths_reduced_free(&red);
+    }
     free(x);
     free(freqs);
     free(dofs);

@@ -346,6 +346,35 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
                                      rths_sparse_sym *damping, rths_sparse_sym *stiffness,
                                      int **dofs_out, int *nn_out, rths_error *err);
 
+/* The physical substructure of a sparse model as rths_split_create makes it (order: internal
+ * physical DoFs, then the interface, each ascending; np of them, dense np x np: the rig's side is
+ * small): the model minus the numerical side's interface block ((1 - p) M_II, and of C and K
+ * what is not the numerical side's by the coupling rule). RTHS_EINPUT above max_np DoFs. */
+int rths_sparse_model_physical_side(const rths_sparse_model *m, int max_np, double **mass,
+                                    double **damping, double **stiffness, int *np_out,
+                                    rths_error *err);
+
+/* The frequency form's numerical substructure of a sparse model (split.numerical_solver:
+ * frequency; docs/method.md, "Numerical substructure integration"): per harmonic, the interface
+ * receptance h = e_b^T D(w)^-1 e_b of the numerical side (rths_sparse_model_numerical_side, one
+ * interface DoF) and the interface's response to the forcing per unit forcing amplitude,
+ * x_b = e_b^T D(w)^-1 f = x^T f by reciprocity (D complex symmetric), from the same solve: one
+ * complex symmetric LDL^T and one solve per frequency on one symbolic analysis. f is what the
+ * numerical side carries of the forcing: a unit force where forcing.dof is an interface or
+ * numerical DoF (none on a physical one: the rig applies it), -M_num 1 under base excitation
+ * (the numerical side's own inertia, relative coordinates). An rths_receptance_fn (iterate.h)
+ * with ctx the object, for rths_frequency_problem_init. */
+typedef struct rths_sparse_model_receptance rths_sparse_model_receptance;
+int rths_sparse_model_receptance_create(const rths_sparse_model *m,
+                                        rths_sparse_model_receptance **out, rths_error *err);
+int rths_sparse_model_receptance_eval(void *ctx, double omega_rad_s,
+                                      double complex *receptance_m_per_n,
+                                      double complex *forced_m_per_n, rths_error *err);
+/* Seconds in its factorisations and solves so far, and how many symbolic analyses ran (1 once
+ * any frequency was evaluated: every frequency reuses it). */
+double rths_sparse_model_receptance_s(const rths_sparse_model_receptance *r, int *analyses);
+void rths_sparse_model_receptance_destroy(rths_sparse_model_receptance *r);
+
 /* Peak resident memory of the process so far, MB (getrusage ru_maxrss). */
 double rths_peak_memory_mb(void);
 

@@ -748,3 +748,148 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
     *nn_out = nn;
     return RTHS_OK;
 }
+
+/* ---- the frequency form's numerical substructure (model.h) ---- */
+
+struct rths_sparse_model_receptance {
+    rths_sparse_sym mass, damping, stiffness; /* the numerical side, interface first */
+    const rths_sparse_sym *terms[3];
+    rths_sparse_factor *factor;
+    double *load;      /* nn: the numerical side's share of the forcing, per unit amplitude */
+    double complex *x; /* nn */
+    double solve_s;
+};
+
+void rths_sparse_model_receptance_destroy(rths_sparse_model_receptance *r) {
+    if (!r) return;
+    if (r->factor) rths_sparse_factor_destroy(r->factor);
+    rths_sparse_free(&r->mass);
+    rths_sparse_free(&r->damping);
+    rths_sparse_free(&r->stiffness);
+    free(r->load);
+    free(r->x);
+    free(r);
+}
+
+int rths_sparse_model_receptance_create(const rths_sparse_model *m,
+                                        rths_sparse_model_receptance **out, rths_error *err) {
+    *out = NULL;
+    if (m->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the host-side numerical substructure takes one interface DoF; this "
+                              "split has %d (split.interface)",
+                              m->n_int);
+    rths_sparse_model_receptance *r = calloc(1, sizeof *r);
+    if (!r) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    int *dofs = NULL, nn = 0;
+    int rc =
+        rths_sparse_model_numerical_side(m, &r->mass, &r->damping, &r->stiffness, &dofs, &nn, err);
+    if (!rc) {
+        r->load = calloc((size_t)nn, sizeof(double));
+        r->x = malloc(sizeof(double complex) * (size_t)nn);
+        if (!r->load || !r->x) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    if (!rc && m->base_excitation) {
+        double *ones = malloc(sizeof(double) * (size_t)nn);
+        if (!ones) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        for (int i = 0; i < nn && !rc; i++)
+            ones[i] = 1.0;
+        if (!rc) rths_sparse_symv(&r->mass, ones, r->load);
+        for (int i = 0; i < nn && !rc; i++)
+            r->load[i] = -r->load[i];
+        free(ones);
+    } else if (!rc) {
+        for (int i = 0; i < nn; i++)
+            if (dofs[i] == m->forcing_dof) r->load[i] = 1.0;
+    }
+    free(dofs);
+    r->terms[0] = &r->stiffness;
+    r->terms[1] = &r->damping;
+    r->terms[2] = &r->mass;
+    if (!rc) rc = rths_sparse_factor_create(3, r->terms, RTHS_SPARSE_ORDER_AUTO, &r->factor, err);
+    if (rc) {
+        rths_sparse_model_receptance_destroy(r);
+        return rc;
+    }
+    *out = r;
+    return RTHS_OK;
+}
+
+int rths_sparse_model_receptance_eval(void *ctx, double omega_rad_s,
+                                      double complex *receptance_m_per_n,
+                                      double complex *forced_m_per_n, rths_error *err) {
+    rths_sparse_model_receptance *r = ctx;
+    double t0 = rths_monotonic_s(), w = omega_rad_s;
+    int nn = r->stiffness.n;
+    double complex coef[3] = {1, I * w, -w * w};
+    int rc = rths_sparse_factor_complex(r->factor, coef, err);
+    if (!rc) {
+        memset(r->x, 0, sizeof(double complex) * (size_t)nn);
+        r->x[0] = 1; /* the interface: the numerical side's first DoF */
+        rc = rths_sparse_solve_complex(r->factor, r->x, 1, err);
+    }
+    if (!rc) {
+        double complex forced = 0;
+        for (int i = 0; i < nn; i++)
+            forced += r->x[i] * r->load[i];
+        *receptance_m_per_n = r->x[0];
+        *forced_m_per_n = forced;
+    }
+    r->solve_s += rths_monotonic_s() - t0;
+    return rc;
+}
+
+double rths_sparse_model_receptance_s(const rths_sparse_model_receptance *r, int *analyses) {
+    if (analyses) *analyses = r->factor ? rths_sparse_factor_get_stats(r->factor).analyses : 0;
+    return r->solve_s;
+}
+
+/* ---- the physical substructure (model.h) ---- */
+
+int rths_sparse_model_physical_side(const rths_sparse_model *m, int max_np, double **mass,
+                                    double **damping, double **stiffness, int *np_out,
+                                    rths_error *err) {
+    *mass = *damping = *stiffness = NULL;
+    *np_out = 0;
+    int n_phys = 0;
+    for (int i = 0; i < m->n; i++)
+        n_phys += m->roles[i] == RTHS_DOF_PHYSICAL;
+    int np = n_phys + m->n_int;
+    if (np > max_np)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the physical substructure has %d DoFs, more than the %d a rig's "
+                              "dense model takes (split.physical)",
+                              np, max_np);
+    rths_sparse_sym num[3];
+    int *dofs = NULL, nn = 0;
+    int rc = rths_sparse_model_numerical_side(m, &num[0], &num[1], &num[2], &dofs, &nn, err);
+    if (rc) return rc;
+    free(dofs); /* the numerical side's first n_int DoFs are the interface, ascending */
+    int *pd = malloc(sizeof(int) * (size_t)(np > 0 ? np : 1));
+    double *out[3] = {rths_mat_new(np, np), rths_mat_new(np, np), rths_mat_new(np, np)};
+    if (!pd || !out[0] || !out[1] || !out[2]) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    const rths_sparse_sym *full[3] = {&m->mass, &m->damping, &m->stiffness};
+    for (int i = 0, q = 0; i < m->n && !rc; i++)
+        if (m->roles[i] == RTHS_DOF_PHYSICAL) pd[q++] = i;
+    for (int d = 0; d < m->n_int && !rc; d++)
+        pd[n_phys + d] = m->int_dofs[d];
+    for (int t = 0; t < 3 && !rc; t++)
+        for (int j = 0; j < np; j++)
+            for (int i = 0; i < np; i++) {
+                double v = rths_sparse_get(full[t], pd[i], pd[j]);
+                if (i >= n_phys && j >= n_phys)
+                    v -= rths_sparse_get(&num[t], i - n_phys, j - n_phys);
+                RTHS_AT(out[t], np, i, j) = v;
+            }
+    free(pd);
+    for (int t = 0; t < 3; t++)
+        rths_sparse_free(&num[t]);
+    if (rc) {
+        for (int t = 0; t < 3; t++)
+            rths_mat_free(out[t]);
+        return rc;
+    }
+    *mass = out[0], *damping = out[1], *stiffness = out[2];
+    *np_out = np;
+    return RTHS_OK;
+}
