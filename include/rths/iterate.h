@@ -61,6 +61,10 @@ typedef struct rths_settle_options {
      * within its goal, falling back to waiting when the fit is not trustworthy. */
     int strategy;
     int fit_max_periods; /* fit: periods fitted at most before falling back to waiting */
+    /* fit: 1 lets a record too short for the window check (under 13 periods read) be compared
+     * instead with a fit of the same record with the last trusted fit's poles held
+     * (rths_noise_model.fit_seed_*; iteration.settle.fit_seed_poles, off by default) */
+    int fit_seed_poles;
     /* Accuracy on demand (iteration.target_rel_se, iteration.max_rig_s_per_point): > 0, the
      * relative standard error of every interface DoF's fundamental amplitude, physical and
      * numerical side (the reported amplitude carries both), an
@@ -97,6 +101,13 @@ typedef struct rths_noise_model {
     int coefficients; /* entries in use; 0: nothing measured yet */
     double variance_x_samples[RTHS_NOISE_COEFFICIENTS]; /* m^2 x samples per period */
     double dof; /* degrees of freedom of the pooled estimate */
+    /* The last trusted fit's decaying terms (docs/method.md, "The fitted evaluation"): poles per
+     * period at fit_seed_hz, fit_seed_order of them (0: none yet). A fitted evaluation whose
+     * record is still too short for the window check compares its fit with one of the same
+     * record with these poles held (rescaled to its own period). */
+    int fit_seed_order;
+    double fit_seed_hz;
+    double fit_seed_z_re[8], fit_seed_z_im[8];
 } rths_noise_model;
 
 typedef struct rths_evaluation {

@@ -485,6 +485,36 @@ static void fit_fill(const transient_fit *fit, const rths_period *rec, int K, in
     free(y);
 }
 
+/* iteration.settle.fit_seed_poles (off by default: docs/method.md, "The fitted evaluation", has
+ * what it measured): the window a record too short for the window check is compared with, the
+ * same record fitted with the last trusted fit's poles held (noise->fit_seed_*), rescaled to this
+ * period (a pole lambda gives z = exp(lambda T) per period, so log z scales with the period).
+ * Returns 0 and fills seed_a, seed_se (the poles taken as exact: a stricter comparison), or -1 when
+ * there is no seed, its poles would be too slow here, or the record too short for them. */
+static int seeded_window(const rths_noise_model *noise, double frequency_hz, int m, int K,
+                         const double *y, double *seed_a, double *seed_se) {
+    int n = noise ? noise->fit_seed_order : 0;
+    if (n < 1 || n > TRANSIENT_FIT_MAX_ORDER || !(noise->fit_seed_hz > 0) || !(frequency_hz > 0) ||
+        K - 1 - n < n + 3)
+        return -1;
+    double complex c[TRANSIENT_FIT_MAX_ORDER + 1] = {1}; /* monic, highest power first */
+    for (int j = 0; j < n; j++) {
+        double complex z = cexp(clog(noise->fit_seed_z_re[j] + I * noise->fit_seed_z_im[j]) *
+                                (noise->fit_seed_hz / frequency_hz));
+        if (!(cabs(z) < FIT_MAX_POLE)) return -1;
+        for (int k = j + 1; k > 0; k--)
+            c[k] -= z * c[k - 1];
+    }
+    transient_fit seed = {.order = n, .periods = K, .ok = 1};
+    for (int k = 0; k < n; k++)
+        seed.alpha[k] = creal(c[k + 1]);
+    for (int i = 0; i < m; i++) {
+        transient_fit_apply(&seed, y + (size_t)i * K, &seed_a[i], &seed_se[i]);
+        if (!isfinite(seed_a[i]) || !isfinite(seed_se[i])) return -1;
+    }
+    return 0;
+}
+
 /* Runs periods from the change and fits them after each (transient_fit_series) until the
  * steady state is trustworthy and its standard error within its goal: per interface DoF,
  *  - every pole of the fit within FIT_MAX_POLE per period,
@@ -511,7 +541,7 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
     double *hist_a = calloc((size_t)m * (cap + 1), sizeof(double)),
            *hist_se = calloc((size_t)m * (cap + 1), sizeof(double));
     int *hist_ok = calloc((size_t)cap + 1, sizeof(int));
-    double a[NC], se[NC], var[NC], prior[NC];
+    double a[NC], se[NC], var[NC], prior[NC], seed_a[NC], seed_se[NC];
     const double *prev_a = a, *prev_se = se;
     int n_avg = opt->average_periods > 0 ? opt->average_periods : 1;
     transient_fit fit = {0};
@@ -562,6 +592,13 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
         if (have_prev) {
             prev_a = hist_a + (size_t)older * m;
             prev_se = hist_se + (size_t)older * m;
+        } else if (opt->fit_seed_poles &&
+                   !seeded_window(noise, out->frequency_hz, m, K, y, seed_a, seed_se)) {
+            /* no fit of three quarters of the record yet: the previous fit's poles held give
+             * the window instead (a misfit's steady state moves with the model, too) */
+            have_prev = 1;
+            prev_a = seed_a;
+            prev_se = seed_se;
         }
         int ok = 1;
         const char *failed = NULL;
@@ -640,6 +677,14 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             out->fit_order = fit.order;
             out->fit_max_pole = fit.max_abs_z;
             out->se_target_missed = !ok;
+            if (noise && fit.order > 0) { /* the next evaluation's seeded window */
+                noise->fit_seed_order = fit.order;
+                noise->fit_seed_hz = out->frequency_hz;
+                for (int j = 0; j < fit.order; j++) {
+                    noise->fit_seed_z_re[j] = creal(fit.z[j]);
+                    noise->fit_seed_z_im[j] = cimag(fit.z[j]);
+                }
+            }
             /* the fit's residual scatter does not join the noise model: a misfit would pass for
              * noise there and widen the goal of the next fits (the noise is measured by the
              * averagings of waiting evaluations alone) */

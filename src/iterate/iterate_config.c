@@ -30,6 +30,9 @@ static int settle_strategy_read(rths_config *cfg, rths_settle_options *settle, r
                                   8, 100000, &v, err)))
         return rc;
     settle->fit_max_periods = (int)v;
+    if ((rc = rths_config_get_bool(cfg, "iteration.settle.fit_seed_poles", 0,
+                                   settle->fit_seed_poles, &settle->fit_seed_poles, err)))
+        return rc;
     if ((rc = rths_config_get_double(cfg, "iteration.target_rel_se", 0, settle->target_rel_se, 0.0,
                                      1.0, &settle->target_rel_se, err)) ||
         (rc = rths_config_get_double(cfg, "iteration.max_rig_s_per_point", 0,
