@@ -86,6 +86,9 @@ const double *rths_result_column(const rths_result *r, int t, int column);
 const char *rths_result_summary_json(const rths_result *r);
 /* config.yaml's text, the configuration as resolved ("" when the result has no folder). */
 const char *rths_result_config_yaml(const rths_result *r);
+/* What the command of the same name prints on success (its standard output), "" for the
+ * operations that print nothing. */
+const char *rths_result_text(const rths_result *r);
 /* The run folder, or NULL when the result was not written to one. */
 const char *rths_result_dir(const rths_result *r);
 void rths_result_free(rths_result *r);
@@ -116,6 +119,43 @@ int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result 
  * rule. */
 int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_dir,
                   rths_result **out, rths_error *err);
+
+/* rths fidelity: the converged hybrid test's interface FRF for every integration scheme of the
+ * numerical substructure against the true assembly, with the fidelity.* keys (docs/method.md,
+ * "Numerical substructure integration"). Table "fidelity" (frequency_hz, true_amplitude_m,
+ * <scheme>_amplitude_m), equal to the CLI's fidelity.csv; the summary's "curves" give each
+ * curve's peak_hz, peak_amplitude_m and peak_error_percent; rths_result_text the table the CLI
+ * prints. out_dir as for rths_api_model (also fidelity.gp/.png/.svg there). */
+int rths_api_fidelity(const rths_api_config *cfg, const char *out_dir, rths_result **out,
+                      rths_error *err);
+
+/* rths simulate: one hybrid test at a fixed target (iterative mode) or the conventional test
+ * with the feedback loop closed (feedback mode), as the command's options. */
+typedef struct rths_api_simulate_options {
+    const char *out_dir; /* run folder (may be NULL: the result only) */
+    double frequency_hz; /* forcing frequency, Hz, in (0, 1e5] (as --frequency) */
+    int periods;         /* forcing periods, 1..100000 (as --periods) */
+    int feedback;        /* 0: iterative mode, nonzero: feedback mode (as --mode) */
+    double delay_s;      /* feedback mode: > 0 the pure-delay model (as --delay), 0 the rig */
+    int harmonics;       /* iterative: target harmonics per interface DoF, 1..5 */
+    int target_dofs;     /* iterative: interface DoFs the target gives (all of them) */
+    const double *target_a, *target_b; /* DoF d's A_k, B_k at [d * harmonics + k - 1], m */
+    int trace_periods;                 /* iterative: periods in the trace, 0: min(periods, 5) */
+    int has_seed;                      /* nonzero: seed replaces rig.seed (as --seed) */
+    uint64_t seed;
+    const char *rig_uri; /* "tcp://HOST:PORT" of a controller process; NULL: the virtual rig */
+    int reset_fault;     /* with rig_uri: reset the controller's latched fault first */
+} rths_api_simulate_options;
+
+void rths_api_simulate_options_default(rths_api_simulate_options *o);
+/* Runs the test. Tables "coefficients" (one row per period: the Fourier coefficients of the
+ * physical and numerical interface displacements, m, and the period's integrity counts) and
+ * "trace" (time_s, x_phys_m, x_num_m, target_m, force_n, demand), equal to the CLI's CSV files;
+ * the summary as summary.json (final_phys, final_num, final_interface_error_m; in feedback mode
+ * diverged, growth_rate_per_s, ...); rths_result_text what the CLI prints. With o->out_dir also
+ * the run folder (simulate.gp/.png/.svg). */
+int rths_api_simulate(const rths_api_config *cfg, const rths_api_simulate_options *o,
+                      rths_result **out, rths_error *err);
 
 /* Reads a finished (or interrupted) run folder: every *.csv as a table, summary.json and
  * config.yaml as text. */
@@ -211,9 +251,33 @@ int rths_api_tune_compute(const struct rths_setup *setup,
 /* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
  * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
-/* Its two halves, for a command that writes a file of its own between them. */
+/* Its parts in order (tables, run.log lines, summary, figures), for a command that writes a file
+ * of its own between them. */
 int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_log(const rths_result *r, struct rths_report *rep, rths_error *err);
 int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_figures(const rths_result *r, struct rths_report *rep, rths_error *err);
+
+struct rths_config;
+/* rths_api_fidelity's result from the configuration (its fidelity and controller sections read
+ * and checked here) and the setup read from it. */
+int rths_api_fidelity_compute(struct rths_config *c, const struct rths_setup *setup,
+                              const char *config_path, const char *const *overrides,
+                              int n_overrides, rths_result **out, rths_error *err);
+
+/* rths_api_simulate in two steps, so the command creates its folder only once nothing can refuse
+ * the input: _prepare checks o, creates and arms the rig (a virtual rig reads the rig and
+ * controller sections, checked here) and refuses bad input with RTHS_EINPUT; _run runs the test
+ * (logging into rep, may be NULL) and returns the result (the summary naming config_path and the
+ * overrides). */
+typedef struct rths_api_simulation rths_api_simulation;
+int rths_api_simulate_prepare(struct rths_config *c, const struct rths_setup *setup,
+                              const rths_api_simulate_options *o, rths_api_simulation **out,
+                              rths_error *err);
+int rths_api_simulate_run(rths_api_simulation *s, struct rths_report *rep, const char *config_path,
+                          const char *const *overrides, int n_overrides, rths_result **out,
+                          rths_error *err);
+void rths_api_simulation_free(rths_api_simulation *s);
 
 #ifdef __cplusplus
 }
