@@ -131,6 +131,10 @@ int rths_api_fidelity(const rths_api_config *cfg, const char *out_dir, rths_resu
 
 /* rths simulate: one hybrid test at a fixed target (iterative mode) or the conventional test
  * with the feedback loop closed (feedback mode), as the command's options. */
+/* The most target harmonics per interface DoF, and interface DoFs, a test can have. */
+#define RTHS_API_MAX_HARMONICS 5
+#define RTHS_API_MAX_INTERFACE_DOFS 4
+
 typedef struct rths_api_simulate_options {
     const char *out_dir; /* run folder (may be NULL: the result only) */
     double frequency_hz; /* forcing frequency, Hz, in (0, 1e5] (as --frequency) */
