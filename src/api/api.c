@@ -47,6 +47,21 @@ static const layout_entry layout[] = {
     LAYOUT_FIELD(rths_api_frf_options, should_cancel),
     LAYOUT_FIELD(rths_api_frf_options, user),
     LAYOUT_FIELD(rths_api_frf_options, force),
+    LAYOUT_TYPE(rths_api_simulate_options),
+    LAYOUT_FIELD(rths_api_simulate_options, out_dir),
+    LAYOUT_FIELD(rths_api_simulate_options, frequency_hz),
+    LAYOUT_FIELD(rths_api_simulate_options, periods),
+    LAYOUT_FIELD(rths_api_simulate_options, feedback),
+    LAYOUT_FIELD(rths_api_simulate_options, delay_s),
+    LAYOUT_FIELD(rths_api_simulate_options, harmonics),
+    LAYOUT_FIELD(rths_api_simulate_options, target_dofs),
+    LAYOUT_FIELD(rths_api_simulate_options, target_a),
+    LAYOUT_FIELD(rths_api_simulate_options, target_b),
+    LAYOUT_FIELD(rths_api_simulate_options, trace_periods),
+    LAYOUT_FIELD(rths_api_simulate_options, has_seed),
+    LAYOUT_FIELD(rths_api_simulate_options, seed),
+    LAYOUT_FIELD(rths_api_simulate_options, rig_uri),
+    LAYOUT_FIELD(rths_api_simulate_options, reset_fault),
 };
 
 size_t rths_api_sizeof(const char *type) {
