@@ -35,10 +35,10 @@ int rths_api_version(void);
 const char *rths_api_release(void);
 
 /* ---- the layout of the structs a caller allocates (part of the ABI) ----
- * rths_error, rths_api_frf_options and rths_api_simulate_options are allocated by the caller. A binding that declares them
- * itself instead of compiling this header (python/rths/_lib.py through ctypes) checks its
- * declaration against the library it loaded, and refuses to use a library whose layout differs:
- * a smaller rths_error than the library's is overwritten past its end. */
+ * rths_error, rths_api_frf_options and rths_api_simulate_options are allocated by the caller. A
+ * binding that declares them itself instead of compiling this header (python/rths/_lib.py through
+ * ctypes) checks its declaration against the library it loaded, and refuses to use a library whose
+ * layout differs: a smaller rths_error than the library's is overwritten past its end. */
 
 /* sizeof(type) as this library was compiled, for "rths_error", "rths_api_frf_options" and
  * "rths_api_simulate_options"; 0 for any other name. */
