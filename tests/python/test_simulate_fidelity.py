@@ -79,6 +79,20 @@ class Fidelity(unittest.TestCase):
         self.assertLessEqual(amp[k], true["peak_amplitude_m"] * (1 + 1e-12))
         self.assertLess(abs(m.true_frf["frequency_hz"][k] - true["peak_hz"]), 0.5e-3 + 1e-9)
 
+    def test_to_pandas(self):
+        try:
+            import pandas  # noqa: F401
+        except ImportError:
+            self.skipTest("pandas not installed (Debian: python3-pandas)")
+        r = rths.fidelity(rths.Config.load(SEED_CFG, set={"fidelity.points": 21}))
+        df = r.fidelity.to_pandas()
+        self.assertEqual(list(df.columns), r.fidelity.columns)
+        for name in r.fidelity.columns:
+            np.testing.assert_array_equal(df[name].to_numpy(), r.fidelity[name], err_msg=name)
+        m = rths.model(SEED_CFG).modes.to_pandas()
+        self.assertEqual(str(m["mode"].dtype), "int64")
+        self.assertEqual(list(m["mode"]), [1, 2, 3, 4])
+
     def test_bad_key_refused(self):
         with self.assertRaises(rths.InputError) as e:
             rths.fidelity(rths.Config.load(SEED_CFG, set={"fidelity.colour": 1}))
