@@ -200,6 +200,23 @@ int rths_api_frf_available(void);
 int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
                  rths_error *err);
 
+/* ---- the web view of a run (rths view, docs/view.md) ---- */
+
+typedef struct rths_api_view rths_api_view;
+/* Checks dir (a run folder or a campaign folder) and listen ("ADDR:PORT", "[v6]:PORT"; NULL:
+ * 127.0.0.1:8080; port 0: a free one); RTHS_EINPUT naming the problem. Nothing is served yet. */
+int rths_api_view_open(const char *dir, const char *listen, rths_api_view **out, rths_error *err);
+/* The address it serves on, and whether that is a loopback address (else the page, which has no
+ * authentication, is reachable from other machines). */
+const char *rths_api_view_host(const rths_api_view *v);
+int rths_api_view_host_is_loopback(const rths_api_view *v);
+/* Starts serving (threads of its own: block the signals they must not take first). */
+int rths_api_view_serve(rths_api_view *v, rths_error *err);
+/* The bound port once served, -1 before. */
+int rths_api_view_port(const rths_api_view *v);
+/* Stops serving (every connection closed) and frees v (NULL accepted). */
+void rths_api_view_stop(rths_api_view *v);
+
 /* ---- the rths command's own entry points (src/cli) ----
  * The operations above on a configuration the command has read already, and the one writer of a
  * result into an open run folder: `rths model` and rths_api_model share their tables, summary and
@@ -240,29 +257,29 @@ int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_cha
                            const char *config_path, const char *const *overrides, int n_overrides,
                            rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
                            rths_error *err);
-struct rths_controller_options;
-struct rths_plant_options;
-struct rths_tune_result;
-/* rths_api_tune's result from the setup and the controller and rig options read from the
- * configuration: table "loop" and the summary naming config_path and the overrides; tuned_yaml
- * (may be NULL) receives the keys to paste (free()); tune (may be NULL) the tuning's numbers. */
-int rths_api_tune_compute(const struct rths_setup *setup,
-                          const struct rths_controller_options *copt,
-                          const struct rths_plant_options *popt, double delay_s,
+struct rths_config;
+/* rths_api_chart_compute from the configuration (its stability section read and checked here)
+ * with what `rths chart` adds: the printed report (rths_result_text), the file
+ * boundary_curves.dat and the figure chart. progress: a progress line on stderr. */
+int rths_api_chart_run(struct rths_config *c, const struct rths_setup *setup, int progress,
+                       const char *config_path, const char *const *overrides, int n_overrides,
+                       rths_result **out, rths_error *err);
+/* rths_api_tune's result from the configuration (its rig and controller sections read and
+ * checked here) and the setup read from it: table "loop", the summary naming config_path and the
+ * overrides, the keys to paste as rths_result_text and as the file tuned.yaml, the figure loop. */
+int rths_api_tune_compute(struct rths_config *c, const struct rths_setup *setup, double delay_s,
                           const char *config_path, const char *const *overrides, int n_overrides,
-                          rths_result **out, char **tuned_yaml, struct rths_tune_result *tune,
-                          rths_error *err);
-/* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
- * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
+                          rths_result **out, rths_error *err);
+/* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
+ * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
-/* Its parts in order (tables, run.log lines, summary, figures), for a command that writes a file
- * of its own between them. */
+/* Its parts in order (the result's own text files such as tuned.yaml, then tables, run.log lines,
+ * summary, figures), for a command that writes a file of its own between them. */
 int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
 int rths_api_result_write_log(const rths_result *r, struct rths_report *rep, rths_error *err);
 int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
 int rths_api_result_write_figures(const rths_result *r, struct rths_report *rep, rths_error *err);
 
-struct rths_config;
 /* rths_api_fidelity's result from the configuration (its fidelity and controller sections read
  * and checked here) and the setup read from it. */
 int rths_api_fidelity_compute(struct rths_config *c, const struct rths_setup *setup,

@@ -246,6 +246,10 @@ void rths_result_free(rths_result *r) {
     for (int i = 0; i < r->n_figures; i++)
         free(r->figures[i].name), free(r->figures[i].body);
     free(r->figures);
+    for (int i = 0; i < r->n_files; i++)
+        free(r->file_names[i]), free(r->file_texts[i]);
+    free(r->file_names);
+    free(r->file_texts);
     free(r->text);
     free(r->summary_json);
     free(r->config_yaml);
@@ -332,6 +336,21 @@ int rths_result_add_figure(rths_result *r, const char *name, int width_px, int h
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     r->n_figures++;
+    return RTHS_OK;
+}
+
+int rths_result_add_file(rths_result *r, const char *name, const char *text, rths_error *err) {
+    char **names = realloc(r->file_names, (size_t)(r->n_files + 1) * sizeof *names);
+    if (names) r->file_names = names;
+    char **texts = names ? realloc(r->file_texts, (size_t)(r->n_files + 1) * sizeof *texts) : NULL;
+    if (texts) r->file_texts = texts;
+    char *n = texts ? strdup(name) : NULL, *t = n ? strdup(text) : NULL;
+    if (!t) {
+        free(n);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    r->file_names[r->n_files] = n;
+    r->file_texts[r->n_files++] = t;
     return RTHS_OK;
 }
 
@@ -441,7 +460,14 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
 }
 
 int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
-    int rc = rths_api_result_write_tables(r, rep, err);
+    int rc = RTHS_OK;
+    for (int i = 0; i < r->n_files && !rc; i++) {
+        char *path = rths_report_path(rep, r->file_names[i]);
+        rc = path ? rths_write_file_atomic(path, r->file_texts[i], strlen(r->file_texts[i]), err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        free(path);
+    }
+    if (!rc) rc = rths_api_result_write_tables(r, rep, err);
     if (!rc) rc = rths_api_result_write_log(r, rep, err);
     if (!rc) rc = rths_api_result_write_summary(r, rep, err);
     return rc ? rc : rths_api_result_write_figures(r, rep, err);

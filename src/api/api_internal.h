@@ -35,6 +35,8 @@ struct rths_result {
     int n_log;
     rths_api_figure *figures;
     int n_figures;
+    char **file_names, **file_texts; /* text files written before the tables (tuned.yaml) */
+    int n_files;
     int out_of_memory; /* a text or log line could not be kept: the writer fails */
 };
 
@@ -61,6 +63,8 @@ struct json_object *rths_api_summary_new(const char *command, const char *config
  * and reported by the writer. */
 void rths_result_printf(rths_result *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
 void rths_result_log(rths_result *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* A text file of r (copied: NAME in the folder), written by the writer before the tables. */
+int rths_result_add_file(rths_result *r, const char *name, const char *text, rths_error *err);
 /* A figure of r (copied), drawn by the writer after the summary. */
 int rths_result_add_figure(rths_result *r, const char *name, int width_px, int height_px,
                            const char *body, rths_error *err);
