@@ -65,6 +65,9 @@ int rths_api_config_dofs(const rths_api_config *cfg);
  * as "[[1, 0], [0, 1]]" (%.17g). *text is malloc'ed (free with rths_api_free). RTHS_EINPUT for a
  * key that is not set (its default applies; docs/config.md) or that holds a mapping. */
 int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err);
+/* Writes len bytes of data to path as every run folder's files are written: to a temporary name
+ * in the same folder, renamed into place when complete (a crash never leaves half a file). */
+int rths_api_write_file(const char *path, const char *data, size_t len, rths_error *err);
 /* Frees what the library allocated for the caller (rths_api_config_get's text). */
 void rths_api_free(void *p);
 

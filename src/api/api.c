@@ -159,6 +159,11 @@ int rths_api_config_dofs(const rths_api_config *cfg) {
     return cfg ? cfg->dofs : 0;
 }
 
+int rths_api_write_file(const char *path, const char *data, size_t len, rths_error *err) {
+    if (!path || (!data && len)) return rths_error_set(err, RTHS_EINPUT, "no path or data given");
+    return rths_write_file_atomic(path, data ? data : "", len, err);
+}
+
 void rths_api_free(void *p) {
     free(p);
 }
