@@ -35,13 +35,13 @@ int rths_api_version(void);
 const char *rths_api_release(void);
 
 /* ---- the layout of the structs a caller allocates (part of the ABI) ----
- * rths_error and rths_api_frf_options are allocated by the caller. A binding that declares them
- * itself instead of compiling this header (python/rths/_lib.py through ctypes) checks its
- * declaration against the library it loaded, and refuses to use a library whose layout differs:
- * a smaller rths_error than the library's is overwritten past its end. */
+ * rths_error, rths_api_frf_options and rths_api_simulate_options are allocated by the caller. A
+ * binding that declares them itself instead of compiling this header (python/rths/_lib.py through
+ * ctypes) checks its declaration against the library it loaded, and refuses to use a library whose
+ * layout differs: a smaller rths_error than the library's is overwritten past its end. */
 
-/* sizeof(type) as this library was compiled, for "rths_error" and "rths_api_frf_options"; 0 for
- * any other name. */
+/* sizeof(type) as this library was compiled, for "rths_error", "rths_api_frf_options" and
+ * "rths_api_simulate_options"; 0 for any other name. */
 size_t rths_api_sizeof(const char *type);
 /* offsetof(type, field) as this library was compiled (e.g. "rths_error", "msg"); -1 for an
  * unknown type or field. */
@@ -65,6 +65,9 @@ int rths_api_config_dofs(const rths_api_config *cfg);
  * as "[[1, 0], [0, 1]]" (%.17g). *text is malloc'ed (free with rths_api_free). RTHS_EINPUT for a
  * key that is not set (its default applies; docs/config.md) or that holds a mapping. */
 int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text, rths_error *err);
+/* Writes len bytes of data to path as every run folder's files are written: to a temporary name
+ * in the same folder, renamed into place when complete (a crash never leaves half a file). */
+int rths_api_write_file(const char *path, const char *data, size_t len, rths_error *err);
 /* Frees what the library allocated for the caller (rths_api_config_get's text). */
 void rths_api_free(void *p);
 
@@ -86,6 +89,9 @@ const double *rths_result_column(const rths_result *r, int t, int column);
 const char *rths_result_summary_json(const rths_result *r);
 /* config.yaml's text, the configuration as resolved ("" when the result has no folder). */
 const char *rths_result_config_yaml(const rths_result *r);
+/* What the command of the same name prints on success (its standard output), "" for the
+ * operations that print nothing. */
+const char *rths_result_text(const rths_result *r);
 /* The run folder, or NULL when the result was not written to one. */
 const char *rths_result_dir(const rths_result *r);
 void rths_result_free(rths_result *r);
@@ -116,6 +122,47 @@ int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result 
  * rule. */
 int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_dir,
                   rths_result **out, rths_error *err);
+
+/* rths fidelity: the converged hybrid test's interface FRF for every integration scheme of the
+ * numerical substructure against the true assembly, with the fidelity.* keys (docs/method.md,
+ * "Numerical substructure integration"). Table "fidelity" (frequency_hz, true_amplitude_m,
+ * <scheme>_amplitude_m), equal to the CLI's fidelity.csv; the summary's "curves" give each
+ * curve's peak_hz, peak_amplitude_m and peak_error_percent; rths_result_text the table the CLI
+ * prints. out_dir as for rths_api_model (also fidelity.gp/.png/.svg there). */
+int rths_api_fidelity(const rths_api_config *cfg, const char *out_dir, rths_result **out,
+                      rths_error *err);
+
+/* rths simulate: one hybrid test at a fixed target (iterative mode) or the conventional test
+ * with the feedback loop closed (feedback mode), as the command's options. */
+/* The most target harmonics per interface DoF, and interface DoFs, a test can have. */
+#define RTHS_API_MAX_HARMONICS 5
+#define RTHS_API_MAX_INTERFACE_DOFS 4
+
+typedef struct rths_api_simulate_options {
+    const char *out_dir; /* run folder (may be NULL: the result only) */
+    double frequency_hz; /* forcing frequency, Hz, in (0, 1e5] (as --frequency) */
+    int periods;         /* forcing periods, 1..100000 (as --periods) */
+    int feedback;        /* 0: iterative mode, nonzero: feedback mode (as --mode) */
+    double delay_s;      /* feedback mode: > 0 the pure-delay model (as --delay), 0 the rig */
+    int harmonics;       /* iterative: target harmonics per interface DoF, 1..5 */
+    int target_dofs;     /* iterative: interface DoFs the target gives (all of them) */
+    const double *target_a, *target_b; /* DoF d's A_k, B_k at [d * harmonics + k - 1], m */
+    int trace_periods;                 /* iterative: periods in the trace, 0: min(periods, 5) */
+    int has_seed;                      /* nonzero: seed replaces rig.seed (as --seed) */
+    uint64_t seed;
+    const char *rig_uri; /* "tcp://HOST:PORT" of a controller process; NULL: the virtual rig */
+    int reset_fault;     /* with rig_uri: reset the controller's latched fault first */
+} rths_api_simulate_options;
+
+void rths_api_simulate_options_default(rths_api_simulate_options *o);
+/* Runs the test. Tables "coefficients" (one row per period: the Fourier coefficients of the
+ * physical and numerical interface displacements, m, and the period's integrity counts) and
+ * "trace" (time_s, x_phys_m, x_num_m, target_m, force_n, demand), equal to the CLI's CSV files;
+ * the summary as summary.json (final_phys, final_num, final_interface_error_m; in feedback mode
+ * diverged, growth_rate_per_s, ...); rths_result_text what the CLI prints. With o->out_dir also
+ * the run folder (simulate.gp/.png/.svg). */
+int rths_api_simulate(const rths_api_config *cfg, const rths_api_simulate_options *o,
+                      rths_result **out, rths_error *err);
 
 /* Reads a finished (or interrupted) run folder: every *.csv as a table, summary.json and
  * config.yaml as text. */
@@ -155,6 +202,23 @@ int rths_api_frf_available(void);
  * result, but the folder still holds everything accepted (rths_api_read_run reads it). */
 int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths_result **out,
                  rths_error *err);
+
+/* ---- the web view of a run (rths view, docs/view.md) ---- */
+
+typedef struct rths_api_view rths_api_view;
+/* Checks dir (a run folder or a campaign folder) and listen ("ADDR:PORT", "[v6]:PORT"; NULL:
+ * 127.0.0.1:8080; port 0: a free one); RTHS_EINPUT naming the problem. Nothing is served yet. */
+int rths_api_view_open(const char *dir, const char *listen, rths_api_view **out, rths_error *err);
+/* The address it serves on, and whether that is a loopback address (else the page, which has no
+ * authentication, is reachable from other machines). */
+const char *rths_api_view_host(const rths_api_view *v);
+int rths_api_view_host_is_loopback(const rths_api_view *v);
+/* Starts serving (threads of its own: block the signals they must not take first). */
+int rths_api_view_serve(rths_api_view *v, rths_error *err);
+/* The bound port once served, -1 before. */
+int rths_api_view_port(const rths_api_view *v);
+/* Stops serving (every connection closed) and frees v (NULL accepted). */
+void rths_api_view_stop(rths_api_view *v);
 
 /* ---- the rths command's own entry points (src/cli) ----
  * The operations above on a configuration the command has read already, and the one writer of a
@@ -196,24 +260,48 @@ int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_cha
                            const char *config_path, const char *const *overrides, int n_overrides,
                            rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
                            rths_error *err);
-struct rths_controller_options;
-struct rths_plant_options;
-struct rths_tune_result;
-/* rths_api_tune's result from the setup and the controller and rig options read from the
- * configuration: table "loop" and the summary naming config_path and the overrides; tuned_yaml
- * (may be NULL) receives the keys to paste (free()); tune (may be NULL) the tuning's numbers. */
-int rths_api_tune_compute(const struct rths_setup *setup,
-                          const struct rths_controller_options *copt,
-                          const struct rths_plant_options *popt, double delay_s,
+struct rths_config;
+/* rths_api_chart_compute from the configuration (its stability section read and checked here)
+ * with what `rths chart` adds: the printed report (rths_result_text), the file
+ * boundary_curves.dat and the figure chart. progress: a progress line on stderr. */
+int rths_api_chart_run(struct rths_config *c, const struct rths_setup *setup, int progress,
+                       const char *config_path, const char *const *overrides, int n_overrides,
+                       rths_result **out, rths_error *err);
+/* rths_api_tune's result from the configuration (its rig and controller sections read and
+ * checked here) and the setup read from it: table "loop", the summary naming config_path and the
+ * overrides, the keys to paste as rths_result_text and as the file tuned.yaml, the figure loop. */
+int rths_api_tune_compute(struct rths_config *c, const struct rths_setup *setup, double delay_s,
                           const char *config_path, const char *const *overrides, int n_overrides,
-                          rths_result **out, char **tuned_yaml, struct rths_tune_result *tune,
-                          rths_error *err);
-/* Writes r into the open run folder rep: each table as NAME.csv (the CSV writer of every run
- * folder, %.17g), then summary.json (when r has one), each logged in run.log. */
+                          rths_result **out, rths_error *err);
+/* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
+ * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
-/* Its two halves, for a command that writes a file of its own between them. */
+/* Its parts in order (the result's own text files such as tuned.yaml, then tables, run.log lines,
+ * summary, figures), for a command that writes a file of its own between them. */
 int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_log(const rths_result *r, struct rths_report *rep, rths_error *err);
 int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
+int rths_api_result_write_figures(const rths_result *r, struct rths_report *rep, rths_error *err);
+
+/* rths_api_fidelity's result from the configuration (its fidelity and controller sections read
+ * and checked here) and the setup read from it. */
+int rths_api_fidelity_compute(struct rths_config *c, const struct rths_setup *setup,
+                              const char *config_path, const char *const *overrides,
+                              int n_overrides, rths_result **out, rths_error *err);
+
+/* rths_api_simulate in two steps, so the command creates its folder only once nothing can refuse
+ * the input: _prepare checks o, creates and arms the rig (a virtual rig reads the rig and
+ * controller sections, checked here) and refuses bad input with RTHS_EINPUT; _run runs the test
+ * (logging into rep, may be NULL) and returns the result (the summary naming config_path and the
+ * overrides). */
+typedef struct rths_api_simulation rths_api_simulation;
+int rths_api_simulate_prepare(struct rths_config *c, const struct rths_setup *setup,
+                              const rths_api_simulate_options *o, rths_api_simulation **out,
+                              rths_error *err);
+int rths_api_simulate_run(rths_api_simulation *s, struct rths_report *rep, const char *config_path,
+                          const char *const *overrides, int n_overrides, rths_result **out,
+                          rths_error *err);
+void rths_api_simulation_free(rths_api_simulation *s);
 
 #ifdef __cplusplus
 }

@@ -33,7 +33,7 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "IncompleteRunWarning", "model", "chart", "tune", "frf", "frf_available", "read_run", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "tune", "fidelity", "simulate", "frf", "frf_available", "read_run", "library_release"]
 
 def _c():
     global _LIB
@@ -204,22 +204,34 @@ class Table(dict):
         except KeyError:
             raise AttributeError(name) from None
 
+    def to_pandas(self):
+        """The table as a pandas DataFrame (columns in the file's order, integer columns as
+        int64). Needs pandas (Debian: python3-pandas); ImportError naming it otherwise."""
+        try:
+            import pandas
+        except ImportError as e:
+            raise ImportError("Table.to_pandas() needs pandas (Debian: apt install "
+                              "python3-pandas)") from e
+        return pandas.DataFrame({name: self[name] for name in self.columns})
+
     def __repr__(self):
         return f"<rths.Table {self.name}: {self.rows} rows, columns {', '.join(self.columns)}>"
 
 
 class Result:
     """A run's tables (by CSV name: result.frf, result.modes, result["true_frf"]), its summary
-    (dict, from summary.json), config_yaml (text) and dir (the run folder or None). complete is
-    False for a run folder without summary.json (a run that was killed or is still running: its
-    summary is {} and its tables are what it had written, e.g. truth without frf)."""
+    (dict, from summary.json), config_yaml (text), dir (the run folder or None) and text (what the
+    CLI's command prints, "" for the operations that print nothing). complete is False for a run
+    folder without summary.json (a run that was killed or is still running: its summary is {} and
+    its tables are what it had written, e.g. truth without frf)."""
 
-    def __init__(self, tables, summary, config_yaml, dir, complete=True):
+    def __init__(self, tables, summary, config_yaml, dir, complete=True, text=""):
         self.tables = tables
         self.summary = summary
         self.config_yaml = config_yaml
         self.dir = dir
         self.complete = complete
+        self.text = text
 
     def __getitem__(self, name):
         return self.tables[name]
@@ -238,7 +250,7 @@ class Result:
 # on_point's rows, when every value is a finite integer (a NaN, "not measured", keeps the column
 # float). The rest are doubles, as in the CSV files.
 INTEGER_COLUMNS = frozenset({
-    "point", "mode", "evaluations", "iterations", "converged", "fold", "segment", "se_honest",
+    "point", "period", "mode", "evaluations", "iterations", "converged", "fold", "segment", "se_honest",
     "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
 
 
@@ -281,7 +293,9 @@ def _take_result(handle):
         except ValueError as e:  # the library checks it; this is the last line of defence
             raise InputError(2, f"{folder}/summary.json: not valid JSON ({e})") from None
         config_yaml = c.rths_result_config_yaml(handle).decode()
-        return Result(tables, summary, config_yaml, folder, complete=bool(text.strip()))
+        printed = c.rths_result_text(handle).decode()
+        return Result(tables, summary, config_yaml, folder, complete=bool(text.strip()),
+                      text=printed)
     finally:
         c.rths_result_free(handle)
 
@@ -332,6 +346,85 @@ def tune(cfg, delay=None, out=None):
             raise InputError(2, f"delay {delay!r} s: must be in [0, 0.1]")
     return _run(_c().rths_api_tune, cfg._handle, -1.0 if delay is None else delay,
                 None if out is None else os.fsencode(_path("out", out)))
+
+
+def fidelity(cfg, out=None):
+    """What the numerical substructure's integration scheme does to the hybrid test (rths
+    fidelity): result.fidelity (frequency_hz, true_amplitude_m, <scheme>_amplitude_m, equal to the
+    CLI's fidelity.csv), result.summary["curves"][name] with each curve's peak_hz,
+    peak_amplitude_m and peak_error_percent, result.text the table the CLI prints. out: also write
+    a run folder there."""
+    cfg = _config(cfg)
+    return _run(_c().rths_api_fidelity, cfg._handle,
+                None if out is None else os.fsencode(_path("out", out)))
+
+
+def _target(target):
+    """target as (dofs, harmonics, a, b): one list [A1, B1, A2, B2, ...] (m) for one interface
+    DoF, or a list of such lists, one per interface DoF (as --target's ';'-separated lists)."""
+    rows = np.asarray(target, dtype=float)
+    if rows.ndim == 1:
+        rows = rows[np.newaxis, :]
+    if rows.ndim != 2 or rows.shape[1] == 0 or rows.shape[1] % 2:
+        raise InputError(2, f"target={target!r}: give pairs A_k, B_k per harmonic, one list per "
+                            "interface DoF")
+    if not np.all(np.isfinite(rows)):
+        raise InputError(2, f"target={target!r}: every coefficient must be finite")
+    dofs, harmonics = rows.shape[0], rows.shape[1] // 2
+    a = np.ascontiguousarray(rows[:, 0::2].reshape(-1))
+    b = np.ascontiguousarray(rows[:, 1::2].reshape(-1))
+    return dofs, harmonics, a, b
+
+
+def simulate(cfg, frequency, periods, target=None, mode="iterative", delay=None,
+             trace_periods=None, seed=None, rig=None, reset_fault=False, out=None):
+    """One hybrid test (rths simulate). mode "iterative": the physical interface controlled to
+    the fixed target x*(t) = sum_k A_k cos(k w t) + B_k sin(k w t) (target: [A1, B1, ...] in m,
+    or one such list per interface DoF) for `periods` forcing periods at `frequency` Hz, then a
+    trace of trace_periods more (default min(periods, 5)). mode "feedback": the conventional test
+    with the loop closed, through the rig, or with delay (s) the seed's pure-delay model.
+    result.coefficients (one row per period: phys_a1_m, num_a1_m, ...) and result.trace equal the
+    CLI's CSV files; result.summary its summary.json; result.text what it prints. rig:
+    "tcp://HOST:PORT" of a controller process. out: also write a run folder there."""
+    if mode not in ("iterative", "feedback"):
+        raise InputError(2, f"mode={mode!r}: iterative or feedback")
+    c = _c()
+    o = _lib.SimulateOptions()
+    c.rths_api_simulate_options_default(ctypes.byref(o))
+    try:
+        o.frequency_hz = float(frequency)
+    except (TypeError, ValueError):
+        raise InputError(2, f"frequency={frequency!r}: expected a number (Hz)") from None
+    o.periods = _integer("periods", periods, 1, 100000)
+    o.feedback = 1 if mode == "feedback" else 0
+    keep = None
+    if target is not None:
+        if mode == "feedback":
+            raise InputError(2, "target: not used in feedback mode (the target is the numerical "
+                                "interface displacement itself)")
+        o.target_dofs, o.harmonics, a, b = _target(target)
+        keep = (a, b)  # alive until the call returns
+        o.target_a = a.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+        o.target_b = b.ctypes.data_as(ctypes.POINTER(ctypes.c_double))
+    elif mode == "iterative":
+        raise InputError(2, "target: required in iterative mode ([A1, B1, ...], m)")
+    if delay is not None:
+        o.delay_s = float(delay)
+        if not o.delay_s > 0:
+            raise InputError(2, f"delay={delay!r}: must be > 0 s")
+    if trace_periods is not None:
+        o.trace_periods = _integer("trace_periods", trace_periods, 1, 1000)
+    if seed is not None:
+        o.has_seed, o.seed = 1, _integer("seed", seed, 0, 2**64 - 1)
+    if rig is not None:
+        o.rig_uri = rig.encode()
+    o.reset_fault = 1 if reset_fault else 0
+    if out is not None:
+        o.out_dir = os.fsencode(_path("out", out))
+    cfg = _config(cfg)
+    result = _run(c.rths_api_simulate, cfg._handle, ctypes.byref(o))
+    del keep
+    return result
 
 
 def read_run(dir):

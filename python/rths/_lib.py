@@ -33,6 +33,18 @@ class FrfOptions(ctypes.Structure):
                 ("force", ctypes.c_int)]
 
 
+class SimulateOptions(ctypes.Structure):
+    """rths_api_simulate_options."""
+
+    _fields_ = [("out_dir", ctypes.c_char_p), ("frequency_hz", ctypes.c_double),
+                ("periods", ctypes.c_int), ("feedback", ctypes.c_int),
+                ("delay_s", ctypes.c_double), ("harmonics", ctypes.c_int),
+                ("target_dofs", ctypes.c_int), ("target_a", ctypes.POINTER(ctypes.c_double)),
+                ("target_b", ctypes.POINTER(ctypes.c_double)), ("trace_periods", ctypes.c_int),
+                ("has_seed", ctypes.c_int), ("seed", ctypes.c_uint64),
+                ("rig_uri", ctypes.c_char_p), ("reset_fault", ctypes.c_int)]
+
+
 def _candidates():
     """Where librths is looked for: RTHS_LIBRARY, the build tree of this checkout, the loader."""
     env = os.environ.get("RTHS_LIBRARY")
@@ -61,7 +73,8 @@ def _layout(lib, path):
     if size == 0 or msg < 0:
         raise LayoutError(f"{path} does not report the size of rths_error")
     lib.Error = error_type(size - msg)
-    for ctype, cname in ((lib.Error, "rths_error"), (FrfOptions, "rths_api_frf_options")):
+    for ctype, cname in ((lib.Error, "rths_error"), (FrfOptions, "rths_api_frf_options"),
+                         (SimulateOptions, "rths_api_simulate_options")):
         for field, _ in ctype._fields_:
             want = lib.rths_api_offsetof(cname.encode(), field.encode())
             got = getattr(ctype, field).offset
@@ -95,6 +108,10 @@ def _declare(lib):
         "rths_api_frf_options_default": (None, [ctypes.POINTER(FrfOptions)]),
         "rths_api_frf_available": (c_int, []),
         "rths_api_frf": (c_int, [c_void_p, ctypes.POINTER(FrfOptions), handle, err]),
+        "rths_api_fidelity": (c_int, [c_void_p, c_char_p, handle, err]),
+        "rths_api_simulate_options_default": (None, [ctypes.POINTER(SimulateOptions)]),
+        "rths_api_simulate": (c_int, [c_void_p, ctypes.POINTER(SimulateOptions), handle, err]),
+        "rths_result_text": (c_char_p, [c_void_p]),
         "rths_result_table_count": (c_int, [c_void_p]),
         "rths_result_table_name": (c_char_p, [c_void_p, c_int]),
         "rths_result_rows": (c_int, [c_void_p, c_int]),

@@ -3,6 +3,7 @@
 
 #include <errno.h>
 #include <json-c/json.h>
+#include <stdarg.h>
 #include <stddef.h>
 #include <stdio.h>
 #include <stdint.h>
@@ -46,6 +47,21 @@ static const layout_entry layout[] = {
     LAYOUT_FIELD(rths_api_frf_options, should_cancel),
     LAYOUT_FIELD(rths_api_frf_options, user),
     LAYOUT_FIELD(rths_api_frf_options, force),
+    LAYOUT_TYPE(rths_api_simulate_options),
+    LAYOUT_FIELD(rths_api_simulate_options, out_dir),
+    LAYOUT_FIELD(rths_api_simulate_options, frequency_hz),
+    LAYOUT_FIELD(rths_api_simulate_options, periods),
+    LAYOUT_FIELD(rths_api_simulate_options, feedback),
+    LAYOUT_FIELD(rths_api_simulate_options, delay_s),
+    LAYOUT_FIELD(rths_api_simulate_options, harmonics),
+    LAYOUT_FIELD(rths_api_simulate_options, target_dofs),
+    LAYOUT_FIELD(rths_api_simulate_options, target_a),
+    LAYOUT_FIELD(rths_api_simulate_options, target_b),
+    LAYOUT_FIELD(rths_api_simulate_options, trace_periods),
+    LAYOUT_FIELD(rths_api_simulate_options, has_seed),
+    LAYOUT_FIELD(rths_api_simulate_options, seed),
+    LAYOUT_FIELD(rths_api_simulate_options, rig_uri),
+    LAYOUT_FIELD(rths_api_simulate_options, reset_fault),
 };
 
 size_t rths_api_sizeof(const char *type) {
@@ -143,6 +159,11 @@ int rths_api_config_dofs(const rths_api_config *cfg) {
     return cfg ? cfg->dofs : 0;
 }
 
+int rths_api_write_file(const char *path, const char *data, size_t len, rths_error *err) {
+    if (!path || (!data && len)) return rths_error_set(err, RTHS_EINPUT, "no path or data given");
+    return rths_write_file_atomic(path, data ? data : "", len, err);
+}
+
 void rths_api_free(void *p) {
     free(p);
 }
@@ -209,7 +230,8 @@ int rths_api_config_get(const rths_api_config *cfg, const char *key, char **text
 
 int rths_result_new(rths_result **out, rths_error *err) {
     rths_result *r = calloc(1, sizeof *r);
-    if (r && (r->summary_json = strdup("")) && (r->config_yaml = strdup(""))) {
+    if (r && (r->summary_json = strdup("")) && (r->config_yaml = strdup("")) &&
+        (r->text = strdup(""))) {
         *out = r;
         return RTHS_OK;
     }
@@ -223,6 +245,17 @@ void rths_result_free(rths_result *r) {
     for (int t = 0; t < r->n_tables; t++)
         rths_table_free(&r->tables[t]);
     free(r->tables);
+    for (int i = 0; i < r->n_log; i++)
+        free(r->log[i]);
+    free(r->log);
+    for (int i = 0; i < r->n_figures; i++)
+        free(r->figures[i].name), free(r->figures[i].body);
+    free(r->figures);
+    for (int i = 0; i < r->n_files; i++)
+        free(r->file_names[i]), free(r->file_texts[i]);
+    free(r->file_names);
+    free(r->file_texts);
+    free(r->text);
     free(r->summary_json);
     free(r->config_yaml);
     free(r->dir);
@@ -249,6 +282,85 @@ int rths_result_add_columns(rths_result *r, const char *name, int rows, int colu
     for (int c = 0; c < columns; c++)
         if (rows) memcpy(t.data[c], data[c], (size_t)rows * sizeof(double));
     return rths_result_take_table(r, &t, err);
+}
+
+/* vsnprintf into a new string (NULL: out of memory) */
+static char *vformat(const char *fmt, va_list ap) {
+    va_list copy;
+    va_copy(copy, ap);
+    int len = vsnprintf(NULL, 0, fmt, copy);
+    va_end(copy);
+    char *s = len >= 0 ? malloc((size_t)len + 1) : NULL;
+    if (s) vsnprintf(s, (size_t)len + 1, fmt, ap);
+    return s;
+}
+
+void rths_result_printf(rths_result *r, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    char *s = vformat(fmt, ap);
+    va_end(ap);
+    size_t len = s ? strlen(s) : 0;
+    char *grown = s ? realloc(r->text, r->text_len + len + 1) : NULL;
+    if (!grown) {
+        r->out_of_memory = 1;
+    } else {
+        memcpy(grown + r->text_len, s, len + 1);
+        r->text = grown;
+        r->text_len += len;
+    }
+    free(s);
+}
+
+void rths_result_log(rths_result *r, const char *fmt, ...) {
+    va_list ap;
+    va_start(ap, fmt);
+    char *s = vformat(fmt, ap);
+    va_end(ap);
+    char **grown = s ? realloc(r->log, (size_t)(r->n_log + 1) * sizeof *grown) : NULL;
+    if (!grown) {
+        free(s);
+        r->out_of_memory = 1;
+        return;
+    }
+    r->log = grown;
+    r->log[r->n_log++] = s;
+}
+
+int rths_result_add_figure(rths_result *r, const char *name, int width_px, int height_px,
+                           const char *body, rths_error *err) {
+    rths_api_figure *grown = realloc(r->figures, (size_t)(r->n_figures + 1) * sizeof *grown);
+    if (!grown) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    r->figures = grown;
+    rths_api_figure *f = &r->figures[r->n_figures];
+    f->name = strdup(name);
+    f->body = strdup(body);
+    f->width_px = width_px, f->height_px = height_px;
+    if (!f->name || !f->body) {
+        free(f->name), free(f->body);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    r->n_figures++;
+    return RTHS_OK;
+}
+
+int rths_result_add_file(rths_result *r, const char *name, const char *text, rths_error *err) {
+    char **names = realloc(r->file_names, (size_t)(r->n_files + 1) * sizeof *names);
+    if (names) r->file_names = names;
+    char **texts = names ? realloc(r->file_texts, (size_t)(r->n_files + 1) * sizeof *texts) : NULL;
+    if (texts) r->file_texts = texts;
+    char *n = texts ? strdup(name) : NULL, *t = n ? strdup(text) : NULL;
+    if (!t) {
+        free(n);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    r->file_names[r->n_files] = n;
+    r->file_texts[r->n_files++] = t;
+    return RTHS_OK;
+}
+
+const char *rths_result_text(const rths_result *r) {
+    return r ? r->text : NULL;
 }
 
 int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_error *err) {
@@ -353,8 +465,33 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
 }
 
 int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
-    int rc = rths_api_result_write_tables(r, rep, err);
-    return rc ? rc : rths_api_result_write_summary(r, rep, err);
+    int rc = RTHS_OK;
+    for (int i = 0; i < r->n_files && !rc; i++) {
+        char *path = rths_report_path(rep, r->file_names[i]);
+        rc = path ? rths_write_file_atomic(path, r->file_texts[i], strlen(r->file_texts[i]), err)
+                  : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        free(path);
+    }
+    if (!rc) rc = rths_api_result_write_tables(r, rep, err);
+    if (!rc) rc = rths_api_result_write_log(r, rep, err);
+    if (!rc) rc = rths_api_result_write_summary(r, rep, err);
+    return rc ? rc : rths_api_result_write_figures(r, rep, err);
+}
+
+int rths_api_result_write_log(const rths_result *r, rths_report *rep, rths_error *err) {
+    if (r->out_of_memory)
+        return rths_error_set(err, RTHS_EFAIL, "out of memory (the result's text or log)");
+    for (int i = 0; i < r->n_log; i++)
+        rths_report_log(rep, "%s", r->log[i]);
+    return RTHS_OK;
+}
+
+int rths_api_result_write_figures(const rths_result *r, rths_report *rep, rths_error *err) {
+    int rc = RTHS_OK;
+    for (int i = 0; i < r->n_figures && !rc; i++)
+        rc = rths_plot(rep, rths_report_dir(rep), r->figures[i].name, r->figures[i].width_px,
+                       r->figures[i].height_px, r->figures[i].body, err);
+    return rc;
 }
 
 int rths_api_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err) {

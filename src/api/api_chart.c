@@ -221,6 +221,128 @@ int rths_api_chart_compute(const rths_setup *setup, const rths_chart_options *op
     return RTHS_OK;
 }
 
+/* The boundary curves for the figure (boundary_curves.dat): blank lines between curves, and
+ * between points of one curve that are far apart in (tau, p) (the chain is built in
+ * (tau, p, omega)). */
+static int boundary_curves(rths_result *res, const rths_chart *c, rths_error *err) {
+    char *text = NULL;
+    size_t len = 0;
+    FILE *fp = open_memstream(&text, &len);
+    int rc = fp ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        double dt = (c->tau[c->nt - 1] - c->tau[0]) / 40.0;
+        double dp = c->np > 1 ? (c->p[c->np - 1] - c->p[0]) / 40.0 : 1.0;
+        fprintf(fp, "# tau_s,p,omega_rad_s (boundary points of chart.csv; blank line = new "
+                    "curve)\n");
+        for (int b = 0; b < c->n_boundary; b++) {
+            if (b > 0 &&
+                (c->b_curve[b] != c->b_curve[b - 1] || fabs(c->b_tau[b] - c->b_tau[b - 1]) > dt ||
+                 fabs(c->b_p[b] - c->b_p[b - 1]) > dp))
+                fprintf(fp, "\n");
+            fprintf(fp, "%.17g,%.17g,%.17g\n", c->b_tau[b], c->b_p[b], c->b_omega[b]);
+        }
+        if (fclose(fp) || !text) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        if (!rc) rc = rths_result_add_file(res, "boundary_curves.dat", text, err);
+    }
+    free(text);
+    return rc;
+}
+
+static int plot(rths_result *res, const rths_chart *c, double p_ess, const rths_split *sp,
+                rths_error *err) {
+    char ifaces[128] = "";
+    for (int i = 0; i < sp->n_int && strlen(ifaces) < 100; i++)
+        snprintf(ifaces + strlen(ifaces), sizeof ifaces - strlen(ifaces), "%s%d", i ? ", " : "",
+                 sp->int_dofs[i] + 1);
+    char ess_line[512] = "";
+    if (isfinite(p_ess))
+        snprintf(ess_line, sizeof ess_line,
+                 ", \\\n  %.17g with lines lw 3 dt 2 lc rgb '#e6b800' title "
+                 "'essential spectrum: p = %.4f'",
+                 p_ess, p_ess);
+    double dtau = (c->tau[c->nt - 1] - c->tau[0]) / (c->nt - 1);
+    double dp = c->np > 1 ? (c->p[c->np - 1] - c->p[0]) / (c->np - 1) : 0.01;
+    /* the figures' convention (report.h): the delay in a unit that fits its magnitude, the
+     * legend right of the plot, clear of the axis labels */
+    char unit[24];
+    double scale =
+        rths_plot_unit(fmax(fabs(c->tau[0]), fabs(c->tau[c->nt - 1])), "s", unit, sizeof unit);
+    char body[4096];
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set title 'Delayed-feedback hybrid test of the %d-DoF structure, interface DoF %s: "
+             "stability chart'\n"
+             "set xlabel 'Feedback delay {/Symbol t} (%s)'\n"
+             "set ylabel 'Mass ratio p (numerical share of the interface mass)'\n"
+             "set xrange [%.17g:%.17g]\n"
+             "set yrange [%.17g:%.17g]\n"
+             "set lmargin at screen 0.08\nset rmargin at screen 0.70\n"
+             "set key at screen 0.72, graph 1 left top Left reverse samplen 2 spacing 1.2\n"
+             "set palette defined (0 '#ffffff', 1 '#9be39b')\n"
+             "set cbrange [0:1]\n"
+             "unset colorbox\n"
+             "set grid front\n"
+             "plot 'chart.csv' skip 1 using ($1 * %g):2:4 with image notitle, \\\n"
+             "  1/0 with boxes fs solid lc rgb '#9be39b' title 'stable', \\\n"
+             "  1/0 with boxes fs solid border lc rgb '#bbbbbb' fc rgb '#ffffff' title 'unstable', "
+             "\\\n"
+             "  'boundary_curves.dat' using ($1 * %g):2 with linespoints "
+             "lw 2 pt 7 ps 0.25 lc rgb '#d62728' title 'boundary D(i{/Symbol w}) = 0 (MDBM)', "
+             "\\\n"
+             "  'critical.csv' skip 1 using ($2 > 0 ? $2 * %g : 1/0):1 with lines lw 1.5 dt 3 lc "
+             "rgb '#000000' title 'critical delay'%s\n",
+             sp->n, ifaces, unit, scale * (c->tau[0] - 0.5 * dtau),
+             scale * (c->tau[c->nt - 1] + 0.5 * dtau), c->p[0] - 0.5 * dp,
+             c->p[c->np - 1] + 0.5 * dp, scale, scale, scale, ess_line);
+    return rths_result_add_figure(res, "chart", 1300, 800, body, err);
+}
+
+int rths_api_chart_run(rths_config *cfg, const rths_setup *setup, int progress,
+                       const char *config_path, const char *const *overrides, int n_overrides,
+                       rths_result **out, rths_error *err) {
+    static const char *const own_sections[] = {"stability", NULL};
+    *out = NULL;
+    rths_chart_options o;
+    rths_chart chart;
+    rths_api_chart_facts f;
+    rths_result *res = NULL;
+    int rc;
+    if ((rc = rths_chart_config_read(cfg, &o, err)) ||
+        (rc = rths_api_check_config(cfg, own_sections, err)))
+        return rc;
+    o.progress = progress;
+    if ((rc = rths_api_chart_compute(setup, &o, config_path, overrides, n_overrides, &res, &chart,
+                                     &f, err)))
+        return rc;
+    rths_result_printf(res,
+                       "Stability chart: %d x %d (tau %g..%g s, p %g..%g), %d stable, %d "
+                       "boundary points, %.2f s\n",
+                       chart.nt, chart.np, o.tau_min_s, o.tau_max_s, o.p_min, o.p_max,
+                       f.stable_points, chart.n_boundary, f.seconds);
+    rths_result_printf(res, "Essential spectrum: %s\n", f.essential_statement);
+    rths_result_printf(res, "%-10s %18s %22s\n", "p", "critical_delay_s", "crossing_omega_rad_s");
+    for (int k = 0; k < 4; k++)
+        rths_result_printf(res, "%-10.4g %18.6e %22.4f%s\n", f.probe_p[k],
+                           f.probe_critical_delay_s[k], f.probe_crossing_omega_rad_s[k],
+                           k == 0 ? "   (configured split)" : "");
+    rths_result_printf(res,
+                       "Labels vs boundaries: %d label changes, %d without a boundary, %d "
+                       "boundary points inside the stable region\n",
+                       chart.label_changes, chart.label_changes_unexplained,
+                       chart.boundary_unexplained);
+    rths_result_log(res, "chart %dx%d in %.3f s, %d stable, %d boundary points", chart.nt, chart.np,
+                    f.seconds, f.stable_points, chart.n_boundary);
+    rc = boundary_curves(res, &chart, err);
+    if (!rc) rc = plot(res, &chart, f.p_essential, &setup->split, err);
+    rths_chart_free(&chart);
+    if (rc) {
+        rths_result_free(res);
+        return rc;
+    }
+    *out = res;
+    return RTHS_OK;
+}
+
 int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result **out,
                    rths_error *err) {
     *out = NULL;

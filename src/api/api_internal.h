@@ -16,12 +16,28 @@ struct rths_api_config {
     int dofs;
 };
 
+/* A gnuplot figure of a result: written after the tables and the summary (rths_plot). */
+typedef struct rths_api_figure {
+    char *name; /* basename: NAME.gp, NAME.png, NAME.svg */
+    int width_px, height_px;
+    char *body; /* the script after the terminal lines */
+} rths_api_figure;
+
 struct rths_result {
     rths_table *tables;
     int n_tables;
     char *summary_json; /* never NULL once made */
     char *config_yaml;  /* never NULL once made */
     char *dir;          /* NULL: no folder */
+    char *text;         /* what the command prints (rths_result_text); never NULL once made */
+    size_t text_len;
+    char **log; /* run.log lines, written between the tables and the summary */
+    int n_log;
+    rths_api_figure *figures;
+    int n_figures;
+    char **file_names, **file_texts; /* text files written before the tables (tuned.yaml) */
+    int n_files;
+    int out_of_memory; /* a text or log line could not be kept: the writer fails */
 };
 
 /* The configuration read afresh (every getter unasked) with the structural setup: an operation
@@ -43,6 +59,15 @@ int rths_result_add_columns(rths_result *r, const char *name, int rows, int colu
  * (config_file when config_path is given, overrides). NULL when out of memory. */
 struct json_object *rths_api_summary_new(const char *command, const char *config_path,
                                          const char *const *overrides, int n_overrides);
+/* Appends to r's printed text / adds a run.log line (printf-style); out of memory is remembered
+ * and reported by the writer. */
+void rths_result_printf(rths_result *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+void rths_result_log(rths_result *r, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+/* A text file of r (copied: NAME in the folder), written by the writer before the tables. */
+int rths_result_add_file(rths_result *r, const char *name, const char *text, rths_error *err);
+/* A figure of r (copied), drawn by the writer after the summary. */
+int rths_result_add_figure(rths_result *r, const char *name, int width_px, int height_px,
+                           const char *body, rths_error *err);
 /* summary (consumed: json_object_put) becomes r's summary text. */
 int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_error *err);
 /* Writes r as the run folder dir of command: config.yaml, one CSV per table, summary.json,

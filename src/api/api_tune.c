@@ -282,12 +282,47 @@ static int loop_table(rths_result *res, const rths_pd_loop *loop, const rths_tun
     return rc;
 }
 
-int rths_api_tune_compute(const rths_setup *setup, const rths_controller_options *copt,
-                          const rths_plant_options *popt, double delay_s, const char *config_path,
-                          const char *const *overrides, int n_overrides, rths_result **out,
-                          char **tuned_yaml, rths_tune_result *keep, rths_error *err) {
+/* loop.png/.svg: the Bode plots of loop.csv (DoF 1's loop with several). */
+static int plot_loop(rths_result *res, const rths_tune_result *r, rths_error *err) {
+    char body[2048], title[256];
+    if (r->n_int > 1)
+        snprintf(title, sizeof title,
+                 "PD loop of interface DoF 1 broken at its demand, the other %d closed: "
+                 "configured (kp %g, kd %g) and tuned (kp %g, kd %g)",
+                 r->n_int - 1, r->current_kp[0], r->current_kd[0], r->kp[0], r->kd[0]);
+    else
+        snprintf(title, sizeof title,
+                 "PD loop L = K P broken at the demand: configured (kp %g, kd %g) and tuned (kp "
+                 "%g, kd %g)",
+                 r->current_kp_v_per_m, r->current_kd_v_s_per_m, r->kp_v_per_m, r->kd_v_s_per_m);
+    /* columns by number: 1 + (the kind's place) in both layouts */
+    snprintf(body, sizeof body,
+             "set datafile separator ','\n"
+             "set multiplot layout 2,1 title '%s'\n"
+             "set grid\n"
+             "set logscale x\n"
+             "set xlabel 'frequency (Hz)'\n"
+             "set ylabel 'gain (dB)'\n"
+             "set key bottom left\n"
+             "plot 'loop.csv' skip 1 using 1:2 with lines lw 2 title '|L| configured', \\\n"
+             "  '' skip 1 using 1:5 with lines lw 2 title '|L| tuned', \\\n"
+             "  '' skip 1 using 1:7 with lines dt 2 title '|S| tuned', 0 with lines lc rgb "
+             "'gray50' notitle\n"
+             "set ylabel 'phase (deg)'\n"
+             "set yrange [-180:180]\n"
+             "plot 'loop.csv' skip 1 using 1:3 with lines lw 2 title 'configured', \\\n"
+             "  '' skip 1 using 1:6 with lines lw 2 title 'tuned'\n"
+             "unset multiplot\n",
+             title);
+    return rths_result_add_figure(res, "loop", 1200, 900, body, err);
+}
+
+/* The result from the options read (copt, popt) */
+static int tune_result(const rths_setup *setup, const rths_controller_options *copt,
+                       const rths_plant_options *popt, double delay_s, const char *config_path,
+                       const char *const *overrides, int n_overrides, rths_result **out,
+                       rths_error *err) {
     *out = NULL;
-    if (tuned_yaml) *tuned_yaml = NULL;
     if (!(delay_s < 0) && !(delay_s <= 0.1))
         return rths_error_set(err, RTHS_EINPUT,
                               "delay %g s: must be in [0, 0.1] (or < 0: the "
@@ -313,19 +348,36 @@ int rths_api_tune_compute(const rths_setup *setup, const rths_controller_options
         rc = rths_result_set_summary(res, summary, err);
     }
     rths_pd_loop_destroy(loop);
-    if (!rc && keep) *keep = *r;
+    if (!rc) rths_result_printf(res, "%s", text);
+    if (!rc) rc = rths_result_add_file(res, "tuned.yaml", text, err);
+    if (!rc) rc = plot_loop(res, r, err);
     free(r);
+    free(text);
     if (rc) {
-        free(text);
         rths_result_free(res);
         return rc;
     }
-    if (tuned_yaml)
-        *tuned_yaml = text;
-    else
-        free(text);
     *out = res;
     return RTHS_OK;
+}
+
+int rths_api_tune_compute(rths_config *c, const rths_setup *setup, double delay_s,
+                          const char *config_path, const char *const *overrides, int n_overrides,
+                          rths_result **out, rths_error *err) {
+    *out = NULL;
+    rths_controller_options copt;
+    rths_plant_options popt;
+    rths_controller_defaults(&copt);
+    rths_plant_defaults(&popt);
+    /* the gains are designed from the loop's model; where the sites' controllers run plays no
+     * part in it (a multi-site config tunes as one rig) */
+    rths_config_mark_known(c, "rig.sites");
+    int rc = rths_sample_loop_config_read(c, &copt, &popt, err);
+    if (!rc) rc = rths_api_check_config(c, NULL, err);
+    if (!rc)
+        rc = tune_result(setup, &copt, &popt, delay_s, config_path, overrides, n_overrides, out,
+                         err);
+    return rc;
 }
 
 int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_dir,
@@ -334,36 +386,12 @@ int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_di
     if (!cfg) return rths_error_set(err, RTHS_EINPUT, "no configuration given");
     rths_config *c;
     rths_setup setup;
-    rths_controller_options copt;
-    rths_plant_options popt;
     rths_result *r = NULL;
-    char *text = NULL;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (rc) return rc;
-    rths_controller_defaults(&copt);
-    rths_plant_defaults(&popt);
-    /* the gains are designed from the loop's model; where the sites' controllers run plays no
-     * part in it (a multi-site config tunes as one rig) */
-    rths_config_mark_known(c, "rig.sites");
-    if (!(rc = rths_sample_loop_config_read(c, &copt, &popt, err)))
-        rc = rths_api_check_config(c, NULL, err);
-    if (!rc)
-        rc = rths_api_tune_compute(&setup, &copt, &popt, delay_s, cfg->path,
-                                   (const char *const *)cfg->overrides, cfg->n_overrides, &r, &text,
-                                   NULL, err);
+    rc = rths_api_tune_compute(c, &setup, delay_s, cfg->path, (const char *const *)cfg->overrides,
+                               cfg->n_overrides, &r, err);
     if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "tune", err);
-    if (!rc && out_dir) {
-        size_t len = strlen(out_dir) + 16;
-        char *path = malloc(len);
-        if (!path)
-            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-        else {
-            snprintf(path, len, "%s/tuned.yaml", out_dir);
-            rc = rths_write_file_atomic(path, text, strlen(text), err);
-            free(path);
-        }
-    }
-    free(text);
     rths_api_unload(c, &setup);
     if (rc) {
         rths_result_free(r);

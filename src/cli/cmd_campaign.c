@@ -6,7 +6,6 @@
  * rank 0) records each run's exit status and rewrites campaign.csv atomically after every run. */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "rths/report.h"
 #include "rths/rths.h"
 
 #include <dirent.h>
@@ -620,11 +619,14 @@ static int write_campaign_csv(const campaign *c, rths_error *err) {
     char *path;
     if (asprintf(&path, "%s/campaign.csv", c->dir) < 0)
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    rths_atomic_file *af;
-    FILE *f;
-    int rc = rths_atomic_open(path, &af, &f, err);
-    free(path);
-    if (rc) return rc;
+    /* built in memory, then written as every run folder's files are (rths_api_write_file) */
+    char *text = NULL;
+    size_t len = 0;
+    FILE *f = open_memstream(&text, &len);
+    if (!f) {
+        free(path);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
     write_id_header(f, c->p);
     fputs(",exit_status,points,converged_points,evaluations,rig_time_s,"
           "max_relative_error_vs_truth,share_within_3_standard_errors\n",
@@ -633,7 +635,11 @@ static int write_campaign_csv(const campaign *c, rths_error *err) {
         write_run_id(f, c->p, k);
         fprintf(f, ",%s\n", c->results[k] ? c->results[k] : ",,,,,,");
     }
-    return rths_atomic_commit(af, err);
+    int rc = fclose(f) || !text ? rths_error_set(err, RTHS_EFAIL, "out of memory")
+                                : rths_api_write_file(path, text, len, err);
+    free(text);
+    free(path);
+    return rc;
 }
 
 static int remove_entry(const char *path, const struct stat *st, int type, struct FTW *ftw) {
@@ -802,7 +808,7 @@ static int record_run(campaign *c, int k, int status, rths_error *err) {
     char *path = path_of(c->dir, "logs/run_%04d.status", k), text[32];
     if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     int n = snprintf(text, sizeof text, "exit %d\n", status);
-    int rc = rths_write_file_atomic(path, text, (size_t)n, err);
+    int rc = rths_api_write_file(path, text, (size_t)n, err);
     free(path);
     if (rc) return rc;
     free(c->results[k]);
@@ -905,12 +911,11 @@ static int campaign_open(campaign *c, int *todo, int *n_todo, int *lock_fd, rths
     }
     free(path);
     if (asprintf(&path, "%s/runs.csv", c->dir) < 0) goto oom;
-    if (!existing && (rc = rths_write_file_atomic(path, index, strlen(index), err))) goto done;
+    if (!existing && (rc = rths_api_write_file(path, index, strlen(index), err))) goto done;
     free(path);
     /* written last: a folder with plan.txt has its index */
     if (asprintf(&path, "%s/plan.txt", c->dir) < 0) goto oom;
-    if (!existing && (rc = rths_write_file_atomic(path, identity, strlen(identity), err)))
-        goto done;
+    if (!existing && (rc = rths_api_write_file(path, identity, strlen(identity), err))) goto done;
     *n_todo = 0;
     int kept = 0;
     for (int k = 0; k < p->n_runs; k++) {

@@ -2,14 +2,7 @@
  * the sampled loop, the actuator and the delay (docs/method.md, "Tuning the gains"). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "rths/controller.h"
 #include "rths/rths.h"
-#include "rths/tune.h"
-
-#include <math.h>
-#include <stdio.h>
-#include <stdlib.h>
-#include <string.h>
 
 static const char usage[] =
     "Usage: rths tune CONFIG [--out DIR] [--delay S] [--set KEY=VALUE]... [--quiet]\n"
@@ -51,44 +44,9 @@ static const char usage[] =
     "Exit status: 0 gains found (even when the configured ones are unstable: that is reported),\n"
     "1 no gains meet the rule, 2 bad usage or input (nothing written).\n";
 
-/* loop.png/.svg: the Bode plots of loop.csv (DoF 1's loop with several). */
-static int plot_loop(rths_report *rep, const rths_tune_result *r, rths_error *err) {
-    char body[2048], title[256];
-    if (r->n_int > 1)
-        snprintf(title, sizeof title,
-                 "PD loop of interface DoF 1 broken at its demand, the other %d closed: "
-                 "configured (kp %g, kd %g) and tuned (kp %g, kd %g)",
-                 r->n_int - 1, r->current_kp[0], r->current_kd[0], r->kp[0], r->kd[0]);
-    else
-        snprintf(title, sizeof title,
-                 "PD loop L = K P broken at the demand: configured (kp %g, kd %g) and tuned (kp "
-                 "%g, kd %g)",
-                 r->current_kp_v_per_m, r->current_kd_v_s_per_m, r->kp_v_per_m, r->kd_v_s_per_m);
-    /* columns by number: 1 + (the kind's place) in both layouts */
-    snprintf(body, sizeof body,
-             "set datafile separator ','\n"
-             "set multiplot layout 2,1 title '%s'\n"
-             "set grid\n"
-             "set logscale x\n"
-             "set xlabel 'frequency (Hz)'\n"
-             "set ylabel 'gain (dB)'\n"
-             "set key bottom left\n"
-             "plot 'loop.csv' skip 1 using 1:2 with lines lw 2 title '|L| configured', \\\n"
-             "  '' skip 1 using 1:5 with lines lw 2 title '|L| tuned', \\\n"
-             "  '' skip 1 using 1:7 with lines dt 2 title '|S| tuned', 0 with lines lc rgb "
-             "'gray50' notitle\n"
-             "set ylabel 'phase (deg)'\n"
-             "set yrange [-180:180]\n"
-             "plot 'loop.csv' skip 1 using 1:3 with lines lw 2 title 'configured', \\\n"
-             "  '' skip 1 using 1:6 with lines lw 2 title 'tuned'\n"
-             "unset multiplot\n",
-             title);
-    return rths_plot(rep, rths_report_dir(rep), "loop", 1200, 900, body, err);
-}
-
-/* The gains, the table and the summary come from the library (rths_api_tune_compute, the same
- * code as rths_api_tune); the command reads the configuration, prints the keys to paste and
- * writes the folder. */
+/* The gains, the table, the summary, the keys to paste and the figure come from the library
+ * (rths_api_tune_compute, the same code as rths_api_tune); the command prints the keys and writes
+ * the folder. */
 int rths_cmd_tune(int argc, char **argv) {
     rths_cli_opt opts[] = {{"--out", "DIR", NULL}, {"--delay", "S", NULL}};
     rths_cli cli;
@@ -103,33 +61,16 @@ int rths_cmd_tune(int argc, char **argv) {
     rths_setup setup = {0};
     rths_report *rep = NULL;
     rths_result *result = NULL;
-    char *text = NULL;
     rc = rths_cli_load(&cli, &cfg, &setup, &err);
     if (rc) return rths_cli_fail(&cli, rc, &err);
-    rths_controller_options copt;
-    rths_plant_options popt;
-    rths_controller_defaults(&copt);
-    rths_plant_defaults(&popt);
-    rths_tune_result tuned;
-    rths_config_mark_known(cfg, "rig.sites"); /* as in rths_api_tune: sites play no part */
-    rc = rths_sample_loop_config_read(cfg, &copt, &popt, &err);
-    if (!rc) rc = rths_cli_check_config(cfg, &err);
-    if (!rc)
-        rc = rths_api_tune_compute(&setup, &copt, &popt, delay_s, cli.config_path, cli.sets,
-                                   cli.n_sets, &result, &text, &tuned, &err);
+    rc = rths_api_tune_compute(cfg, &setup, delay_s, cli.config_path, cli.sets, cli.n_sets, &result,
+                               &err);
     if (!rc && cli.out_dir) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
-    if (!rc) rths_cli_print(&cli, "%s", text);
-    if (!rc && rep) {
-        char path[4096];
-        snprintf(path, sizeof path, "%s/tuned.yaml", rths_report_dir(rep));
-        rc = rths_write_file_atomic(path, text, strlen(text), &err);
-    }
+    if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
     if (!rc && rep) rc = rths_api_result_write(result, rep, &err);
-    if (!rc && rep) rc = plot_loop(rep, &tuned, &err);
     if (rep)
         rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);
-    free(text);
     rths_result_free(result);
     rths_cli_unload(cfg, &setup);
     rths_report_close(rep);

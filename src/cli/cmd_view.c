@@ -1,8 +1,8 @@
 /* rths view DIR [--listen ADDR:PORT]: the live web page of a run folder or of a campaign folder
- * (src/view/). */
+ * (src/view/, through the C API's rths_api_view_*). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "rths/view.h"
+#include "rths/rths.h"
 
 #include <pthread.h>
 #include <signal.h>
@@ -69,18 +69,15 @@ int rths_cmd_view(int argc, char **argv) {
                                             "missing RUN_DIR (the folder of a run, e.g. "
                                             "out/demo/linear_p0.5, or of a campaign)"),
                              &err);
-    rths_view_options vopt;
-    rths_view_options_defaults(&vopt);
-    vopt.run_dir = run_dir;
-    if (opts[OPT_LISTEN].value && (rc = rths_view_parse_listen(opts[OPT_LISTEN].value, vopt.host,
-                                                               sizeof vopt.host, &vopt.port, &err)))
+    rths_api_view *view;
+    if ((rc = rths_api_view_open(run_dir, opts[OPT_LISTEN].value, &view, &err)))
         return rths_cli_fail(&cli, rc, &err);
-    if ((rc = rths_view_check_folder(run_dir, &err))) return rths_cli_fail(&cli, rc, &err);
-    if (!rths_view_host_is_loopback(vopt.host))
+    const char *host = rths_api_view_host(view);
+    if (!rths_api_view_host_is_loopback(view))
         fprintf(stderr,
                 "rths view: warning: serving on %s, reachable from other machines; the page "
                 "has no authentication and shows the run folder's files\n",
-                vopt.host);
+                host);
     /* SIGINT and SIGTERM are blocked before the server's threads exist (they inherit the mask)
      * and taken here by sigwait: the stop never depends on which thread a signal lands on */
     sigset_t stop_signals;
@@ -88,13 +85,15 @@ int rths_cmd_view(int argc, char **argv) {
     sigaddset(&stop_signals, SIGINT);
     sigaddset(&stop_signals, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &stop_signals, NULL);
-    rths_view *view;
-    if ((rc = rths_view_start(&vopt, &view, &err))) return rths_cli_fail(&cli, rc, &err);
-    int v6 = strchr(vopt.host, ':') != NULL;
+    if ((rc = rths_api_view_serve(view, &err))) {
+        rths_api_view_stop(view);
+        return rths_cli_fail(&cli, rc, &err);
+    }
+    int v6 = strchr(host, ':') != NULL;
     rths_cli_print(&cli, "rths view: %s at http://%s%s%s:%d/ (Ctrl-C to stop)\n", run_dir,
-                   v6 ? "[" : "", vopt.host, v6 ? "]" : "", rths_view_port(view));
+                   v6 ? "[" : "", host, v6 ? "]" : "", rths_api_view_port(view));
     int sig;
     sigwait(&stop_signals, &sig);
-    rths_view_stop(view);
+    rths_api_view_stop(view);
     return RTHS_OK;
 }

@@ -1,6 +1,6 @@
 /* rths: iterative real-time hybrid testing toolkit — command dispatcher. */
 #include "cli/commands.h"
-#include "rths/core.h"
+#include "rths/rths.h"
 
 #include <signal.h>
 #include <stdio.h>

@@ -23,6 +23,7 @@ LINEAR_CFG = os.path.join(SRC, "examples", "four_storey_linear.yaml")
 FIELDS = {
     "rths_error": ["code", "msg"],
     "rths_api_frf_options": [f for f, _ in _lib.FrfOptions._fields_],
+    "rths_api_simulate_options": [f for f, _ in _lib.SimulateOptions._fields_],
 }
 
 PROBE = r"""
@@ -68,7 +69,8 @@ class Layout(unittest.TestCase):
     def test_ctypes_equals_compiled_header_and_library(self):
         truth = compiled_layout()
         lib = rths._c()
-        types = {"rths_error": lib.Error, "rths_api_frf_options": _lib.FrfOptions}
+        types = {"rths_error": lib.Error, "rths_api_frf_options": _lib.FrfOptions,
+                 "rths_api_simulate_options": _lib.SimulateOptions}
         for t, ctype in types.items():
             self.assertEqual(ctypes.sizeof(ctype), truth[t], t)
             self.assertEqual(lib.rths_api_sizeof(t.encode()), truth[t], t)
