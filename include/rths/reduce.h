@@ -71,6 +71,16 @@ typedef struct rths_reduced {
 int rths_reduce_craig_bampton(int n, int n_boundary, const double *mass, const double *damping,
                               const double *stiffness, double cutoff_hz, int max_modes, int clip,
                               rths_reduced *out, rths_error *err);
+/* The same keeping further DoFs as boundary coordinates (docs/method.md, "Nonlinear elements in
+ * the real-time step"): the DoFs a nonlinear element touches must stay physical coordinates of
+ * the reduced model, or the element's deformation would be a combination of modes. The boundary
+ * is the first n_interface DoFs, then keep[0..n_keep-1] (0-based, not interface DoFs, unique):
+ * keep[m] is reduced coordinate n_interface + m; out->n_boundary = n_interface + n_keep and
+ * out->transform stays in the substructure's own DoF order (row i: DoF i). */
+int rths_reduce_craig_bampton_keeping(int n, int n_interface, const double *mass,
+                                      const double *damping, const double *stiffness, int n_keep,
+                                      const int *keep, double cutoff_hz, int max_modes, int clip,
+                                      rths_reduced *out, rths_error *err);
 void rths_reduced_free(rths_reduced *r);
 
 /* The bound above on |S_r(w) - S(w)| (N/m); INFINITY at or above the first dropped mode. */

@@ -7,6 +7,8 @@
  * metres, so the settling and noise rules need nothing new. */
 #include "rths/iterate.h"
 
+#include "rths/harmonic_balance.h"
+
 #include <math.h>
 #include <string.h>
 
@@ -15,9 +17,62 @@ static double complex phasor(double a, double b) {
     return a - I * b;
 }
 
+/* A numerical substructure with nonlinear elements (receptance rths_hb_substructure_eval): every
+ * harmonic depends on every other. A period's record is converted force-driven (harmonic balance
+ * of the substructure under the measured interface force, the interface mean the physical one).
+ * The force-driven substructure can fold on its own where a harmonic meets one of its resonances
+ * (the bilinear example near its folds: no solution near the last one); there, and for an
+ * averaged evaluation, the conversion runs the other way (docs/method.md, "Nonlinear elements in
+ * the frequency form"): harmonic balance gives the interface force F_req the numerical side needs
+ * to follow the measured physical interface motion x, and the numerical interface displacement is
+ *     x_num = x + H(k w) (F - F_req(x)),
+ * H the receptance of the substructure's linear part. Where F = F_req(x) the sides agree, so the
+ * zero problem's solutions are the hybrid's; on a linear substructure this is exactly the linear
+ * conversion. The standard errors: H carries the force's (as the linear form), the physical
+ * side's add. */
+static int convert_nonlinear(rths_fourier *num, rths_fourier *num_se, const rths_fourier *phys,
+                             const rths_fourier *phys_se, double frequency_hz, double amplitude_n,
+                             rths_hb_substructure *hb, rths_error *err) {
+    const double omega = 2 * M_PI * frequency_hz;
+    if (!num_se) { /* a period's record: force-driven first */
+        rths_fourier disp;
+        rths_error ignored;
+        if (!rths_hb_substructure_solve(hb, omega, amplitude_n, RTHS_MAX_HARMONICS, num->a, num->b,
+                                        phys->a[0], disp.a, disp.b, NULL, &ignored)) {
+            *num = disp;
+            return RTHS_OK;
+        }
+    }
+    rths_fourier need;
+    int rc = rths_hb_substructure_force(hb, omega, amplitude_n, RTHS_MAX_HARMONICS, phys->a,
+                                        phys->b, need.a, need.b, err);
+    for (int k = 1; k <= RTHS_MAX_HARMONICS && !rc; k++) {
+        double complex h, forced;
+        rc = rths_hb_substructure_eval(hb, k * omega, &h, &forced, err);
+        if (rc) break;
+        double complex x = phasor(phys->a[k], phys->b[k]) +
+                           h * phasor(num->a[k] - need.a[k], num->b[k] - need.b[k]);
+        num->a[k] = creal(x);
+        num->b[k] = -cimag(x);
+        if (!num_se) continue;
+        double hr2 = creal(h) * creal(h), hi2 = cimag(h) * cimag(h);
+        double sa2 = num_se->a[k] * num_se->a[k], sb2 = num_se->b[k] * num_se->b[k];
+        double pa = phys_se ? phys_se->a[k] : 0.0, pb = phys_se ? phys_se->b[k] : 0.0;
+        num_se->a[k] = sqrt(hr2 * sa2 + hi2 * sb2 + pa * pa);
+        num_se->b[k] = sqrt(hr2 * sb2 + hi2 * sa2 + pb * pb);
+    }
+    if (rc) return rc;
+    num->a[0] = phys->a[0];
+    if (num_se) num_se->a[0] = phys_se ? phys_se->a[0] : 0.0;
+    return RTHS_OK;
+}
+
 int rths_frequency_convert(rths_fourier *num, rths_fourier *num_se, const rths_fourier *phys,
                            const rths_fourier *phys_se, double frequency_hz, double amplitude_n,
                            rths_receptance_fn receptance, void *receptance_ctx, rths_error *err) {
+    if (receptance == rths_hb_substructure_eval)
+        return convert_nonlinear(num, num_se, phys, phys_se, frequency_hz, amplitude_n,
+                                 receptance_ctx, err);
     const double omega = 2 * M_PI * frequency_hz;
     for (int k = 1; k <= RTHS_MAX_HARMONICS; k++) {
         double complex h, forced;

@@ -267,6 +267,59 @@ done:
     return rc;
 }
 
+int rths_reduce_craig_bampton_keeping(int n, int n_interface, const double *mass,
+                                      const double *damping, const double *stiffness, int n_keep,
+                                      const int *keep, double cutoff_hz, int max_modes, int clip,
+                                      rths_reduced *out, rths_error *err) {
+    memset(out, 0, sizeof *out);
+    int *perm = malloc(sizeof(int) * (size_t)(n > 0 ? n : 1));
+    int *seen = calloc((size_t)(n > 0 ? n : 1), sizeof(int));
+    if (!perm || !seen) {
+        free(perm), free(seen);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    int rc = RTHS_OK, nb = 0;
+    for (int i = 0; i < n_interface && i < n; i++)
+        perm[nb++] = i, seen[i] = 1;
+    for (int m = 0; m < n_keep && !rc; m++) {
+        if (keep[m] < n_interface || keep[m] >= n || seen[keep[m]])
+            rc = rths_error_set(err, RTHS_EINPUT,
+                                "a DoF to keep in the reduction, %d, is an interface DoF, repeated "
+                                "or outside the substructure's %d DoFs",
+                                keep[m] + 1, n);
+        else
+            perm[nb++] = keep[m], seen[keep[m]] = 1;
+    }
+    for (int i = 0; i < n && !rc; i++)
+        if (!seen[i]) perm[nb++] = i;
+    free(seen);
+    double *pm = rc ? NULL : rths_mat_new(n, n), *pc = rc ? NULL : rths_mat_new(n, n);
+    double *pk = rc ? NULL : rths_mat_new(n, n);
+    if (!rc && (!pm || !pc || !pk)) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int c = 0; c < n && !rc; c++)
+        for (int r = 0; r < n; r++) {
+            size_t from = perm[r] + (size_t)perm[c] * n, to = r + (size_t)c * n;
+            pm[to] = mass[from], pc[to] = damping[from], pk[to] = stiffness[from];
+        }
+    if (!rc)
+        rc = rths_reduce_craig_bampton(n, n_interface + n_keep, pm, pc, pk, cutoff_hz, max_modes,
+                                       clip, out, err);
+    /* the transform back to the substructure's own DoF order: row perm[r] is the permuted row r */
+    double *t = !rc ? rths_mat_new(n, out->nr) : NULL;
+    if (!rc && !t) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) {
+        for (int c = 0; c < out->nr; c++)
+            for (int r = 0; r < n; r++)
+                t[perm[r] + (size_t)c * n] = out->transform[r + (size_t)c * n];
+        free(out->transform);
+        out->transform = t;
+    } else if (out->transform) {
+        rths_reduced_free(out);
+    }
+    free(perm), free(pm), free(pc), free(pk);
+    return rc;
+}
+
 double rths_reduced_stiffness_error_bound(const rths_reduced *r, double omega_rad_s) {
     if (r->n_modes == r->n - r->n_boundary) return 0.0;
     double wc = 2 * M_PI * r->first_dropped_hz, w2 = omega_rad_s * omega_rad_s;
