@@ -6,6 +6,7 @@
  * excitation: the setup's inertial load against Cramer's rule, the base-excited seed's hybrid
  * response against its analytic FRF; actuator and sensor transforms (the two-shaker cantilever):
  * the loop stays allocation-free and the demands are T^-1 diag(kp) times the DoF errors S^-1 y. */
+#include "fixture_seed_rig.h"
 #include "testlib.h"
 
 #include "rths/controller.h"
@@ -45,15 +46,8 @@ void free(void *p) {
 }
 #endif
 
-static void seed_setup(rths_setup *s, rths_config **cfg) {
-    rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), NULL, 0, cfg, &err) ||
-        rths_setup_read(*cfg, s, &err))
-        fail_msg("%s", err.msg);
-}
-
 static rths_controller *make(rths_setup *s, rths_config **cfg, rths_controller_options *o) {
-    seed_setup(s, cfg);
+    rths_fixture_seed_setup(NULL, 0, cfg, s);
     rths_controller_defaults(o);
     rths_controller *c;
     rths_error err;
@@ -107,10 +101,7 @@ static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
     rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey_base_excited.yaml"), NULL, 0,
-                         &cfg, &err) ||
-        rths_setup_read(cfg, &s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_setup("examples/four_storey_base_excited.yaml", NULL, 0, &cfg, &s);
     rths_controller_options co;
     rths_controller_defaults(&co);
     rths_plant_options po;
@@ -139,14 +130,10 @@ static void test_loop_allocates_nothing_across_frequency_changes(void **state) {
 
 static void cantilever_setup_with(rths_setup *s, rths_config **cfg, const char *const *more,
                                   int n_more) {
-    rths_error err;
     const char *sets[4] = {"rig.noise=false"};
     for (int i = 0; i < n_more && i < 3; i++)
         sets[1 + i] = more[i];
-    if (rths_config_load(rths_test_source_path("examples/cantilever_two_shakers.yaml"), sets,
-                         1 + n_more, cfg, &err) ||
-        rths_setup_read(*cfg, s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_setup("examples/cantilever_two_shakers.yaml", sets, 1 + n_more, cfg, s);
 }
 
 static void cantilever_setup(rths_setup *s, rths_config **cfg) {
@@ -358,7 +345,7 @@ static void test_forcing_changes_at_boundary(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_controller_options o;
-    seed_setup(&s, &cfg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_controller_defaults(&o);
     o.ramp_time_s = 0; /* full amplitude at once */
     rths_controller *c;
@@ -530,7 +517,7 @@ static void test_sample_loop_fault_disarms(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_controller_options o;
-    seed_setup(&s, &cfg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_controller_defaults(&o);
     o.force_limit_n = 1e-3; /* any excitation trips it */
     rths_plant_options po;
@@ -609,7 +596,7 @@ static void test_other_sample_rates_match_truth(void **state) {
     (void)state;
     rths_setup s;
     rths_config *cfg;
-    seed_setup(&s, &cfg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     const double rates[3] = {1000.0, 4096.0, 20000.0}, f = 13.47;
     double complex x[4];
     rths_error err;
@@ -654,11 +641,8 @@ static void test_defaults_valid_at_any_rate(void **state) {
         char set[64];
         snprintf(set, sizeof set, "controller.sample_rate_hz=%g", rates[i]);
         const char *sets[] = {set};
-        rths_config *cfg;
+        rths_config *cfg = rths_fixture_seed_config(sets, 1);
         rths_error err;
-        if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), sets, 1, &cfg,
-                             &err))
-            fail_msg("%s", err.msg);
         rths_controller_options o;
         rths_controller_defaults(&o);
         if (rths_controller_config_read(cfg, &o, &err)) fail_msg("%g Hz: %s", rates[i], err.msg);
@@ -667,10 +651,8 @@ static void test_defaults_valid_at_any_rate(void **state) {
     }
     /* a cutoff the user sets is kept, and still refused at or above half the rate */
     const char *sets[] = {"controller.sample_rate_hz=1000", "controller.velocity_cutoff_hz=600"};
-    rths_config *cfg;
+    rths_config *cfg = rths_fixture_seed_config(sets, 2);
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), sets, 2, &cfg, &err))
-        fail_msg("%s", err.msg);
     rths_controller_options o;
     rths_controller_defaults(&o);
     assert_int_equal(rths_controller_config_read(cfg, &o, &err), RTHS_EINPUT);
@@ -737,10 +719,7 @@ static void test_base_excited_seed_matches_truth(void **state) {
     rths_config *cfg;
     rths_error err;
     rths_setup s;
-    if (rths_config_load(rths_test_source_path("examples/four_storey_base_excited.yaml"), sets, 1,
-                         &cfg, &err) ||
-        rths_setup_read(cfg, &s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_setup("examples/four_storey_base_excited.yaml", sets, 1, &cfg, &s);
     assert_true(s.base_excitation);
     const double freqs[2] = {13.0, 13.47};
     for (int i = 0; i < 2; i++) {
@@ -772,10 +751,8 @@ static const char *const nonlinear_overrides[] = {
 
 static rths_controller *nonlinear_controller(rths_setup *s, rths_config **cfg, double rate_hz) {
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), nonlinear_overrides,
-                         sizeof nonlinear_overrides / sizeof *nonlinear_overrides, cfg, &err) ||
-        rths_setup_read(*cfg, s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(nonlinear_overrides,
+                            sizeof nonlinear_overrides / sizeof *nonlinear_overrides, cfg, s);
     rths_controller_options o;
     rths_controller_defaults(&o);
     o.sample_rate_hz = rate_hz;
@@ -918,10 +895,8 @@ static void test_nonlinear_reduction_refused(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), nonlinear_overrides,
-                         sizeof nonlinear_overrides / sizeof *nonlinear_overrides, &cfg, &err) ||
-        rths_setup_read(cfg, &s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(nonlinear_overrides,
+                            sizeof nonlinear_overrides / sizeof *nonlinear_overrides, &cfg, &s);
     rths_controller_options o;
     rths_controller_defaults(&o);
     o.reduction.method = RTHS_REDUCTION_CRAIG_BAMPTON;

@@ -5,6 +5,7 @@
  * is refused with a message naming it, before it is opened and before anything can be armed (also
  * through the controller process's create); a device whose read fails latches the non-finite
  * fault and is put into its safe state; safe_state and close run once at destroy. */
+#include "fixture_seed_rig.h"
 #include "testlib.h"
 
 #include "rths/controller.h"
@@ -18,15 +19,6 @@
 #define WRONG_ABI_SO RTHS_TEST_BUILD_DIR "/tests/io/wrong_abi.so"
 #define MISSING_SYMBOL_SO RTHS_TEST_BUILD_DIR "/tests/io/missing_symbol.so"
 
-static rths_config *seed_config(const char *const *sets, int n_sets) {
-    rths_config *cfg = NULL;
-    rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), sets, n_sets, &cfg,
-                         &err))
-        fail_msg("%s", err.msg);
-    return cfg;
-}
-
 static rths_io_open_args args_for(rths_config *cfg, const rths_setup *s) {
     return (rths_io_open_args){RTHS_IO_ABI_VERSION, 10000.0, s->split.np, cfg, "io"};
 }
@@ -37,7 +29,7 @@ static rths_io_open_args args_for(rths_config *cfg, const rths_setup *s) {
 static void test_reference_plugin_equals_plant(void **state) {
     (void)state;
     const char *sets[] = {"forcing.dof=2"}; /* forcing on an internal physical DoF */
-    rths_config *cfg = seed_config(sets, 1);
+    rths_config *cfg = rths_fixture_seed_config(sets, 1);
     rths_setup s;
     rths_error err;
     if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
@@ -88,7 +80,7 @@ static void test_reference_plugin_equals_plant(void **state) {
 static void test_loop_over_plugin_equals_in_process(void **state) {
     (void)state;
     const char *sets[] = {"io.plugin=" RTHS_IO_VIRTUAL_SO};
-    rths_config *cfg = seed_config(sets, 1);
+    rths_config *cfg = rths_fixture_seed_config(sets, 1);
     rths_setup s;
     rths_error err;
     rths_controller_options co;
@@ -124,7 +116,7 @@ static void test_loop_over_plugin_equals_in_process(void **state) {
 }
 
 static void expect_refused(const char *path, const char *needle) {
-    rths_config *cfg = seed_config(NULL, 0);
+    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
     rths_setup s;
     rths_error err;
     if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
@@ -140,7 +132,7 @@ static void expect_refused(const char *path, const char *needle) {
     char set[512];
     snprintf(set, sizeof set, "io.plugin=%s", path);
     const char *sets[] = {set};
-    cfg = seed_config(sets, 1);
+    cfg = rths_fixture_seed_config(sets, 1);
     rths_server_options so;
     rths_server_options_defaults(&so);
     so.quiet = 1;
@@ -210,7 +202,7 @@ static void test_failed_read_trips_and_safes(void **state) {
                                   .read = fake_read,
                                   .write = fake_write,
                                   .safe_state = fake_safe};
-    rths_config *cfg = seed_config(NULL, 0);
+    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
     rths_setup s;
     rths_error err;
     if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
@@ -250,7 +242,7 @@ static void test_internal_forcing_needs_a_device_that_applies_it(void **state) {
                                   .write = fake_write,
                                   .safe_state = fake_safe};
     const char *sets[] = {"forcing.dof=2"};
-    rths_config *cfg = seed_config(sets, 1);
+    rths_config *cfg = rths_fixture_seed_config(sets, 1);
     rths_setup s;
     rths_error err;
     if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
@@ -308,7 +300,7 @@ static unsigned hw_flags(void *device) {
 
 static void test_hardware_watchdog_and_version_one(void **state) {
     (void)state;
-    rths_config *cfg = seed_config(NULL, 0);
+    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
     rths_setup s;
     rths_error err;
     if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);

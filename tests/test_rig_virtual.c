@@ -2,6 +2,7 @@
  * measured response equals the frequency-domain fidelity model of the same scheme (docs/method.md,
  * "Numerical substructure integration") and, for the default scheme, the analytic FRF; runs repeat
  * exactly for a seed; the bilinear leg's static force-displacement has both slopes and the kink. */
+#include "fixture_seed_rig.h"
 #include "testlib.h"
 
 #include "rths/fidelity.h"
@@ -41,13 +42,6 @@ void free(void *p) {
     __libc_free(p);
 }
 #endif
-
-static void load(const char *const *ov, int n, rths_config **cfg, rths_setup *s) {
-    rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), ov, n, cfg, &err) ||
-        rths_setup_read(*cfg, s, &err))
-        fail_msg("%s", err.msg);
-}
 
 /* Solves the interface match at f_hz to a tight tolerance; returns the physical amplitude. */
 static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ideal, double f_hz) {
@@ -99,7 +93,7 @@ static void test_matched_equals_fidelity(void **state) {
     (void)state;
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_fidelity *fid;
     rths_error err;
     assert_int_equal(rths_fidelity_create(&s.split, s.force, 1e-4, &fid, &err), RTHS_OK);
@@ -130,7 +124,7 @@ static void test_default_rig_close_to_truth(void **state) {
     (void)state;
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     const double freqs[2] = {13.0, 13.47};
     const double tol[2] = {1e-3, 2e-3};
     for (int i = 0; i < 2; i++) {
@@ -159,7 +153,7 @@ static void test_forcing_on_physical_dof(void **state) {
     const char *ov[] = {"forcing.dof=2"};
     rths_config *cfg;
     rths_setup s;
-    load(ov, 1, &cfg, &s);
+    rths_fixture_seed_setup(ov, 1, &cfg, &s);
     const double freqs[2] = {9.0, 13.47};
     for (int i = 0; i < 2; i++) {
         double complex x[4];
@@ -202,7 +196,7 @@ static void test_deterministic_for_a_seed(void **state) {
     (void)state;
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_period p1[5], p2[5], p3[5];
     run_stream(&s, 42, p1, 5);
     run_stream(&s, 42, p2, 5);
@@ -223,7 +217,7 @@ static void test_bilinear_static_slopes(void **state) {
                         "structure.storeys.damping_n_s_per_m=[800, 800, 800, 3.7421]"};
     rths_config *cfg;
     rths_setup s;
-    load(ov, 2, &cfg, &s);
+    rths_fixture_seed_setup(ov, 2, &cfg, &s);
     rths_plant_options po;
     rths_plant_defaults(&po);
     rths_plant_ideal(&po);
@@ -255,7 +249,7 @@ static void test_refuses_out_of_range_commands(void **state) {
     (void)state;
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_rig *rig;
     rths_error err;
     if (rths_virtual_rig_create(cfg, &s, 0, 0, &rig, &err)) fail_msg("%s", err.msg);
@@ -276,7 +270,7 @@ static void test_refuses_out_of_range_commands(void **state) {
     rths_config_free(cfg);
 
     const char *ov[] = {"controller.sample_rate_hz=1000000", "rig.shaker.delay_s=0.05"};
-    load(ov, 2, &cfg, &s);
+    rths_fixture_seed_setup(ov, 2, &cfg, &s);
     assert_int_equal(rths_virtual_rig_create(cfg, &s, 0, 0, &rig, &err), RTHS_EINPUT);
     print_message("%s\n", err.msg);
     assert_non_null(strstr(err.msg, "key 'rig.shaker.delay_s'"));
@@ -317,8 +311,8 @@ static void test_pace_sleeps_without_changing_results(void **state) {
     const char *paced_ov[] = {"rig.pace=4"};
     rths_config *cfg_fast, *cfg_paced;
     rths_setup s_fast, s_paced;
-    load(NULL, 0, &cfg_fast, &s_fast);
-    load(paced_ov, 1, &cfg_paced, &s_paced);
+    rths_fixture_seed_setup(NULL, 0, &cfg_fast, &s_fast);
+    rths_fixture_seed_setup(paced_ov, 1, &cfg_paced, &s_paced);
     rths_period p_fast[5], p_paced[5];
     rths_trace_sample t_fast[50], t_paced[50];
     int n_fast = 0, n_paced = 0;
@@ -346,7 +340,7 @@ static void test_pace_sleeps_without_changing_results(void **state) {
     rths_config_free(cfg_fast);
     rths_config_free(cfg_paced);
     const char *neg[] = {"rig.pace=-1"};
-    load(neg, 1, &cfg_fast, &s_fast);
+    rths_fixture_seed_setup(neg, 1, &cfg_fast, &s_fast);
     assert_int_equal(rths_virtual_rig_create(cfg_fast, &s_fast, 0, 0, &rig, &err), RTHS_EINPUT);
     assert_non_null(strstr(err.msg, "rig.pace"));
     rths_setup_free(&s_fast);
@@ -415,7 +409,7 @@ static void test_perturbed_loop_allocates_nothing(void **state) {
 #else
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_controller_options co;
     rths_plant_options po;
     rths_controller_defaults(&co);
@@ -454,7 +448,7 @@ static void test_perturbed_record_repeats_for_a_seed(void **state) {
     (void)state;
     rths_config *cfg;
     rths_setup s;
-    load(NULL, 0, &cfg, &s);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     enum { MAX = 20000 };
     rths_perturbed_sample *rec[3];
     int n[3];
@@ -501,10 +495,7 @@ static void test_floquet_linear_rig(void **state) {
     rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), NULL, 0, &cfg,
-                         &err) ||
-        rths_setup_read(cfg, &s, &err))
-        fail_msg("%s", err.msg);
+    rths_fixture_setup("examples/four_storey_linear.yaml", NULL, 0, &cfg, &s);
     const double freqs_hz[3] = {12.0, 13.47, 14.0};
     for (int i = 0; i < 3; i++) {
         rths_rig *rig;

@@ -3,6 +3,7 @@
  * analytic FRF (the tolerance is 1e-4 relative; the transient left by the steady-state test adds
  * ~1e-3 at most); cancelled after three points it saves exactly those three (journal, frf.csv,
  * summary.json saying so) and a resume continues to the end; bad input writes nothing. */
+#include "fixture_seed_rig.h"
 #include "testlib.h"
 
 #include "rths/rig_virtual.h"
@@ -126,10 +127,7 @@ static int run_once(const char *out, int resume, const char *strategy, watcher *
         all[n_sets++] = sets[i];
     for (int i = 0; i < 4 && w->extra[i]; i++)
         all[n_sets++] = w->extra[i];
-    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), all, n_sets,
-                         &cfg, err) ||
-        rths_setup_read(cfg, &setup, err))
-        fail_msg("%s", err->msg);
+    rths_fixture_setup("examples/four_storey_linear.yaml", all, n_sets, &cfg, &setup);
     w->setup = &setup;
     rths_run_frf_options opt = {.cfg = cfg,
                                 .setup = &setup,

@@ -111,7 +111,8 @@ typedef struct rths_plant_options {
     double lag_cutoff_hz;    /* first-order lag; 0: none */
     double armature_mass_kg; /* moves with the interface storey */
     int noise;     /* 0: every sensor exact (gain error, offset, noise, quantum off); 1: default
-                    * noise; 2: rig.noise: lab (plant.c: ten times the sensor noise, a process force) */
+                    * noise; 2: rig.noise: lab (ten times the sensor noise, plant_config.c;
+                    * a process force, plant.c) */
     uint64_t seed; /* noise generator seed */
     int substeps_per_sample; /* 0: exact discretisation (default); n >= 1: RK4, n substeps */
     int linear_hold;         /* 1: the demand ramps linearly from the last sample's value over

@@ -2,8 +2,11 @@
  *
  * The document is read into a small tree of our own that keeps every node's line and column (the
  * document API of libfyaml 0.8 exposes positions only for scalars), whether a scalar was quoted,
- * and which nodes came from --set. Getters mark what they read; check_unknown refuses the rest. */
-#include "rths/config.h"
+ * and which nodes came from --set. Getters mark what they read; check_unknown refuses the rest.
+ *
+ * This file: reading (the file checked, parsed into the tree, --set applied) and locating (a
+ * dotted key looked up, a node's place named in messages). The tree is in config_internal.h. */
+#include "core/config_internal.h"
 
 #include <ctype.h>
 #include <errno.h>
@@ -18,35 +21,9 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
-typedef enum { NODE_SCALAR, NODE_SEQUENCE, NODE_MAPPING } node_type;
-
-typedef struct cnode cnode;
-struct cnode {
-    node_type type;
-    int line, column;   /* 1-based; 0 when unknown */
-    const char *origin; /* the --set text this node came from, or NULL (the file) */
-    int known;          /* a getter read it (or an ancestor of something read) */
-    int known_subtree;  /* mark_known: everything below is known */
-    char *text;         /* scalar */
-    int quoted;         /* scalar was quoted: a string, never a number */
-    int count, cap;
-    cnode **items; /* sequence items, or mapping values */
-    char **keys;   /* mapping keys */
-    int *key_line, *key_column;
-};
-
-struct rths_config {
-    char *path;
-    cnode *root;
-    char **overrides; /* owned copies of the --set texts (nodes point into them) */
-    int n_overrides;
-    char **asked; /* every key a getter asked for, present or not: "did you mean" candidates */
-    int n_asked, cap_asked;
-};
-
 /* ---- tree ---- */
 
-static cnode *node_new(node_type type, int line, int column, const char *origin) {
+cnode *config_node_new(node_type type, int line, int column, const char *origin) {
     cnode *n = calloc(1, sizeof *n);
     if (!n) return NULL;
     n->type = type;
@@ -56,10 +33,10 @@ static cnode *node_new(node_type type, int line, int column, const char *origin)
     return n;
 }
 
-static void node_free(cnode *n) {
+void config_node_free(cnode *n) {
     if (!n) return;
     for (int i = 0; i < n->count; i++) {
-        node_free(n->items[i]);
+        config_node_free(n->items[i]);
         if (n->keys) free(n->keys[i]);
     }
     free(n->items);
@@ -70,7 +47,7 @@ static void node_free(cnode *n) {
     free(n);
 }
 
-static int node_grow(cnode *n) {
+int config_node_grow(cnode *n) {
     if (n->count < n->cap) return 0;
     int cap = n->cap ? 2 * n->cap : 8;
     cnode **items = realloc(n->items, (size_t)cap * sizeof *items);
@@ -92,22 +69,18 @@ static int node_grow(cnode *n) {
 }
 
 /* "split:" with nothing after it: an empty section, not a value */
-static int is_empty(const cnode *n) {
+int config_is_empty(const cnode *n) {
     return n && n->type == NODE_SCALAR && !n->quoted &&
            (!n->text[0] || !strcmp(n->text, "~") || !strcasecmp(n->text, "null"));
 }
 
-static int map_find(const cnode *map, const char *key, size_t len) {
+int config_map_find(const cnode *map, const char *key, size_t len) {
     for (int i = 0; i < map->count; i++)
         if (strlen(map->keys[i]) == len && !memcmp(map->keys[i], key, len)) return i;
     return -1;
 }
 
-/* Paths and --set texts can be as long as the system allows; in a message they are shortened in
- * the middle so the reason after them always fits (rths_error holds RTHS_ERROR_MSG_LEN bytes). */
-#define MESSAGE_TEXT_MAX 1024
-
-static const char *short_text(const char *text, char *buf, size_t size) {
+const char *config_short_text(const char *text, char *buf, size_t size) {
     size_t len = strlen(text);
     if (len < size) return text;
     size_t head = (size - 4) / 2, tail = size - 4 - head;
@@ -258,7 +231,7 @@ static int parse_children(parse_ctx *ctx, cnode *n, key_index *ix) {
                 fy_parser_event_free(ctx->parser, ev);
                 return rc;
             }
-            if (node_grow(n)) {
+            if (config_node_grow(n)) {
                 fy_parser_event_free(ctx->parser, ev);
                 return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
             }
@@ -279,7 +252,7 @@ static int parse_children(parse_ctx *ctx, cnode *n, key_index *ix) {
                 v->column = kc;
             }
         } else {
-            if (node_grow(n)) {
+            if (config_node_grow(n)) {
                 fy_parser_event_free(ctx->parser, ev);
                 return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
             }
@@ -300,7 +273,7 @@ static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
     if (t == FYET_SCALAR) {
         size_t len = 0;
         const char *text = fy_token_get_text(ev->scalar.value, &len);
-        cnode *n = node_new(NODE_SCALAR, line, column, ctx->origin);
+        cnode *n = config_node_new(NODE_SCALAR, line, column, ctx->origin);
         if (n) {
             n->text = strndup(text ? text : "", text ? len : 0);
             enum fy_scalar_style style =
@@ -317,7 +290,7 @@ static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
         }
         fy_parser_event_free(ctx->parser, ev);
         if (!n || !n->text) {
-            node_free(n);
+            config_node_free(n);
             return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
         }
         *out = n;
@@ -331,8 +304,8 @@ static int parse_node(parse_ctx *ctx, struct fy_event *ev, cnode **out) {
                                   "%s:%d:%d: nested deeper than %d levels (a configuration needs "
                                   "a handful)",
                                   ctx->where, line, column, RTHS_CONFIG_MAX_DEPTH);
-        cnode *n = node_new(t == FYET_SEQUENCE_START ? NODE_SEQUENCE : NODE_MAPPING, line, column,
-                            ctx->origin);
+        cnode *n = config_node_new(t == FYET_SEQUENCE_START ? NODE_SEQUENCE : NODE_MAPPING, line,
+                                   column, ctx->origin);
         if (!n) return rths_error_set(ctx->err, RTHS_EFAIL, "out of memory");
         *out = n;
         key_index ix = {0};
@@ -360,7 +333,7 @@ static int parse_stream(parse_ctx *ctx, cnode **root) {
         struct fy_event *ev = fy_parser_parse(ctx->parser);
         if (!ev) {
             if (fy_parser_get_stream_error(ctx->parser)) {
-                node_free(*root);
+                config_node_free(*root);
                 *root = NULL;
                 return parse_error(ctx);
             }
@@ -377,7 +350,7 @@ static int parse_stream(parse_ctx *ctx, cnode **root) {
             event_position(ev, &line, &column);
             fy_parser_event_free(ctx->parser, ev);
             if (++docs > 1) {
-                node_free(*root);
+                config_node_free(*root);
                 *root = NULL;
                 return rths_error_set(ctx->err, RTHS_EINPUT,
                                       "%s:%d:%d: a configuration is one YAML document, found a "
@@ -388,7 +361,7 @@ static int parse_stream(parse_ctx *ctx, cnode **root) {
         }
         int rc = parse_node(ctx, ev, root);
         if (rc) {
-            node_free(*root);
+            config_node_free(*root);
             *root = NULL;
             return rc;
         }
@@ -396,7 +369,7 @@ static int parse_stream(parse_ctx *ctx, cnode **root) {
 }
 
 /* depth: the levels of mapping the parsed value will sit under (the parts of a --set key). */
-static int parse_source(const char *path, const char *text, const char *where, const char *origin,
+int config_parse_source(const char *path, const char *text, const char *where, const char *origin,
                         int depth, cnode **root, rths_error *err) {
     parse_ctx ctx = {.where = where, .origin = origin, .depth = depth, .err = err};
     struct fy_diag_cfg dcfg;
@@ -425,18 +398,7 @@ static int parse_source(const char *path, const char *text, const char *where, c
     return rc;
 }
 
-/* UTF-8 validation a byte at a time, with the position of the character being read. */
-typedef struct {
-    long line, column; /* of the byte just stepped over (1-based) */
-    int continuation;  /* continuation bytes still due */
-    unsigned lo, hi;   /* the range of the next continuation byte */
-    unsigned lead;     /* the last multi-byte lead byte, and where it was */
-    long lead_line, lead_column;
-} utf8_scan;
-
-enum { UTF8_OK, UTF8_BAD, UTF8_NUL };
-
-static int utf8_step(utf8_scan *u, unsigned char c) {
+int config_utf8_step(utf8_scan *u, unsigned char c) {
     if (u->line == 0) u->line = 1;
     u->column++;
     if (u->continuation && (c & 0xc0) == 0x80 && c >= u->lo && c <= u->hi) {
@@ -509,7 +471,7 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
                                 shown, buf[0], buf[1]);
         first = 0;
         for (size_t i = 0; i < got && !rc; i++) {
-            int status = utf8_step(&u, buf[i]);
+            int status = config_utf8_step(&u, buf[i]);
             if (status != UTF8_OK) rc = utf8_error(&u, status, shown, err);
         }
     }
@@ -523,24 +485,22 @@ static int check_config_file(const char *path, const char *shown, rths_error *er
 
 /* ---- locations and messages ---- */
 
-static void location(const rths_config *cfg, const cnode *n, int line, int column, char *buf,
+void config_location(const rths_config *cfg, const cnode *n, int line, int column, char *buf,
                      size_t size) {
     char cut[MESSAGE_TEXT_MAX];
-    const char *file = cfg->path ? short_text(cfg->path, cut, sizeof cut) : NULL;
+    const char *file = cfg->path ? config_short_text(cfg->path, cut, sizeof cut) : NULL;
     if (n && n->origin)
-        snprintf(buf, size, "--set %s", short_text(n->origin, cut, sizeof cut));
+        snprintf(buf, size, "--set %s", config_short_text(n->origin, cut, sizeof cut));
     else if (line > 0)
         snprintf(buf, size, "%s:%d:%d", file ? file : "<config>", line, column);
     else
         snprintf(buf, size, "%s", file ? file : "<no config file>");
 }
 
-static int key_error(const rths_config *cfg, const char *key, const cnode *at, rths_error *err,
-                     const char *fmt, ...) __attribute__((format(printf, 5, 6)));
-static int key_error(const rths_config *cfg, const char *key, const cnode *at, rths_error *err,
+int config_key_error(const rths_config *cfg, const char *key, const cnode *at, rths_error *err,
                      const char *fmt, ...) {
     char loc[MESSAGE_TEXT_MAX + 64], msg[RTHS_ERROR_MSG_LEN];
-    location(cfg, at, at ? at->line : 0, at ? at->column : 0, loc, sizeof loc);
+    config_location(cfg, at, at ? at->line : 0, at ? at->column : 0, loc, sizeof loc);
     va_list ap;
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
@@ -552,7 +512,7 @@ static int key_error(const rths_config *cfg, const char *key, const cnode *at, r
  * the path (for locating "missing" errors). Marks the path as known when mark is set. */
 /* A key part naming an item of a list ("rig.sites.1.uri"): its decimal index, or -1 when the
  * part is not a plain index or lies beyond the list. */
-static int sequence_index(const cnode *n, const char *p, size_t len) {
+int config_sequence_index(const cnode *n, const char *p, size_t len) {
     if (len == 0 || len > 6) return -1;
     int index = 0;
     for (size_t k = 0; k < len; k++) {
@@ -563,7 +523,7 @@ static int sequence_index(const cnode *n, const char *p, size_t len) {
     return index < n->count ? index : -1;
 }
 
-static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **deepest) {
+cnode *config_lookup(const rths_config *cfg, const char *key, int mark, cnode **deepest) {
     cnode *n = cfg->root;
     if (deepest) *deepest = NULL;
     const char *p = key;
@@ -575,9 +535,9 @@ static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **
         size_t len = dot ? (size_t)(dot - p) : strlen(p);
         int i;
         if (n->type == NODE_SEQUENCE)
-            i = sequence_index(n, p, len);
+            i = config_sequence_index(n, p, len);
         else if (n->type == NODE_MAPPING)
-            i = map_find(n, p, len);
+            i = config_map_find(n, p, len);
         else
             return NULL;
         if (i < 0) return NULL;
@@ -592,123 +552,6 @@ static cnode *lookup(const rths_config *cfg, const char *key, int mark, cnode **
     return NULL;
 }
 
-/* ---- loading ---- */
-
-static int apply_override(rths_config *cfg, const char *text, rths_error *err) {
-    char cut[MESSAGE_TEXT_MAX];
-    const char *shown = short_text(text, cut, sizeof cut);
-    const char *eq = strchr(text, '=');
-    if (!eq || eq == text)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "--set %s: expected dotted.key=value (e.g. split.mass_ratio=0.33)",
-                              shown);
-    size_t klen = (size_t)(eq - text);
-    if (text[0] == '.' || text[klen - 1] == '.' || memmem(text, klen, "..", 2))
-        return rths_error_set(err, RTHS_EINPUT, "--set %s: the key has an empty part", shown);
-    if (!eq[1]) return rths_error_set(err, RTHS_EINPUT, "--set %s: no value after '='", shown);
-    utf8_scan u = {0};
-    for (const char *c = text; *c; c++)
-        if (utf8_step(&u, (unsigned char)*c) != UTF8_OK || (!c[1] && u.continuation))
-            return rths_error_set(err, RTHS_EINPUT, "--set %s: not UTF-8 text", shown);
-    int key_depth = 1; /* the root mapping */
-    for (size_t i = 0; i < klen; i++)
-        key_depth += text[i] == '.';
-    if (key_depth >= RTHS_CONFIG_MAX_DEPTH)
-        return rths_error_set(err, RTHS_EINPUT, "--set %s: the key is nested deeper than %d levels",
-                              shown, RTHS_CONFIG_MAX_DEPTH);
-    char *copy = strdup(text);
-    char **list = realloc(cfg->overrides, (size_t)(cfg->n_overrides + 1) * sizeof *list);
-    if (!copy || !list) {
-        free(copy);
-        if (list) cfg->overrides = list;
-        return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    }
-    cfg->overrides = list;
-    cfg->overrides[cfg->n_overrides++] = copy;
-    char where[MESSAGE_TEXT_MAX + 8];
-    snprintf(where, sizeof where, "--set %s", shown);
-    cnode *value = NULL;
-    int rc = parse_source(NULL, copy + klen + 1, where, copy, key_depth, &value, err);
-    if (rc) return rc;
-    if (!value) return rths_error_set(err, RTHS_EINPUT, "%s: no value after '='", where);
-    if (!cfg->root) {
-        cfg->root = node_new(NODE_MAPPING, 0, 0, NULL);
-        if (!cfg->root) {
-            node_free(value);
-            return rths_error_set(err, RTHS_EFAIL, "out of memory");
-        }
-    }
-    cnode *n = cfg->root;
-    const char *p = copy;
-    for (;;) {
-        const char *dot = memchr(p, '.', (size_t)(copy + klen - p));
-        size_t len = dot ? (size_t)(dot - p) : (size_t)(copy + klen - p);
-        if (is_empty(n)) { /* "split:" with nothing under it becomes a mapping */
-            n->type = NODE_MAPPING;
-            free(n->text);
-            n->text = NULL;
-        }
-        if (n->type == NODE_SEQUENCE) { /* "rig.sites.1.uri=..." replaces inside item 1 */
-            int item = sequence_index(n, p, len);
-            if (item < 0) {
-                node_free(value);
-                return rths_error_set(err, RTHS_EINPUT,
-                                      "%s: '%.*s' is a list of %d item%s, so it has no item '%.*s' "
-                                      "(items are numbered from 0)",
-                                      where, (int)(p - copy - 1), copy, n->count,
-                                      n->count == 1 ? "" : "s", (int)len, p);
-            }
-            if (!dot) {
-                node_free(n->items[item]);
-                n->items[item] = value;
-                return RTHS_OK;
-            }
-            n = n->items[item];
-            p = dot + 1;
-            continue;
-        }
-        if (n->type != NODE_MAPPING) {
-            node_free(value);
-            return rths_error_set(err, RTHS_EINPUT,
-                                  "%s: '%.*s' is not a mapping in the configuration, so it has no "
-                                  "key '%.*s'",
-                                  where, (int)(p - copy - 1), copy, (int)len, p);
-        }
-        int i = map_find(n, p, len);
-        if (!dot) {
-            if (i >= 0) {
-                node_free(n->items[i]);
-                n->items[i] = value;
-            } else {
-                if (node_grow(n)) {
-                    node_free(value);
-                    return rths_error_set(err, RTHS_EFAIL, "out of memory");
-                }
-                n->keys[n->count] = strndup(p, len);
-                n->key_line[n->count] = 0;
-                n->key_column[n->count] = 0;
-                n->items[n->count++] = value;
-            }
-            return RTHS_OK;
-        }
-        if (i < 0) {
-            cnode *m = node_new(NODE_MAPPING, 0, 0, copy);
-            if (!m || node_grow(n)) {
-                node_free(m);
-                node_free(value);
-                return rths_error_set(err, RTHS_EFAIL, "out of memory");
-            }
-            n->keys[n->count] = strndup(p, len);
-            n->key_line[n->count] = 0;
-            n->key_column[n->count] = 0;
-            n->items[n->count] = m;
-            i = n->count++;
-        }
-        n = n->items[i];
-        p = dot + 1;
-    }
-}
-
 int rths_config_load(const char *path, const char *const *overrides, int n_overrides,
                      rths_config **out, rths_error *err) {
     *out = NULL;
@@ -719,9 +562,9 @@ int rths_config_load(const char *path, const char *const *overrides, int n_overr
         cfg->path = strdup(path);
         if (!cfg->path) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         char cut[MESSAGE_TEXT_MAX];
-        const char *shown = short_text(path, cut, sizeof cut);
+        const char *shown = config_short_text(path, cut, sizeof cut);
         if (!rc) rc = check_config_file(path, shown, err);
-        if (!rc) rc = parse_source(path, NULL, shown, NULL, 0, &cfg->root, err);
+        if (!rc) rc = config_parse_source(path, NULL, shown, NULL, 0, &cfg->root, err);
         if (!rc && cfg->root && cfg->root->type != NODE_MAPPING)
             rc = rths_error_set(err, RTHS_EINPUT,
                                 "%s:%d:%d: the configuration must be a mapping of sections "
@@ -729,11 +572,11 @@ int rths_config_load(const char *path, const char *const *overrides, int n_overr
                                 shown, cfg->root->line, cfg->root->column);
     }
     if (!rc && !cfg->root) {
-        cfg->root = node_new(NODE_MAPPING, 0, 0, NULL);
+        cfg->root = config_node_new(NODE_MAPPING, 0, 0, NULL);
         if (!cfg->root) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     for (int i = 0; i < n_overrides && !rc; i++)
-        rc = apply_override(cfg, overrides[i], err);
+        rc = config_apply_override(cfg, overrides[i], err);
     if (rc) {
         rths_config_free(cfg);
         return rc;
@@ -745,7 +588,7 @@ int rths_config_load(const char *path, const char *const *overrides, int n_overr
 
 void rths_config_free(rths_config *cfg) {
     if (!cfg) return;
-    node_free(cfg->root);
+    config_node_free(cfg->root);
     for (int i = 0; i < cfg->n_overrides; i++)
         free(cfg->overrides[i]);
     free(cfg->overrides);
@@ -761,615 +604,5 @@ const char *rths_config_path(const rths_config *cfg) {
 }
 
 int rths_config_has(const rths_config *cfg, const char *key) {
-    return lookup(cfg, key, 0, NULL) != NULL;
-}
-
-/* ---- getters ---- */
-
-static int edit_distance(const char *a, const char *b) {
-    size_t la = strlen(a), lb = strlen(b);
-    if (la > 63 || lb > 63) return 99;
-    int d[64][64];
-    for (size_t i = 0; i <= la; i++)
-        d[i][0] = (int)i;
-    for (size_t j = 0; j <= lb; j++)
-        d[0][j] = (int)j;
-    for (size_t i = 1; i <= la; i++)
-        for (size_t j = 1; j <= lb; j++) {
-            int best = d[i - 1][j - 1] + (a[i - 1] != b[j - 1]);
-            if (d[i - 1][j] + 1 < best) best = d[i - 1][j] + 1;
-            if (d[i][j - 1] + 1 < best) best = d[i][j - 1] + 1;
-            d[i][j] = best;
-        }
-    return d[la][lb];
-}
-
-static const char *describe(const cnode *n) {
-    return n->type == NODE_MAPPING    ? "a mapping"
-           : n->type == NODE_SEQUENCE ? "a list"
-           : is_empty(n)              ? "an empty value"
-                                      : "text";
-}
-
-static void remember(rths_config *cfg, const char *key) {
-    if (!key || !*key) return;
-    for (int i = 0; i < cfg->n_asked; i++)
-        if (!strcmp(cfg->asked[i], key)) return;
-    if (cfg->n_asked == cfg->cap_asked) {
-        int cap = cfg->cap_asked ? 2 * cfg->cap_asked : 32;
-        char **a = realloc(cfg->asked, (size_t)cap * sizeof *a);
-        if (!a) return; /* costs a spelling hint only */
-        cfg->asked = a;
-        cfg->cap_asked = cap;
-    }
-    char *copy = strdup(key);
-    if (copy) cfg->asked[cfg->n_asked++] = copy;
-}
-
-/* Finds key for a getter: RTHS_OK with *n (NULL when absent and optional). */
-static int get_node(rths_config *cfg, const char *key, int required, cnode **n, rths_error *err) {
-    cnode *deepest = NULL;
-    remember(cfg, key);
-    *n = lookup(cfg, key, 1, &deepest);
-    if (*n) return RTHS_OK;
-    /* "split: 0.5" when split.mass_ratio is asked for: refused even for an optional key, or the
-     * value would silently be ignored */
-    if (deepest && deepest->type != NODE_MAPPING && !is_empty(deepest))
-        return key_error(cfg, key, deepest, err, "%s its parent is %s, not a mapping",
-                         required ? "is required but" : "cannot be read:", describe(deepest));
-    if (!required) return RTHS_OK;
-    /* a missing top-level key has no better place than the file itself */
-    cnode *where = deepest == cfg->root ? NULL : deepest;
-    /* a present key one or two letters off is most likely the user's spelling of this one */
-    const char *last = strrchr(key, '.');
-    last = last ? last + 1 : key;
-    if (deepest && deepest->type == NODE_MAPPING)
-        for (int i = 0; i < deepest->count; i++)
-            if (edit_distance(deepest->keys[i], last) <= 2)
-                return key_error(cfg, key, where, err,
-                                 "is required but missing (line %d has '%s': misspelt?)",
-                                 deepest->key_line[i], deepest->keys[i]);
-    return key_error(cfg, key, where, err, "is required but missing");
-}
-
-/* YAML 1.2 core-schema decimal numbers: [-+]? (digits [. digits?] | . digits) ([eE] [-+]? digits)?
- * (strtod alone would also take hex floats, "infinity" and leading blanks) */
-static int number_syntax(const char *p) {
-    int digits = 0;
-    if (*p == '+' || *p == '-') p++;
-    while (isdigit((unsigned char)*p))
-        p++, digits++;
-    if (*p == '.') {
-        p++;
-        while (isdigit((unsigned char)*p))
-            p++, digits++;
-    }
-    if (!digits) return 0;
-    if (*p == 'e' || *p == 'E') {
-        p++;
-        if (*p == '+' || *p == '-') p++;
-        if (!isdigit((unsigned char)*p)) return 0;
-        while (isdigit((unsigned char)*p))
-            p++;
-    }
-    return *p == 0;
-}
-
-static int scalar_number(rths_config *cfg, const char *key, const cnode *n, double *out,
-                         rths_error *err) {
-    if (n->type != NODE_SCALAR)
-        return key_error(cfg, key, n, err, "expected a number, got %s", describe(n));
-    const char *s = n->text;
-    if (is_empty(n)) return key_error(cfg, key, n, err, "has no value (expected a number)");
-    if (!n->quoted) {
-        const char *t = s + (*s == '-' || *s == '+');
-        if (!strcasecmp(t, ".nan") || !strcasecmp(t, ".inf") || !strcasecmp(t, "nan") ||
-            !strcasecmp(t, "inf") || !strcasecmp(t, "infinity"))
-            return key_error(cfg, key, n, err, "NaN/inf is not allowed (got '%s')", s);
-    }
-    if (n->quoted)
-        return key_error(cfg, key, n, err,
-                         "expected a number, got the quoted text '%s' (write numbers without "
-                         "quotes)",
-                         s);
-    if (!number_syntax(s)) return key_error(cfg, key, n, err, "expected a number, got '%s'", s);
-    /* '.' is the decimal point whatever locale the process runs in */
-    locale_t c = newlocale(LC_NUMERIC_MASK, "C", (locale_t)0);
-    if (!c) return rths_error_set(err, RTHS_EFAIL, "cannot create the C locale");
-    errno = 0;
-    double v = strtod_l(s, NULL, c);
-    int range = errno == ERANGE && fabs(v) > 1.0; /* underflow to a subnormal or 0 is fine */
-    freelocale(c);
-    if (range || !isfinite(v))
-        return key_error(cfg, key, n, err, "'%s' is out of range for a double", s);
-    *out = v;
-    return RTHS_OK;
-}
-
-int rths_config_get_double_ex(rths_config *cfg, const char *key, int required, double def,
-                              double lo, double hi, unsigned flags, double *out, rths_error *err) {
-    cnode *n;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc) return rc;
-    if (!n) {
-        *out = def;
-        return RTHS_OK;
-    }
-    double v;
-    if ((rc = scalar_number(cfg, key, n, &v, err))) return rc;
-    int lo_open = (flags & RTHS_CONFIG_LO_OPEN) != 0, hi_open = (flags & RTHS_CONFIG_HI_OPEN) != 0;
-    if ((lo_open ? v > lo : v >= lo) && (hi_open ? v < hi : v <= hi)) {
-        *out = v;
-        return RTHS_OK;
-    }
-    char range[128];
-    return key_error(cfg, key, n, err, "must be %s (got %s)",
-                     rths_config_range_text(lo, hi, flags, range, sizeof range), n->text);
-}
-
-const char *rths_config_range_text(double lo, double hi, unsigned flags, char *buf, size_t size) {
-    int lo_open = (flags & RTHS_CONFIG_LO_OPEN) != 0, hi_open = (flags & RTHS_CONFIG_HI_OPEN) != 0;
-    if (isinf(lo) && isinf(hi))
-        snprintf(buf, size, "finite");
-    else if (isinf(hi)) /* one-sided: no "[-inf, 100000]" */
-        snprintf(buf, size, "%s %g", lo_open ? ">" : ">=", lo);
-    else if (isinf(lo))
-        snprintf(buf, size, "%s %g", hi_open ? "<" : "<=", hi);
-    else
-        snprintf(buf, size, "in %c%g, %g%c", lo_open ? '(' : '[', lo, hi, hi_open ? ')' : ']');
-    return buf;
-}
-
-int rths_config_get_double(rths_config *cfg, const char *key, int required, double def, double lo,
-                           double hi, double *out, rths_error *err) {
-    return rths_config_get_double_ex(cfg, key, required, def, lo, hi, 0, out, err);
-}
-
-static int scalar_int(rths_config *cfg, const char *key, const cnode *n, long *out,
-                      rths_error *err) {
-    if (n->type != NODE_SCALAR)
-        return key_error(cfg, key, n, err, "expected an integer, got %s", describe(n));
-    char *end = NULL;
-    errno = 0;
-    long v = n->quoted ? 0 : strtol(n->text, &end, 10);
-    if (n->quoted || !*n->text || end == n->text || *end || isspace((unsigned char)n->text[0]))
-        return key_error(cfg, key, n, err, "expected an integer, got %s'%s'",
-                         n->quoted ? "the quoted text " : "", n->text);
-    if (errno == ERANGE)
-        return key_error(cfg, key, n, err, "'%s' is out of range for an integer", n->text);
-    *out = v;
-    return RTHS_OK;
-}
-
-int rths_config_get_int(rths_config *cfg, const char *key, int required, long def, long lo, long hi,
-                        long *out, rths_error *err) {
-    cnode *n;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc) return rc;
-    if (!n) {
-        *out = def;
-        return RTHS_OK;
-    }
-    long v;
-    if ((rc = scalar_int(cfg, key, n, &v, err))) return rc;
-    if (v < lo && hi == LONG_MAX)
-        return key_error(cfg, key, n, err, "must be >= %ld (got %ld)", lo, v);
-    if (v > hi && lo == LONG_MIN)
-        return key_error(cfg, key, n, err, "must be <= %ld (got %ld)", hi, v);
-    if (v < lo || v > hi)
-        return key_error(cfg, key, n, err, "must be in [%ld, %ld] (got %ld)", lo, hi, v);
-    *out = v;
-    return RTHS_OK;
-}
-
-int rths_config_get_bool(rths_config *cfg, const char *key, int required, int def, int *out,
-                         rths_error *err) {
-    cnode *n;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc) return rc;
-    if (!n) {
-        *out = def;
-        return RTHS_OK;
-    }
-    static const char *const yes[] = {"true", "yes", "on"}, *const no[] = {"false", "no", "off"};
-    if (n->type == NODE_SCALAR && !n->quoted)
-        for (int i = 0; i < 3; i++) {
-            if (!strcasecmp(n->text, yes[i])) {
-                *out = 1;
-                return RTHS_OK;
-            }
-            if (!strcasecmp(n->text, no[i])) {
-                *out = 0;
-                return RTHS_OK;
-            }
-        }
-    return key_error(
-        cfg, key, n, err, "expected true or false, got %s%s%s", n->type == NODE_SCALAR ? "'" : "",
-        n->type == NODE_SCALAR ? n->text : describe(n), n->type == NODE_SCALAR ? "'" : "");
-}
-
-int rths_config_get_string(rths_config *cfg, const char *key, int required, const char *def,
-                           const char **out, rths_error *err) {
-    cnode *n;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc) return rc;
-    if (!n) {
-        *out = def;
-        return RTHS_OK;
-    }
-    if (n->type != NODE_SCALAR || is_empty(n))
-        return key_error(cfg, key, n, err, "expected text, got %s", describe(n));
-    *out = n->text;
-    return RTHS_OK;
-}
-
-int rths_config_get_choice(rths_config *cfg, const char *key, int required, int def_index,
-                           const char *const *choices, int *out_index, rths_error *err) {
-    const char *s;
-    int rc = rths_config_get_string(cfg, key, required, NULL, &s, err);
-    if (rc) return rc;
-    if (!s) {
-        *out_index = def_index;
-        return RTHS_OK;
-    }
-    for (int i = 0; choices[i]; i++)
-        if (!strcmp(s, choices[i])) {
-            *out_index = i;
-            return RTHS_OK;
-        }
-    char allowed[512] = "";
-    size_t len = 0;
-    for (int i = 0; choices[i] && len < sizeof allowed; i++)
-        len += (size_t)snprintf(allowed + len, sizeof allowed - len, "%s'%s'", i ? ", " : "",
-                                choices[i]);
-    return key_error(cfg, key, lookup(cfg, key, 0, NULL), err, "'%s' is not one of %s", s, allowed);
-}
-
-static int number_list(rths_config *cfg, const char *key, cnode *n, int integers, double **dout,
-                       int **iout, int *count, rths_error *err) {
-    if (n->type != NODE_SEQUENCE)
-        return key_error(cfg, key, n, err, "expected a list of numbers like [1, 2], got %s%s%s",
-                         describe(n), n->type == NODE_SCALAR ? " " : "",
-                         n->type == NODE_SCALAR ? n->text : "");
-    size_t m = (size_t)(n->count ? n->count : 1);
-    double *d = integers ? NULL : calloc(m, sizeof *d);
-    int *iv = integers ? calloc(m, sizeof *iv) : NULL;
-    if (!d && !iv) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    for (int i = 0; i < n->count; i++) {
-        cnode *item = n->items[i];
-        int rc;
-        if (integers) {
-            long v = 0;
-            rc = scalar_int(cfg, key, item, &v, err);
-            if (!rc && (v < -2147483647L || v > 2147483647L))
-                rc = key_error(cfg, key, item, err, "entry %d is out of range", i + 1);
-            if (!rc) iv[i] = (int)v;
-        } else {
-            rc = scalar_number(cfg, key, item, &d[i], err);
-        }
-        if (rc) {
-            free(d);
-            free(iv);
-            return rc;
-        }
-    }
-    if (dout) *dout = d;
-    if (iout) *iout = iv;
-    *count = n->count;
-    return RTHS_OK;
-}
-
-int rths_config_get_double_list(rths_config *cfg, const char *key, int required, double **out,
-                                int *count, rths_error *err) {
-    cnode *n;
-    *out = NULL;
-    *count = 0;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc || !n) return rc;
-    return number_list(cfg, key, n, 0, out, NULL, count, err);
-}
-
-int rths_config_get_int_list(rths_config *cfg, const char *key, int required, int **out, int *count,
-                             rths_error *err) {
-    cnode *n;
-    *out = NULL;
-    *count = 0;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc || !n) return rc;
-    return number_list(cfg, key, n, 1, NULL, out, count, err);
-}
-
-int rths_config_get_matrix(rths_config *cfg, const char *key, int required, double **out, int *rows,
-                           int *cols, rths_error *err) {
-    cnode *n;
-    *out = NULL;
-    *rows = *cols = 0;
-    int rc = get_node(cfg, key, required, &n, err);
-    if (rc || !n) return rc;
-    if (n->type != NODE_SEQUENCE || n->count == 0)
-        return key_error(cfg, key, n, err,
-                         "expected a matrix as a list of rows, e.g. [[1, 0], [0, 1]]");
-    int r = n->count, c = -1;
-    for (int i = 0; i < r; i++) {
-        cnode *row = n->items[i];
-        if (row->type != NODE_SEQUENCE)
-            return key_error(cfg, key, row, err, "row %d is not a list of numbers", i + 1);
-        if (c < 0) c = row->count;
-        if (row->count != c)
-            return key_error(cfg, key, row, err, "row %d has %d entries, row 1 has %d", i + 1,
-                             row->count, c);
-    }
-    if (c < 1) return key_error(cfg, key, n, err, "the matrix has empty rows");
-    double *m = calloc((size_t)r * (size_t)c, sizeof *m);
-    if (!m) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    for (int i = 0; i < r; i++)
-        for (int j = 0; j < c; j++) {
-            rc = scalar_number(cfg, key, n->items[i]->items[j], &RTHS_AT(m, r, i, j), err);
-            if (rc) {
-                free(m);
-                return rc;
-            }
-        }
-    *out = m;
-    *rows = r;
-    *cols = c;
-    return RTHS_OK;
-}
-
-int rths_config_get_count(rths_config *cfg, const char *key, int *count, rths_error *err) {
-    *count = 0;
-    cnode *n;
-    int rc = get_node(cfg, key, 0, &n, err);
-    if (rc || !n || is_empty(n)) return rc;
-    if (n->type != NODE_SEQUENCE)
-        return key_error(cfg, key, n, err, "must be a list ([...] or '- ' items), not %s",
-                         describe(n));
-    *count = n->count;
-    return RTHS_OK;
-}
-
-void rths_config_mark_known(rths_config *cfg, const char *key_prefix) {
-    if (!cfg) return;
-    if (!key_prefix) key_prefix = "";
-    remember(cfg, key_prefix);
-    cnode *n = lookup(cfg, key_prefix, 1, NULL);
-    if (n) n->known_subtree = 1;
-}
-
-int rths_config_section_read(const rths_config *cfg, const char *section) {
-    size_t len = strlen(section);
-    for (int i = 0; i < cfg->n_asked; i++)
-        if (!strncmp(cfg->asked[i], section, len) && cfg->asked[i][len] == '.') return 1;
-    return 0;
-}
-
-int rths_config_error_at(const rths_config *cfg, const char *key, rths_error *err, const char *fmt,
-                         ...) {
-    char msg[RTHS_ERROR_MSG_LEN];
-    va_list ap;
-    va_start(ap, fmt);
-    vsnprintf(msg, sizeof msg, fmt, ap);
-    va_end(ap);
-    cnode *deepest = NULL;
-    cnode *n = lookup(cfg, key, 0, &deepest);
-    if (!n && deepest == cfg->root) deepest = NULL;
-    return key_error(cfg, key, n ? n : deepest, err, "%s", msg);
-}
-
-/* ---- unknown keys ---- */
-
-static int check_node(const rths_config *cfg, const cnode *n, char *path, size_t plen,
-                      rths_error *err) {
-    if (n->known_subtree) return RTHS_OK;
-    if (n->type == NODE_SEQUENCE) { /* a list of mappings: each item's keys are checked */
-        for (int i = 0; i < n->count; i++) {
-            if (n->items[i]->type != NODE_MAPPING) continue;
-            if (plen + 16 >= 1024) return RTHS_OK;
-            size_t at = plen + (size_t)snprintf(path + plen, 1024 - plen, ".%d", i);
-            int rc = check_node(cfg, n->items[i], path, at, err);
-            path[plen] = 0;
-            if (rc) return rc;
-        }
-        return RTHS_OK;
-    }
-    if (n->type != NODE_MAPPING) return RTHS_OK;
-    for (int i = 0; i < n->count; i++) {
-        size_t len = strlen(n->keys[i]);
-        if (plen + len + 2 >= 1024) { /* no reader asks for such a key: it is unknown */
-            char loc[MESSAGE_TEXT_MAX + 64];
-            location(cfg, n->items[i], n->key_line[i], n->key_column[i], loc, sizeof loc);
-            return rths_error_set(err, RTHS_EINPUT, "%s: unknown key '%.*s%s%.200s...'", loc,
-                                  (int)(plen > 200 ? 200 : plen), path, plen ? "." : "",
-                                  n->keys[i]);
-        }
-        size_t at = plen;
-        if (plen) path[at++] = '.';
-        memcpy(path + at, n->keys[i], len + 1);
-        const cnode *child = n->items[i];
-        if (!child->known) {
-            /* a misspelling of a key that was asked for at the same level? */
-            const char *suggest = NULL;
-            size_t suggest_len = 0;
-            for (int j = 0; j < n->count; j++)
-                if (j != i && n->items[j]->known && edit_distance(n->keys[i], n->keys[j]) <= 2) {
-                    suggest = n->keys[j];
-                    suggest_len = strlen(suggest);
-                }
-            /* or a key some reader asked for at this level that is absent (an optional key) */
-            for (int j = 0; j < cfg->n_asked && !suggest; j++) {
-                const char *a = cfg->asked[j];
-                if (plen && (strncmp(a, path, plen) != 0 || a[plen] != '.')) continue;
-                const char *c = plen ? a + plen + 1 : a, *dot = strchr(c, '.');
-                size_t cl = dot ? (size_t)(dot - c) : strlen(c);
-                char comp[64];
-                if (cl >= sizeof comp) continue;
-                memcpy(comp, c, cl);
-                comp[cl] = 0;
-                if (strcmp(comp, n->keys[i]) && edit_distance(n->keys[i], comp) <= 2) {
-                    suggest = c;
-                    suggest_len = cl;
-                }
-            }
-            char loc[MESSAGE_TEXT_MAX + 64];
-            location(cfg, child, n->key_line[i] ? n->key_line[i] : child->line,
-                     n->key_line[i] ? n->key_column[i] : child->column, loc, sizeof loc);
-            if (suggest)
-                return rths_error_set(err, RTHS_EINPUT,
-                                      "%s: unknown key '%s' (did you mean "
-                                      "'%.*s%.*s'?)",
-                                      loc, path, (int)(plen ? plen + 1 : 0), path, (int)suggest_len,
-                                      suggest);
-            return rths_error_set(err, RTHS_EINPUT,
-                                  "%s: unknown key '%s' (see docs/config.md for the keys)", loc,
-                                  path);
-        }
-        int rc = check_node(cfg, child, path, at + len, err);
-        if (rc) return rc;
-    }
-    return RTHS_OK;
-}
-
-int rths_config_check_unknown(const rths_config *cfg, rths_error *err) {
-    char path[1024] = "";
-    return check_node(cfg, cfg->root, path, 0, err);
-}
-
-/* ---- writing the resolved document ---- */
-
-static int needs_quotes(const char *s) {
-    if (!*s) return 1;
-    if (strchr("?:-", s[0]) && (s[1] == ' ' || !s[1])) return 1; /* "-1.5" stays a number */
-    if (strchr(",[]{}#&*!|>'\"%@` ", s[0])) return 1;
-    for (const char *p = s; *p; p++)
-        if (strchr("#:,[]{}\"\\\n", *p) || (unsigned char)*p < 0x20) return 1;
-    return s[strlen(s) - 1] == ' ';
-}
-
-/* text as a plain scalar when it reads back as itself, else double-quoted with escapes */
-static void emit_text(FILE *f, const char *text, int quoted) {
-    if (!quoted && !needs_quotes(text)) {
-        fputs(text, f);
-        return;
-    }
-    fputc('"', f);
-    for (const char *p = text; *p; p++) {
-        if (*p == '"' || *p == '\\')
-            fprintf(f, "\\%c", *p);
-        else if (*p == '\n')
-            fputs("\\n", f);
-        else if ((unsigned char)*p < 0x20)
-            fprintf(f, "\\x%02x", (unsigned char)*p);
-        else
-            fputc(*p, f);
-    }
-    fputc('"', f);
-}
-
-static void emit_scalar(FILE *f, const cnode *n) {
-    if (!n->quoted && !n->text[0])
-        fputc('~', f); /* an empty value stays empty (null), not the text "" */
-    else
-        emit_text(f, n->text, n->quoted);
-}
-
-static void emit_flow(FILE *f, const cnode *n) {
-    if (n->type == NODE_SCALAR) {
-        emit_scalar(f, n);
-    } else if (n->type == NODE_SEQUENCE) {
-        fputc('[', f);
-        for (int i = 0; i < n->count; i++) {
-            if (i) fputs(", ", f);
-            emit_flow(f, n->items[i]);
-        }
-        fputc(']', f);
-    } else {
-        fputc('{', f);
-        for (int i = 0; i < n->count; i++) {
-            fputs(i ? ", " : "", f);
-            emit_text(f, n->keys[i], 0);
-            fputs(": ", f);
-            emit_flow(f, n->items[i]);
-        }
-        fputc('}', f);
-    }
-}
-
-static void emit_block(FILE *f, const cnode *map, int indent) {
-    for (int i = 0; i < map->count; i++) {
-        const cnode *v = map->items[i];
-        fprintf(f, "%*s", indent, "");
-        emit_text(f, map->keys[i], 0);
-        fputc(':', f);
-        if (v->type == NODE_MAPPING && v->count > 0) {
-            fputc('\n', f);
-            emit_block(f, v, indent + 2);
-        } else {
-            fputc(' ', f);
-            emit_flow(f, v);
-            fputc('\n', f);
-        }
-    }
-}
-
-int rths_config_write(const rths_config *cfg, const char *path, rths_error *err) {
-    size_t len = strlen(path) + 32;
-    char *tmp = malloc(len);
-    if (!tmp) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    snprintf(tmp, len, "%s.tmp.%ld", path, (long)getpid());
-    FILE *f = fopen(tmp, "w");
-    if (!f) {
-        int e = errno;
-        free(tmp);
-        return rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(e));
-    }
-    fprintf(f, "# configuration as resolved (file %s, --set overrides applied)\n",
-            cfg->path ? cfg->path : "none");
-    emit_block(f, cfg->root, 0);
-    int bad = fflush(f) != 0 || fsync(fileno(f)) != 0;
-    bad |= fclose(f) != 0;
-    if (bad || rename(tmp, path) != 0) {
-        int e = errno;
-        remove(tmp);
-        free(tmp);
-        return rths_error_set(err, RTHS_EFAIL, "cannot write %s: %s", path, strerror(e));
-    }
-    free(tmp);
-    return RTHS_OK;
-}
-
-/* Sub-sections every command's setup reads (rths_setup_read: the actuator and sensor transforms,
- * docs/config/rig.md): reading them does not make a command the owner of their section, so
- * `rths model` still ignores the rest of `rig`. */
-static const char *const setup_subsections[] = {"rig.actuators.", "rig.lasers.",
-                                                "rig.interface_mass", NULL};
-
-/* Whether a key of section was asked for, not counting the setup's sub-sections. */
-static int section_read_by_command(const rths_config *cfg, const char *section) {
-    size_t len = strlen(section);
-    for (int i = 0; i < cfg->n_asked; i++) {
-        if (strncmp(cfg->asked[i], section, len) || cfg->asked[i][len] != '.') continue;
-        int shared = 0;
-        for (int j = 0; setup_subsections[j] && !shared; j++)
-            shared = !strncmp(cfg->asked[i], setup_subsections[j], strlen(setup_subsections[j]));
-        if (!shared) return 1;
-    }
-    return 0;
-}
-
-int rths_config_check_sections(rths_config *cfg, const char *const *own, rths_error *err) {
-    /* io: a plug-in's own keys, read by the controller process that loads it */
-    static const char *const sections[] = {"rig",          "controller", "iteration",
-                                           "continuation", "stability",  "fidelity",
-                                           "output",       "server",     "io"};
-    enum { N_SECTIONS = sizeof sections / sizeof sections[0] };
-    int read[N_SECTIONS];
-    for (int k = 0; k < N_SECTIONS; k++) /* before any marking: marks count as reads */
-        read[k] = section_read_by_command(cfg, sections[k]);
-    for (int k = 0; k < N_SECTIONS; k++) {
-        int mine = read[k];
-        for (int j = 0; own && own[j] && !mine; j++)
-            mine = !strcmp(own[j], sections[k]);
-        if (!mine) rths_config_mark_known(cfg, sections[k]);
-    }
-    return rths_config_check_unknown(cfg, err);
+    return config_lookup(cfg, key, 0, NULL) != NULL;
 }

@@ -1,10 +1,13 @@
 /* The physical loop of docs/method.md, "Tuning the gains": the sampled physical substructure,
- * actuator and delay, closed by the controller's discrete PD. The continuous model repeats
- * plant.c's (side_state_matrix, actuator_realise, build_side) for the linear side, one actuator,
- * no transforms: the plant keeps those static, and a public entry point there would let both
- * share one copy. tests/test_tune.c checks the copy against the virtual rig itself. */
+ * actuator and delay, closed by the controller's discrete PD. A transfer-function actuator is
+ * realised by the plant's own code (plant_tf_form_of, src/plant/plant_internal.h). The
+ * continuous state matrix is assembled here as the plant's side_state_matrix does for its linear
+ * side, but from the tuner's matrices (rths_pd_loop_spec) rather than a built plant; the
+ * sampling (hold and fractional delay, for the loop's frequency response) is the tuner's own.
+ * tests/test_tune.c checks the model against the virtual rig itself. */
 #include "rths/tune.h"
 
+#include "plant/plant_internal.h"
 #include "tune/tune_internal.h"
 
 #include <complex.h>
@@ -52,8 +55,9 @@ double rths_pd_loop_delay_fraction(const rths_pd_loop *loop) {
     return loop->fraction;
 }
 
-/* The actuator's continuous states (plant.c's actuator_realise for one actuator): a shaker's
- * lag (na 1) or none; a transfer function F = (N U - V(s) x') / D in observer canonical form. */
+/* The actuator's continuous states (as the plant's actuator_realise, for one actuator): a shaker's
+ * lag (na 1) or none; a transfer function F = (N U - V(s) x') / D in observer canonical form
+ * (plant_tf_form_of). */
 typedef struct {
     int na, tf;
     double lag_rate, out, spring, d;
@@ -72,8 +76,6 @@ static int actuator_model_of(const rths_plant_options *o, actuator_model *m, rth
     }
     int nd = a->denominator_count, nn = a->numerator_count, order = nd - 1;
     int nv = a->velocity_feedback_count > 0 ? a->velocity_feedback_count : 1;
-    const double *vpoly =
-        a->velocity_feedback_count > 0 ? a->velocity_feedback_poly : &a->velocity_feedback;
     if (nd < 1 || nd > RTHS_ACTUATOR_MAX_ORDER + 1 || nn < 1 || nn > nd || a->denominator[0] == 0 ||
         (order > 0 && nv > order))
         return rths_error_set(err, RTHS_EINPUT,
@@ -84,20 +86,12 @@ static int actuator_model_of(const rths_plant_options *o, actuator_model *m, rth
     m->na = order;
     m->spring = a->displacement_output ? a->connection_stiffness_n_per_m : 0.0;
     m->out = a->displacement_output ? a->connection_stiffness_n_per_m : 1.0;
-    double lead = a->denominator[0], dk[RTHS_ACTUATOR_MAX_ORDER + 1],
-           nk[RTHS_ACTUATOR_MAX_ORDER + 1] = {0};
-    for (int k = 0; k <= order; k++)
-        dk[k] = a->denominator[order - k] / lead;
-    for (int k = 0; k < nn; k++)
-        nk[k] = a->numerator[nn - 1 - k] / lead;
-    m->d = nk[order];
-    for (int i = 0; i < order; i++) {
-        if (i > 0) m->a[i + (i - 1) * order] = 1.0;
-        m->a[i + (order - 1) * order] = -dk[i];
-        m->bu[i] = nk[i] - dk[i] * m->d;
-    }
-    for (int i = 0; order > 0 && i < nv; i++)
-        m->bv[i] = -vpoly[nv - 1 - i] / lead;
+    plant_tf_form form;
+    plant_tf_form_of(a, &form);
+    m->d = form.d;
+    memcpy(m->a, form.a, sizeof m->a);
+    memcpy(m->bu, form.bu, sizeof m->bu);
+    memcpy(m->bv, form.bv, sizeof m->bv);
     return RTHS_OK;
 }
 
@@ -266,7 +260,7 @@ int rths_pd_loop_create(const rths_pd_loop_spec *spec, rths_pd_loop **out, rths_
         goto done;
     }
     /* the shaker's armature moves with the interface, each at its actuator's point: T diag(m_a)
-     * T^T on the interface block (plant.c); a transfer function's mass is the structure's */
+     * T^T on the interface block (plant_build.c); a transfer function's mass is the structure's */
     memcpy(mm, spec->mass, sizeof(double) * (size_t)n * (size_t)n);
     const double *t = spec->actuator_transform;
     for (int d = 0; !act.tf && d < ni; d++)

@@ -13,8 +13,8 @@ bin=$1
 src=$2
 source "$src/tests/cli/lib/common.sh"
 cfg="$src/examples/four_storey.yaml"
-pid=
-trap '[ -n "$pid" ] && kill "$pid" 2>/dev/null; wait 2>/dev/null; rm -rf "$work"' EXIT
+# every controller started here is stopped whatever the outcome (start_controller)
+source "$src/tests/cli/lib/servers.sh"
 phys=(--set "structure.storeys.damping_n_s_per_m=[60, 60, 60, 60]" --set rig.noise=false)
 # the simulated plant's samples do not depend on when they run: a test machine that is not
 # real-time has late samples, counted and tolerated here
@@ -22,16 +22,8 @@ host=(--set controller.max_overrun_share=1 --set continuation.method=natural --s
     --set continuation.end_hz=16.2 --set continuation.initial_step_hz=0.1
     --set continuation.max_step_hz=0.1 --set iteration.rel_tolerance=1e-6 --quiet)
 
-"$bin" controller --config "$cfg" --listen 127.0.0.1:0 --set server.realtime=false "${phys[@]}" \
-    --set controller.limits.force_n=0.5 >"$work/ctl.out" 2>"$work/ctl.err" &
-pid=$!
-port=
-for _ in $(seq 1 400); do
-    port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/ctl.out")
-    [ -n "$port" ] && break
-    kill -0 "$pid" 2>/dev/null || break
-    sleep 0.05
-done
+start_controller ctl --config "$cfg" --listen 127.0.0.1:0 --set server.realtime=false "${phys[@]}" \
+    --set controller.limits.force_n=0.5
 [ -n "$port" ] || { fail "the controller did not start: $(cat "$work/ctl.err")"; exit 1; }
 rig=(--rig "tcp://127.0.0.1:$port")
 
@@ -60,18 +52,9 @@ written=$(grep -n "wrote summary.json" "$log" | cut -d: -f1)
 
 # 4. a cause that persists: a second controller whose displacement limit (1e-9 m) its own sensor
 # noise exceeds latches the fault again right after the reset; --reset-fault is refused naming it
-kill "$pid" 2>/dev/null
-wait "$pid" 2>/dev/null
-"$bin" controller --config "$cfg" --listen 127.0.0.1:0 --set server.realtime=false \
-    --set controller.limits.displacement_m=1e-9 >"$work/ctl2.out" 2>"$work/ctl2.err" &
-pid=$!
-port=
-for _ in $(seq 1 400); do
-    port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/ctl2.out")
-    [ -n "$port" ] && break
-    kill -0 "$pid" 2>/dev/null || break
-    sleep 0.05
-done
+stop_all
+start_controller ctl2 --config "$cfg" --listen 127.0.0.1:0 --set server.realtime=false \
+    --set controller.limits.displacement_m=1e-9
 [ -n "$port" ] || { fail "the second controller did not start: $(cat "$work/ctl2.err")"; exit 1; }
 "$bin" frf "$cfg" --out "$work/persists" --rig "tcp://127.0.0.1:$port" "${host[@]}" --reset-fault \
     2>"$work/persists.err"

@@ -18,27 +18,8 @@ bin=$1
 src=$2
 . "$src/tests/cli/lib/common.sh"
 cfg="$src/examples/two_site_frame.yaml"
-pids=()
-trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"' EXIT
-
-# start_site N NAME ARGS...: a controller for site N on a free port; sets $port
-start_site() {
-    local n=$1 name=$2
-    shift 2
-    "$bin" controller "$cfg" --site "$n" --listen 127.0.0.1:0 --set server.realtime=false \
-        --set server.watchdog_s=10 "$@" >"$work/$name.out" 2>"$work/$name.err" &
-    local pid=$!
-    pids+=("$pid")
-    port=
-    for _ in $(seq 1 400); do
-        port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/$name.out")
-        [ -n "$port" ] && break
-        kill -0 "$pid" 2>/dev/null || break
-        sleep 0.05
-    done
-    [ -n "$port" ] || { fail "site $n did not start: $(cat "$work/$name.err")"; exit 1; }
-    last_pid=$pid
-}
+# every controller and host started here is stopped whatever the outcome; start_site starts one
+source "$src/tests/cli/lib/servers.sh"
 
 host=(--set controller.max_overrun_share=1 --quiet)
 short=(--set continuation.start_hz=18.0 --set continuation.end_hz=18.2)
@@ -108,9 +89,7 @@ PY
 [ "$failures" -eq 0 ] && echo "ok   two sites, delays 0, 50, 500 ms: within 0.5 % of the analytic FRF"
 
 # 2. default noise: the two-site run against the single-process run of the same file
-kill "${pids[@]}" 2>/dev/null
-wait 2>/dev/null
-pids=()
+stop_all
 start_site 1 a1
 rig_a=$port
 start_site 2 b1
@@ -143,6 +122,7 @@ PY
 "$bin" frf "$cfg" --rig "tcp://127.0.0.1:$rig_a" --rig "tcp://127.0.0.1:$rig_b" --out "$work/lost" \
     "${host[@]}" --set continuation.end_hz=19 >"$work/lost.out" 2>"$work/lost.err" &
 hpid=$!
+servers+=($hpid)
 for _ in $(seq 1 1200); do
     [ "$(wc -l <"$work/lost/journal.jsonl" 2>/dev/null || echo 0)" -ge 2 ] && break
     kill -0 "$hpid" 2>/dev/null || break
@@ -151,6 +131,7 @@ done
 kill -9 "$last_pid"
 wait "$hpid"
 rc=$?
+forget "$hpid"
 [ "$rc" -eq 1 ] || fail "lost site: exit $rc, expected 1 ($(cat "$work/lost.err"))"
 grep -q "site 2 (tcp://127.0.0.1:$rig_b)" "$work/lost.err" || fail "lost site not named: $(cat "$work/lost.err")"
 grep -q "every other site was disarmed" "$work/lost.err" || fail "the other site's disarm is not said: $(cat "$work/lost.err")"

@@ -20,26 +20,8 @@ bin=$1
 src=$2
 . "$src/tests/cli/lib/common.sh"
 cfg="$src/examples/two_site_realtime.yaml"
-pids=()
-trap 'for p in "${pids[@]}"; do kill "$p" 2>/dev/null; done; wait 2>/dev/null; rm -rf "$work"' EXIT
-
-# start_site N NAME ARGS...: a controller for site N on a free port; sets $port
-start_site() {
-    local n=$1 name=$2
-    shift 2
-    "$bin" controller "$cfg" --site "$n" --listen 127.0.0.1:0 --set server.realtime=false \
-        --set server.watchdog_s=10 "$@" >"$work/$name.out" 2>"$work/$name.err" &
-    local pid=$!
-    pids+=("$pid")
-    port=
-    for _ in $(seq 1 400); do
-        port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/$name.out")
-        [ -n "$port" ] && break
-        kill -0 "$pid" 2>/dev/null || break
-        sleep 0.05
-    done
-    [ -n "$port" ] || { fail "site $n did not start: $(cat "$work/$name.err")"; exit 1; }
-}
+# every controller and host started here is stopped whatever the outcome; start_site starts one
+source "$src/tests/cli/lib/servers.sh"
 
 host=(--set rig.noise=false --set controller.max_overrun_share=1 --quiet)
 

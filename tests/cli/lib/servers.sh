@@ -62,3 +62,34 @@ none_left() {
     left=$(pgrep -af -- "$1" | grep -v "^$$ " || true)
     [ -z "$left" ]
 }
+
+# start_controller NAME ARGS...: `rths controller ARGS` ($bin) in the background, its stdout and
+# stderr in $work/NAME.out and $work/NAME.err, registered in servers; waits (20 s at most) for its
+# "listening on 127.0.0.1:PORT" line. Sets port (empty when the controller ended or never
+# listened) and last_pid. Not under `timeout`: a test kills the controller itself (SIGKILL, a lost
+# site), and a timeout in between would survive it.
+start_controller() {
+    local name=$1
+    shift
+    "$bin" controller "$@" >"$work/$name.out" 2>"$work/$name.err" &
+    last_pid=$!
+    servers+=("$last_pid")
+    port=
+    for _ in $(seq 1 400); do
+        port=$(sed -n 's/^listening on 127\.0\.0\.1:\([0-9][0-9]*\)$/\1/p' "$work/$name.out")
+        [ -n "$port" ] && break
+        kill -0 "$last_pid" 2>/dev/null || break
+        sleep 0.05
+    done
+}
+
+# start_site N NAME ARGS...: the controller of site N of $cfg (a multi-site file, docs/method.md
+# "Multi-site tests") on a free loopback port, not real-time, host watchdog 10 s; sets port and
+# last_pid; a site that does not start fails the script (exit 1).
+start_site() {
+    local n=$1 name=$2
+    shift 2
+    start_controller "$name" "$cfg" --site "$n" --listen 127.0.0.1:0 --set server.realtime=false \
+        --set server.watchdog_s=10 "$@"
+    [ -n "$port" ] || { fail "site $n did not start: $(cat "$work/$name.err")"; exit 1; }
+}
