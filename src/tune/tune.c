@@ -45,7 +45,7 @@ int rths_pd_loop_from_setup(const rths_setup *setup, const rths_controller_optio
     for (int d = 0; d < ni; d++)
         for (int e = 0; e < ni; e++)
             RTHS_AT(m, n, n - ni + d, n - ni + e) = rths_setup_rig_interface_mass(setup, d, e);
-    /* the virtual rig's delay line holds whole samples (plant.c: rounded) */
+    /* the virtual rig's delay line holds whole samples (plant_build.c: rounded) */
     rths_plant_options rig = *popt;
     rig.delay_s = delay_s >= 0
                       ? delay_s
