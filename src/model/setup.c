@@ -840,8 +840,8 @@ static int read_transforms(rths_config *cfg, rths_setup *s, rths_error *err) {
 static int read_interface_mass(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const modes[] = {"full", "physical_share", NULL};
     int mode = RTHS_INTERFACE_MASS_FULL;
-    /* read only when given: a read key of `rig` makes a command the section's reader (config_check.c,
-     * setup_subsections), and `rths model` ignores the rest of `rig` */
+    /* read only when given: a read key of `rig` makes a command the section's reader
+     * (config_check.c, setup_subsections), and `rths model` ignores the rest of `rig` */
     s->interface_mass = RTHS_INTERFACE_MASS_FULL;
     if (!rths_config_has(cfg, "rig.interface_mass")) return RTHS_OK;
     int rc = rths_config_get_choice(cfg, "rig.interface_mass", 0, mode, modes, &mode, err);
