@@ -202,11 +202,24 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
     const rths_reduction_options *ro = &c->opt.reduction;
     rths_reduced red = {0};
     int rc = RTHS_OK, reduce = rths_reduction_applies(ro, s->nn);
+    /* the DoFs a nonlinear element touches stay physical coordinates of the reduced model (its
+     * deformation is then a coordinate difference, as unreduced): boundary coordinates after the
+     * interface's, keep[m] becoming coordinate n_int + m (reduce.h) */
+    int keep[2 * MAX_NL], n_keep = 0;
+    for (int e = 0; reduce && e < c->n_nl; e++) {
+        int ends[2] = {c->nl[e].i, c->nl[e].j};
+        for (int k = 0; k < 2; k++) {
+            int dof = ends[k], seen = dof < s->n_int; /* ground (-1) and interface DoFs stay */
+            for (int m = 0; m < n_keep && !seen; m++)
+                seen = keep[m] == dof;
+            if (!seen) keep[n_keep++] = dof;
+        }
+    }
     if (reduce)
-        rc = rths_reduce_craig_bampton(
-            s->nn, s->n_int, s->mass_num, s->damping_num, s->stiffness_num,
-            rths_reduction_cutoff_hz(ro, c->opt.sample_rate_hz), RTHS_REALTIME_MAX_DOFS - s->n_int,
-            ro->cutoff_hz <= 0, &red, err);
+        rc = rths_reduce_craig_bampton_keeping(
+            s->nn, s->n_int, s->mass_num, s->damping_num, s->stiffness_num, n_keep, keep,
+            rths_reduction_cutoff_hz(ro, c->opt.sample_rate_hz),
+            RTHS_REALTIME_MAX_DOFS - s->n_int - n_keep, ro->cutoff_hz <= 0, &red, err);
     int n = reduce ? red.nr : s->nn;
     if (!rc && n > RTHS_REALTIME_MAX_DOFS)
         rc = rths_error_set(err, RTHS_EINPUT,
@@ -214,12 +227,6 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
                             "at most %d (RTHS_REALTIME_MAX_DOFS): set controller.reduction.method "
                             "to craig_bampton (or auto), or split.numerical_solver to frequency",
                             n, RTHS_REALTIME_MAX_DOFS);
-    if (!rc && reduce && c->n_nl > 0)
-        rc = rths_error_set(err, RTHS_EINPUT,
-                            "the numerical substructure has nonlinear elements and would be "
-                            "reduced (controller.reduction): a Craig-Bampton reduction must keep "
-                            "their DoFs as interface DoFs, which it does not yet; set "
-                            "controller.reduction.method to none");
     const int ni = c->ni, n_in_lin = c->n_inputs;
     /* further inputs: one per nonlinear element (its force's direction e_i - e_j), then the
      * static forces on numerical DoFs (a constant input of 1) */
@@ -250,6 +257,17 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
             for (int i = 0; i < s->n_num; i++)
                 col[s->n_int + i] = setup->static_force[s->num_dofs[i]];
         }
+    }
+    /* the elements' coordinates in the reduced model (the input columns above are in the
+     * substructure's own DoFs and are projected by T^T below) */
+    for (int e = 0; !rc && reduce && e < c->n_nl; e++) {
+        nl_state *ne = &c->nl[e];
+        int i = ne->i, j = ne->j; /* compared before any is renamed */
+        for (int m = 0; m < n_keep; m++) {
+            if (i == keep[m]) ne->i = s->n_int + m;
+            if (j == keep[m]) ne->j = s->n_int + m;
+        }
+        ne->off = rths_nl_on_rate(&ne->el) ? n : 0; /* velocities follow the n coordinates */
     }
     double *reduced_input = !rc && reduce ? rths_mat_new(n, n_in) : NULL;
     if (reduced_input)
