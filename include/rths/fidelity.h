@@ -66,11 +66,14 @@ int rths_fidelity_peak(const rths_fidelity *f, int curve, int dof, double lo_hz,
 typedef struct rths_fidelity_options {
     double start_hz, end_hz; /* default: +-10 % around the second natural frequency */
     int points;              /* uniform frequencies, default 1001 */
+    /* with nonlinear elements: how many of the grid's frequencies (evenly spread, both ends
+     * included) the real-time step is run at against the harmonic-balance truth; default 11 */
+    int nonlinear_points;
 } rths_fidelity_options;
 
-/* Reads fidelity.start_hz, end_hz and points; the defaults come from assembly a's modes (the
- * second mode, where the seed's hybrid test is hardest; the first for a one-DoF structure).
- * Refuses, located, values out of range and end_hz <= start_hz. */
+/* Reads fidelity.start_hz, end_hz, points and nonlinear_points (<= points); the defaults come from
+ * assembly a's modes (the second mode, where the seed's hybrid test is hardest; the first for a
+ * one-DoF structure). Refuses, located, values out of range and end_hz <= start_hz. */
 int rths_fidelity_config_read(rths_config *cfg, const rths_assembly *a, rths_fidelity_options *o,
                               rths_error *err);
 

@@ -2,6 +2,7 @@
  * integration scheme of the numerical substructure, against the true assembly (docs/method.md,
  * "Numerical substructure integration"). The one implementation of `rths fidelity`: the command
  * calls rths_api_fidelity_compute and writes its result with rths_api_result_write. */
+#include "api/api_fidelity_nonlinear.h"
 #include "api/api_internal.h"
 #include "rths/controller.h"
 #include "rths/fidelity.h"
@@ -20,6 +21,7 @@ typedef struct {
     double sample_rate_hz;
     int dof; /* 0-based: the (first) interface DoF */
     rths_reduction_options reduction;
+    rths_controller_options controller; /* the step's, for the nonlinear comparison */
 } fidelity_options;
 
 static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_options *o,
@@ -34,6 +36,7 @@ static int read_options(rths_config *cfg, const rths_setup *setup, fidelity_opti
     o->sample_rate_hz = copt.sample_rate_hz;
     o->dof = setup->split.int_dofs[0];
     o->reduction = copt.reduction;
+    o->controller = copt;
     return rths_reduction_config_read(cfg, &o->reduction, err);
 }
 
@@ -41,17 +44,28 @@ static const char *curve_name(int c) {
     return c == RTHS_FIDELITY_TRUE ? "true" : rths_scheme_name((rths_scheme)c);
 }
 
-/* Table "fidelity": frequency_hz, true_amplitude_m, <scheme>_amplitude_m (fidelity.csv). */
+/* Columns after the linear ones with nonlinear elements: at the nonlinear comparison's
+ * frequencies, nan elsewhere. */
+#define NL_COLUMNS 3
+static const char *const nl_header[NL_COLUMNS] = {
+    "nonlinear_true_amplitude_m", "nonlinear_step_amplitude_m", "nonlinear_step_error_relative"};
+
+/* Table "fidelity": frequency_hz, true_amplitude_m, <scheme>_amplitude_m (fidelity.csv), then
+ * with n_nl nonlinear points (else none) their NL_COLUMNS columns. */
 static int add_table(rths_result *res, const rths_fidelity *f, const fidelity_options *o,
-                     const double *freqs, int count, rths_error *err) {
-    const char *header[N_CURVES + 1] = {"frequency_hz", "true_amplitude_m"};
+                     const double *freqs, int count, const rths_fidelity_nl_point *nl, int n_nl,
+                     rths_error *err) {
+    const char *header[N_CURVES + 1 + NL_COLUMNS] = {"frequency_hz", "true_amplitude_m"};
     char names[RTHS_SCHEME_COUNT][64];
     for (int s = 0; s < RTHS_SCHEME_COUNT; s++) {
         snprintf(names[s], sizeof names[s], "%s_amplitude_m", rths_scheme_name((rths_scheme)s));
         header[2 + s] = names[s];
     }
+    for (int k = 0; k < NL_COLUMNS; k++)
+        header[N_CURVES + 1 + k] = nl_header[k];
     rths_table t;
-    int rc = rths_table_create("fidelity", count, N_CURVES + 1, header, &t, err);
+    int rc = rths_table_create("fidelity", count, N_CURVES + 1 + (n_nl > 0 ? NL_COLUMNS : 0),
+                               header, &t, err);
     if (rc) return rc;
     double complex *x = malloc((size_t)rths_fidelity_dofs(f) * sizeof *x);
     if (!x) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -61,6 +75,14 @@ static int add_table(rths_result *res, const rths_fidelity *f, const fidelity_op
             rc = rths_fidelity_response(f, c, 2 * M_PI * freqs[i], x, err);
             t.data[2 + c][i] = cabs(x[o->dof]);
         }
+        for (int k = 0; k < NL_COLUMNS && n_nl > 0; k++)
+            t.data[N_CURVES + 1 + k][i] = NAN;
+        for (int p = 0; p < n_nl; p++)
+            if (nl[p].frequency_hz == freqs[i]) {
+                t.data[N_CURVES + 1][i] = nl[p].true_amplitude_m;
+                t.data[N_CURVES + 2][i] = nl[p].step_amplitude_m;
+                t.data[N_CURVES + 3][i] = nl[p].error_relative;
+            }
     }
     free(x);
     if (rc) {
@@ -180,6 +202,84 @@ static int report_reduction(rths_result *res, const rths_fidelity *f, const rths
     return RTHS_OK;
 }
 
+/* The nonlinear comparison's frequencies: nonlinear_points of the uniform grid, evenly spread with
+ * both ends, computed as rths_fidelity_frequencies computes the grid so that each is one of its
+ * rows exactly; then the step against the truth at each (api_fidelity_nonlinear.h). */
+static int nonlinear_points(const rths_setup *setup, const fidelity_options *o,
+                            rths_fidelity_nl_point **nl, int *n_nl, rths_error *err) {
+    const int m = o->sweep.nonlinear_points, points = o->sweep.points;
+    double *hz = malloc(sizeof *hz * (size_t)m);
+    *nl = calloc((size_t)m, sizeof **nl);
+    *n_nl = 0;
+    if (!hz || !*nl) {
+        free(hz);
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    for (int k = 0; k < m; k++) {
+        int i = (int)lround((double)k * (points - 1) / (m - 1));
+        hz[k] = o->sweep.start_hz + (o->sweep.end_hz - o->sweep.start_hz) * i / (points - 1);
+    }
+    int rc = rths_fidelity_nl_compute(setup, &o->controller, hz, m, *nl, err);
+    free(hz);
+    if (!rc) *n_nl = m;
+    return rc;
+}
+
+/* A number for the summary; null for nan (a point without a truth), which JSON cannot carry. */
+static json_object *finite_or_null(double x) {
+    return isfinite(x) ? json_object_new_double(x) : NULL;
+}
+
+/* The nonlinear comparison in the summary ("nonlinear") and the printed report. */
+static void report_nonlinear(rths_result *res, const fidelity_options *o,
+                             const rths_fidelity_nl_point *nl, int n_nl, json_object *summary) {
+    json_object *r = json_object_new_object(), *pts = json_object_new_array();
+    double worst = 0, worst_hz = 0, truncation = 0;
+    int settled = 1;
+    rths_result_printf(res,
+                       "Nonlinear elements: the step (%s, %g Hz) simulating the whole assembly "
+                       "against harmonic balance (%d harmonics, %d samples per period)\n",
+                       rths_scheme_name(o->controller.scheme), o->sample_rate_hz,
+                       RTHS_FIDELITY_NL_HARMONICS, RTHS_FIDELITY_NL_SAMPLES);
+    rths_result_printf(res, "%14s %18s %18s %14s %12s\n", "frequency_hz", "true_amplitude_m",
+                       "step_amplitude_m", "error_rel", "settled_s");
+    for (int p = 0; p < n_nl; p++) {
+        const rths_fidelity_nl_point *q = &nl[p];
+        json_object *j = json_object_new_object();
+        json_object_object_add(j, "frequency_hz", json_object_new_double(q->frequency_hz));
+        json_object_object_add(j, "true_amplitude_m", finite_or_null(q->true_amplitude_m));
+        json_object_object_add(j, "step_amplitude_m", finite_or_null(q->step_amplitude_m));
+        json_object_object_add(j, "error_relative", finite_or_null(q->error_relative));
+        json_object_object_add(j, "truth_truncation_relative", finite_or_null(q->truth_truncation));
+        json_object_object_add(j, "settled", json_object_new_boolean(q->settled));
+        json_object_object_add(j, "settled_s", json_object_new_double(q->settled_s));
+        json_object_array_add(pts, j);
+        rths_result_printf(res, "%14.6f %18.9e %18.9e %14.3e %12.2f%s\n", q->frequency_hz,
+                           q->true_amplitude_m, q->step_amplitude_m, q->error_relative,
+                           q->settled_s, q->settled ? "" : " (not periodic)");
+        if (q->error_relative > worst) worst = q->error_relative, worst_hz = q->frequency_hz;
+        truncation = fmax(truncation, q->truth_truncation);
+        settled &= q->settled;
+    }
+    json_object_object_add(r, "truth", json_object_new_string("harmonic_balance"));
+    json_object_object_add(r, "harmonics", json_object_new_int(RTHS_FIDELITY_NL_HARMONICS));
+    json_object_object_add(r, "samples_per_period", json_object_new_int(RTHS_FIDELITY_NL_SAMPLES));
+    json_object_object_add(r, "scheme",
+                           json_object_new_string(rths_scheme_name(o->controller.scheme)));
+    json_object_object_add(r, "max_error_relative", json_object_new_double(worst));
+    json_object_object_add(r, "max_error_hz", json_object_new_double(worst_hz));
+    json_object_object_add(r, "max_truth_truncation_relative", json_object_new_double(truncation));
+    json_object_object_add(r, "all_settled", json_object_new_boolean(settled));
+    json_object_object_add(r, "points", pts);
+    json_object_object_add(summary, "nonlinear", r);
+    rths_result_printf(res, "step error up to %.3e (at %g Hz); truth's truncation up to %.1e\n",
+                       worst, worst_hz, truncation);
+    rths_result_log(res,
+                    "nonlinear: step error up to %.6e at %g Hz over %d frequencies, harmonic "
+                    "balance %d harmonics (truncation up to %.2e)",
+                    worst, worst_hz, n_nl, RTHS_FIDELITY_NL_HARMONICS, truncation);
+}
+
 int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const char *config_path,
                               const char *const *overrides, int n_overrides, rths_result **out,
                               rths_error *err) {
@@ -191,6 +291,9 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
     int reduced = 0;
     double *freqs = NULL;
     json_object *summary = NULL;
+    rths_fidelity_nl_point *nl = NULL;
+    int n_nl = 0;
+    const char *nl_why = NULL;
     fidelity_options o;
     int rc;
     if ((rc = read_options(cfg, setup, &o, err)) ||
@@ -212,7 +315,11 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
     int unique;
     if ((rc = rths_fidelity_frequencies(&o.sweep, peak_hz, N_CURVES, &freqs, &unique, err)))
         goto done;
-    if ((rc = rths_result_new(&res, err)) || (rc = add_table(res, f, &o, freqs, unique, err)))
+    if (setup->has_bilinear && rths_fidelity_nl_applies(setup, &nl_why) &&
+        (rc = nonlinear_points(setup, &o, &nl, &n_nl, err)))
+        goto done;
+    if ((rc = rths_result_new(&res, err)) ||
+        (rc = add_table(res, f, &o, freqs, unique, nl, n_nl, err)))
         goto done;
 
     summary = rths_api_summary_new("fidelity", config_path, overrides, n_overrides);
@@ -270,6 +377,11 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
         const char *note = leg_only ? leg_note : elements_note;
         json_object_object_add(summary, "note", json_object_new_string(note));
         rths_result_printf(res, "note: %s\n", note);
+        if (n_nl > 0) report_nonlinear(res, &o, nl, n_nl, summary);
+        if (nl_why) {
+            json_object_object_add(summary, "nonlinear_skipped", json_object_new_string(nl_why));
+            rths_result_printf(res, "nonlinear comparison skipped: %s\n", nl_why);
+        }
     }
     rc = rths_result_set_summary(res, summary, err);
     summary = NULL;
@@ -285,6 +397,7 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
 done:
     if (summary) json_object_put(summary);
     free(freqs);
+    free(nl);
     rths_fidelity_free(f);
     rths_reduced_free(&red);
     if (rc) {

@@ -27,6 +27,11 @@ int rths_fidelity_config_read(rths_config *cfg, const rths_assembly *a, rths_fid
                                     "must be above fidelity.start_hz (%g Hz), got %g Hz",
                                     o->start_hz, o->end_hz);
     o->points = (int)points;
+    long nonlinear_points;
+    if ((rc = rths_config_get_int(cfg, "fidelity.nonlinear_points", 0, 11 < points ? 11 : points, 2,
+                                  points, &nonlinear_points, err)))
+        return rc;
+    o->nonlinear_points = (int)nonlinear_points;
     return RTHS_OK;
 }
 
