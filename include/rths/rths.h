@@ -273,6 +273,13 @@ int rths_api_chart_run(struct rths_config *c, const struct rths_setup *setup, in
 int rths_api_tune_compute(struct rths_config *c, const struct rths_setup *setup, double delay_s,
                           const char *config_path, const char *const *overrides, int n_overrides,
                           rths_result **out, rths_error *err);
+/* `rths model`'s whole job from the configuration c loaded with the overrides (the setup is not
+ * read yet: the solver path is chosen first, so a sparse model never becomes dense):
+ * rths_api_model's tables and summary, the printed report as rths_result_text (out_dir named in
+ * it), run.log's lines (the path and why, the stage times) and the figure true_frf. RTHS_EINPUT for
+ * an unknown key of structure, split, forcing or model. */
+int rths_api_model_run(struct rths_config *c, const char *config_path, const char *const *overrides,
+                       int n_overrides, const char *out_dir, rths_result **out, rths_error *err);
 /* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
  * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
