@@ -24,7 +24,6 @@ src/cli/cmd_controller.c rths/protocol.h
 src/cli/cmd_controller.c rths/run.h
 src/cli/cmd_controller.c rths/server.h
 src/cli/cmd_controller.c rths/view.h
-src/cli/cmd_frf.c rths/run.h
 "
 
 # check_cli TREE PENDING: the front-door rule for TREE/src/cli/*.c; prints every violation,
