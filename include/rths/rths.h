@@ -323,6 +323,32 @@ int rths_api_frf_run(struct rths_config *c, const struct rths_setup *setup,
                      rths_error *err);
 /* The overrides --strategy paper applies before the user's (*n of them; later ones still win). */
 const char *const *rths_api_frf_paper_overrides(int *n);
+/* `rths controller`: the real-time controller process (docs/protocol.md) as the command's
+ * options give it. It prints what the command prints ("listening on ADDR:PORT" and with a page
+ * "view at http://ADDR:PORT/" on stdout; notices and the loop's statistics on stderr unless
+ * quiet). */
+typedef struct rths_api_controller_options {
+    const char *config_path;      /* the test configuration (may be NULL for the latency test) */
+    const char *const *overrides; /* "a.b=value", in order (--set, --io's io.plugin) */
+    int n_overrides;
+    const char *listen;      /* "ADDR:PORT" or "[V6]:PORT"; NULL: the default (loopback) */
+    long site;               /* 1-based site of a multi-site test (rig.sites); 0: the whole test */
+    const char *view_listen; /* the process's web page (docs/view.md); NULL: none */
+    double duration_s;       /* > 0: stop after this long; else at SIGINT/SIGTERM */
+    int quiet;               /* no notices on stderr */
+} rths_api_controller_options;
+/* The command's usage text with this build's defaults (max_overrides: --set's limit). */
+void rths_api_controller_usage(char *out, size_t cap, int max_overrides);
+/* RTHS_EINPUT naming listen when it is not ADDR:PORT (port 0..65535). */
+int rths_api_controller_check_listen(const char *listen, rths_error *err);
+/* Builds the server from the configuration (refusing bad input with RTHS_EINPUT before anything
+ * runs), serves one host until a signal or duration_s, stops; RTHS_EFAIL when it cannot listen or
+ * the loop stalled in the I/O device. SIGINT and SIGTERM are blocked in the calling thread. */
+int rths_api_controller_serve(const rths_api_controller_options *o, rths_error *err);
+/* The paced loop alone for seconds at controller.sample_rate_hz (the configuration optional),
+ * its wake-up lateness printed on stdout. */
+int rths_api_controller_latency_test(const rths_api_controller_options *o, double seconds,
+                                     rths_error *err);
 /* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
  * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
