@@ -273,6 +273,82 @@ int rths_api_chart_run(struct rths_config *c, const struct rths_setup *setup, in
 int rths_api_tune_compute(struct rths_config *c, const struct rths_setup *setup, double delay_s,
                           const char *config_path, const char *const *overrides, int n_overrides,
                           rths_result **out, rths_error *err);
+/* `rths model`'s whole job from the configuration c loaded with the overrides (the setup is not
+ * read yet: the solver path is chosen first, so a sparse model never becomes dense):
+ * rths_api_model's tables and summary, the printed report as rths_result_text (out_dir named in
+ * it), run.log's lines (the path and why, the stage times) and the figure true_frf. RTHS_EINPUT for
+ * an unknown key of structure, split, forcing or model. */
+int rths_api_model_run(struct rths_config *c, const char *config_path, const char *const *overrides,
+                       int n_overrides, const char *out_dir, rths_result **out, rths_error *err);
+/* `rths frf`'s run (rths_frf's orchestration, docs/method.md) from the configuration c the command
+ * has loaded and the setup read from it, with its options as given on the command line. */
+#define RTHS_API_FRF_MAX_HARMONICS 3 /* --harmonics' largest value */
+/* After every correction attempt: the point's number, frequency, residual, evaluations so far and
+ * whether it was accepted (a progress display). */
+typedef void (*rths_api_progress_fn)(void *user, int points, double frequency_hz, double residual_m,
+                                     int evaluations, int accepted);
+typedef struct rths_api_frf_run_options {
+    const char *out_dir;  /* created; must not hold a run unless resume */
+    const char *strategy; /* "default" (NULL) or "paper" */
+    int harmonics;        /* 1..RTHS_API_FRF_MAX_HARMONICS; 0: iteration.harmonics */
+    int resume, force;    /* as --resume, --force */
+    const char *rig_uri;  /* tcp://HOST:PORT of a controller process; NULL: the virtual rig */
+    int reset_fault;      /* with rig_uri: reset its latched fault first */
+    const char *const *site_uris; /* a multi-site test's controllers in rig.sites' order (>= 2) */
+    int n_site_uris;
+    int has_seed;
+    uint64_t seed;
+    /* recorded in run.log and summary.json */
+    const char *config_path;
+    const char *const *overrides;
+    int n_overrides;
+    int argc;
+    char **argv;
+    rths_api_progress_fn on_progress; /* may be NULL */
+    rths_api_cancel_fn should_cancel; /* polled after every accepted point; may be NULL */
+    void *user;                       /* passed to both */
+} rths_api_frf_run_options;
+typedef struct rths_api_frf_run_summary {
+    int cancelled; /* should_cancel ended it (everything accepted saved, resumable) */
+    int points, converged_points, resumed_points, evaluations, folds;
+    double rig_time_s, wall_time_s;
+    double max_relative_error_vs_truth;
+    char stop_reason[RTHS_ERROR_MSG_LEN + 256];
+    int outputs_written; /* frf.csv and summary.json were written (the counts are valid) */
+} rths_api_frf_run_summary;
+/* RTHS_OK when it ran (also when cancelled), RTHS_EINPUT on bad input (nothing written),
+ * RTHS_EFAIL on a failure during it (what was accepted is saved; r says how far it got). */
+int rths_api_frf_run(struct rths_config *c, const struct rths_setup *setup,
+                     const rths_api_frf_run_options *o, rths_api_frf_run_summary *r,
+                     rths_error *err);
+/* The overrides --strategy paper applies before the user's (*n of them; later ones still win). */
+const char *const *rths_api_frf_paper_overrides(int *n);
+/* `rths controller`: the real-time controller process (docs/protocol.md) as the command's
+ * options give it. It prints what the command prints ("listening on ADDR:PORT" and with a page
+ * "view at http://ADDR:PORT/" on stdout; notices and the loop's statistics on stderr unless
+ * quiet). */
+typedef struct rths_api_controller_options {
+    const char *config_path;      /* the test configuration (may be NULL for the latency test) */
+    const char *const *overrides; /* "a.b=value", in order (--set, --io's io.plugin) */
+    int n_overrides;
+    const char *listen;      /* "ADDR:PORT" or "[V6]:PORT"; NULL: the default (loopback) */
+    long site;               /* 1-based site of a multi-site test (rig.sites); 0: the whole test */
+    const char *view_listen; /* the process's web page (docs/view.md); NULL: none */
+    double duration_s;       /* > 0: stop after this long; else at SIGINT/SIGTERM */
+    int quiet;               /* no notices on stderr */
+} rths_api_controller_options;
+/* The command's usage text with this build's defaults (max_overrides: --set's limit). */
+void rths_api_controller_usage(char *out, size_t cap, int max_overrides);
+/* RTHS_EINPUT naming listen when it is not ADDR:PORT (port 0..65535). */
+int rths_api_controller_check_listen(const char *listen, rths_error *err);
+/* Builds the server from the configuration (refusing bad input with RTHS_EINPUT before anything
+ * runs), serves one host until a signal or duration_s, stops; RTHS_EFAIL when it cannot listen or
+ * the loop stalled in the I/O device. SIGINT and SIGTERM are blocked in the calling thread. */
+int rths_api_controller_serve(const rths_api_controller_options *o, rths_error *err);
+/* The paced loop alone for seconds at controller.sample_rate_hz (the configuration optional),
+ * its wake-up lateness printed on stdout. */
+int rths_api_controller_latency_test(const rths_api_controller_options *o, double seconds,
+                                     rths_error *err);
 /* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
  * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
 int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);

@@ -33,7 +33,7 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "IncompleteRunWarning", "model", "chart", "tune", "fidelity", "simulate", "frf", "frf_available", "read_run", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "tune", "fidelity", "simulate", "frf", "frf_available", "read_run", "View", "view", "library_release"]
 
 def _c():
     global _LIB
@@ -439,6 +439,59 @@ def read_run(dir):
             f"tables read: {', '.join(result.tables) or 'none'}; an FRF run continues with "
             "rths.frf(..., resume=True)"), stacklevel=2)
     return result
+
+
+class View:
+    """The web view of a run or campaign folder being served (rths view, docs/view.md): .url,
+    .host, .port, .loopback (False: the page, which has no authentication, is reachable from other
+    machines). stop() closes every connection; a with-block stops it however it ends."""
+
+    def __init__(self, handle):
+        c = _c()
+        self._handle = handle
+        self.host = c.rths_api_view_host(handle).decode()
+        self.loopback = bool(c.rths_api_view_host_is_loopback(handle))
+        self.port = c.rths_api_view_port(handle)
+        host = f"[{self.host}]" if ":" in self.host else self.host
+        self.url = f"http://{host}:{self.port}/"
+
+    def stop(self):
+        if self._handle:
+            _c().rths_api_view_stop(self._handle)
+            self._handle = None
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    def __del__(self):
+        self.stop()
+
+
+def view(dir, listen="127.0.0.1:0"):
+    """Serves the web view of the run (or campaign) folder dir on listen ("ADDR:PORT",
+    "[v6]:PORT"; port 0: a free one, the default) until .stop(); returns a View (its .url).
+    A bad folder or address raises InputError naming it."""
+    c = _c()
+    handle = ctypes.c_void_p()
+    err = c.Error()
+    _check(c.rths_api_view_open(os.fsencode(_path("dir", dir)), listen.encode(),
+                                ctypes.byref(handle), ctypes.byref(err)), err)
+    # the server's threads inherit this thread's mask: Ctrl-C stays with Python's main thread
+    masked = hasattr(signal, "pthread_sigmask")
+    if masked:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        rc = c.rths_api_view_serve(handle, ctypes.byref(err))
+    finally:
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    if rc:
+        c.rths_api_view_stop(handle)
+        _check(rc, err)
+    return View(handle)
 
 
 def _path(name, value):

@@ -34,6 +34,21 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
                           "not built in)");
 }
 
+int rths_api_frf_run(struct rths_config *c, const struct rths_setup *setup,
+                     const rths_api_frf_run_options *o, rths_api_frf_run_summary *r,
+                     rths_error *err) {
+    (void)c, (void)setup, (void)o;
+    memset(r, 0, sizeof *r);
+    return rths_error_set(err, RTHS_EFAIL,
+                          "this librths has no FRF run (the run module, include/rths/run.h, is "
+                          "not built in)");
+}
+
+const char *const *rths_api_frf_paper_overrides(int *n) {
+    *n = 0;
+    return NULL;
+}
+
 #else
 
 #include "rths/run.h"
@@ -42,6 +57,57 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
 
 int rths_api_frf_available(void) {
     return 1;
+}
+
+_Static_assert(RTHS_API_FRF_MAX_HARMONICS == RTHS_MAX_MATCHED_HARMONICS,
+               "rths.h's --harmonics limit is the matched harmonics'");
+_Static_assert(RTHS_API_MAX_INTERFACE_DOFS == RTHS_MAX_INTERFACE_DOFS,
+               "rths.h's interface DoF limit is the library's");
+
+const char *const *rths_api_frf_paper_overrides(int *n) {
+    *n = RTHS_RUN_PAPER_OVERRIDES;
+    return rths_run_paper_overrides;
+}
+
+int rths_api_frf_run(rths_config *c, const rths_setup *setup, const rths_api_frf_run_options *o,
+                     rths_api_frf_run_summary *r, rths_error *err) {
+    rths_run_frf_options ro = {.cfg = c,
+                               .setup = setup,
+                               .out_dir = o->out_dir,
+                               .strategy = o->strategy,
+                               .harmonics = o->harmonics,
+                               .resume = o->resume,
+                               .force = o->force,
+                               .rig_uri = o->rig_uri,
+                               .reset_fault = o->reset_fault,
+                               .site_uris = o->site_uris,
+                               .n_site_uris = o->n_site_uris,
+                               .has_seed = o->has_seed,
+                               .seed = o->seed,
+                               .config_path = o->config_path,
+                               .overrides = o->overrides,
+                               .n_overrides = o->n_overrides,
+                               .argc = o->argc,
+                               .argv = o->argv};
+    rths_run_callbacks cb = {
+        .on_progress = o->on_progress, .should_cancel = o->should_cancel, .user = o->user};
+    rths_run_frf_result res;
+    memset(&res, 0, sizeof res);
+    int rc = rths_run_frf(&ro, &cb, &res, err);
+    memset(r, 0, sizeof *r);
+    r->cancelled = res.status == RTHS_RUN_CANCELLED;
+    r->points = res.points;
+    r->converged_points = res.converged_points;
+    r->resumed_points = res.resumed_points;
+    r->evaluations = res.evaluations;
+    r->folds = res.folds;
+    r->rig_time_s = res.rig_time_s;
+    r->wall_time_s = res.wall_time_s;
+    r->max_relative_error_vs_truth = res.max_relative_error_vs_truth;
+    _Static_assert(sizeof r->stop_reason == sizeof res.stop_reason, "the same stop reason");
+    memcpy(r->stop_reason, res.stop_reason, sizeof r->stop_reason);
+    r->outputs_written = res.outputs_written;
+    return rc;
 }
 
 typedef struct {

@@ -1,9 +1,9 @@
 /* rths frf CONFIG --out DIR: the iterative hybrid test with continuation in forcing frequency, the
  * main job. This file parses the options, loads the configuration and prints; the test itself is
- * rths_run_frf (src/run). */
+ * rths_api_frf_run (the C API over src/run's rths_run_frf). */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
-#include "rths/run.h"
+#include "rths/rths.h"
 
 #include <signal.h>
 #include <stdio.h>
@@ -136,7 +136,7 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
                                             a->strategy),
                              &err);
     if (opts[OPT_HARMONICS].value &&
-        (rc = rths_cli_int("--harmonics", opts[OPT_HARMONICS].value, 1, RTHS_MAX_MATCHED_HARMONICS,
+        (rc = rths_cli_int("--harmonics", opts[OPT_HARMONICS].value, 1, RTHS_API_FRF_MAX_HARMONICS,
                            &a->harmonics, &err)))
         return rths_cli_fail(cli, rc, &err);
     a->resume = opts[OPT_RESUME].value != NULL;
@@ -161,13 +161,14 @@ static int parse_args(rths_cli *cli, int argc, char **argv, frf_args *a) {
     /* The paper strategy integrates the numerical substructure as the seed did; an explicit
      * --set controller.scheme=... still wins, because overrides apply in order. */
     if (!strcmp(a->strategy, "paper")) {
-        if (cli->n_sets + RTHS_RUN_PAPER_OVERRIDES > RTHS_CLI_MAX_SETS)
+        int n_paper;
+        const char *const *paper = rths_api_frf_paper_overrides(&n_paper);
+        if (cli->n_sets + n_paper > RTHS_CLI_MAX_SETS)
             return rths_cli_fail(cli, rths_error_set(&err, RTHS_EINPUT, "too many --set"), &err);
-        memmove(cli->sets + RTHS_RUN_PAPER_OVERRIDES, cli->sets,
-                (size_t)cli->n_sets * sizeof cli->sets[0]);
-        for (int i = 0; i < RTHS_RUN_PAPER_OVERRIDES; i++)
-            cli->sets[i] = rths_run_paper_overrides[i];
-        cli->n_sets += RTHS_RUN_PAPER_OVERRIDES;
+        memmove(cli->sets + n_paper, cli->sets, (size_t)cli->n_sets * sizeof cli->sets[0]);
+        for (int i = 0; i < n_paper; i++)
+            cli->sets[i] = paper[i];
+        cli->n_sets += n_paper;
     }
     return RTHS_OK;
 }
@@ -198,13 +199,13 @@ static int take_site_rigs(int argc, char **argv, char **argv_out, int *argc_out,
 int rths_cmd_frf(int argc, char **argv) {
     rths_cli cli;
     frf_args a = {0};
-    const char *site_uris[RTHS_MAX_INTERFACE_DOFS];
+    const char *site_uris[RTHS_API_MAX_INTERFACE_DOFS];
     char *args[argc + 1];
     int n_args = 0;
-    int n_sites = take_site_rigs(argc, argv, args, &n_args, site_uris, RTHS_MAX_INTERFACE_DOFS);
-    if (n_sites > RTHS_MAX_INTERFACE_DOFS) {
+    int n_sites = take_site_rigs(argc, argv, args, &n_args, site_uris, RTHS_API_MAX_INTERFACE_DOFS);
+    if (n_sites > RTHS_API_MAX_INTERFACE_DOFS) {
         fprintf(stderr, "rths frf: --rig given %d times; a multi-site test has at most %d sites\n",
-                n_sites, RTHS_MAX_INTERFACE_DOFS);
+                n_sites, RTHS_API_MAX_INTERFACE_DOFS);
         return RTHS_EINPUT;
     }
     for (int k = 0; k < n_sites; k++)
@@ -223,31 +224,29 @@ int rths_cmd_frf(int argc, char **argv) {
     rths_setup setup = {0};
     rths_error err = {0};
     if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    rths_run_frf_options opt = {.cfg = cfg,
-                                .setup = &setup,
-                                .out_dir = cli.out_dir,
-                                .strategy = a.strategy,
-                                .harmonics = (int)a.harmonics,
-                                .resume = a.resume,
-                                .force = a.force,
-                                .rig_uri = a.rig_uri,
-                                .reset_fault = a.reset_fault,
-                                .site_uris = site_uris,
-                                .n_site_uris = n_sites,
-                                .has_seed = cli.has_seed,
-                                .seed = cli.seed,
-                                .config_path = cli.config_path,
-                                .overrides = cli.sets,
-                                .n_overrides = cli.n_sets,
-                                .argc = all_argc,
-                                .argv = all_argv};
     int progress = rths_progress_enabled(cli.quiet);
-    rths_run_callbacks cb = {.on_progress = progress ? print_progress : NULL,
-                             .should_cancel = should_cancel};
+    rths_api_frf_run_options opt = {.out_dir = cli.out_dir,
+                                    .strategy = a.strategy,
+                                    .harmonics = (int)a.harmonics,
+                                    .resume = a.resume,
+                                    .force = a.force,
+                                    .rig_uri = a.rig_uri,
+                                    .reset_fault = a.reset_fault,
+                                    .site_uris = site_uris,
+                                    .n_site_uris = n_sites,
+                                    .has_seed = cli.has_seed,
+                                    .seed = cli.seed,
+                                    .config_path = cli.config_path,
+                                    .overrides = cli.sets,
+                                    .n_overrides = cli.n_sets,
+                                    .argc = all_argc,
+                                    .argv = all_argv,
+                                    .on_progress = progress ? print_progress : NULL,
+                                    .should_cancel = should_cancel};
     signal(SIGINT, on_interrupt);
     signal(SIGTERM, on_interrupt);
-    rths_run_frf_result r;
-    rc = rths_run_frf(&opt, &cb, &r, &err);
+    rths_api_frf_run_summary r;
+    rc = rths_api_frf_run(cfg, &setup, &opt, &r, &err);
     if (progress && r.outputs_written) fprintf(stderr, "\n");
     if (r.outputs_written && r.points > 0)
         rths_cli_print(&cli,
@@ -257,12 +256,12 @@ int rths_cmd_frf(int argc, char **argv) {
                        r.points, r.converged_points, r.resumed_points, r.evaluations, r.rig_time_s,
                        r.wall_time_s, r.folds, 100 * r.max_relative_error_vs_truth, r.stop_reason,
                        cli.out_dir);
-    if (!rc && r.status == RTHS_RUN_CANCELLED)
+    if (!rc && r.cancelled)
         fprintf(stderr,
                 "rths frf: interrupted; everything accepted is in %s (--resume continues)\n",
                 cli.out_dir);
     if (rc) rths_cli_fail(&cli, rc, &err);
     rths_cli_unload(cfg, &setup);
-    if (!rc && r.status == RTHS_RUN_CANCELLED) rc = 130; /* as the shell reports an interrupt */
+    if (!rc && r.cancelled) rc = 130; /* as the shell reports an interrupt */
     return rc;
 }
