@@ -177,9 +177,10 @@ static void predict_natural(cont_run *run, cont_prediction *pr) {
     pr->step_used = fabs(f - p1->omega_rad_s / (2 * M_PI));
 }
 
-/* The fit strategy's pseudo-arclength predictor (docs/method.md, "The fitted evaluation"): the
- * quadratic through the last three points, parametrised by their chord lengths, evaluated at the
- * step `want` beyond the last; the secant's error is second order in the step, this one's third. */
+/* The quadratic pseudo-arclength predictor (iteration.quadratic_predictor; docs/method.md, "The
+ * fitted evaluation"): the quadratic through the last three points, parametrised by their chord
+ * lengths, evaluated at the step `want` beyond the last; the secant's error is second order in
+ * the step, this one's third. The arclength row keeps the secant's direction. */
 static int quadratic_wanted(const cont_run *run) {
     return rths_corrector_quadratic_predictor(run->corr);
 }
