@@ -208,6 +208,11 @@ typedef struct rths_newton_options {
      * accepts the point and flags it (rths_solution.below_noise_floor). */
     double min_snr;
     int accept_below_noise;
+    /* 1: a pseudo-arclength run predicts the next point on the quadratic through the last three
+     * points (chord-length parametrised) instead of the secant (docs/method.md, "The fitted
+     * evaluation": fewer corrector steps per point); iteration.quadratic_predictor, off by
+     * default */
+    int quadratic_predictor;
 } rths_newton_options;
 
 /* ---- the zero problem: Phi(u; omega) = 0 ----
@@ -473,6 +478,9 @@ void rths_corrector_set_trust_anchor(rths_corrector *c, double anchor_m);
 /* 1 when targets u (metres, n unknowns) lie inside the trust region a new correction starts with
  * (trust_growth times the anchor), else 0. */
 int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m);
+/* 1 when the corrector's options ask for the quadratic arclength predictor
+ * (rths_newton_options.quadratic_predictor). */
+int rths_corrector_quadratic_predictor(const rths_corrector *c);
 /* How often the trust region acted during the last correction: a starting target shrunk onto it,
  * or a corrector step shortened onto it. */
 int rths_corrector_trust_actions(const rths_corrector *c);

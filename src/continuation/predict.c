@@ -177,6 +177,31 @@ static void predict_natural(cont_run *run, cont_prediction *pr) {
     pr->step_used = fabs(f - p1->omega_rad_s / (2 * M_PI));
 }
 
+/* The quadratic pseudo-arclength predictor (iteration.quadratic_predictor; docs/method.md, "The
+ * fitted evaluation"): the quadratic through the last three points, parametrised by their chord
+ * lengths, evaluated at the step `want` beyond the last; the secant's error is second order in
+ * the step, this one's third. The arclength row keeps the secant's direction. */
+static int quadratic_wanted(const cont_run *run) {
+    return rths_corrector_quadratic_predictor(run->corr);
+}
+
+static void quadratic_prediction(const cont_run *run, const double *u1, const double *u2, double l2,
+                                 double want, double *predicted) {
+    double um[CONT_LD];
+    int m = cont_pack(&run->sc, &run->pts[run->n - 3].sol, um);
+    double l1 = 0;
+    for (int i = 0; i < m; i++)
+        l1 += (u1[i] - um[i]) * (u1[i] - um[i]);
+    l1 = sqrt(l1);
+    if (!(l1 > 0 && l2 > 0)) return;
+    double s = want;
+    double w2 = (s + l2) * (s + l1 + l2) / (l2 * (l1 + l2));
+    double w1 = -s * (s + l1 + l2) / (l2 * l1);
+    double w0 = s * (s + l2) / (l1 * (l1 + l2));
+    for (int i = 0; i < m; i++)
+        predicted[i] = w2 * u2[i] + w1 * u1[i] + w0 * um[i];
+}
+
 /* Pseudo-arclength: u_pred = u_-1 + ds * (u_-1 - u_-2) in scaled variables (erratum 4), the step
  * clamped to [min_step, max_step], with the arclength row along the secant. */
 static void predict_arclength(cont_run *run, cont_prediction *pr) {
@@ -198,6 +223,8 @@ static void predict_arclength(cont_run *run, cont_prediction *pr) {
         pr->arc.tangent[i] = sec[i] / len;
         pr->arc.predicted[i] = u1[i] + mult * sec[i];
     }
+    if (n >= 3 && quadratic_wanted(run))
+        quadratic_prediction(run, u0, u1, len, want, pr->arc.predicted);
     for (int k = 0; k < N; k++) {
         pr->u[k] = pr->arc.predicted[k] * sc->amp_scale;
         pr->u[N + k] = pr->arc.predicted[N + k] * sc->amp_scale;

@@ -183,6 +183,10 @@ int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m) {
     return target_norm(c, u_m) <= c->opt.trust_growth * c->trust_anchor_m;
 }
 
+int rths_corrector_quadratic_predictor(const rths_corrector *c) {
+    return c->opt.quadratic_predictor;
+}
+
 int rths_corrector_trust_actions(const rths_corrector *c) {
     return c->trust_actions;
 }
