@@ -651,6 +651,15 @@ static int read_nonlinear(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+int rths_setup_require_dense(const rths_setup *s, const char *command, rths_error *err) {
+    if (!s->sparse) return RTHS_OK;
+    return rths_error_set(err, RTHS_EINPUT,
+                          "model.solver: this structure takes the sparse path (%d DoFs), and %s "
+                          "needs its dense matrices: set model.solver: dense (a model of a few "
+                          "thousand DoFs at most), or use rths frf / rths model",
+                          s->assembly.n, command);
+}
+
 int rths_setup_nonlinear_count(const rths_setup *s, int numerical) {
     int count = 0;
     for (int e = 0; e < s->n_nonlinear; e++)
