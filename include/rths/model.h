@@ -278,6 +278,12 @@ typedef struct rths_sparse_model {
     int frf_direct;         /* model.frf.solver: direct (one complex solve per frequency) */
     int frf_check_points;   /* model.frf.check_points: direct solves checking the modal FRF */
     double read_matrices_s; /* seconds spent reading the three files */
+    /* split.interface_damping_physical_n_s_per_m / split.interface_stiffness_physical_n_per_m:
+     * the physical shares of the interface C and K blocks, n_int x n_int column-major over
+     * int_dofs (rths_split_create's damping_int_phys / stiffness_int_phys); NULL: the coupling
+     * rule. A beam frame's rotations make the coupling rule's physical share of K_II negative
+     * (a roof node's ux: -5.3e7 N/m on the 482-DoF frame), which no rig can carry. */
+    double *interface_damping_phys, *interface_stiffness_phys;
 } rths_sparse_model;
 
 /* The most modes the sparse path computes (Lanczos basis of twice as many vectors of n). */

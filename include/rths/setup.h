@@ -92,7 +92,27 @@ typedef struct rths_setup {
     double *actuator_transform;
     double *sensor_transform;
     rths_interface_mass interface_mass; /* rig.interface_mass: full (default) | physical_share */
+    /* structure.matrices as Matrix Market files for which rths_model_choose_solver chose the
+     * sparse path (model.solver; docs/architecture.md, "Sparse algebra"): the model kept sparse.
+     * Then assembly holds only n (no dense matrices: 60 000 DoFs would take 29 GB), the split
+     * only its DoF lists and its small dense physical side (mass_num, damping_num, stiffness_num
+     * NULL), and only split.numerical_solver: frequency with one interface DoF is accepted. */
+    rths_sparse_model *sparse;
+    /* the truth's sparse solves at the reported DoFs (truth.c), NULL without sparse */
+    struct rths_sparse_truth *sparse_truth;
 } rths_setup;
+
+/* The cache of the truth's sparse direct solves (truth.c): one symbolic analysis, then one
+ * complex LDL^T per frequency, the last frequency's response at out_dofs kept. */
+typedef struct rths_sparse_truth {
+    rths_sparse_frf *frf;
+    int n_out, *out_dofs; /* ascending assembly DoFs: rths_setup_output_dofs */
+    double last_omega_rad_s;
+    double complex *last_x; /* n_out, at last_omega_rad_s (NAN omega: none yet) */
+} rths_sparse_truth;
+int rths_sparse_truth_create(const rths_sparse_model *m, int n_out, const int *out_dofs,
+                             rths_sparse_truth **out, rths_error *err);
+void rths_sparse_truth_free(rths_sparse_truth *t);
 
 /* Reads structure, split, forcing and model.frf; every problem is RTHS_EINPUT with the key's
  * location, including a structure without physical sense (non-finite or huge entries, M or K not
@@ -120,6 +140,11 @@ double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e);
  * rig + numerical - compensated = M_II: the hybrid test's interface mass is the assembly's. */
 double rths_setup_compensation_mass(const rths_setup *s, int d, int e);
 const char *rths_interface_mass_name(rths_interface_mass mode);
+
+/* RTHS_EINPUT naming model.solver when s is sparse (setup->sparse): for the commands that need
+ * the dense assembly (simulate, chart, fidelity, tune: they read assembly's matrices, NULL on the
+ * sparse path); RTHS_OK otherwise. */
+int rths_setup_require_dense(const rths_setup *s, const char *command, rths_error *err);
 
 /* Nonlinear elements on the numerical (numerical = 1) or physical (0) side. */
 int rths_setup_nonlinear_count(const rths_setup *s, int numerical);

@@ -5,6 +5,7 @@
 
 #include "rths/beam.h"
 #include "rths/mtx.h"
+#include "rths/signals.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -181,6 +182,30 @@ static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
     if (!rc) rc = rths_assembly_from_matrices(rows[0], m[0], m[1], m[2], &s->assembly, err);
     for (int k = 0; k < 3; k++)
         free(m[k]);
+    s->chain = 0;
+    return rc;
+}
+
+/* structure.matrices: dense (read_matrices) unless rths_model_choose_solver takes the sparse
+ * path (model.solver: sparse, or auto on a large unbanded Matrix Market model; the reason is
+ * `rths model`'s): then the model is read sparse with its split, forcing and model.frf
+ * (rths_sparse_model_read) and no dense matrix of its order is ever formed. */
+static int read_matrices_or_sparse(rths_config *cfg, rths_setup *s, rths_error *err) {
+    rths_model_choice choice;
+    int rc = rths_model_choose_solver(cfg, &choice, err);
+    if (rc) return rc;
+    if (choice.solver != RTHS_MODEL_SOLVER_SPARSE) {
+        rths_model_choice_free(&choice);
+        return read_matrices(cfg, s, err);
+    }
+    s->sparse = calloc(1, sizeof *s->sparse);
+    if (!s->sparse) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (!rc) rc = rths_sparse_model_read(cfg, &choice, s->sparse, err);
+    rths_model_choice_free(&choice);
+    if (rc) {
+        free(s->sparse);
+        s->sparse = NULL;
+    }
     s->chain = 0;
     return rc;
 }
@@ -626,6 +651,15 @@ static int read_nonlinear(rths_config *cfg, rths_setup *s, rths_error *err) {
     return rc;
 }
 
+int rths_setup_require_dense(const rths_setup *s, const char *command, rths_error *err) {
+    if (!s->sparse) return RTHS_OK;
+    return rths_error_set(err, RTHS_EINPUT,
+                          "model.solver: this structure takes the sparse path (%d DoFs), and %s "
+                          "needs its dense matrices: set model.solver: dense (a model of a few "
+                          "thousand DoFs at most), or use rths frf / rths model",
+                          s->assembly.n, command);
+}
+
 int rths_setup_nonlinear_count(const rths_setup *s, int numerical) {
     int count = 0;
     for (int e = 0; e < s->n_nonlinear; e++)
@@ -698,7 +732,7 @@ static int read_structure(rths_config *cfg, rths_setup *s, rths_error *err) {
                                     rths_config_has(cfg, "structure") ? "must be a mapping"
                                                                       : "missing");
     return given == 0   ? read_chain(cfg, s, err)
-           : given == 1 ? read_matrices(cfg, s, err)
+           : given == 1 ? read_matrices_or_sparse(cfg, s, err)
                         : read_beam(cfg, s, err);
 }
 
@@ -857,17 +891,109 @@ double rths_setup_rig_interface_mass(const rths_setup *s, int d, int e) {
     const rths_split *sp = &s->split;
     if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE)
         return RTHS_AT(sp->mass_phys, sp->np, sp->n_phys + d, sp->n_phys + e);
+    if (s->sparse) return rths_sparse_get(&s->sparse->mass, sp->int_dofs[d], sp->int_dofs[e]);
     return RTHS_AT(s->assembly.mass, s->assembly.n, sp->int_dofs[d], sp->int_dofs[e]);
 }
 
 double rths_setup_compensation_mass(const rths_setup *s, int d, int e) {
     if (s->interface_mass == RTHS_INTERFACE_MASS_PHYSICAL_SHARE) return 0.0;
+    /* the sparse split keeps no numerical side: its interface block is p M_II (one p) */
+    if (s->sparse)
+        return s->sparse->mass_ratio *
+               rths_sparse_get(&s->sparse->mass, s->split.int_dofs[d], s->split.int_dofs[e]);
     return RTHS_AT(s->split.mass_num, s->split.nn, d, e);
+}
+
+/* The rest of a sparse setup from its model: the split's DoF lists and dense physical side (the
+ * rig's side is small), the forcing, the model.frf range; what the sparse path does not carry is
+ * refused by its key. */
+static int read_sparse_rest(rths_config *cfg, rths_setup *s, rths_error *err) {
+    const rths_sparse_model *m = s->sparse;
+    int n = m->n;
+    static const char *const nonlinear_keys[] = {"structure.nonlinear", "structure.bilinear"};
+    for (int k = 0; k < 2; k++)
+        if (rths_config_has(cfg, nonlinear_keys[k]))
+            return rths_config_error_at(cfg, nonlinear_keys[k], err,
+                                        "a sparse model (model.solver: %s, %d DoFs) is linear: "
+                                        "nonlinear elements need the dense path (model.solver: "
+                                        "dense, a model of a few thousand DoFs at most)",
+                                        "sparse", n);
+    int rc = read_numerical_solver(cfg, s, err);
+    if (rc) return rc;
+    if (s->numerical_solver != RTHS_NUMERICAL_FREQUENCY)
+        return rths_config_error_at(cfg, "split.numerical_solver", err,
+                                    "realtime integrates the numerical substructure densely every "
+                                    "sample; this model takes the sparse path (%d DoFs): set "
+                                    "split.numerical_solver to frequency (the host solves it per "
+                                    "harmonic by sparse factorisations)",
+                                    n);
+    if (m->n_int != 1)
+        return rths_config_error_at(cfg, "split.interface", err,
+                                    "lists %d interface DoFs; the frequency form on a sparse model "
+                                    "takes one",
+                                    m->n_int);
+    s->assembly.n = n;
+    rths_split *sp = &s->split;
+    sp->n = n;
+    s->roles = malloc(sizeof *s->roles * (size_t)n);
+    sp->phys_dofs = malloc(sizeof(int) * (size_t)n);
+    sp->num_dofs = malloc(sizeof(int) * (size_t)n);
+    sp->int_dofs = malloc(sizeof(int) * (size_t)m->n_int);
+    sp->mass_ratios = malloc(sizeof(double) * (size_t)m->n_int);
+    s->force = malloc(sizeof(double) * (size_t)n);
+    s->forcing_shape = malloc(sizeof(double) * (size_t)n);
+    s->static_force = calloc((size_t)n, sizeof(double));
+    if (!s->roles || !sp->phys_dofs || !sp->num_dofs || !sp->int_dofs || !sp->mass_ratios ||
+        !s->force || !s->forcing_shape || !s->static_force)
+        return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    memcpy(s->roles, m->roles, sizeof *s->roles * (size_t)n);
+    for (int i = 0; i < n; i++) {
+        if (m->roles[i] == RTHS_DOF_PHYSICAL) sp->phys_dofs[sp->n_phys++] = i;
+        if (m->roles[i] == RTHS_DOF_NUMERICAL) sp->num_dofs[sp->n_num++] = i;
+    }
+    sp->n_int = m->n_int;
+    for (int d = 0; d < m->n_int; d++) {
+        sp->int_dofs[d] = m->int_dofs[d];
+        sp->mass_ratios[d] = m->mass_ratio;
+    }
+    sp->mass_ratio = m->mass_ratio;
+    sp->nn = sp->n_int + sp->n_num;
+    rths_error local;
+    rc = rths_sparse_model_physical_side(m, RTHS_MAX_SENSED_DOFS, &sp->mass_phys, &sp->damping_phys,
+                                         &sp->stiffness_phys, &sp->np, &local);
+    if (rc == RTHS_EINPUT) return rths_config_error_at(cfg, "split.physical", err, "%s", local.msg);
+    if (rc) {
+        *err = local;
+        return rc;
+    }
+    s->forcing_dof = m->forcing_dof;
+    s->forcing_amplitude_n = m->forcing_amplitude_n;
+    s->base_excitation = m->base_excitation;
+    for (int i = 0; i < n; i++) {
+        s->force[i] = m->force[i];
+        s->forcing_shape[i] = m->force[i] / m->forcing_amplitude_n;
+    }
+    s->frf_start_hz = m->frf_start_hz;
+    s->frf_end_hz = m->frf_end_hz;
+    s->frf_points = m->frf_points;
+    int n_out = 0;
+    int *out_dofs = rths_setup_output_dofs(s, &n_out);
+    if (!out_dofs) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    rc = rths_sparse_truth_create(m, n_out, out_dofs, &s->sparse_truth, err);
+    free(out_dofs);
+    return rc;
 }
 
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
+    if (!rc && out->sparse) {
+        rc = read_sparse_rest(cfg, out, err);
+        if (!rc) rc = read_transforms(cfg, out, err);
+        if (!rc) rc = read_interface_mass(cfg, out, err);
+        if (rc) rths_setup_free(out);
+        return rc;
+    }
     if (!rc) rc = read_split(cfg, out, err);
     if (!rc) rc = read_forcing(cfg, out, err);
     if (!rc) rc = read_bilinear(cfg, out, err);
@@ -893,6 +1019,9 @@ void rths_setup_free(rths_setup *s) {
     free(s->beam);
     rths_mat_free(s->actuator_transform);
     rths_mat_free(s->sensor_transform);
+    rths_sparse_truth_free(s->sparse_truth);
+    if (s->sparse) rths_sparse_model_free(s->sparse);
+    free(s->sparse);
     memset(s, 0, sizeof *s);
 }
 

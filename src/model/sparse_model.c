@@ -154,6 +154,8 @@ void rths_sparse_model_free(rths_sparse_model *m) {
     free(m->roles);
     free(m->int_dofs);
     free(m->force);
+    free(m->interface_damping_phys);
+    free(m->interface_stiffness_phys);
     memset(m, 0, sizeof *m);
 }
 
@@ -227,11 +229,24 @@ static int read_split(rths_config *cfg, rths_sparse_model *m, rths_error *err) {
                                        err);
     }
     free(ratios);
-    if (!rc && (rths_config_has(cfg, "split.interface_damping_physical_n_s_per_m") ||
-                rths_config_has(cfg, "split.interface_stiffness_physical_n_per_m")))
-        rc = rths_config_error_at(cfg, "split", err,
-                                  "explicit interface shares are not read on the sparse path: "
-                                  "the coupling rule splits the interface blocks");
+    static const char *const share_keys[2] = {"split.interface_damping_physical_n_s_per_m",
+                                              "split.interface_stiffness_physical_n_per_m"};
+    double **shares[2] = {&m->interface_damping_phys, &m->interface_stiffness_phys};
+    for (int k = 0; k < 2 && !rc; k++) {
+        if (!rths_config_has(cfg, share_keys[k])) continue;
+        int r = 0, c = 0;
+        rc = rths_config_get_matrix(cfg, share_keys[k], 1, shares[k], &r, &c, err);
+        if (!rc && (r != n_iface || c != n_iface))
+            rc = rths_config_error_at(cfg, share_keys[k], err,
+                                      "must be %d x %d (one row per interface DoF)", n_iface,
+                                      n_iface);
+        for (int e = 0; !rc && e < r * c; e++)
+            if (!(fabs((*shares[k])[e]) <= 1e15))
+                rc = rths_config_error_at(cfg, share_keys[k], err,
+                                          "entry %d = %g is not a finite number of magnitude "
+                                          "<= 1e15",
+                                          e + 1, (*shares[k])[e]);
+    }
     if (!rc) {
         m->int_dofs = malloc(sizeof(int) * (size_t)n_iface);
         if (!m->int_dofs) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
@@ -695,7 +710,8 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
     rths_sparse_sym *dst[3] = {mass, damping, stiffness};
     long cap = 0;
     for (int k = 0; k < 3; k++)
-        if (src[k]->colptr[n] + n > cap) cap = src[k]->colptr[n] + n;
+        if (src[k]->colptr[n] + n + m->n_int * m->n_int > cap)
+            cap = src[k]->colptr[n] + n + m->n_int * m->n_int;
     int *ti = malloc(sizeof(int) * (size_t)cap), *tj = malloc(sizeof(int) * (size_t)cap);
     double *tv = malloc(sizeof(double) * (size_t)cap);
     int rc = map && dofs && diag && ti && tj && tv
@@ -710,6 +726,10 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
         }
     for (int k = 0; k < 3 && !rc; k++) {
         const rths_sparse_sym *a = src[k];
+        /* given physical shares of C_II, K_II: the numerical side takes the rest of the block */
+        const double *share = k == 1   ? m->interface_damping_phys
+                              : k == 2 ? m->interface_stiffness_phys
+                                       : NULL;
         long t = 0;
         memset(diag, 0, sizeof(double) * (size_t)n);
         for (int j = 0; j < n; j++)
@@ -718,6 +738,10 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
                 if (map[i] < 0 || map[j] < 0) continue;
                 int ii = m->roles[i] == RTHS_DOF_INTERFACE, ij = m->roles[j] == RTHS_DOF_INTERFACE;
                 double v = a->value[e];
+                if (ii && ij && share) {
+                    ti[t] = map[i], tj[t] = map[j], tv[t++] = v;
+                    continue;
+                }
                 if (ii && ij) {
                     /* the interface block: p M_II of the mass (rths_split_create); of C and K
                      * only what joins the interface to numerical DoFs (the coupling rule,
@@ -725,12 +749,16 @@ int rths_sparse_model_numerical_side(const rths_sparse_model *m, rths_sparse_sym
                     if (k == 0) ti[t] = map[i], tj[t] = map[j], tv[t++] = m->mass_ratio * v;
                     continue;
                 }
-                if (k > 0 && ii != ij) diag[ii ? i : j] -= v;
+                if (k > 0 && !share && ii != ij) diag[ii ? i : j] -= v;
                 ti[t] = map[i], tj[t] = map[j], tv[t++] = v;
             }
-        if (k > 0)
+        if (k > 0 && !share)
             for (int d = 0; d < m->n_int; d++)
                 ti[t] = tj[t] = map[m->int_dofs[d]], tv[t++] = diag[m->int_dofs[d]];
+        for (int d = 0; share && d < m->n_int; d++) /* lower triangle: mirrored by the reader */
+            for (int e = 0; e <= d; e++)
+                ti[t] = map[m->int_dofs[d]], tj[t] = map[m->int_dofs[e]],
+                tv[t++] = -share[d + e * m->n_int];
         rc = rths_sparse_from_triplets(nn, t, ti, tj, tv, dst[k], err);
     }
     free(map);

@@ -607,19 +607,34 @@ static void on_progress(void *user, int points, double frequency_hz, double resi
 /* split.numerical_solver: frequency: the same continuation on the zero problem whose numerical
  * side the host solves per harmonic (docs/method.md, "Numerical substructure integration"). */
 static int run_frequency_form(frf_state *st, rths_error *err) {
-    rths_numerical_receptance *rec;
-    int rc = rths_numerical_receptance_create(&st->setup->split, st->setup->forcing_dof, &rec, err);
+    rths_numerical_receptance *rec = NULL;
+    rths_sparse_model_receptance *sparse_rec = NULL;
+    /* a sparse model: one sparse complex LDL^T per harmonic on one symbolic analysis (model.h) */
+    int rc = st->setup->sparse
+                 ? rths_sparse_model_receptance_create(st->setup->sparse, &sparse_rec, err)
+                 : rths_numerical_receptance_create(&st->setup->split, st->setup->forcing_dof, &rec,
+                                                    err);
     if (rc) return rc;
     rths_zero_problem problem;
     rths_frequency_problem ctx;
-    rc = rths_frequency_problem_init(&problem, &ctx, st->rig, &st->settle, st->harmonics,
-                                     st->setup->forcing_amplitude_n, rths_numerical_receptance_eval,
-                                     rec, err);
+    rc = rths_frequency_problem_init(
+        &problem, &ctx, st->rig, &st->settle, st->harmonics, st->setup->forcing_amplitude_n,
+        sparse_rec ? rths_sparse_model_receptance_eval : rths_numerical_receptance_eval,
+        sparse_rec ? (void *)sparse_rec : (void *)rec, err);
     if (!rc)
         rc = rths_continuation_run_problem(&problem, st->rig, &st->cont, &st->newton, st->harmonics,
                                            st->resume_pts, st->n_resume, on_point, on_progress, st,
                                            &st->result, err);
     rths_frequency_problem_release(&ctx);
+    if (sparse_rec) {
+        int analyses = 0;
+        double s = rths_sparse_model_receptance_s(sparse_rec, &analyses);
+        rths_report_log(st->rep,
+                        "numerical substructure: sparse, %d DoFs, %.3g s in factorisations and "
+                        "solves on %d symbolic analysis(es)",
+                        st->setup->split.nn, s, analyses);
+    }
+    rths_sparse_model_receptance_destroy(sparse_rec);
     rths_numerical_receptance_destroy(rec);
     return rc;
 }

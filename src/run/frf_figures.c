@@ -502,7 +502,9 @@ int frf_plot_frf(rths_report *rep, const frf_state *run, const rths_truth_curve 
     rths_modes modes, *m = NULL;
     rths_error merr;
     /* a bilinear leg's response has no modes of its own: no mode lines then */
-    if (!run->setup->has_bilinear && !rths_modal_analysis(&run->setup->assembly, &modes, &merr))
+    /* a sparse model forms no dense assembly: its modes are `rths model`'s (no mode lines) */
+    if (!run->setup->has_bilinear && !run->setup->sparse &&
+        !rths_modal_analysis(&run->setup->assembly, &modes, &merr))
         m = &modes;
     /* the truth's receptance at each point's frequency, one solve per point for all three
      * figures (a solve per point, DoF and figure took minutes on a 1000-DoF model) */

@@ -220,7 +220,13 @@ int frf_write_frf_csv(rths_report *rep, const frf_state *run, rths_error *err) {
     rc = rths_csv_finish(csv, rc, err);
     free(path);
     /* the same points as a receptance for modal-analysis packages, and their modes */
-    if (!rc) rc = frf_write_modal_outputs(rep, run, err);
+    if (!rc && run->setup->sparse)
+        /* frf_modal.c identifies against the dense assembly's modes, which a sparse model never
+         * forms (the lowest modes are `rths model`'s) */
+        rths_report_log(rep, "no frf.uff and modal.csv: the model is sparse (model.solver), its "
+                             "modes come from `rths model`");
+    else if (!rc)
+        rc = frf_write_modal_outputs(rep, run, err);
     return rc;
 }
 

@@ -61,7 +61,7 @@ static int rig_force_exceedance(const frf_state *st, const rths_controller_optio
     const rths_setup *s = st->setup;
     int n = s->assembly.n;
     what[0] = 0;
-    if (s->has_bilinear || n > RTHS_SETUP_ALL_DOFS_UP_TO) return RTHS_OK;
+    if (s->has_bilinear || s->sparse || n > RTHS_SETUP_ALL_DOFS_UP_TO) return RTHS_OK;
     double complex *x = malloc(sizeof *x * (size_t)n);
     if (!x) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     double f_lo = fmin(st->cont.start_hz, st->cont.end_hz),
@@ -114,6 +114,16 @@ static int warn_if_no_mode_in_range(frf_state *st, double f_lo, double f_hi, rth
     /* a nonlinear leg moves the resonance with the amplitude: the linearised modes say nothing of
      * where it lies */
     if (st->setup->has_bilinear) return RTHS_OK;
+    /* a sparse model forms no dense assembly to analyse (its lowest modes are `rths model`'s):
+     * said in run.log, with the other warnings */
+    if (st->setup->sparse) {
+        size_t used = strlen(st->limit_warning);
+        snprintf(st->limit_warning + used, sizeof st->limit_warning - used,
+                 "%sno check that a mode lies in the sweep: the model is sparse (model.solver), "
+                 "run `rths model` for its modes",
+                 used ? "; " : "");
+        return RTHS_OK;
+    }
     rths_modes modes = {0};
     int rc = rths_modal_analysis(&st->setup->assembly, &modes, err);
     if (rc) return rc;
