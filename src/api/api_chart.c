@@ -166,6 +166,7 @@ int rths_api_chart_compute(const rths_setup *setup, const rths_chart_options *op
                            rths_result **out, rths_chart *keep, rths_api_chart_facts *facts,
                            rths_error *err) {
     *out = NULL;
+    if (rths_setup_require_dense(setup, "rths chart", err)) return RTHS_EINPUT;
     rths_chart_options o = *options;
     rths_chart chart;
     int have_chart = 0;

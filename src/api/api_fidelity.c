@@ -285,6 +285,7 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
                               rths_error *err) {
     static const char *const own_sections[] = {"fidelity", "controller", NULL};
     *out = NULL;
+    if (rths_setup_require_dense(setup, "rths fidelity", err)) return RTHS_EINPUT;
     rths_result *res = NULL;
     rths_fidelity *f = NULL;
     rths_reduced red = {0};

@@ -633,6 +633,7 @@ int rths_api_simulate_prepare(rths_config *cfg, const rths_setup *setup,
                               const rths_api_simulate_options *o, rths_api_simulation **out,
                               rths_error *err) {
     *out = NULL;
+    if (rths_setup_require_dense(setup, "rths simulate", err)) return RTHS_EINPUT;
     rths_api_simulation *s = calloc(1, sizeof *s);
     if (!s) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     s->cfg = cfg, s->setup = setup;

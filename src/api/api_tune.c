@@ -365,6 +365,7 @@ int rths_api_tune_compute(rths_config *c, const rths_setup *setup, double delay_
                           const char *config_path, const char *const *overrides, int n_overrides,
                           rths_result **out, rths_error *err) {
     *out = NULL;
+    if (rths_setup_require_dense(setup, "rths tune", err)) return RTHS_EINPUT;
     rths_controller_options copt;
     rths_plant_options popt;
     rths_controller_defaults(&copt);
