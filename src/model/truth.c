@@ -255,19 +255,6 @@ static int linear_response_at(const rths_setup *s, double f_hz, int count, const
     return rc;
 }
 
-int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double *amp_m) {
-    int dofs = s->split.n_int;
-    for (int d = 0; d < dofs; d++)
-        amp_m[d] = NAN;
-    if (s->has_bilinear) return -1;
-    double complex *x = calloc((size_t)dofs, sizeof *x);
-    int rc = x ? linear_response_at(s, f_hz, dofs, s->split.int_dofs, x) : -1;
-    for (int d = 0; d < dofs && !rc; d++)
-        amp_m[d] = cabs(x[d]);
-    free(x);
-    return rc;
-}
-
 int rths_truth_linear_dofs_response(const rths_setup *s, double f_hz, int count, const int *dofs,
                                     double *amp_m, double *phase_rad) {
     for (int i = 0; i < count; i++) {
@@ -287,6 +274,10 @@ int rths_truth_linear_dofs_response(const rths_setup *s, double f_hz, int count,
     }
     free(x);
     return rc;
+}
+
+int rths_truth_linear_dof_amplitudes_m(const rths_setup *s, double f_hz, double *amp_m) {
+    return rths_truth_linear_dofs_response(s, f_hz, s->split.n_int, s->split.int_dofs, amp_m, NULL);
 }
 
 double rths_truth_linear_amplitude_m(const rths_setup *s, double f_hz) {
