@@ -550,6 +550,16 @@ int rths_result_write_folder(rths_result *r, const rths_config *c, const char *d
     return r->dir && yaml ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
 }
 
+int rths_api_finish(rths_result *r, int rc, const rths_config *c, const char *out_dir,
+                    const char *command, rths_result **out, rths_error *err) {
+    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, command, err);
+    if (rc)
+        rths_result_free(r);
+    else
+        *out = r;
+    return rc;
+}
+
 static int compare_names(const void *a, const void *b) {
     return strcmp(*(char *const *)a, *(char *const *)b);
 }

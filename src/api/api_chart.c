@@ -360,12 +360,7 @@ int rths_api_chart(const rths_api_config *cfg, const char *out_dir, rths_result 
     if (!rc)
         rc = rths_api_chart_compute(&setup, &o, cfg->path, (const char *const *)cfg->overrides,
                                     cfg->n_overrides, &r, NULL, NULL, err);
-    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "chart", err);
+    rc = rths_api_finish(r, rc, c, out_dir, "chart", out, err);
     rths_api_unload(c, &setup);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }

@@ -420,12 +420,7 @@ int rths_api_fidelity(const rths_api_config *cfg, const char *out_dir, rths_resu
     if (rc) return rc;
     rc = rths_api_fidelity_compute(c, &setup, cfg->path, (const char *const *)cfg->overrides,
                                    cfg->n_overrides, &r, err);
-    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "fidelity", err);
+    rc = rths_api_finish(r, rc, c, out_dir, "fidelity", out, err);
     rths_api_unload(c, &setup);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }

@@ -74,5 +74,10 @@ int rths_result_set_summary(rths_result *r, struct json_object *summary, rths_er
  * results.mat (at close), run.log; then r->dir and r->config_yaml are set. */
 int rths_result_write_folder(rths_result *r, const rths_config *c, const char *dir,
                              const char *command, rths_error *err);
+/* The end of every rths_api_COMMAND call: after a successful compute (rc 0), r is written as the
+ * run folder out_dir when one is given; then r goes to *out, or is freed when anything failed.
+ * Returns the status. */
+int rths_api_finish(rths_result *r, int rc, const rths_config *c, const char *out_dir,
+                    const char *command, rths_result **out, rths_error *err);
 
 #endif

@@ -218,14 +218,9 @@ static int api_model_sparse(const rths_api_config *cfg, rths_config *c, rths_mod
         rc = rths_api_model_compute_sparse(&model, choice, choice_read_s, cfg->path,
                                            (const char *const *)cfg->overrides, cfg->n_overrides,
                                            &r, NULL, err);
-    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "model", err);
+    rc = rths_api_finish(r, rc, c, out_dir, "model", out, err);
     rths_sparse_model_free(&model);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }
 
 int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result **out,
@@ -260,12 +255,7 @@ int rths_api_model(const rths_api_config *cfg, const char *out_dir, rths_result 
     if (!rc)
         rc = rths_api_model_compute(&setup, cfg->path, (const char *const *)cfg->overrides,
                                     cfg->n_overrides, &r, NULL, err);
-    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "model", err);
+    rc = rths_api_finish(r, rc, c, out_dir, "model", out, err);
     rths_api_unload(c, &setup);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }

@@ -803,12 +803,7 @@ int rths_api_simulate(const rths_api_config *cfg, const rths_api_simulate_option
         rc = rths_api_simulate_run(s, NULL, cfg->path, (const char *const *)cfg->overrides,
                                    cfg->n_overrides, &r, err);
     rths_api_simulation_free(s); /* the rig stops before the folder is written */
-    if (!rc && o->out_dir) rc = rths_result_write_folder(r, c, o->out_dir, "simulate", err);
+    rc = rths_api_finish(r, rc, c, o->out_dir, "simulate", out, err);
     rths_api_unload(c, &setup);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }

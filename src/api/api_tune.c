@@ -392,12 +392,7 @@ int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_di
     if (rc) return rc;
     rc = rths_api_tune_compute(c, &setup, delay_s, cfg->path, (const char *const *)cfg->overrides,
                                cfg->n_overrides, &r, err);
-    if (!rc && out_dir) rc = rths_result_write_folder(r, c, out_dir, "tune", err);
+    rc = rths_api_finish(r, rc, c, out_dir, "tune", out, err);
     rths_api_unload(c, &setup);
-    if (rc) {
-        rths_result_free(r);
-        return rc;
-    }
-    *out = r;
-    return RTHS_OK;
+    return rc;
 }
