@@ -3,6 +3,8 @@
  * key for each mistake before any work starts. */
 #include "rths/setup.h"
 
+#include "setup_internal.h"
+
 #include "rths/beam.h"
 #include "rths/mtx.h"
 #include "rths/signals.h"
@@ -159,7 +161,7 @@ static int check_physical(rths_config *cfg, const char *const *keys, double *con
     return RTHS_OK;
 }
 
-static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
+int rths_setup_read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const keys[3] = {K_MATRICES ".mass_kg", K_MATRICES ".damping_n_s_per_m",
                                         K_MATRICES ".stiffness_n_per_m"};
     double *m[3] = {NULL, NULL, NULL};
@@ -182,30 +184,6 @@ static int read_matrices(rths_config *cfg, rths_setup *s, rths_error *err) {
     if (!rc) rc = rths_assembly_from_matrices(rows[0], m[0], m[1], m[2], &s->assembly, err);
     for (int k = 0; k < 3; k++)
         free(m[k]);
-    s->chain = 0;
-    return rc;
-}
-
-/* structure.matrices: dense (read_matrices) unless rths_model_choose_solver takes the sparse
- * path (model.solver: sparse, or auto on a large unbanded Matrix Market model; the reason is
- * `rths model`'s): then the model is read sparse with its split, forcing and model.frf
- * (rths_sparse_model_read) and no dense matrix of its order is ever formed. */
-static int read_matrices_or_sparse(rths_config *cfg, rths_setup *s, rths_error *err) {
-    rths_model_choice choice;
-    int rc = rths_model_choose_solver(cfg, &choice, err);
-    if (rc) return rc;
-    if (choice.solver != RTHS_MODEL_SOLVER_SPARSE) {
-        rths_model_choice_free(&choice);
-        return read_matrices(cfg, s, err);
-    }
-    s->sparse = calloc(1, sizeof *s->sparse);
-    if (!s->sparse) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
-    if (!rc) rc = rths_sparse_model_read(cfg, &choice, s->sparse, err);
-    rths_model_choice_free(&choice);
-    if (rc) {
-        free(s->sparse);
-        s->sparse = NULL;
-    }
     s->chain = 0;
     return rc;
 }
@@ -454,230 +432,6 @@ static int read_forcing(rths_config *cfg, rths_setup *s, rths_error *err) {
     return RTHS_OK;
 }
 
-/* The side of an element joining DoFs i and j (0-based, j = -1 the ground): numerical when it
- * touches a numerical DoF, physical when it touches a physical one (both: refused, an element
- * cannot bridge the split), else (interface DoFs and the ground only) side_key's choice, by
- * default physical. */
-static int element_side(rths_config *cfg, const rths_setup *s, const char *key,
-                        const char *side_key, int i, int j, int *numerical, rths_error *err) {
-    int touches_num = 0, touches_phys = 0;
-    int dofs[2] = {i, j};
-    for (int k = 0; k < 2; k++) {
-        if (dofs[k] < 0) continue;
-        touches_num |= s->roles[dofs[k]] == RTHS_DOF_NUMERICAL;
-        touches_phys |= s->roles[dofs[k]] == RTHS_DOF_PHYSICAL;
-    }
-    if (touches_num && touches_phys)
-        return rths_config_error_at(cfg, key, err,
-                                    "joins physical DoF and numerical DoF (%d and %d): an element "
-                                    "lies on one side of the split; place the interface between "
-                                    "them",
-                                    i + 1, j + 1);
-    static const char *const sides[] = {"physical", "numerical", NULL};
-    int side = touches_num ? 1 : 0;
-    if (side_key && rths_config_has(cfg, side_key)) {
-        int rc = rths_config_get_choice(cfg, side_key, 0, side, sides, &side, err);
-        if (rc) return rc;
-        if ((touches_num && side != 1) || (touches_phys && side != 0))
-            return rths_config_error_at(
-                cfg, side_key, err, "the element touches a %s DoF, so it is on the %s side",
-                touches_num ? "numerical" : "physical", touches_num ? "numerical" : "physical");
-    }
-    *numerical = side;
-    return RTHS_OK;
-}
-
-/* The stiffness of the chain's leg below storey upper (0-based): minus the coupling term, or the
- * ground term for storey 1. */
-static double chain_leg_stiffness(const rths_setup *s, int upper) {
-    int n = s->assembly.n;
-    return upper > 0 ? -RTHS_AT(s->assembly.stiffness, n, upper - 1, upper)
-                     : RTHS_AT(s->assembly.stiffness, n, 0, 0) -
-                           (n > 1 ? -RTHS_AT(s->assembly.stiffness, n, 0, 1) : 0.0);
-}
-
-static int read_bilinear(rths_config *cfg, rths_setup *s, rths_error *err) {
-    int n = s->assembly.n;
-    s->static_force = calloc((size_t)n, sizeof *s->static_force);
-    if (!s->static_force) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    int enabled = 0;
-    int rc = rths_config_get_bool(cfg, "structure.bilinear.enabled", 0, 0, &enabled, err);
-    long storey = 0;
-    double ratio = 2.0, preload = 26.68;
-    /* defaults are the seed's: the leg below the (first) interface storey, twice as stiff in
-     * compression, preloaded by 26.68 N so the static point sits on the stiff side */
-    long def_storey = s->split.n_int > 0 ? s->split.int_dofs[0] + 1 : 1;
-    if (!rc)
-        rc = rths_config_get_int(cfg, "structure.bilinear.storey", 0, def_storey, 1, n, &storey,
-                                 err);
-    if (!rc)
-        rc = rths_config_get_double(cfg, "structure.bilinear.compression_ratio", 0, 2.0, 1e-3, 1e3,
-                                    &ratio, err);
-    if (!rc)
-        rc = rths_config_get_double(cfg, "structure.bilinear.preload_n", 0, 26.68, 0, 1e6, &preload,
-                                    err);
-    if (rc || !enabled) return rc;
-    if (!s->chain)
-        return rths_config_error_at(cfg, "structure.bilinear", err,
-                                    "a bilinear leg needs the structure as a storey chain");
-    int upper = (int)storey - 1, numerical = 0;
-    rc = element_side(cfg, s, "structure.bilinear.storey", NULL, upper, upper - 1, &numerical, err);
-    if (rc) return rc;
-    s->has_bilinear = 1;
-    s->leg.lower_dof = upper - 1;
-    s->leg.upper_dof = upper;
-    s->leg.stiffness_n_per_m = chain_leg_stiffness(s, upper);
-    s->leg.ratio = ratio;
-    s->preload_n = preload;
-    s->nonlinear[0] = rths_nl_from_leg(&s->leg);
-    s->nonlinear[0].numerical = numerical;
-    s->n_nonlinear = 1;
-    /* The preload pushes the leg's upper storey down, compressing the leg when ratio > 1 (stiff
-     * side), stretching it when ratio < 1: either way toward the stiffer slope. On the physical
-     * side it is the shaker's, on the interface (the seed's); on the numerical side a static
-     * force on the leg's upper storey (on the interface it would leave that leg unstressed). */
-    s->static_force[numerical ? upper : s->split.int_dofs[0]] = ratio >= 1 ? -preload : preload;
-    return RTHS_OK;
-}
-
-/* "structure.nonlinear.<index>.<name>" into buf (96 bytes) */
-static void item_key(char *buf, int index, const char *name) {
-    snprintf(buf, 96, "structure.nonlinear.%d.%.40s", index, name);
-}
-
-/* structure.nonlinear.N: one element (nonlinear.h). */
-static int read_element(rths_config *cfg, rths_setup *s, int index, rths_error *err) {
-    static const char *const types[] = {"bilinear", "cubic", "gap", "friction", NULL};
-    int n = s->assembly.n;
-    char key[96], k_dofs[96], k_side[96], k_a[96], k_b[96], k_c[96];
-    snprintf(key, sizeof key, "structure.nonlinear.%d", index);
-    item_key(k_dofs, index, "dofs");
-    item_key(k_side, index, "side");
-    int type = 0, *dofs = NULL, count = 0;
-    item_key(k_a, index, "type");
-    int rc = rths_config_get_choice(cfg, k_a, 1, 0, types, &type, err);
-    if (!rc) rc = rths_config_get_int_list(cfg, k_dofs, 1, &dofs, &count, err);
-    if (!rc && count != 2)
-        rc = rths_config_error_at(cfg, k_dofs, err,
-                                  "lists %d DoFs: give two, [i, j] (1-based; j = 0 for the "
-                                  "ground)",
-                                  count);
-    if (!rc && (dofs[0] < 1 || dofs[0] > n || dofs[1] < 0 || dofs[1] > n))
-        rc = rths_config_error_at(cfg, k_dofs, err,
-                                  "[%d, %d]: i must be in 1..%d and j in 0..%d (0: the ground)",
-                                  dofs[0], dofs[1], n, n);
-    if (!rc && dofs[0] == dofs[1])
-        rc = rths_config_error_at(cfg, k_dofs, err, "joins DoF %d to itself", dofs[0]);
-    if (rc) {
-        free(dofs);
-        return rc;
-    }
-    if (s->n_nonlinear >= RTHS_MAX_NONLINEAR) {
-        free(dofs);
-        return rths_config_error_at(cfg, key, err,
-                                    "more than %d nonlinear elements (RTHS_MAX_NONLINEAR in "
-                                    "nonlinear.h; structure.bilinear counts as one)",
-                                    RTHS_MAX_NONLINEAR);
-    }
-    rths_nl_element e = {.type = (rths_nl_type)type, .dof_i = dofs[0] - 1, .dof_j = dofs[1] - 1};
-    free(dofs);
-    rc = element_side(cfg, s, k_dofs, k_side, e.dof_i, e.dof_j, &e.numerical, err);
-    double preload = 0;
-    switch (e.type) {
-    case RTHS_NL_BILINEAR: {
-        /* the extension stiffness is part of the structure: a chain's leg when the element joins
-         * adjacent storeys (or storey 1 and the ground), else given */
-        int chain_leg = s->chain && (e.dof_j == e.dof_i - 1);
-        item_key(k_a, index, "stiffness_n_per_m");
-        item_key(k_b, index, "compression_ratio");
-        item_key(k_c, index, "preload_n");
-        double k_leg = chain_leg ? chain_leg_stiffness(s, e.dof_i) : 0, ratio = 2.0;
-        if (!rc && !chain_leg && !rths_config_has(cfg, k_a))
-            rc = rths_config_error_at(cfg, key, err,
-                                      "a bilinear element between DoFs %d and %d needs "
-                                      "stiffness_n_per_m (its extension stiffness, part of the "
-                                      "structure's K); only a chain's leg between adjacent storeys "
-                                      "takes it from the chain",
-                                      e.dof_i + 1, e.dof_j + 1);
-        if (!rc)
-            rc = rths_config_get_double_ex(cfg, k_a, 0, k_leg, 0, 1e12, RTHS_CONFIG_LO_OPEN, &k_leg,
-                                           err);
-        if (!rc) rc = rths_config_get_double(cfg, k_b, 0, 2.0, 1e-3, 1e3, &ratio, err);
-        if (!rc) rc = rths_config_get_double(cfg, k_c, 0, 0.0, 0, 1e6, &preload, err);
-        e.leg_stiffness_n_per_m = k_leg;
-        e.ratio = ratio;
-        e.k = (ratio - 1) * k_leg;
-        if (ratio < 1) preload = -preload; /* toward the stiffer slope: stretching */
-        break;
-    }
-    case RTHS_NL_CUBIC:
-        item_key(k_a, index, "stiffness_n_per_m3");
-        if (!rc) rc = rths_config_get_double(cfg, k_a, 1, 0, -1e18, 1e18, &e.k, err);
-        if (!rc && e.k == 0) rc = rths_config_error_at(cfg, k_a, err, "must not be 0");
-        break;
-    case RTHS_NL_GAP:
-        item_key(k_a, index, "stiffness_n_per_m");
-        item_key(k_b, index, "clearance_m");
-        if (!rc)
-            rc = rths_config_get_double_ex(cfg, k_a, 1, 0, 0, 1e12, RTHS_CONFIG_LO_OPEN, &e.k, err);
-        if (!rc) rc = rths_config_get_double(cfg, k_b, 1, 0, 0, 1, &e.clearance_m, err);
-        break;
-    case RTHS_NL_FRICTION:
-        item_key(k_a, index, "slip_force_n");
-        item_key(k_b, index, "regularisation_m_s");
-        if (!rc)
-            rc = rths_config_get_double_ex(cfg, k_a, 1, 0, 0, 1e6, RTHS_CONFIG_LO_OPEN, &e.force_n,
-                                           err);
-        if (!rc) /* below 1e-9 m/s the smoothed sign is a step no integrator resolves */
-            rc = rths_config_get_double(cfg, k_b, 0, 1e-3, 1e-9, 1e3, &e.v_reg_m_s, err);
-        break;
-    default:
-        break;
-    }
-    if (rc) return rc;
-    /* a preload pushes DoF i toward j (compressing the element) */
-    s->static_force[e.dof_i] -= preload;
-    if (e.dof_j >= 0) s->static_force[e.dof_j] += preload;
-    s->nonlinear[s->n_nonlinear++] = e;
-    s->has_bilinear = 1;
-    return RTHS_OK;
-}
-
-static int read_nonlinear(rths_config *cfg, rths_setup *s, rths_error *err) {
-    int count = 0;
-    int rc = rths_config_get_count(cfg, "structure.nonlinear", &count, err);
-    for (int i = 0; i < count && !rc; i++)
-        rc = read_element(cfg, s, i, err);
-    return rc;
-}
-
-int rths_setup_require_dense(const rths_setup *s, const char *command, rths_error *err) {
-    if (!s->sparse) return RTHS_OK;
-    return rths_error_set(err, RTHS_EINPUT,
-                          "model.solver: this structure takes the sparse path (%d DoFs), and %s "
-                          "needs its dense matrices: set model.solver: dense (a model of a few "
-                          "thousand DoFs at most), or use rths frf / rths model",
-                          s->assembly.n, command);
-}
-
-int rths_setup_nonlinear_count(const rths_setup *s, int numerical) {
-    int count = 0;
-    for (int e = 0; e < s->n_nonlinear; e++)
-        count += s->nonlinear[e].numerical == numerical;
-    return count;
-}
-
-/* The host's frequency-domain numerical substructure is linear (per-harmonic dynamic stiffness):
- * a nonlinear element on the numerical side needs the real-time form. */
-static int check_solver_nonlinear(rths_config *cfg, const rths_setup *s, rths_error *err) {
-    if (s->numerical_solver != RTHS_NUMERICAL_FREQUENCY || !rths_setup_nonlinear_count(s, 1))
-        return RTHS_OK;
-    return rths_config_error_at(cfg, "split.numerical_solver", err,
-                                "frequency solves a linear numerical substructure per harmonic; "
-                                "this structure has a nonlinear element on the numerical side: "
-                                "use realtime");
-}
-
 static int read_frf_range(rths_config *cfg, rths_setup *s, rths_error *err) {
     long points = 0;
     int rc = rths_config_get_double(cfg, "model.frf.start_hz", 0, 0, 0, 1e6, &s->frf_start_hz, err);
@@ -732,11 +486,11 @@ static int read_structure(rths_config *cfg, rths_setup *s, rths_error *err) {
                                     rths_config_has(cfg, "structure") ? "must be a mapping"
                                                                       : "missing");
     return given == 0   ? read_chain(cfg, s, err)
-           : given == 1 ? read_matrices_or_sparse(cfg, s, err)
+           : given == 1 ? rths_setup_read_matrices_or_sparse(cfg, s, err)
                         : read_beam(cfg, s, err);
 }
 
-static int read_numerical_solver(rths_config *cfg, rths_setup *s, rths_error *err) {
+int rths_setup_read_numerical_solver(rths_config *cfg, rths_setup *s, rths_error *err) {
     static const char *const solvers[] = {"realtime", "frequency", NULL};
     int solver = RTHS_NUMERICAL_REALTIME;
     int rc =
@@ -904,91 +658,11 @@ double rths_setup_compensation_mass(const rths_setup *s, int d, int e) {
     return RTHS_AT(s->split.mass_num, s->split.nn, d, e);
 }
 
-/* The rest of a sparse setup from its model: the split's DoF lists and dense physical side (the
- * rig's side is small), the forcing, the model.frf range; what the sparse path does not carry is
- * refused by its key. */
-static int read_sparse_rest(rths_config *cfg, rths_setup *s, rths_error *err) {
-    const rths_sparse_model *m = s->sparse;
-    int n = m->n;
-    static const char *const nonlinear_keys[] = {"structure.nonlinear", "structure.bilinear"};
-    for (int k = 0; k < 2; k++)
-        if (rths_config_has(cfg, nonlinear_keys[k]))
-            return rths_config_error_at(cfg, nonlinear_keys[k], err,
-                                        "a sparse model (model.solver: %s, %d DoFs) is linear: "
-                                        "nonlinear elements need the dense path (model.solver: "
-                                        "dense, a model of a few thousand DoFs at most)",
-                                        "sparse", n);
-    int rc = read_numerical_solver(cfg, s, err);
-    if (rc) return rc;
-    if (s->numerical_solver != RTHS_NUMERICAL_FREQUENCY)
-        return rths_config_error_at(cfg, "split.numerical_solver", err,
-                                    "realtime integrates the numerical substructure densely every "
-                                    "sample; this model takes the sparse path (%d DoFs): set "
-                                    "split.numerical_solver to frequency (the host solves it per "
-                                    "harmonic by sparse factorisations)",
-                                    n);
-    if (m->n_int != 1)
-        return rths_config_error_at(cfg, "split.interface", err,
-                                    "lists %d interface DoFs; the frequency form on a sparse model "
-                                    "takes one",
-                                    m->n_int);
-    s->assembly.n = n;
-    rths_split *sp = &s->split;
-    sp->n = n;
-    s->roles = malloc(sizeof *s->roles * (size_t)n);
-    sp->phys_dofs = malloc(sizeof(int) * (size_t)n);
-    sp->num_dofs = malloc(sizeof(int) * (size_t)n);
-    sp->int_dofs = malloc(sizeof(int) * (size_t)m->n_int);
-    sp->mass_ratios = malloc(sizeof(double) * (size_t)m->n_int);
-    s->force = malloc(sizeof(double) * (size_t)n);
-    s->forcing_shape = malloc(sizeof(double) * (size_t)n);
-    s->static_force = calloc((size_t)n, sizeof(double));
-    if (!s->roles || !sp->phys_dofs || !sp->num_dofs || !sp->int_dofs || !sp->mass_ratios ||
-        !s->force || !s->forcing_shape || !s->static_force)
-        return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    memcpy(s->roles, m->roles, sizeof *s->roles * (size_t)n);
-    for (int i = 0; i < n; i++) {
-        if (m->roles[i] == RTHS_DOF_PHYSICAL) sp->phys_dofs[sp->n_phys++] = i;
-        if (m->roles[i] == RTHS_DOF_NUMERICAL) sp->num_dofs[sp->n_num++] = i;
-    }
-    sp->n_int = m->n_int;
-    for (int d = 0; d < m->n_int; d++) {
-        sp->int_dofs[d] = m->int_dofs[d];
-        sp->mass_ratios[d] = m->mass_ratio;
-    }
-    sp->mass_ratio = m->mass_ratio;
-    sp->nn = sp->n_int + sp->n_num;
-    rths_error local;
-    rc = rths_sparse_model_physical_side(m, RTHS_MAX_SENSED_DOFS, &sp->mass_phys, &sp->damping_phys,
-                                         &sp->stiffness_phys, &sp->np, &local);
-    if (rc == RTHS_EINPUT) return rths_config_error_at(cfg, "split.physical", err, "%s", local.msg);
-    if (rc) {
-        *err = local;
-        return rc;
-    }
-    s->forcing_dof = m->forcing_dof;
-    s->forcing_amplitude_n = m->forcing_amplitude_n;
-    s->base_excitation = m->base_excitation;
-    for (int i = 0; i < n; i++) {
-        s->force[i] = m->force[i];
-        s->forcing_shape[i] = m->force[i] / m->forcing_amplitude_n;
-    }
-    s->frf_start_hz = m->frf_start_hz;
-    s->frf_end_hz = m->frf_end_hz;
-    s->frf_points = m->frf_points;
-    int n_out = 0;
-    int *out_dofs = rths_setup_output_dofs(s, &n_out);
-    if (!out_dofs) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    rc = rths_sparse_truth_create(m, n_out, out_dofs, &s->sparse_truth, err);
-    free(out_dofs);
-    return rc;
-}
-
 int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     memset(out, 0, sizeof *out);
     int rc = read_structure(cfg, out, err);
     if (!rc && out->sparse) {
-        rc = read_sparse_rest(cfg, out, err);
+        rc = rths_setup_read_sparse_rest(cfg, out, err);
         if (!rc) rc = read_transforms(cfg, out, err);
         if (!rc) rc = read_interface_mass(cfg, out, err);
         if (rc) rths_setup_free(out);
@@ -996,11 +670,11 @@ int rths_setup_read(rths_config *cfg, rths_setup *out, rths_error *err) {
     }
     if (!rc) rc = read_split(cfg, out, err);
     if (!rc) rc = read_forcing(cfg, out, err);
-    if (!rc) rc = read_bilinear(cfg, out, err);
-    if (!rc) rc = read_nonlinear(cfg, out, err);
+    if (!rc) rc = rths_setup_read_bilinear(cfg, out, err);
+    if (!rc) rc = rths_setup_read_nonlinear(cfg, out, err);
     if (!rc) rc = read_frf_range(cfg, out, err);
-    if (!rc) rc = read_numerical_solver(cfg, out, err);
-    if (!rc) rc = check_solver_nonlinear(cfg, out, err);
+    if (!rc) rc = rths_setup_read_numerical_solver(cfg, out, err);
+    if (!rc) rc = rths_setup_check_solver_nonlinear(cfg, out, err);
     if (!rc) rc = read_transforms(cfg, out, err);
     if (!rc) rc = read_interface_mass(cfg, out, err);
     if (rc) rths_setup_free(out);
