@@ -554,25 +554,13 @@ static double matched_amplitude_at(const rths_setup *s, double sample_rate_hz, i
                                    double f_hz) {
     rths_controller_options co;
     rths_plant_options po;
-    rths_controller_defaults(&co);
-    rths_plant_defaults(&po);
+    rths_fixture_quiet_options(ideal, &co, &po);
     co.sample_rate_hz = sample_rate_hz;
-    if (ideal)
-        rths_plant_ideal(&po);
-    else
-        po.noise = 0;
-    rths_rig *rig;
+    rths_rig *rig = rths_fixture_rig(s, &co, &po);
     rths_error err;
-    if (rths_virtual_rig_create_with(s, &co, &po, &rig, &err)) fail_msg("%s", err.msg);
     rths_settle_options so;
     rths_newton_options no;
-    rths_settle_defaults(&so, 0);
-    so.rel_tolerance = 1e-6; /* far below the differences compared */
-    so.abs_tolerance_m = 1e-14;
-    so.max_wait_periods = 4000;
-    rths_newton_defaults(&no, 0);
-    no.rel_tolerance = 1e-7;
-    no.abs_tolerance_m = 1e-14;
+    rths_fixture_tight_match(&so, &no); /* far below the differences compared */
     rths_corrector_state st;
     memset(&st, 0, sizeof st);
     rths_solution sol;
@@ -699,9 +687,7 @@ static void test_base_excitation_setup(void **state) {
     const char *bad[][2] = {{"forcing.type=base", "forcing.dof"},
                             {"forcing.amplitude_m_s2=1", "forcing.amplitude_m_s2"}};
     for (int i = 0; i < 2; i++) {
-        if (rths_config_load(rths_test_source_path("examples/four_storey.yaml"), bad[i], 1, &cfg,
-                             &err))
-            fail_msg("%s", err.msg);
+        cfg = rths_fixture_seed_config(bad[i], 1);
         assert_int_equal(rths_setup_read(cfg, &s, &err), RTHS_EINPUT);
         if (!strstr(err.msg, bad[i][1])) fail_msg("%s", err.msg);
         rths_config_free(cfg);

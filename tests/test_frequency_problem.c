@@ -5,6 +5,7 @@
  * frequency form and the real-time form integrating the Craig-Bampton reduction, are within
  * 0.5 % of the analytic interface amplitude. The force-to-displacement conversion alone is checked
  * against the substructure's receptance in closed form. */
+#include "fixture_seed_rig.h"
 #include "testlib.h"
 
 #include "rths/iterate.h"
@@ -16,37 +17,20 @@
 #include <math.h>
 #include <string.h>
 
-static void load(const char *example, const char *const *ov, int n, rths_config **cfg,
-                 rths_setup *s) {
-    rths_error err;
-    if (rths_config_load(rths_test_source_path(example), ov, n, cfg, &err) ||
-        rths_setup_read(*cfg, s, &err))
-        fail_msg("%s", err.msg);
-}
-
 /* The interface amplitude at the converged match at f_hz, on the default rig with noise off, in
  * the setup's numerical_solver form. */
 static double matched_amplitude(const rths_setup *s, double f_hz) {
     rths_controller_options co;
     rths_plant_options po;
-    rths_controller_defaults(&co);
-    rths_plant_defaults(&po);
-    po.noise = 0;
-    rths_rig *rig;
+    rths_fixture_quiet_options(0, &co, &po);
+    rths_rig *rig = rths_fixture_rig(s, &co, &po);
     rths_error err;
-    if (rths_virtual_rig_create_with(s, &co, &po, &rig, &err)) fail_msg("%s", err.msg);
     assert_int_equal(rths_controller_numerical_dofs(rths_virtual_rig_controller(rig)) == 0,
                      s->numerical_solver == RTHS_NUMERICAL_FREQUENCY);
     rths_settle_options so;
     rths_newton_options no;
-    rths_settle_defaults(&so, 0);
-    /* steady state judged far below the 0.2 % compared (as in tests/test_rig_virtual.c) */
-    so.rel_tolerance = 1e-6;
-    so.abs_tolerance_m = 1e-14;
-    so.max_wait_periods = 4000;
-    rths_newton_defaults(&no, 0);
-    no.rel_tolerance = 1e-7;
-    no.abs_tolerance_m = 1e-14;
+    /* steady state judged far below the 0.2 % compared */
+    rths_fixture_tight_match(&so, &no);
     rths_zero_problem problem;
     rths_rig_problem rig_ctx;
     rths_frequency_problem freq_ctx;
@@ -87,7 +71,7 @@ static void test_seed_forms_agree(void **state) {
                 const char *o[2] = {ov[form][0], p ? "split.mass_ratio=0.33" : ov[form][1]};
                 rths_config *cfg;
                 rths_setup s;
-                load("examples/four_storey_linear.yaml", o, 2, &cfg, &s);
+                rths_fixture_setup("examples/four_storey_linear.yaml", o, 2, &cfg, &s);
                 amp[form] = matched_amplitude(&s, freqs[i]);
                 rths_setup_free(&s);
                 rths_config_free(cfg);
@@ -108,7 +92,8 @@ static void test_rod_chain_both_forms(void **state) {
     for (int form = 0; form < 2; form++) {
         rths_config *cfg;
         rths_setup s;
-        load("examples/rod_chain_1000/rod_chain_1000.yaml", &forms[form], 1, &cfg, &s);
+        rths_fixture_setup("examples/rod_chain_1000/rod_chain_1000.yaml", &forms[form], 1, &cfg,
+                           &s);
         assert_int_equal(s.assembly.n, 1000);
         for (int i = 0; i < 3; i++) {
             double truth = rths_truth_linear_amplitude_m(&s, freqs[i]);
@@ -130,7 +115,7 @@ static void test_conversion_closed_form(void **state) {
     const char *ov[] = {"split.numerical_solver=frequency"};
     rths_config *cfg;
     rths_setup s;
-    load("examples/four_storey_linear.yaml", ov, 1, &cfg, &s);
+    rths_fixture_setup("examples/four_storey_linear.yaml", ov, 1, &cfg, &s);
     rths_numerical_receptance *rec;
     rths_error err;
     if (rths_numerical_receptance_create(&s.split, s.forcing_dof, &rec, &err))
@@ -165,13 +150,11 @@ static void test_config_key(void **state) {
     rths_config *cfg;
     rths_setup s;
     rths_error err;
-    load("examples/four_storey_linear.yaml", NULL, 0, &cfg, &s);
+    rths_fixture_setup("examples/four_storey_linear.yaml", NULL, 0, &cfg, &s);
     assert_int_equal(s.numerical_solver, RTHS_NUMERICAL_REALTIME);
     rths_setup_free(&s);
     rths_config_free(cfg);
-    if (rths_config_load(rths_test_source_path("examples/four_storey_linear.yaml"), bad, 1, &cfg,
-                         &err))
-        fail_msg("%s", err.msg);
+    cfg = rths_fixture_config("examples/four_storey_linear.yaml", bad, 1);
     assert_int_equal(rths_setup_read(cfg, &s, &err), RTHS_EINPUT);
     assert_non_null(strstr(err.msg, "split.numerical_solver"));
     rths_config_free(cfg);
@@ -191,7 +174,7 @@ static void test_interface_mass_frequency_form(void **state) {
         const char *ov[] = {modes[m], "split.mass_ratio=0.7"};
         rths_config *cfg;
         rths_setup s;
-        load("examples/four_storey_linear.yaml", ov, 2, &cfg, &s);
+        rths_fixture_setup("examples/four_storey_linear.yaml", ov, 2, &cfg, &s);
         const rths_split *sp = &s.split;
         int n = s.assembly.n, np = sp->np, iface = sp->int_dofs[0];
         rths_numerical_receptance *r;

@@ -29,10 +29,10 @@ static rths_io_open_args args_for(rths_config *cfg, const rths_setup *s) {
 static void test_reference_plugin_equals_plant(void **state) {
     (void)state;
     const char *sets[] = {"forcing.dof=2"}; /* forcing on an internal physical DoF */
-    rths_config *cfg = rths_fixture_seed_config(sets, 1);
+    rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(sets, 1, &cfg, &s);
     rths_io_open_args args = args_for(cfg, &s);
     rths_io *io = NULL;
     if (rths_io_load(RTHS_IO_VIRTUAL_SO, &args, &io, &err)) fail_msg("%s", err.msg);
@@ -116,10 +116,10 @@ static void test_loop_over_plugin_equals_in_process(void **state) {
 }
 
 static void expect_refused(const char *path, const char *needle) {
-    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
+    rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_io_open_args args = args_for(cfg, &s);
     rths_io *io = NULL;
     assert_int_equal(rths_io_load(path, &args, &io, &err), RTHS_EINPUT);
@@ -202,10 +202,10 @@ static void test_failed_read_trips_and_safes(void **state) {
                                   .read = fake_read,
                                   .write = fake_write,
                                   .safe_state = fake_safe};
-    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
+    rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_io_open_args args = args_for(cfg, &s);
     rths_io *io = NULL;
     if (rths_io_open_table(&table, "fake", &args, &io, &err)) fail_msg("%s", err.msg);
@@ -242,10 +242,10 @@ static void test_internal_forcing_needs_a_device_that_applies_it(void **state) {
                                   .write = fake_write,
                                   .safe_state = fake_safe};
     const char *sets[] = {"forcing.dof=2"};
-    rths_config *cfg = rths_fixture_seed_config(sets, 1);
+    rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(sets, 1, &cfg, &s);
     rths_io_open_args args = args_for(cfg, &s);
     rths_io *io = NULL;
     if (rths_io_open_table(&table, "fake", &args, &io, &err)) fail_msg("%s", err.msg);
@@ -300,10 +300,10 @@ static unsigned hw_flags(void *device) {
 
 static void test_hardware_watchdog_and_version_one(void **state) {
     (void)state;
-    rths_config *cfg = rths_fixture_seed_config(NULL, 0);
+    rths_config *cfg;
     rths_setup s;
     rths_error err;
-    if (rths_setup_read(cfg, &s, &err)) fail_msg("%s", err.msg);
+    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
     rths_io_open_args args = args_for(cfg, &s);
     rths_controller_options co;
     rths_controller_defaults(&co);

@@ -47,27 +47,13 @@ void free(void *p) {
 static double matched_amplitude(const rths_setup *s, rths_scheme scheme, int ideal, double f_hz) {
     rths_controller_options co;
     rths_plant_options po;
-    rths_controller_defaults(&co);
-    rths_plant_defaults(&po);
+    rths_fixture_quiet_options(ideal, &co, &po);
     co.scheme = scheme;
-    if (ideal)
-        rths_plant_ideal(&po);
-    else
-        po.noise = 0;
-    rths_rig *rig;
+    rths_rig *rig = rths_fixture_rig(s, &co, &po);
     rths_error err;
-    if (rths_virtual_rig_create_with(s, &co, &po, &rig, &err)) fail_msg("%s", err.msg);
     rths_settle_options so;
     rths_newton_options no;
-    rths_settle_defaults(&so, 0);
-    /* judge steady state far below the amplitudes compared (the default 3e-4 is the host's
-     * trade-off for speed; here it would be the error floor) */
-    so.rel_tolerance = 1e-6;
-    so.abs_tolerance_m = 1e-14;
-    so.max_wait_periods = 4000;
-    rths_newton_defaults(&no, 0);
-    no.rel_tolerance = 1e-7;
-    no.abs_tolerance_m = 1e-14;
+    rths_fixture_tight_match(&so, &no);
     rths_corrector_state st;
     memset(&st, 0, sizeof st);
     rths_solution sol;
@@ -181,9 +167,8 @@ static void run_stream(const rths_setup *s, uint64_t seed, rths_period *out, int
     rths_controller_defaults(&co);
     rths_plant_defaults(&po);
     po.seed = seed;
-    rths_rig *rig;
+    rths_rig *rig = rths_fixture_rig(s, &co, &po);
     rths_error err;
-    if (rths_virtual_rig_create_with(s, &co, &po, &rig, &err)) fail_msg("%s", err.msg);
     double a[1] = {1e-5}, b[1] = {-2e-5};
     assert_int_equal(rths_rig_set_forcing(rig, 13.2, 1.0, &err), RTHS_OK);
     assert_int_equal(rths_rig_set_target(rig, 1, a, b, &err), RTHS_OK);
