@@ -7,6 +7,8 @@ set -u
 bin=$1
 src=$2
 source "$src/tests/cli/lib/common.sh"
+# the background runs below are stopped whatever the outcome (servers.sh's traps)
+source "$src/tests/cli/lib/servers.sh"
 lin="$src/examples/four_storey_linear.yaml"
 quiet=(--set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=12.8)
 
@@ -59,6 +61,7 @@ done
     --set continuation.end_hz=14 --set continuation.max_step_hz=0.005 \
     --set continuation.initial_step_hz=0.005 &
 holder=$!
+servers+=($holder)
 for _ in $(seq 1 400); do
     [ -s "$work/busy/journal.jsonl" ] && break
     sleep 0.05
@@ -74,6 +77,7 @@ for mode in fresh resume; do
 done
 kill "$holder" 2>/dev/null
 wait "$holder" 2>/dev/null
+forget "$holder"
 [ "$failures" -eq 0 ] && echo "ok   busy folder -> exit 2 naming pid $holder"
 
 # 4. a journal without its header (killed between creating the file and writing the header):
@@ -129,6 +133,7 @@ PY
 interrupt=(--set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=13.2)
 "$bin" frf "$lin" --out "$work/int" --quiet "${interrupt[@]}" --pace 5 2>"$work/int.err" &
 pid=$!
+servers+=($pid)
 for _ in $(seq 1 300); do
     [ "$(wc -l <"$work/int/journal.jsonl" 2>/dev/null || echo 0)" -ge 4 ] && break
     sleep 0.1
@@ -136,6 +141,7 @@ done
 kill -INT "$pid"
 wait "$pid"
 rc=$?
+forget "$pid"
 [ "$rc" -eq 130 ] || fail "interrupted run: exit $rc, expected 130 ($(cat "$work/int.err"))"
 /usr/bin/python3 - "$work/int" <<'PY' || fail "interrupted run: outputs incomplete"
 import csv, json, sys

@@ -5,8 +5,8 @@ set -u
 bin=$1
 src=$2
 work=$(mktemp -d)
-trap 'kill -9 $pid 2>/dev/null; rm -rf "$work"' EXIT
-pid=0
+# the killed run is stopped and $work removed whatever the outcome (servers.sh's traps)
+source "$src/tests/cli/lib/servers.sh"
 cfg="$src/examples/four_storey_linear.yaml"
 opts=(--quiet --set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=13.3)
 fail() { echo "FAIL: $*"; exit 1; }
@@ -15,6 +15,7 @@ fail() { echo "FAIL: $*"; exit 1; }
 # mid-sweep however fast or loaded the machine (unpaced it sometimes finished first)
 "$bin" frf "$cfg" --out "$work/run" "${opts[@]}" --pace 10 &
 pid=$!
+servers+=($pid)
 # wait until at least three points are journaled (header + 3 lines), then kill without warning
 for _ in $(seq 1 600); do
     lines=$( (wc -l <"$work/run/journal.jsonl") 2>/dev/null || echo 0)
@@ -24,6 +25,7 @@ for _ in $(seq 1 600); do
 done
 kill -9 $pid 2>/dev/null
 wait $pid 2>/dev/null
+forget $pid
 [ -f "$work/run/frf.csv" ] && fail "the killed run had already finished; make the run longer"
 before=$(($(wc -l <"$work/run/journal.jsonl") - 1))
 [ "$before" -ge 3 ] || fail "only $before points journaled before the kill"

@@ -11,13 +11,14 @@ set -u
 bin=$1
 src=$2
 . "$src/tests/cli/lib/common.sh"
+# the paced run is stopped whatever the outcome (servers.sh's traps)
+. "$src/tests/cli/lib/servers.sh"
 cfg="$src/examples/four_storey_linear.yaml"
-pid=
-trap '[ -n "$pid" ] && kill "$pid" 2>/dev/null; wait 2>/dev/null; rm -rf "$work"' EXIT
 run=(--set rig.noise=false --set continuation.start_hz=12.6 --set continuation.end_hz=13.2)
 
 "$bin" frf "$cfg" --out "$work/r" --quiet "${run[@]}" --pace 5 2>"$work/r.err" &
 pid=$!
+servers+=($pid)
 for _ in $(seq 1 600); do
     [ "$(wc -l <"$work/r/journal.jsonl" 2>/dev/null || echo 0)" -ge 3 ] && break
     kill -0 "$pid" 2>/dev/null || break
@@ -32,7 +33,7 @@ kill -0 "$pid" 2>/dev/null || fail "the run ended before it could be watched"
 kill -INT "$pid"
 wait "$pid"
 rc=$?
-pid=
+forget "$pid"
 [ "$rc" -eq 130 ] || fail "interrupted run: exit $rc, expected 130 ($(cat "$work/r.err"))"
 tail -n 1 "$work/r/run.log" | grep -q "finished: stopped by the user (exit 130)" ||
     fail "run.log does not end with the user's stop: $(tail -n 1 "$work/r/run.log")"

@@ -74,13 +74,21 @@ if start_view finished "$work/run" --listen 127.0.0.1:0; then
     # A stream api_check.mjs left ends at the server's next keep-alive (within 2 s): a stream
     # refused meanwhile is asked for again.
     streams=()
-    stream() { curl -s -N --max-time 25 "${base}api/events" >"$work/ev$1" & streams[$1]=$!; }
+    stream() {
+        curl -s -N --max-time 25 "${base}api/events" >"$work/ev$1" &
+        streams[$1]=$!
+        servers+=($!)
+    }
     for i in 1 2 3 4 5 6 7 8; do stream $i; done
     for _ in $(seq 150); do
         begun=0
         for i in 1 2 3 4 5 6 7 8; do
             if grep -q "^retry:" "$work/ev$i"; then begun=$((begun + 1))
-            elif grep -q "too many live pages" "$work/ev$i"; then wait "${streams[$i]}"; stream $i; fi
+            elif grep -q "too many live pages" "$work/ev$i"; then
+                wait "${streams[$i]}"
+                forget "${streams[$i]}"
+                stream $i
+            fi
         done
         [ $begun = 8 ] && break
         sleep 0.1
@@ -95,6 +103,7 @@ if start_view finished "$work/run" --listen 127.0.0.1:0; then
         fail "API with 8 streams open: HTTP $code"
     kill "${streams[@]}" 2>/dev/null
     wait "${streams[@]}" 2>/dev/null
+    for p in "${streams[@]}"; do forget "$p"; done
 fi
 
 # 3. in progress: no frf.csv or summary.json yet, the points come from the journal and must
