@@ -317,6 +317,16 @@ static void receptance_block(FILE *g, const frf_state *run, int d, double scale,
         double f = pt->sol.frequency_hz, mag = cabs(h);
         double complex truth = truth_at[i * RTHS_MAX_INTERFACE_DOFS + d];
         double dev = 100 * cabs(h - truth) / cabs(truth), bar = 300 * se / cabs(truth);
+        if (s->has_bilinear) {
+            /* the shooting truth (truth.csv) has the amplitude on each branch, not the phase:
+             * |H| against |H_true| = A_true / F on the point's branch (frf.png's deviation) */
+            double a_true = d == 0 ? rths_truth_branch_amplitude_m(s, &run->truth, f,
+                                                                   pt->sol.amplitude_m, NULL)
+                                   : NAN,
+                   h_true = a_true / fabs(s->forcing_amplitude_n);
+            dev = 100 * (mag / h_true - 1);
+            bar = 300 * se / h_true;
+        }
         fprintf(g, "%.10g,%.8g,%.8g,%.8g,%.8g,%.8g,%.8g,%.8g,%.8g\n", f, mag * scale,
                 3 * se * scale, carg(h) * 180 / M_PI, mag > 0 ? 3 * se / mag * 180 / M_PI : NAN,
                 creal(h) * scale, cimag(h) * scale, dev, bar);
@@ -339,7 +349,7 @@ static double receptance_unit(const frf_state *run, const rths_truth_curve *t, i
     const double *amp = t->dofs > d && t->amp_dof_m ? t->amp_dof_m + (size_t)d * t->n
                         : d == 0                    ? t->amp_m
                                                     : NULL;
-    for (int j = 0; amp && j < t->n && !s->has_bilinear && s->forcing_amplitude_n != 0; j++)
+    for (int j = 0; amp && j < t->n && s->forcing_amplitude_n != 0; j++)
         if (isfinite(amp[j])) max_abs = fmax(max_abs, amp[j] / fabs(s->forcing_amplitude_n));
     char si[24];
     int rot = rths_setup_dof_is_rotation(s, s->split.int_dofs[d]);
@@ -382,13 +392,27 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
         mode_lines(g, modes, lo, hi, 1);
         fprintf(g,
                 "set format x ''\nset xlabel ''\nset logscale y\nset format y '%%g'\n"
-                "set ylabel '|H| (%s)'\n"
-                "plot 'truth.csv' using 1:(sqrt(column('%s')**2 + column('%s')**2) * %g) with "
-                "lines lw 2 lc rgb 'black' title '%s', \\\n"
+                "set ylabel '|H| (%s)'\n",
+                unit);
+        if (s->has_bilinear && d == 0)
+            /* the shooting truth: its amplitude over the forcing's, stable and unstable */
+            fprintf(g,
+                    "plot 'truth.csv' using 1:(column('stable') == 1 ? column('amplitude_m') / "
+                    "%.9g * %g : 1/0) with lines lw 2 lc rgb 'black' title 'true assembly, "
+                    "stable', \\\n"
+                    "  'truth.csv' using 1:(column('stable') == 0 ? column('amplitude_m') / %.9g "
+                    "* %g : 1/0) with lines lw 2 dt 2 lc rgb 'gray40' title 'true assembly, "
+                    "unstable', \\\n",
+                    fabs(s->forcing_amplitude_n), scale, fabs(s->forcing_amplitude_n), scale);
+        else
+            fprintf(g,
+                    "plot 'truth.csv' using 1:(sqrt(column('%s')**2 + column('%s')**2) * %g) "
+                    "with lines lw 2 lc rgb 'black' title '%s', \\\n",
+                    re, im, scale, s->has_bilinear ? "" : "true assembly");
+        fprintf(g,
                 "  $rec%d using 1:2:3 with yerrorbars pt 7 ps 0.7 lc rgb '%s' title "
                 "'hybrid test'\n",
-                unit, re, im, scale, s->has_bilinear ? "" : "true assembly", d + 1,
-                rths_plot_colour(d));
+                d + 1, rths_plot_colour(d));
         /* phase */
         panel(g, 0.53, 0.29, NULL, KEY_X);
         fprintf(g, "set lmargin at screen %.4f\nset rmargin at screen %.4f\nunset key\n", left,
@@ -406,8 +430,9 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
         fprintf(g, "set lmargin at screen %.4f\nset rmargin at screen %.4f\n", left, right);
         if (d > 0) fprintf(g, "unset key\n");
         mode_lines(g, modes, lo, hi, 0);
-        /* with a bilinear leg the panel has no data: a fixed range keeps gnuplot from warning */
-        fprintf(g, "set yrange %s\n", s->has_bilinear ? "[-1:1]" : "[*:*]");
+        /* a bilinear leg's interface DoFs after the first have no truth: a fixed range keeps
+         * gnuplot from warning on the empty panel */
+        fprintf(g, "set yrange %s\n", s->has_bilinear && d > 0 ? "[-1:1]" : "[*:*]");
         fprintf(g,
                 "set format x '%%g'\nset xlabel 'Forcing frequency (Hz)'\n"
                 "set ylabel \"Deviation from\\ntruth (%%)\"\n"
@@ -415,7 +440,7 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
                 "  $rec%d using 1:8:9 with yerrorbars pt 7 ps 0.7 lc rgb '%s' title "
                 "'%s'\n",
                 d + 1, rths_plot_colour(d),
-                s->has_bilinear ? "no analytic truth (bilinear leg)"
+                s->has_bilinear ? "(|H| - |H_{true}|) / |H_{true}|, ±3 SE"
                                 : "|H - H_{true}| / |H_{true}|, ±3 SE");
     }
     fprintf(g, "unset multiplot\n");
@@ -473,10 +498,17 @@ static int plot_nyquist(rths_report *rep, const frf_state *run, const rths_truth
 }
 
 static int plot_iterations(rths_report *rep, const frf_state *run, rths_error *err) {
-    int max_iterations = 0;
+    int max_iterations = 0, max_count = 0;
     for (int i = 0; i < run->n; i++)
         max_iterations =
             run->pts[i].iterations > max_iterations ? run->pts[i].iterations : max_iterations;
+    /* the tallest bar's count: the range clears it by a tenth, so no bar meets the frame */
+    for (int k = 0; k <= max_iterations; k++) {
+        int count = 0;
+        for (int i = 0; i < run->n; i++)
+            count += run->pts[i].iterations == k;
+        max_count = count > max_count ? count : max_count;
+    }
     char body[1024];
     /* the range hugs the bars: no empty tick left of 0 */
     snprintf(body, sizeof body,
@@ -489,11 +521,12 @@ static int plot_iterations(rths_report *rep, const frf_state *run, rths_error *e
              "set xtics 1\n"
              "set xrange [-0.6:%g]\n"
              "set grid ytics\n"
-             "set yrange [0:*]\n"
+             "set yrange [0:%d]\n"
              "unset key\n"
              "plot 'frf.csv' using 16:(1) skip 1 smooth frequency with boxes lc rgb '%s' "
              "title 'points'\n",
-             max_iterations + 0.6, rths_plot_colour(0));
+             max_iterations + 0.6, max_count > 0 ? max_count + (max_count + 9) / 10 : 1,
+             rths_plot_colour(0));
     return rths_plot(rep, rths_report_dir(rep), "iterations", 900, 600, body, err);
 }
 

@@ -52,13 +52,15 @@ static int write_trace_csv(rths_report *rep, const rths_trace_sample *tr, int n,
 }
 
 /* One interface DoF's row of the Lissajous figure: time traces and the phase plot, its columns
- * in trace.csv (phys, num, target), micrometres or milliradians. */
+ * in trace.csv (phys, num, target), in the unit the largest of them, max_abs (m or rad), reads
+ * in (report.h: µm below a millimetre, mm above). */
 static int lissajous_row(char *out, size_t size, const rths_setup *setup, int d, int phys_col,
-                         int num_col, int target_col) {
+                         int num_col, int target_col, double max_abs) {
     int dof = setup->split.int_dofs[d];
     int rot = rths_setup_dof_is_rotation(setup, dof);
-    const char *unit = rot ? "mrad" : "{/Symbol m}m", *what = rot ? "Rotation" : "Displacement";
-    double scale = rot ? 1e3 : 1e6;
+    const char *what = rot ? "Rotation" : "Displacement";
+    char unit[24];
+    double scale = rths_plot_unit(max_abs, rot ? "rad" : "m", unit, sizeof unit);
     char name[48];
     snprintf(name, sizeof name, "interface DoF %d (DoF %d)", d + 1, dof + 1);
     return snprintf(out, size,
@@ -118,6 +120,22 @@ void frf_trace_free(frf_trace *t) {
     t->n = 0;
 }
 
+/* The largest |value| of interface DoF d's physical, numerical and target traces (the columns
+ * its Lissajous row draws; several: the per-DoF ones, else the first DoF's). */
+static double trace_max_abs(const frf_trace *t, int several, int d) {
+    double max_abs = 0;
+    for (int i = 0; i < t->n; i++) {
+        const rths_trace_sample *x = &t->samples[i];
+        if (several && x->dofs != t->dofs) continue; /* empty cells in trace.csv */
+        const double v[3] = {several ? x->x_phys_dof_m[d] : x->x_phys_m,
+                             several ? x->x_num_dof_m[d] : x->x_num_m,
+                             several ? x->target_dof_m[d] : x->target_m};
+        for (int k = 0; k < 3; k++)
+            if (isfinite(v[k])) max_abs = fmax(max_abs, fabs(v[k]));
+    }
+    return max_abs;
+}
+
 int frf_trace_write(rths_report *rep, const rths_setup *setup, const frf_trace *t,
                     rths_error *err) {
     int dofs = t->dofs, n = t->n;
@@ -135,8 +153,8 @@ int frf_trace_write(rths_report *rep, const rths_setup *setup, const frf_trace *
     for (int d = 0; d < (several ? dofs : 1) && used < (int)sizeof body; d++) {
         /* DoF 0 alone: columns 2-4; several: dof<d>_* at 7 + 4 d */
         int c0 = several ? 7 + 4 * d : 2;
-        used +=
-            lissajous_row(body + used, sizeof body - (size_t)used, setup, d, c0, c0 + 1, c0 + 2);
+        used += lissajous_row(body + used, sizeof body - (size_t)used, setup, d, c0, c0 + 1, c0 + 2,
+                              trace_max_abs(t, several, d));
     }
     if (used < (int)sizeof body)
         snprintf(body + used, sizeof body - (size_t)used, "unset multiplot\n");
