@@ -452,6 +452,74 @@ static int plot_bode(rths_report *rep, const frf_state *run, const rths_truth_cu
     return rc;
 }
 
+/* The Nyquist figure's truth, refined where the curve turns fast: truth.csv's grid resolves the
+ * amplitude (a few points per half-power bandwidth) but drew the circle as a polygon whose sides
+ * near a mode were a tenth of its diameter. Between neighbours whose chord exceeds 1 % of the
+ * DoF's largest |H| in any DoF the midpoint is added, up to 8 halvings and NYQUIST_TRUTH_MAX
+ * points. Each point is a solve of the assembly: a bilinear leg (no analytic truth), a sparse
+ * model or one beyond NYQUIST_REFINED_DOFS keeps truth.csv's grid (returns 0, nothing written).
+ * Written as $truth: frequency_hz, then per DoF Re H and Im H in its unit (scale[d]). */
+enum { NYQUIST_TRUTH_MAX = 4000, NYQUIST_REFINED_DOFS = 200 };
+
+static int nyquist_truth_block(FILE *g, const frf_state *run, const rths_truth_curve *t, int dofs,
+                               const double *scale) {
+    const rths_setup *s = run->setup;
+    if (s->has_bilinear || s->sparse || s->assembly.n > NYQUIST_REFINED_DOFS || t->n < 2 ||
+        t->n > NYQUIST_TRUTH_MAX)
+        return 0;
+    for (int j = 1; j < t->n; j++)
+        if (!(t->freq_hz[j] > t->freq_hz[j - 1])) return 0; /* not a grid in frequency */
+    typedef struct {
+        double f;
+        double complex h[RTHS_MAX_INTERFACE_DOFS];
+    } sample;
+    sample *a = malloc(NYQUIST_TRUTH_MAX * sizeof *a), *b = malloc(NYQUIST_TRUTH_MAX * sizeof *b);
+    int n = t->n, ok = a && b;
+    double max_abs[RTHS_MAX_INTERFACE_DOFS] = {0};
+    for (int j = 0; j < n && ok; j++) {
+        a[j].f = t->freq_hz[j];
+        ok = !frf_receptance_truth_all(s, a[j].f, a[j].h);
+        for (int d = 0; d < dofs && ok; d++)
+            max_abs[d] = fmax(max_abs[d], cabs(a[j].h[d]));
+    }
+    for (int pass = 0, added = 1; pass < 8 && added && ok; pass++) {
+        int m = 0;
+        added = 0;
+        for (int j = 0; j < n && ok; j++) {
+            b[m++] = a[j];
+            if (j + 1 == n || m + (n - j) >= NYQUIST_TRUTH_MAX) continue;
+            int coarse = 0;
+            for (int d = 0; d < dofs; d++)
+                coarse |= cabs(a[j + 1].h[d] - a[j].h[d]) > 0.01 * max_abs[d];
+            if (!coarse) continue;
+            b[m].f = 0.5 * (a[j].f + a[j + 1].f);
+            ok = !frf_receptance_truth_all(s, b[m].f, b[m].h);
+            m++;
+            added = 1;
+        }
+        sample *swap = a;
+        a = b;
+        b = swap;
+        n = m;
+    }
+    if (ok) {
+        fprintf(g, "$truth << EOD\nfrequency_hz");
+        for (int d = 0; d < dofs; d++)
+            fprintf(g, ",real_%d,imag_%d", d + 1, d + 1);
+        fprintf(g, "\n");
+        for (int j = 0; j < n; j++) {
+            fprintf(g, "%.10g", a[j].f);
+            for (int d = 0; d < dofs; d++)
+                fprintf(g, ",%.8g,%.8g", creal(a[j].h[d]) * scale[d], cimag(a[j].h[d]) * scale[d]);
+            fprintf(g, "\n");
+        }
+        fprintf(g, "EOD\n");
+    }
+    free(a);
+    free(b);
+    return ok;
+}
+
 /* nyquist.png: Im H against Re H per interface DoF, equal scales, ±3 SE bars in both parts. */
 static int plot_nyquist(rths_report *rep, const frf_state *run, const rths_truth_curve *t,
                         const char *title, const double complex *truth_at, rths_error *err) {
@@ -466,10 +534,14 @@ static int plot_nyquist(rths_report *rep, const frf_state *run, const rths_truth
             "set datafile separator ','\nset datafile columnheaders\nset grid\n"
             "set multiplot title \"%s\" noenhanced\n",
             title);
-    double width = (PLOT_RIGHT - PLOT_LEFT) / rec.dofs;
+    double width = (PLOT_RIGHT - PLOT_LEFT) / rec.dofs, scales[RTHS_MAX_INTERFACE_DOFS];
+    char units[RTHS_MAX_INTERFACE_DOFS][24];
+    for (int d = 0; d < rec.dofs; d++)
+        scales[d] = receptance_unit(run, t, d, units[d], sizeof units[d]);
+    int refined = nyquist_truth_block(g, run, t, rec.dofs, scales);
     for (int d = 0; d < rec.dofs; d++) {
-        char unit[24];
-        double scale = receptance_unit(run, t, d, unit, sizeof unit);
+        const char *unit = units[d];
+        double scale = scales[d];
         receptance_block(g, run, d, scale, truth_at);
         double left = PLOT_LEFT + d * width + (d ? 0.05 : 0), right = left + width - 0.02;
         char heading[96];
@@ -479,14 +551,20 @@ static int plot_nyquist(rths_report *rep, const frf_state *run, const rths_truth
         fprintf(g, "set lmargin at screen %.4f\nset rmargin at screen %.4f\nset size ratio -1\n",
                 left, right);
         if (d > 0) fprintf(g, "unset key\n");
+        fprintf(g, "set xlabel 'Re H (%s)'\nset ylabel 'Im H (%s)'\n", unit, unit);
+        if (refined)
+            fprintf(g, "plot $truth using %d:%d with lines lw 2 lc rgb 'black' title '%s', \\\n",
+                    2 + 2 * d, 3 + 2 * d, "true assembly");
+        else
+            fprintf(g,
+                    "plot 'truth.csv' using (column('%s') * %g):(column('%s') * %g) with lines "
+                    "lw 2 lc rgb 'black' title '%s', \\\n",
+                    rec.names[2 * d], scale, rec.names[2 * d + 1], scale,
+                    s->has_bilinear ? "" : "true assembly");
         fprintf(g,
-                "set xlabel 'Re H (%s)'\nset ylabel 'Im H (%s)'\n"
-                "plot 'truth.csv' using (column('%s') * %g):(column('%s') * %g) with lines lw 2 "
-                "lc rgb 'black' title '%s', \\\n"
                 "  $rec%d using 6:7:3:3 with xyerrorbars pt 7 ps 0.7 lc rgb '%s' title "
                 "'hybrid test, ±3 SE bars'\n",
-                unit, unit, rec.names[2 * d], scale, rec.names[2 * d + 1], scale,
-                s->has_bilinear ? "" : "true assembly", d + 1, rths_plot_colour(d));
+                d + 1, rths_plot_colour(d));
     }
     fprintf(g, "unset multiplot\n");
     int rc = fclose(g) ? rths_error_set(err, RTHS_EFAIL, "out of memory") : 0;

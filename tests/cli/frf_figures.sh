@@ -12,6 +12,10 @@
 #    300 SE / A_true from frf.csv's amplitude_m, amplitude_se_m and true_amplitude_m at every
 #    converged point (to the 8 digits written); the panel was empty ("no analytic truth"), and
 #    the top panel now draws the truth's |H| (truth.csv's amplitude over F).
+# 4. nyquist on a linear structure: the truth drawn smooth. truth.csv's grid drew the circle as
+#    a polygon (sides a tenth of its diameter near the mode); the script's $truth block holds
+#    every truth.csv frequency with its receptance (to the 8 digits written) and enough points
+#    between them that no chord exceeds 1 % of the largest |H|.
 # 3. iterations: the tallest bar stays below the frame (the y range clears the largest count
 #    of frf.csv's iterations column by at least one and at most a fifth); it met the frame
 #    when the count fell on a tick ([0:*]).
@@ -100,6 +104,34 @@ gp = open(run + "/bode.gp", encoding="utf-8").read()
 check("column('amplitude_m') / 3 *" in gp and "true assembly, unstable" in gp,
       "bilinear bode: the shooting truth's |H| (truth.csv amplitude over F = 3 N) drawn, "
       "stable and unstable")
+
+# 4. the linear run's Nyquist truth against truth.csv
+run = sys.argv[2]
+truth = list(csv.DictReader(open(run + "/truth.csv")))
+ref = block(run + "/nyquist.gp", "truth")
+gp = open(run + "/nyquist.gp", encoding="utf-8").read()
+scale = 1e6  # µm/N: the receptance peaks at 341 µm/N on this range
+check(ref is not None and "Re H (µm/N)" in gp, "linear nyquist: a $truth block, in µm/N")
+if ref:
+    freqs = sorted(float(r["frequency_hz"]) for r in ref)
+    at = {float(r["frequency_hz"]): r for r in ref}
+    worst = 0.0
+    for r in truth:
+        f = float(r["frequency_hz"])
+        h = complex(float(r["receptance_real_m_per_n"]), float(r["receptance_imag_m_per_n"]))
+        near = min(freqs, key=lambda x: abs(x - f))  # written to 10 digits
+        got = at[near] if abs(near - f) <= 1e-9 * f else None
+        if got is None:
+            worst = math.inf
+            break
+        worst = max(worst, abs(complex(float(got["real_1"]), float(got["imag_1"])) / scale - h)
+                    / abs(h))
+    pts = [complex(float(r["real_1"]), float(r["imag_1"])) for r in ref]
+    top = max(abs(p) for p in pts)
+    chord = max(abs(pts[j + 1] - pts[j]) for j in range(len(pts) - 1)) / top
+    check(worst < 1e-6 and chord <= 0.01,
+          f"linear nyquist: {len(ref)} truth points for truth.csv's {len(truth)} (each of its "
+          f"rows to {worst:.2g}), largest chord {100 * chord:.2f} % of max |H|")
 sys.exit(1 if bad else 0)
 PY
 exit $((failures > 0))
