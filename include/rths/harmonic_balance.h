@@ -10,6 +10,7 @@
 #define RTHS_HARMONIC_BALANCE_H
 
 #include "rths/nonlinear.h"
+#include "rths/signals.h"
 
 typedef struct rths_hb_options {
     int harmonics;  /* H: harmonics 0..H kept */
@@ -75,6 +76,23 @@ int rths_hb_substructure_solve(rths_hb_substructure *h, double omega_rad_s, doub
 int rths_hb_substructure_force(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
                                int n_harmonics, const double *disp_a, const double *disp_b,
                                double *force_a, double *force_b, rths_error *err);
+
+/* The grounding control of the real-time form (docs/method.md, "Nonlinear elements in the
+ * frequency form"): a spring kp_n_per_m[d] and a damper kd_n_s_per_m[d] from each interface DoF d
+ * to a moving base, the physical interface's motion given to rths_hb_substructure_solve_dofs.
+ * Replaces earlier gains; 0 removes them. */
+int rths_hb_substructure_set_grounding(rths_hb_substructure *h, const double *kp_n_per_m,
+                                       const double *kd_n_s_per_m, rths_error *err);
+
+/* The numerical substructure as the real-time form runs it, on 1..RTHS_MAX_INTERFACE_DOFS
+ * interface DoFs (the split's interface order): driven by the measured interface forces
+ * force[d] (harmonics 1..RTHS_MAX_HARMONICS, N) and the grounding toward the physical interface
+ * motion base[d] (m), its interfaces' means prescribed as base[d].a[0]; disp[d] its interface
+ * motion (harmonics 0..RTHS_MAX_HARMONICS). Starts from the previous solution. RTHS_EFAIL when
+ * Newton does not converge. */
+int rths_hb_substructure_solve_dofs(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
+                                    const rths_fourier *force, const rths_fourier *base,
+                                    rths_fourier *disp, rths_error *err);
 
 /* An rths_receptance_fn (iterate.h) with ctx the object: the receptance of the substructure's
  * linear part alone (elements removed). Passed to rths_frequency_problem_init, it tells the
