@@ -67,15 +67,11 @@ agree=$(json "$s" stability_points_agreeing)
     fail "both sides: stability labels: $agree of $cmp agree with the truth"
 
 # a Duffing spring (3e9 N/m^3 between storeys 3 and 4) on the numerical side of the
-# two-interface building (storeys 2 and 3 the interface), real-time form, harmonics 1-2 (the
-# corrector's bound at two interface DoFs): the truth's folds at 13.573056 and 13.568541 Hz
-two="$src/examples/two_interface_storeys.yaml"
-"$bin" frf "$two" --out "$work/duffing" --quiet --set rig.noise=false \
-    --set continuation.start_hz=13.5 --set continuation.end_hz=13.65 \
-    --set continuation.method=arclength --set continuation.initial_step_hz=0.01 \
-    --set iteration.harmonics=2 \
-    --set 'structure.nonlinear=[{type: cubic, dofs: [4, 3], stiffness_n_per_m3: 3e9}]' ||
-    fail "Duffing: run failed"
+# two-interface building (storeys 2 and 3 the interface; examples/two_interface_duffing.yaml),
+# real-time form, harmonics 1-2 (the corrector's bound at two interface DoFs): the truth's folds
+# at 13.573056 and 13.568541 Hz
+two="$src/examples/two_interface_duffing.yaml"
+"$bin" frf "$two" --out "$work/duffing" --quiet --set rig.noise=false || fail "Duffing: run failed"
 s="$work/duffing/summary.json"
 folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' | grep -o '"frequency_hz":[0-9.e+-]*' |
     cut -d: -f2 | tr '\n' ' ')
