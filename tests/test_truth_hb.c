@@ -60,6 +60,13 @@ static void test_shooting_truth_is_harmonic_balance(void **state) {
         /* the truth.csv amplitude is this shooting point's */
         double shoot = hypot(pp[j].cos_m[iface + n], pp[j].sin_m[iface + n]);
         assert_close(t.amp_m[j], shoot, 1e-15 * shoot);
+        /* and truth.csv's per-DoF columns the shooting point's interface DoFs' */
+        assert_int_equal(t.dofs, 2);
+        for (int d = 0; d < 2; d++) {
+            int dof = s.split.int_dofs[d];
+            double a = hypot(pp[j].cos_m[dof + n], pp[j].sin_m[dof + n]);
+            assert_close(t.amp_dof_m[d * t.n + j], a, 1e-15 * a);
+        }
         if (j >= 2) {
             double f0 = pp[j - 2].omega_rad_s, f1 = pp[j - 1].omega_rad_s, f2 = pp[j].omega_rad_s;
             folds += (f1 - f0) * (f2 - f1) < 0;

@@ -20,6 +20,9 @@ s="$work/run/summary.json"
 # the two interface storeys and storey 4 kept (the spring's DoFs), nothing condensed
 grep -q "25 harmonics, 512 time samples per period (AFT), 3 DoF(s) kept" "$work/run/run.log" ||
     fail "run.log does not describe the harmonic balance"
+# the truth curve of both interface DoFs (the figure draws each)
+head -n 1 "$work/run/truth.csv" | grep -q "dof2_amplitude_m" ||
+    fail "truth.csv has no dof2_amplitude_m: $(head -n 1 "$work/run/truth.csv")"
 truth_folds=$(awk -F, 'NR > 1 { f = $1; if (n >= 2 && (p1 - p0) * (f - p1) < 0) printf "%s ", p1;
     p0 = p1; p1 = f; n++ }' "$work/run/truth.csv")
 run_folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' | grep -o '"frequency_hz":[0-9.e+-]*' |
