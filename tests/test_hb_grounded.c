@@ -1,7 +1,8 @@
 /* The frequency form's nonlinear numerical substructure with the real-time form's grounding
  * (rths_hb_substructure_set_grounding / _solve_dofs, harmonic_balance.h; docs/method.md,
  * "Nonlinear elements in the frequency form"), on examples/four_storey_bilinear_numerical.yaml:
- *  - without elements it is the grounded linear substructure per harmonic,
+ *  - without elements (every DoF but the interface condensed) it is the grounded linear
+ *    substructure per harmonic,
  *    (D(k w) + k_g + i k w c_g e e^T) xi = e (F + (k_g + i k w c_g) x) + f_forcing, solved
  *    independently by rths_frf on the grounded matrices;
  *  - with the leg (the kink crossed at 14.97 Hz) and the base motion equal to the force-driven
@@ -17,19 +18,21 @@
 #include <stdlib.h>
 #include <string.h>
 
-static void load_example(rths_config **cfg, rths_setup *s) {
+static void load_file(const char *rel, rths_config **cfg, rths_setup *s) {
     rths_error err;
-    if (rths_config_load(rths_test_source_path("examples/four_storey_bilinear_numerical.yaml"),
-                         NULL, 0, cfg, &err) ||
+    if (rths_config_load(rths_test_source_path(rel), NULL, 0, cfg, &err) ||
         rths_setup_read(*cfg, s, &err))
         fail_msg("%s", err.msg);
 }
 
-static void test_linear_grounded(void **state) {
-    (void)state;
+static void load_example(rths_config **cfg, rths_setup *s) {
+    load_file("examples/four_storey_bilinear_numerical.yaml", cfg, s);
+}
+
+static void linear_grounded(const char *rel) {
     rths_config *cfg;
     rths_setup s;
-    load_example(&cfg, &s);
+    load_file(rel, &cfg, &s);
     const rths_split *sp = &s.split;
     const int nn = sp->nn;
     rths_error err;
@@ -77,6 +80,14 @@ static void test_linear_grounded(void **state) {
     rths_hb_substructure_destroy(hb);
     rths_setup_free(&s);
     rths_config_free(cfg);
+}
+
+/* the seed's numerical side (interface and storey 4, nothing condensed without elements but
+ * storey 4), and the five-storey building's (storeys 4 and 5 condensed, the forcing on 4) */
+static void test_linear_grounded(void **state) {
+    (void)state;
+    linear_grounded("examples/four_storey_bilinear_numerical.yaml");
+    linear_grounded("examples/five_storey.yaml");
 }
 
 static void test_grounding_carries_nothing_at_a_match(void **state) {
