@@ -31,19 +31,21 @@ int rths_hb_solve(const rths_assembly *a, int count, const rths_nl_element *el,
 /* ---- the frequency form's nonlinear numerical substructure (docs/method.md, "Nonlinear
  * elements in the frequency form") ----
  *
- * The numerical substructure of a split (one interface DoF, order (interface, numerical)) with
- * its nonlinear elements, solved per call by harmonic balance with AFT:
+ * The numerical substructure of a split (1 to RTHS_MAX_INTERFACE_DOFS interface DoFs, order
+ * (interface, numerical)) with its nonlinear elements, solved per call by harmonic balance with
+ * AFT:
  *     M q'' + C q' + K q + sum_e g_e b_e = e_int F(t) + f amplitude cos(w t) + static_force,
  * F(t) the interface force whose harmonics 1..n_harmonics are given (above them 0). The DoFs no
  * element touches are condensed out exactly per harmonic (their dynamic stiffness' Schur
  * complement), so the Newton system holds the interface and the elements' DoFs only, with the
- * exact Jacobian of the condensed system. The interface's mean is prescribed (the physical side's,
- * as the grounding control makes the real-time form's follow it); the other DoFs' means come from
- * the static balance with static_force (an element's preload). Every solve starts from the
- * previous solution. */
+ * exact Jacobian of the condensed system (rths_hb_substructure_solve, _force and _eval take the
+ * one-interface case; rths_hb_substructure_solve_dofs any). The interface's mean is prescribed (the
+ * physical side's, as the grounding control makes the real-time form's follow it); the other DoFs'
+ * means come from the static balance with static_force (an element's preload). Every solve starts
+ * from the previous solution. */
 typedef struct rths_hb_substructure rths_hb_substructure;
 
-/* s: the split (n_int must be 1); count/el: every element of the setup in assembly DoFs, those
+/* s: the split; count/el: every element of the setup in assembly DoFs, those
  * with numerical = 1 are taken (both DoFs on the numerical side or the ground); static_force (n,
  * assembly order, may be NULL): the preloads, taken on the numerical internal DoFs; forcing_dof:
  * the forcing's assembly DoF (taken when on the numerical side or the interface, as
