@@ -608,6 +608,11 @@ int rths_hb_substructure_eval(void *ctx, double omega_rad_s, double complex *rec
                               double complex *forced_m_per_n, rths_error *err) {
     rths_hb_substructure *h = ctx;
     const int nn = h->nn;
+    if (h->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the substructure's receptance takes one interface DoF (this one has "
+                              "%d)",
+                              h->n_int);
     double *unit = calloc((size_t)nn, sizeof(double));
     double complex *x = malloc(sizeof(double complex) * (size_t)nn);
     int rc = unit && x ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");
