@@ -10,6 +10,7 @@
 #define RTHS_HARMONIC_BALANCE_H
 
 #include "rths/nonlinear.h"
+#include "rths/signals.h"
 
 typedef struct rths_hb_options {
     int harmonics;  /* H: harmonics 0..H kept */
@@ -30,19 +31,21 @@ int rths_hb_solve(const rths_assembly *a, int count, const rths_nl_element *el,
 /* ---- the frequency form's nonlinear numerical substructure (docs/method.md, "Nonlinear
  * elements in the frequency form") ----
  *
- * The numerical substructure of a split (one interface DoF, order (interface, numerical)) with
- * its nonlinear elements, solved per call by harmonic balance with AFT:
+ * The numerical substructure of a split (1 to RTHS_MAX_INTERFACE_DOFS interface DoFs, order
+ * (interface, numerical)) with its nonlinear elements, solved per call by harmonic balance with
+ * AFT:
  *     M q'' + C q' + K q + sum_e g_e b_e = e_int F(t) + f amplitude cos(w t) + static_force,
  * F(t) the interface force whose harmonics 1..n_harmonics are given (above them 0). The DoFs no
  * element touches are condensed out exactly per harmonic (their dynamic stiffness' Schur
  * complement), so the Newton system holds the interface and the elements' DoFs only, with the
- * exact Jacobian of the condensed system. The interface's mean is prescribed (the physical side's,
- * as the grounding control makes the real-time form's follow it); the other DoFs' means come from
- * the static balance with static_force (an element's preload). Every solve starts from the
- * previous solution. */
+ * exact Jacobian of the condensed system (rths_hb_substructure_solve, _force and _eval take the
+ * one-interface case; rths_hb_substructure_solve_dofs any). The interface's mean is prescribed (the
+ * physical side's, as the grounding control makes the real-time form's follow it); the other DoFs'
+ * means come from the static balance with static_force (an element's preload). Every solve starts
+ * from the previous solution. */
 typedef struct rths_hb_substructure rths_hb_substructure;
 
-/* s: the split (n_int must be 1); count/el: every element of the setup in assembly DoFs, those
+/* s: the split; count/el: every element of the setup in assembly DoFs, those
  * with numerical = 1 are taken (both DoFs on the numerical side or the ground); static_force (n,
  * assembly order, may be NULL): the preloads, taken on the numerical internal DoFs; forcing_dof:
  * the forcing's assembly DoF (taken when on the numerical side or the interface, as
@@ -75,6 +78,23 @@ int rths_hb_substructure_solve(rths_hb_substructure *h, double omega_rad_s, doub
 int rths_hb_substructure_force(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
                                int n_harmonics, const double *disp_a, const double *disp_b,
                                double *force_a, double *force_b, rths_error *err);
+
+/* The grounding control of the real-time form (docs/method.md, "Nonlinear elements in the
+ * frequency form"): a spring kp_n_per_m[d] and a damper kd_n_s_per_m[d] from each interface DoF d
+ * to a moving base, the physical interface's motion given to rths_hb_substructure_solve_dofs.
+ * Replaces earlier gains; 0 removes them. */
+int rths_hb_substructure_set_grounding(rths_hb_substructure *h, const double *kp_n_per_m,
+                                       const double *kd_n_s_per_m, rths_error *err);
+
+/* The numerical substructure as the real-time form runs it, on 1..RTHS_MAX_INTERFACE_DOFS
+ * interface DoFs (the split's interface order): driven by the measured interface forces
+ * force[d] (harmonics 1..RTHS_MAX_HARMONICS, N) and the grounding toward the physical interface
+ * motion base[d] (m), its interfaces' means prescribed as base[d].a[0]; disp[d] its interface
+ * motion (harmonics 0..RTHS_MAX_HARMONICS). Starts from the previous solution. RTHS_EFAIL when
+ * Newton does not converge. */
+int rths_hb_substructure_solve_dofs(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
+                                    const rths_fourier *force, const rths_fourier *base,
+                                    rths_fourier *disp, rths_error *err);
 
 /* An rths_receptance_fn (iterate.h) with ctx the object: the receptance of the substructure's
  * linear part alone (elements removed). Passed to rths_frequency_problem_init, it tells the

@@ -14,8 +14,8 @@ typedef struct rths_truth_curve {
     double *max_floquet; /* the shooting solution's largest Floquet multiplier modulus at each
                             point; NULL for the analytic curve */
     int exact;           /* 1: the analytic FRF (linear structure), 0: the shooting solution */
-    /* several interface DoFs (linear structure): the fundamental amplitude of each, m,
-       amp_dof_m[d * n + j] for DoF d at freq_hz[j]; dofs 0 and NULL otherwise */
+    /* several interface DoFs (linear structure, or the shooting curve): the fundamental amplitude
+       of each, m, amp_dof_m[d * n + j] for DoF d at freq_hz[j]; dofs 0 and NULL otherwise */
     int dofs;
     double *amp_dof_m;
 } rths_truth_curve;

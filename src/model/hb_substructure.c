@@ -18,7 +18,7 @@
 #include <string.h>
 
 struct rths_hb_substructure {
-    int nn, r, n_cond, H, N, nb, nu;
+    int nn, n_int, r, n_cond, H, N, nb, nu;
     int *keep, *cond;                          /* substructure indices: r kept, n_cond condensed */
     double *mass, *damping, *stiffness;        /* nn x nn copies */
     double *forcing, *static_force;            /* nn */
@@ -31,8 +31,9 @@ struct rths_hb_substructure {
     lapack_int *ipiv;
     double complex *d, *a_ll, *b_l; /* nn x nn, n_cond x n_cond, n_cond x (r + 2) */
     double *gsum;                   /* nb x nb: one element's AFT Jacobian */
-    int constrained_j;              /* the interface's coefficients j < this are prescribed */
-    double *target, *reaction;      /* nb: their values, and the interface force they need */
+    int constrained_j;              /* the interfaces' coefficients j < this are prescribed */
+    double *target, *reaction; /* n_int x nb, [d * nb + j]: their values, the force they need */
+    double ground_kp[RTHS_MAX_INTERFACE_DOFS], ground_kd[RTHS_MAX_INTERFACE_DOFS]; /* in K, C */
     int have_coef, last_newton;
     long solves;
 };
@@ -48,11 +49,13 @@ void rths_hb_substructure_destroy(rths_hb_substructure *h) {
     free(h);
 }
 
-/* substructure index of assembly DoF dof (interface 0, numerical internal 1..), or -1 */
+/* substructure index of assembly DoF dof (interfaces 0..n_int - 1, then the numerical internal
+ * DoFs), or -1 */
 static int sub_index(const rths_split *s, int dof) {
-    if (dof == s->int_dofs[0]) return 0;
+    for (int d = 0; d < s->n_int; d++)
+        if (dof == s->int_dofs[d]) return d;
     for (int i = 0; i < s->n_num; i++)
-        if (s->num_dofs[i] == dof) return 1 + i;
+        if (s->num_dofs[i] == dof) return s->n_int + i;
     return -1;
 }
 
@@ -74,11 +77,11 @@ int rths_hb_substructure_create(const rths_split *s, int count, const rths_nl_el
                                 const rths_hb_options *opt, rths_hb_substructure **out,
                                 rths_error *err) {
     *out = NULL;
-    if (s->n_int != 1)
+    if (s->n_int < 1 || s->n_int > RTHS_MAX_INTERFACE_DOFS)
         return rths_error_set(err, RTHS_EINPUT,
-                              "the frequency form's nonlinear numerical substructure takes one "
-                              "interface DoF; this split has %d",
-                              s->n_int);
+                              "the frequency form's nonlinear numerical substructure takes 1 to %d "
+                              "interface DoFs; this split has %d",
+                              RTHS_MAX_INTERFACE_DOFS, s->n_int);
     rths_hb_options o;
     rths_hb_defaults(&o);
     o.harmonics = RTHS_HB_SUBSTRUCTURE_HARMONICS;
@@ -93,10 +96,11 @@ int rths_hb_substructure_create(const rths_split *s, int count, const rths_nl_el
     if (!h) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     const int nn = s->nn;
     h->nn = nn;
+    h->n_int = s->n_int;
     h->H = o.harmonics;
     h->N = o.samples;
     h->nb = 2 * h->H + 1;
-    /* the kept DoFs: the interface, then each element's DoFs in order of appearance */
+    /* the kept DoFs: the interfaces, then each element's DoFs in order of appearance */
     int *is_kept = calloc((size_t)nn, sizeof(int));
     h->keep = malloc(sizeof(int) * (size_t)nn);
     h->cond = malloc(sizeof(int) * (size_t)nn);
@@ -106,8 +110,10 @@ int rths_hb_substructure_create(const rths_split *s, int count, const rths_nl_el
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     int *kept_at = is_kept; /* 1 + kept index, 0: condensed */
-    h->keep[h->r++] = 0;
-    kept_at[0] = 1;
+    for (int d = 0; d < s->n_int; d++) {
+        h->keep[h->r++] = d;
+        kept_at[d] = h->r;
+    }
     int rc = RTHS_OK;
     for (int e = 0; e < count && !rc; e++) {
         if (!el[e].numerical) continue;
@@ -154,8 +160,8 @@ int rths_hb_substructure_create(const rths_split *s, int count, const rths_nl_el
     h->res = malloc(sizeof(double) * (size_t)nu);
     h->step = malloc(sizeof(double) * (size_t)nu);
     h->load = malloc(sizeof(double) * (size_t)nu * 2);
-    h->target = calloc((size_t)nb, sizeof(double));
-    h->reaction = calloc((size_t)nb, sizeof(double));
+    h->target = calloc((size_t)nb * s->n_int, sizeof(double));
+    h->reaction = calloc((size_t)nb * s->n_int, sizeof(double));
     h->ipiv = malloc(sizeof(lapack_int) * (size_t)nu);
     h->tab = malloc(sizeof(double) * (size_t)h->N * nb);
     h->tab_rate = malloc(sizeof(double) * (size_t)h->N * nb);
@@ -172,9 +178,9 @@ int rths_hb_substructure_create(const rths_split *s, int count, const rths_nl_el
     }
     int at = sub_index(s, forcing_dof);
     if (at >= 0) h->forcing[at] = 1.0;
-    /* the preloads on the numerical internal DoFs; the interface's mean is prescribed */
+    /* the preloads on the numerical internal DoFs; the interfaces' means are prescribed */
     for (int i = 0; static_force && i < s->n_num; i++)
-        h->static_force[1 + i] = static_force[s->num_dofs[i]];
+        h->static_force[s->n_int + i] = static_force[s->num_dofs[i]];
     for (int m = 0; m < h->N; m++)
         for (int j = 0; j < nb; j++)
             h->tab[(size_t)m * nb + j] = basis(j, 2 * M_PI * m / h->N);
@@ -304,13 +310,14 @@ static double evaluate(rths_hb_substructure *h, const double *c, const double *l
     /* the prescribed interface coefficients (the mean, and in rths_hb_substructure_force the
      * harmonics given): their rows become the constraints c = target; what the equations ask
      * there is the interface force the motion needs (the reaction) */
-    for (int j = 0; j < h->constrained_j; j++) {
-        int row = r * j;
-        h->reaction[j] = h->res[row];
-        h->res[row] = c[row] - h->target[j];
-        for (int col = 0; col < nu; col++)
-            h->jac[row + (size_t)col * nu] = col == row;
-    }
+    for (int d = 0; d < h->n_int; d++)
+        for (int j = 0; j < h->constrained_j; j++) {
+            int row = d + r * j;
+            h->reaction[d * nb + j] = h->res[row];
+            h->res[row] = c[row] - h->target[d * nb + j];
+            for (int col = 0; col < nu; col++)
+                h->jac[row + (size_t)col * nu] = col == row;
+        }
     double worst = 0;
     for (int row = 0; row < nu; row++)
         worst = fmax(worst, fabs(h->res[row]));
@@ -357,8 +364,8 @@ static int newton(rths_hb_substructure *h, const double *load, double tol, int m
 /* Newton homotopy from h->coef (a solution of nearby data): R(c) = (1 - tau) R(c_start), tau
  * raised from 0 to 1 in steps that halve when a corrector fails; 1 when tau reached 1. */
 static int homotopy(rths_hb_substructure *h, const double *load, double tol, int *steps) {
-    const int nu = h->nu;
-    const int nc = h->constrained_j;
+    const int nu = h->nu, nb = h->nb;
+    const int nc = h->n_int * nb;
     double *shifted = malloc(sizeof(double) * (size_t)(nu * 3 + nc));
     if (!shifted) return 0;
     double *r0 = shifted + nu, *saved = shifted + 2 * nu, *target = shifted + 3 * nu;
@@ -371,8 +378,9 @@ static int homotopy(rths_hb_substructure *h, const double *load, double tol, int
         double next = fmin(1.0, tau + dtau);
         for (int i = 0; i < nu; i++)
             shifted[i] = load[i] + (1 - next) * r0[i];
-        for (int j = 0; j < nc; j++) /* a constraint's row is c - target */
-            h->target[j] = target[j] + (1 - next) * r0[h->r * j];
+        for (int d = 0; d < h->n_int; d++) /* a constraint's row is c - target */
+            for (int j = 0; j < h->constrained_j; j++)
+                h->target[d * nb + j] = target[d * nb + j] + (1 - next) * r0[d + h->r * j];
         memcpy(saved, h->coef, sizeof(double) * (size_t)nu);
         if (newton(h, shifted, tol, 30, 0, steps) || newton(h, shifted, tol, 30, 1, steps)) {
             tau = next;
@@ -427,6 +435,11 @@ int rths_hb_substructure_solve(rths_hb_substructure *h, double omega_rad_s, doub
                                double mean_m, double *disp_a, double *disp_b, double *sensitivity,
                                rths_error *err) {
     const int r = h->r, nu = h->nu, H = h->H;
+    if (h->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the force-driven numerical substructure takes one interface DoF "
+                              "(this one has %d)",
+                              h->n_int);
     if (!(omega_rad_s > 0) || n_harmonics < 1)
         return rths_error_set(err, RTHS_EINPUT,
                               "harmonic balance of the numerical substructure: frequency %g rad/s "
@@ -482,10 +495,76 @@ int rths_hb_substructure_solve(rths_hb_substructure *h, double omega_rad_s, doub
     return RTHS_OK;
 }
 
+int rths_hb_substructure_set_grounding(rths_hb_substructure *h, const double *kp_n_per_m,
+                                       const double *kd_n_s_per_m, rths_error *err) {
+    const int nn = h->nn;
+    for (int d = 0; d < h->n_int; d++) {
+        if (!(kp_n_per_m[d] >= 0) || !(kd_n_s_per_m[d] >= 0))
+            return rths_error_set(err, RTHS_EINPUT,
+                                  "grounding of interface DoF %d: gains %g and %g (not negative)",
+                                  d + 1, kp_n_per_m[d], kd_n_s_per_m[d]);
+        h->stiffness[d + (size_t)d * nn] += kp_n_per_m[d] - h->ground_kp[d];
+        h->damping[d + (size_t)d * nn] += kd_n_s_per_m[d] - h->ground_kd[d];
+        h->ground_kp[d] = kp_n_per_m[d];
+        h->ground_kd[d] = kd_n_s_per_m[d];
+    }
+    h->omega = -1; /* the linear part changed */
+    return RTHS_OK;
+}
+
+int rths_hb_substructure_solve_dofs(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
+                                    const rths_fourier *force, const rths_fourier *base,
+                                    rths_fourier *disp, rths_error *err) {
+    const int r = h->r, nu = h->nu, H = h->H, nb = h->nb, ni = h->n_int;
+    if (!(omega_rad_s > 0))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "harmonic balance of the numerical substructure: frequency %g rad/s "
+                              "(positive)",
+                              omega_rad_s);
+    int rc = build_linear(h, omega_rad_s, err);
+    if (rc) return rc;
+    double scale = fabs(amplitude_n);
+    for (int i = 0; i < nu; i++) {
+        h->load[i] = h->load_static[i] + amplitude_n * h->load_forcing[i];
+        scale = fmax(scale, fabs(h->load_static[i]));
+    }
+    /* the interface forces and the grounding's pull toward the base motion,
+     * kp x + kd x' = (kp a + kd k w b) cos + (kp b - kd k w a) sin */
+    for (int d = 0; d < ni; d++)
+        for (int k = 1; k <= RTHS_MAX_HARMONICS && k <= H; k++) {
+            double kw = k * omega_rad_s, a = base[d].a[k], b = base[d].b[k];
+            double fc = force[d].a[k] + h->ground_kp[d] * a + h->ground_kd[d] * kw * b;
+            double fs = force[d].b[k] + h->ground_kp[d] * b - h->ground_kd[d] * kw * a;
+            h->load[d + r * (2 * k - 1)] += fc;
+            h->load[d + r * (2 * k)] += fs;
+            scale = fmax(scale, fmax(fabs(fc), fabs(fs)));
+        }
+    /* every interface's mean prescribed (the base's) */
+    h->constrained_j = 1;
+    for (int d = 0; d < ni; d++)
+        h->target[(size_t)d * nb] = base[d].a[0];
+    rc = solve_loaded(h, omega_rad_s, scale, err);
+    if (rc) return rc;
+    for (int d = 0; d < ni; d++) {
+        memset(&disp[d], 0, sizeof disp[d]);
+        disp[d].a[0] = base[d].a[0];
+        for (int k = 1; k <= RTHS_MAX_HARMONICS && k <= H; k++) {
+            disp[d].a[k] = h->coef[d + r * (2 * k - 1)];
+            disp[d].b[k] = h->coef[d + r * (2 * k)];
+        }
+    }
+    return RTHS_OK;
+}
+
 int rths_hb_substructure_force(rths_hb_substructure *h, double omega_rad_s, double amplitude_n,
                                int n_harmonics, const double *disp_a, const double *disp_b,
                                double *force_a, double *force_b, rths_error *err) {
     const int r = h->r, nu = h->nu, H = h->H;
+    if (h->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "rths_hb_substructure_force takes one interface DoF (this one has "
+                              "%d): use rths_hb_substructure_force_dofs",
+                              h->n_int);
     if (!(omega_rad_s > 0) || n_harmonics < 1 || n_harmonics > H)
         return rths_error_set(err, RTHS_EINPUT,
                               "harmonic balance of the numerical substructure: frequency %g rad/s "
@@ -529,6 +608,11 @@ int rths_hb_substructure_eval(void *ctx, double omega_rad_s, double complex *rec
                               double complex *forced_m_per_n, rths_error *err) {
     rths_hb_substructure *h = ctx;
     const int nn = h->nn;
+    if (h->n_int != 1)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the substructure's receptance takes one interface DoF (this one has "
+                              "%d)",
+                              h->n_int);
     double *unit = calloc((size_t)nn, sizeof(double));
     double complex *x = malloc(sizeof(double complex) * (size_t)nn);
     int rc = unit && x ? RTHS_OK : rths_error_set(err, RTHS_EFAIL, "out of memory");

@@ -101,6 +101,53 @@ static void item_key(char *buf, int index, const char *name) {
     snprintf(buf, 96, "structure.nonlinear.%d.%.40s", index, name);
 }
 
+/* structure.nonlinear.N.nodes_m: an element of a structure.beam placed by its nodes' positions
+ * (m from x = 0), [x_i, x_j] or [x_i] (to the ground), on the DoF node_dof (w, default, or theta)
+ * of each: *dofs becomes the 1-based DoFs [i, j] (j = 0: the ground), as the key dofs gives
+ * them (docs/config.md, "Nonlinear elements"). */
+static int read_element_nodes(rths_config *cfg, const rths_setup *s, const char *k_nodes,
+                              const char *k_kind, int **dofs, int *count, rths_error *err) {
+    static const char *const kinds[] = {"w", "theta", NULL};
+    if (!s->beam)
+        return rths_config_error_at(cfg, k_nodes, err,
+                                    "places an element by beam node positions: the structure "
+                                    "must be a structure.beam (else give dofs: [i, j])");
+    int kind = 0, n_pos = 0;
+    double *pos = NULL;
+    int rc = rths_config_get_choice(cfg, k_kind, 0, 0, kinds, &kind, err);
+    if (!rc) rc = rths_config_get_double_list(cfg, k_nodes, 1, &pos, &n_pos, err);
+    if (!rc && (n_pos < 1 || n_pos > 2))
+        rc = rths_config_error_at(cfg, k_nodes, err,
+                                  "lists %d positions: give [x_i, x_j] (m), or [x_i] for an "
+                                  "element to the ground",
+                                  n_pos);
+    *count = 2;
+    *dofs = rc ? NULL : calloc(2, sizeof(int));
+    if (!rc && !*dofs) rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int t = 0; t < n_pos && !rc; t++) {
+        int dof = rths_beam_find_dof(s->beam, pos[t], kind ? RTHS_BEAM_THETA : RTHS_BEAM_W);
+        if (dof >= 0) {
+            (*dofs)[t] = dof + 1;
+            continue;
+        }
+        const rths_beam *b = s->beam;
+        int near = 0;
+        for (int i = 1; i < b->n_nodes; i++)
+            if (fabs(b->node_position_m[i] - pos[t]) < fabs(b->node_position_m[near] - pos[t]))
+                near = i;
+        rc = rths_config_error_at(cfg, k_nodes, err,
+                                  "entry %d: no free %s DoF at %g m (nearest node at %g m; a "
+                                  "clamp fixes w and theta, a pin w)",
+                                  t + 1, kinds[kind], pos[t], b->node_position_m[near]);
+    }
+    free(pos);
+    if (rc) {
+        free(*dofs);
+        *dofs = NULL;
+    }
+    return rc;
+}
+
 /* structure.nonlinear.N: one element (nonlinear.h). */
 static int read_element(rths_config *cfg, rths_setup *s, int index, rths_error *err) {
     static const char *const types[] = {"bilinear", "cubic", "gap", "friction", NULL};
@@ -112,7 +159,20 @@ static int read_element(rths_config *cfg, rths_setup *s, int index, rths_error *
     int type = 0, *dofs = NULL, count = 0;
     item_key(k_a, index, "type");
     int rc = rths_config_get_choice(cfg, k_a, 1, 0, types, &type, err);
-    if (!rc) rc = rths_config_get_int_list(cfg, k_dofs, 1, &dofs, &count, err);
+    char k_nodes[96];
+    item_key(k_nodes, index, "nodes_m");
+    item_key(k_b, index, "node_dof");
+    int by_node = rths_config_has(cfg, k_nodes);
+    if (!rc && by_node && rths_config_has(cfg, k_dofs))
+        rc = rths_config_error_at(cfg, k_nodes, err,
+                                  "and %s both place the element: give one of them", k_dofs);
+    else if (!rc && !by_node && rths_config_has(cfg, k_b))
+        rc = rths_config_error_at(cfg, k_b, err, "needs %s (beam node positions)", k_nodes);
+    if (!rc && by_node) {
+        rc = read_element_nodes(cfg, s, k_nodes, k_b, &dofs, &count, err);
+        snprintf(k_dofs, sizeof k_dofs, "%s", k_nodes); /* later messages name the key given */
+    } else if (!rc)
+        rc = rths_config_get_int_list(cfg, k_dofs, 1, &dofs, &count, err);
     if (!rc && count != 2)
         rc = rths_config_error_at(cfg, k_dofs, err,
                                   "lists %d DoFs: give two, [i, j] (1-based; j = 0 for the "
@@ -214,13 +274,11 @@ int rths_setup_nonlinear_count(const rths_setup *s, int numerical) {
     return count;
 }
 
-/* The host's frequency-domain numerical substructure is linear (per-harmonic dynamic stiffness):
- * a nonlinear element on the numerical side needs the real-time form. */
+/* split.numerical_solver: frequency takes nonlinear elements on the numerical side: the host
+ * solves the substructure by harmonic balance, motion-to-force (docs/method.md, "Nonlinear
+ * elements in the frequency form"); nothing left to refuse here (the sparse path refuses
+ * elements when it reads the structure). */
 int rths_setup_check_solver_nonlinear(rths_config *cfg, const rths_setup *s, rths_error *err) {
-    if (s->numerical_solver != RTHS_NUMERICAL_FREQUENCY || !rths_setup_nonlinear_count(s, 1))
-        return RTHS_OK;
-    return rths_config_error_at(cfg, "split.numerical_solver", err,
-                                "frequency solves a linear numerical substructure per harmonic; "
-                                "this structure has a nonlinear element on the numerical side: "
-                                "use realtime");
+    (void)cfg, (void)s, (void)err;
+    return RTHS_OK;
 }

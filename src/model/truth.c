@@ -133,6 +133,17 @@ static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_
         rths_truth_free(t);
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
+    /* several interface DoFs: every one's fundamental, as the linear curve gives them (truth.csv's
+     * dof<d>_amplitude_m, the figure's curve per DoF) */
+    const int dofs = s->split.n_int;
+    if (!rc && dofs > 1) {
+        t->amp_dof_m = calloc((size_t)count * dofs, sizeof(double));
+        if (!t->amp_dof_m) {
+            rths_truth_free(t);
+            rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
+        } else
+            t->dofs = dofs;
+    }
     for (int j = 0; j < count && !rc; j++) {
         t->freq_hz[j] = pp[j].omega_rad_s / (2 * M_PI);
         t->amp_m[j] = hypot(pp[j].cos_m[iface + n], pp[j].sin_m[iface + n]);
@@ -140,6 +151,10 @@ static int shooting_truth(const rths_setup *s, double lo_hz, double hi_hz, rths_
         t->amp_h3_m[j] = hypot(pp[j].cos_m[iface + 3 * n], pp[j].sin_m[iface + 3 * n]);
         t->stable[j] = pp[j].stable;
         t->max_floquet[j] = pp[j].max_floquet;
+        for (int d = 0; d < t->dofs; d++) {
+            int dof = s->split.int_dofs[d];
+            t->amp_dof_m[d * count + j] = hypot(pp[j].cos_m[dof + n], pp[j].sin_m[dof + n]);
+        }
     }
     rths_periodic_points_free(pp, count);
     return rc;

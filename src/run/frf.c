@@ -3,6 +3,7 @@
  * it happens, and frf.csv, summary.json and the figures are written at the end however the run
  * ended, so nothing accepted is ever lost. */
 #include "run/frf_internal.h"
+#include "run/frf_hb_numerical.h"
 #include "run/frf_sites.h"
 
 #include "rths/reduce.h"
@@ -604,9 +605,53 @@ static void on_progress(void *user, int points, double frequency_hz, double resi
         cb->on_progress(cb->user, points, frequency_hz, residual_m, evaluations, accepted);
 }
 
+/* split.numerical_solver: frequency with nonlinear elements on the numerical side: the zero
+ * problem reads the rig through the view that solves the numerical substructure by harmonic
+ * balance, motion-to-force, every period (frf_hb_numerical.h; docs/method.md, "Nonlinear
+ * elements in the frequency form"); one interface DoF or several. */
+static int run_frequency_form_nonlinear(frf_state *st, rths_error *err) {
+    frf_hb_numerical *hb = NULL;
+    rths_rig *view = NULL;
+    /* the grounding gains the real-time form would use (controller.grounding_*) */
+    rths_controller_options copt;
+    rths_controller_defaults(&copt);
+    int rc = rths_controller_config_read(st->opt->cfg, &copt, err);
+    double kp[RTHS_MAX_INTERFACE_DOFS], kd[RTHS_MAX_INTERFACE_DOFS];
+    for (int d = 0; d < RTHS_MAX_INTERFACE_DOFS; d++) {
+        kp[d] = copt.grounding_kp_dof[d] > 0 ? copt.grounding_kp_dof[d] : copt.grounding_kp_n_per_m;
+        kd[d] =
+            copt.grounding_kd_dof[d] > 0 ? copt.grounding_kd_dof[d] : copt.grounding_kd_n_s_per_m;
+    }
+    if (!rc) rc = frf_hb_numerical_create(st->setup, st->rig, kp, kd, &hb, &view, err);
+    rths_zero_problem problem;
+    rths_rig_problem ctx;
+    if (!rc && st->setup->split.n_int > 1)
+        rc = rths_rig_problem_init_dofs(&problem, &ctx, view, &st->settle, st->harmonics,
+                                        st->setup->forcing_amplitude_n, err);
+    else if (!rc)
+        rths_rig_problem_init(&problem, &ctx, view, &st->settle, st->harmonics,
+                              st->setup->forcing_amplitude_n);
+    char text[512];
+    if (!rc) {
+        frf_hb_numerical_describe(hb, 0, text, sizeof text);
+        rths_report_log(st->rep, "numerical substructure on the host: %s", text);
+    }
+    if (!rc)
+        rc = rths_continuation_run_problem(&problem, view, &st->cont, &st->newton,
+                                           problem.harmonics, st->resume_pts, st->n_resume,
+                                           on_point, on_progress, st, &st->result, err);
+    if (hb) {
+        frf_hb_numerical_describe(hb, 1, text, sizeof text);
+        rths_report_log(st->rep, "numerical substructure on the host: %s", text);
+    }
+    frf_hb_numerical_destroy(hb, view);
+    return rc;
+}
+
 /* split.numerical_solver: frequency: the same continuation on the zero problem whose numerical
  * side the host solves per harmonic (docs/method.md, "Numerical substructure integration"). */
 static int run_frequency_form(frf_state *st, rths_error *err) {
+    if (rths_setup_nonlinear_count(st->setup, 1) > 0) return run_frequency_form_nonlinear(st, err);
     rths_numerical_receptance *rec = NULL;
     rths_sparse_model_receptance *sparse_rec = NULL;
     /* a sparse model: one sparse complex LDL^T per harmonic on one symbolic analysis (model.h) */
@@ -650,6 +695,9 @@ static int run_interface_dofs(frf_state *st, rths_error *err) {
     frf_host_numerical *host = NULL;
     rths_rig *rig = st->rig;
     int rc = RTHS_OK;
+    if (st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY &&
+        rths_setup_nonlinear_count(st->setup, 1) > 0)
+        return run_frequency_form_nonlinear(st, err);
     if (st->setup->numerical_solver == RTHS_NUMERICAL_FREQUENCY)
         rc = frf_host_numerical_create(st->setup, st->rig, &host, &rig, err);
     if (!rc)

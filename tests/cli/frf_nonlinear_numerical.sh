@@ -5,8 +5,8 @@
 # (truth.csv), every point within 0.5 % of the truth (summary.json's distance measure), the
 # stability labels (fold-based) equal to the truth's Floquet stability; elements on both sides at
 # once (the rig's leg and a numerical cubic spring) likewise, and a Duffing spring on the
-# numerical side of the two-interface building; and the numerical leg with
-# split.numerical_solver: frequency is refused before anything is written.
+# numerical side of the two-interface building (the frequency form of the same leg:
+# frf_nonlinear_frequency.sh).
 set -u
 bin=$1
 src=$2
@@ -67,15 +67,11 @@ agree=$(json "$s" stability_points_agreeing)
     fail "both sides: stability labels: $agree of $cmp agree with the truth"
 
 # a Duffing spring (3e9 N/m^3 between storeys 3 and 4) on the numerical side of the
-# two-interface building (storeys 2 and 3 the interface), real-time form, harmonics 1-2 (the
-# corrector's bound at two interface DoFs): the truth's folds at 13.573056 and 13.568541 Hz
-two="$src/examples/two_interface_storeys.yaml"
-"$bin" frf "$two" --out "$work/duffing" --quiet --set rig.noise=false \
-    --set continuation.start_hz=13.5 --set continuation.end_hz=13.65 \
-    --set continuation.method=arclength --set continuation.initial_step_hz=0.01 \
-    --set iteration.harmonics=2 \
-    --set 'structure.nonlinear=[{type: cubic, dofs: [4, 3], stiffness_n_per_m3: 3e9}]' ||
-    fail "Duffing: run failed"
+# two-interface building (storeys 2 and 3 the interface; examples/two_interface_duffing.yaml),
+# real-time form, harmonics 1-2 (the corrector's bound at two interface DoFs): the truth's folds
+# at 13.573056 and 13.568541 Hz
+two="$src/examples/two_interface_duffing.yaml"
+"$bin" frf "$two" --out "$work/duffing" --quiet --set rig.noise=false || fail "Duffing: run failed"
 s="$work/duffing/summary.json"
 folds=$(tr -d '\n ' < "$s" | grep -o '"folds":\[[^]]*\]' | grep -o '"frequency_hz":[0-9.e+-]*' |
     cut -d: -f2 | tr '\n' ' ')
@@ -92,9 +88,4 @@ agree=$(json "$s" stability_points_agreeing)
 [ "$cmp" -ge 10 ] && [ $((100 * agree)) -ge $((95 * cmp)) ] ||
     fail "Duffing: stability labels: $agree of $cmp agree with the truth"
 
-"$bin" frf "$ex" --out "$work/freq" --quiet --set split.numerical_solver=frequency 2>"$work/freq.err"
-rc=$?
-[ $rc -eq 2 ] || fail "frequency solver with a numerical leg: exit $rc, expected 2"
-grep -q "nonlinear element on the numerical side" "$work/freq.err" || fail "message: $(cat "$work/freq.err")"
-[ -e "$work/freq" ] && fail "a refused run wrote $work/freq"
 echo "ok"
