@@ -220,6 +220,37 @@ int rths_api_view_port(const rths_api_view *v);
 /* Stops serving (every connection closed) and frees v (NULL accepted). */
 void rths_api_view_stop(rths_api_view *v);
 
+/* ---- the controller process (rths controller, docs/protocol.md) ---- */
+
+typedef struct rths_api_controller rths_api_controller;
+/* Builds the real-time controller from the configuration (as `rths controller --config`: the
+ * numerical substructure, the simulated plant or the io section's plug-in, the server section)
+ * and starts it: the paced loop and the network thread serving one host on listen ("ADDR:PORT",
+ * "[v6]:PORT"; NULL: the command's default, loopback; port 0: a free one), and the process's web
+ * page on view_listen (NULL: none). site: 1-based site of a multi-site test (rig.sites), 0 the
+ * whole test. Returns once it listens; it runs until rths_api_controller_stop. Its threads start
+ * with SIGINT and SIGTERM blocked (the caller's mask is restored), so they never take a signal
+ * meant for the program. Bad input is RTHS_EINPUT before anything runs; a port in use
+ * RTHS_EFAIL. It prints nothing. */
+int rths_api_controller_start(const rths_api_config *cfg, const char *listen, int site,
+                              const char *view_listen, rths_api_controller **out, rths_error *err);
+/* The bound port (the one chosen for port 0); the page's, -1 without one. */
+int rths_api_controller_port(const rths_api_controller *c);
+int rths_api_controller_view_port(const rths_api_controller *c);
+/* Stops it (the actuator disarmed, the host's connection and the page closed) and frees c (NULL
+ * accepted). stats (may be NULL) receives a result whose summary holds the loop's statistics:
+ * samples, overruns, lateness_p50_s, lateness_p99_s, lateness_p999_s, worst_lateness_s,
+ * step_mean_s, step_max_s, fault. RTHS_EFAIL when the loop stalled in the I/O device (c is still
+ * freed). */
+int rths_api_controller_stop(rths_api_controller *c, rths_result **stats, rths_error *err);
+/* The machine's latency test (`rths controller --latency-test`): the paced loop alone for
+ * seconds, in (0, 3600], at controller.sample_rate_hz with the server section's real-time set-up
+ * (cfg may be NULL: the defaults). The summary holds samples (seconds x rate, rounded),
+ * sample_rate_hz, overruns, lateness_p50_s ... lateness_p999_s, worst_lateness_s, sched_fifo,
+ * memory_locked, pinned; rths_result_text the line the command prints. Blocks for the duration. */
+int rths_api_controller_latency(const rths_api_config *cfg, double seconds, rths_result **out,
+                                rths_error *err);
+
 /* ---- the rths command's own entry points (src/cli) ----
  * Each command's whole job on a configuration the command has read once, and the run folder it
  * writes through the one result writer: `rths model` and rths_api_model (and so on) share their

@@ -1,5 +1,7 @@
 /* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
 #include "api/api_internal.h"
+#include "rths/controller.h"
+#include "rths/plant.h"
 
 #include <errno.h>
 #include <json-c/json.h>
@@ -136,13 +138,24 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     /* read once now, so a bad file or key is reported by the load: the structural sections and
-     * their keys, and the top-level sections (a misspelt section or a key of structure, split,
-     * forcing or model fails here, as every operation would refuse it later) */
+     * their keys, the rig and controller sections as the virtual rig reads them (every operation
+     * that runs the hybrid loop does, and refuses there what it would refuse here), and the
+     * top-level sections (a misspelt section, or key of structure, split, forcing, model, rig or
+     * controller fails here, not in the operation that first reads it) */
     rths_config *c;
     rths_setup setup;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (!rc) {
-        rc = rths_config_check_sections(c, NULL, err);
+        static const char *const rig_sections[] = {"rig", "controller", NULL};
+        rths_controller_options copt;
+        rths_plant_options popt;
+        double pace;
+        rths_controller_defaults(&copt);
+        rths_plant_defaults(&popt);
+        rc = rths_sample_loop_config_read(c, &copt, &popt, err);
+        if (!rc) rc = rths_config_get_double(c, "rig.pace", 0, 0.0, 0.0, 1e6, &pace, err);
+        rths_config_mark_known(c, "rig.sites"); /* the host's list of sites, read by a run */
+        if (!rc) rc = rths_config_check_sections(c, rig_sections, err);
         if (rc) rths_api_unload(c, &setup);
     }
     if (rc) {
