@@ -107,7 +107,7 @@ static int parse_args(int argc, char **argv, controller_args *args) {
 }
 
 int rths_cmd_controller(int argc, char **argv) {
-    controller_args args;
+    controller_args args = {0}; /* --site absent: 0, the whole test */
     int rc = parse_args(argc, argv, &args);
     if (rc || args.cli.help) return rc;
     rths_error err;
