@@ -240,8 +240,8 @@ int rths_api_controller_view_port(const rths_api_controller *c);
 /* Stops it (the actuator disarmed, the host's connection and the page closed) and frees c (NULL
  * accepted). stats (may be NULL) receives a result whose summary holds the loop's statistics:
  * samples, overruns, lateness_p50_s, lateness_p99_s, lateness_p999_s, worst_lateness_s,
- * step_mean_s, step_max_s, fault. RTHS_EFAIL when the loop stalled in the I/O device (c is still
- * freed). */
+ * step_mean_s, step_max_s, fault (a lateness beyond the loop's 50 ms histogram reads as just
+ * above 0.05 s). RTHS_EFAIL when the loop stalled in the I/O device (c is still freed). */
 int rths_api_controller_stop(rths_api_controller *c, rths_result **stats, rths_error *err);
 /* The machine's latency test (`rths controller --latency-test`): the paced loop alone for
  * seconds, in (0, 3600], at controller.sample_rate_hz with the server section's real-time set-up
