@@ -220,68 +220,121 @@ int rths_api_view_port(const rths_api_view *v);
 /* Stops serving (every connection closed) and frees v (NULL accepted). */
 void rths_api_view_stop(rths_api_view *v);
 
+/* ---- the controller process (rths controller, docs/protocol.md) ---- */
+
+typedef struct rths_api_controller rths_api_controller;
+/* Builds the real-time controller from the configuration (as `rths controller --config`: the
+ * numerical substructure, the simulated plant or the io section's plug-in, the server section)
+ * and starts it: the paced loop and the network thread serving one host on listen ("ADDR:PORT",
+ * "[v6]:PORT"; NULL: the command's default, loopback; port 0: a free one), and the process's web
+ * page on view_listen (NULL: none). site: 1-based site of a multi-site test (rig.sites), 0 the
+ * whole test. Returns once it listens; it runs until rths_api_controller_stop. Its threads start
+ * with SIGINT and SIGTERM blocked (the caller's mask is restored), so they never take a signal
+ * meant for the program. Bad input is RTHS_EINPUT before anything runs; a port in use
+ * RTHS_EFAIL. It prints nothing. */
+int rths_api_controller_start(const rths_api_config *cfg, const char *listen, int site,
+                              const char *view_listen, rths_api_controller **out, rths_error *err);
+/* The bound port (the one chosen for port 0); the page's, -1 without one. */
+int rths_api_controller_port(const rths_api_controller *c);
+int rths_api_controller_view_port(const rths_api_controller *c);
+/* Stops it (the actuator disarmed, the host's connection and the page closed) and frees c (NULL
+ * accepted). stats (may be NULL) receives a result whose summary holds the loop's statistics:
+ * samples, overruns, lateness_p50_s, lateness_p99_s, lateness_p999_s, worst_lateness_s,
+ * step_mean_s, step_max_s, fault (a lateness beyond the loop's 50 ms histogram reads as just
+ * above 0.05 s). RTHS_EFAIL when the loop stalled in the I/O device (c is still freed). */
+int rths_api_controller_stop(rths_api_controller *c, rths_result **stats, rths_error *err);
+/* The machine's latency test (`rths controller --latency-test`): the paced loop alone for
+ * seconds, in (0, 3600], at controller.sample_rate_hz with the server section's real-time set-up
+ * (cfg may be NULL: the defaults). The summary holds samples (seconds x rate, rounded),
+ * sample_rate_hz, overruns, lateness_p50_s ... lateness_p999_s, worst_lateness_s, sched_fifo,
+ * memory_locked, pinned; rths_result_text the line the command prints. Blocks for the duration. */
+int rths_api_controller_latency(const rths_api_config *cfg, double seconds, rths_result **out,
+                                rths_error *err);
+
 /* ---- the rths command's own entry points (src/cli) ----
- * The operations above on a configuration the command has read already, and the one writer of a
- * result into an open run folder: `rths model` and rths_api_model share their tables, summary and
- * CSV writer through these. They take the library's internal types (rths/setup.h, rths/report.h),
- * which change with it: not for other programs, and outside RTHS_API_VERSION. */
-struct rths_setup;
-struct rths_report;
+ * Each command's whole job on a configuration the command has read once, and the run folder it
+ * writes through the one result writer: `rths model` and rths_api_model (and so on) share their
+ * tables, summary and CSV writer through these. The command includes nothing of the library but
+ * this header (tests/cli/layering.sh); the handles below are opaque. Made for the rths command:
+ * outside RTHS_API_VERSION, they change with it. */
 
-typedef struct rths_api_model_timing {
-    double modes_s, frf_prepare_s, frf_s; /* wall seconds of the stages */
-    char modes_method[32];                /* "banded, dsbgvd" or "dense, dsygvd" */
-    char frf_method[64];                  /* rths_frf_method_name */
-    int frf_points, frf_dofs;             /* true_frf's rows and DoFs */
-} rths_api_model_timing;
+/* A configuration as a command holds it: the file read once with the overrides applied in order,
+ * and (with RTHS_API_READ_SETUP) the structural setup read from it (structure, split, forcing,
+ * model). The command's entry point reads its own sections from it and refuses unknown keys in
+ * them, so the check sees every key the run asked for. */
+typedef struct rths_api_command_config rths_api_command_config;
+enum { RTHS_API_READ_SETUP = 1 };
+/* path NULL: defaults only. The overrides are copied. RTHS_EINPUT with the located message
+ * ("FILE:LINE:COL: key 'a.b': ...") for bad input; nothing is left allocated on failure. */
+int rths_api_command_config_load(const char *path, const char *const *overrides, int n_overrides,
+                                 unsigned flags, rths_api_command_config **out, rths_error *err);
+void rths_api_command_config_free(rths_api_command_config *c);
 
-/* rths_api_model's result (tables "modes", "true_frf", the summary naming config_path and the
- * overrides) from the setup read from the configuration; timing may be NULL. */
-int rths_api_model_compute(const struct rths_setup *setup, const char *config_path,
-                           const char *const *overrides, int n_overrides, rths_result **out,
-                           rths_api_model_timing *timing, rths_error *err);
-struct rths_chart;
-struct rths_chart_options;
+/* A command's run folder: created (with parents) with its run.log and the configuration as
+ * resolved (config.yaml). A folder holding a run of another command is refused (RTHS_EINPUT); an
+ * earlier run of the same command is replaced (its files removed first) unless argv holds
+ * --resume. command, argc and argv (the command line, argv[0] the command) open run.log. */
+typedef struct rths_api_run_folder rths_api_run_folder;
+int rths_api_run_folder_open(const char *dir, const char *command, int argc, char **argv,
+                             const rths_api_command_config *c, rths_api_run_folder **out,
+                             rths_error *err);
+/* One timestamped line in run.log, flushed. */
+void rths_api_run_folder_log(rths_api_run_folder *f, const char *fmt, ...)
+    __attribute__((format(printf, 2, 3)));
+/* results.mat (MAT 7.3) from every table and the summary written so far; RTHS_EFAIL with the
+ * reason when it cannot be written. */
+int rths_api_run_folder_write_mat(rths_api_run_folder *f, rths_error *err);
+/* Lists the files this run wrote (what a later run of the same command replaces), closes run.log
+ * and frees f (NULL accepted). */
+void rths_api_run_folder_close(rths_api_run_folder *f);
+/* Writes r into the open folder: its text files, each table as NAME.csv (the CSV writer of every
+ * run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
+int rths_api_result_write(const rths_result *r, rths_api_run_folder *f, rths_error *err);
 
-typedef struct rths_api_chart_facts {
-    double seconds;                   /* the chart's computation, wall seconds */
-    double p_essential;               /* essential-spectrum limit of p (NaN: none in the range) */
-    int stable_points;                /* grid points labelled stable */
-    char essential_statement[512];    /* summary.json's essential_spectrum.statement */
-    double probe_p[4];                /* the configured p, then 0.6, 0.67, 0.8 */
-    double probe_critical_delay_s[4]; /* located stand-alone at probe_p (NaN: none found) */
-    double probe_crossing_omega_rad_s[4];
-} rths_api_chart_facts;
+/* True when stderr is a terminal and quiet is 0: a command may draw \r progress lines. */
+int rths_api_progress_enabled(int quiet);
+/* A range as the configuration's getters word it in a message: "in [lo, hi]", "> lo", "in (lo,
+ * hi]" (flags: RTHS_API_RANGE_LO_OPEN for lo < x, RTHS_API_RANGE_HI_OPEN for x < hi); buf
+ * returned. */
+enum { RTHS_API_RANGE_LO_OPEN = 1, RTHS_API_RANGE_HI_OPEN = 2 };
+const char *rths_api_range_text(double lo, double hi, unsigned flags, char *buf, size_t size);
 
-/* rths_api_chart's result (tables "chart", "boundary", "critical", the summary naming config_path
- * and the overrides) from the setup and the stability options read from the configuration. chart
- * (may be NULL) receives the computed chart (free with rths_chart_free); facts may be NULL. */
-int rths_api_chart_compute(const struct rths_setup *setup, const struct rths_chart_options *o,
-                           const char *config_path, const char *const *overrides, int n_overrides,
-                           rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
-                           rths_error *err);
-struct rths_config;
-/* rths_api_chart_compute from the configuration (its stability section read and checked here)
- * with what `rths chart` adds: the printed report (rths_result_text), the file
- * boundary_curves.dat and the figure chart. progress: a progress line on stderr. */
-int rths_api_chart_run(struct rths_config *c, const struct rths_setup *setup, int progress,
-                       const char *config_path, const char *const *overrides, int n_overrides,
-                       rths_result **out, rths_error *err);
-/* rths_api_tune's result from the configuration (its rig and controller sections read and
- * checked here) and the setup read from it: table "loop", the summary naming config_path and the
- * overrides, the keys to paste as rths_result_text and as the file tuned.yaml, the figure loop. */
-int rths_api_tune_compute(struct rths_config *c, const struct rths_setup *setup, double delay_s,
-                          const char *config_path, const char *const *overrides, int n_overrides,
-                          rths_result **out, rths_error *err);
-/* `rths model`'s whole job from the configuration c loaded with the overrides (the setup is not
- * read yet: the solver path is chosen first, so a sparse model never becomes dense):
- * rths_api_model's tables and summary, the printed report as rths_result_text (out_dir named in
- * it), run.log's lines (the path and why, the stage times) and the figure true_frf. RTHS_EINPUT for
- * an unknown key of structure, split, forcing or model. */
-int rths_api_model_run(struct rths_config *c, const char *config_path, const char *const *overrides,
-                       int n_overrides, const char *out_dir, rths_result **out, rths_error *err);
-/* `rths frf`'s run (rths_frf's orchestration, docs/method.md) from the configuration c the command
- * has loaded and the setup read from it, with its options as given on the command line. */
+/* `rths model`'s whole job (c loaded without RTHS_API_READ_SETUP: the solver path is chosen
+ * first, so a sparse model never becomes dense): rths_api_model's tables and summary, the printed
+ * report as rths_result_text (out_dir named in it), run.log's lines (the path and why, the stage
+ * times) and the figure true_frf. RTHS_EINPUT for an unknown key of structure, split, forcing or
+ * model. */
+int rths_api_model_run(rths_api_command_config *c, const char *out_dir, rths_result **out,
+                       rths_error *err);
+/* `rths chart`: rths_api_chart's tables and summary from the stability section (read and checked
+ * here) with the printed report (rths_result_text), the file boundary_curves.dat and the figure
+ * chart. progress: a progress line on stderr. */
+int rths_api_chart_run(rths_api_command_config *c, int progress, rths_result **out,
+                       rths_error *err);
+/* `rths tune`: rths_api_tune's result (its rig and controller sections read and checked here):
+ * table "loop", the summary, the keys to paste as rths_result_text and as the file tuned.yaml,
+ * the figure loop. delay_s as rths_api_tune's. */
+int rths_api_tune_run(rths_api_command_config *c, double delay_s, rths_result **out,
+                      rths_error *err);
+/* `rths fidelity`: rths_api_fidelity's result (its fidelity and controller sections read and
+ * checked here). */
+int rths_api_fidelity_run(rths_api_command_config *c, rths_result **out, rths_error *err);
+
+/* `rths simulate` in two steps, so the command creates its folder only once nothing can refuse
+ * the input: _prepare checks o (o->out_dir unused), creates and arms the rig (a virtual rig reads
+ * the rig and controller sections, checked here) and refuses bad input with RTHS_EINPUT; _run runs
+ * the test (logging into f, may be NULL) and returns rths_api_simulate's result. c must outlive
+ * the simulation. */
+typedef struct rths_api_simulation rths_api_simulation;
+int rths_api_simulate_prepare(rths_api_command_config *c, const rths_api_simulate_options *o,
+                              rths_api_simulation **out, rths_error *err);
+int rths_api_simulate_run(rths_api_simulation *s, rths_api_run_folder *f, rths_result **out,
+                          rths_error *err);
+void rths_api_simulation_free(rths_api_simulation *s);
+
+/* `rths frf`'s run (rths_frf's orchestration, docs/method.md) on the configuration c (loaded with
+ * RTHS_API_READ_SETUP and the command's overrides, which run.log and summary.json record), with
+ * its options as given on the command line. */
 #define RTHS_API_FRF_MAX_HARMONICS 3 /* --harmonics' largest value */
 /* After every correction attempt: the point's number, frequency, residual, evaluations so far and
  * whether it was accepted (a progress display). */
@@ -298,11 +351,7 @@ typedef struct rths_api_frf_run_options {
     int n_site_uris;
     int has_seed;
     uint64_t seed;
-    /* recorded in run.log and summary.json */
-    const char *config_path;
-    const char *const *overrides;
-    int n_overrides;
-    int argc;
+    int argc; /* the command line, recorded in run.log */
     char **argv;
     rths_api_progress_fn on_progress; /* may be NULL */
     rths_api_cancel_fn should_cancel; /* polled after every accepted point; may be NULL */
@@ -318,11 +367,11 @@ typedef struct rths_api_frf_run_summary {
 } rths_api_frf_run_summary;
 /* RTHS_OK when it ran (also when cancelled), RTHS_EINPUT on bad input (nothing written),
  * RTHS_EFAIL on a failure during it (what was accepted is saved; r says how far it got). */
-int rths_api_frf_run(struct rths_config *c, const struct rths_setup *setup,
-                     const rths_api_frf_run_options *o, rths_api_frf_run_summary *r,
-                     rths_error *err);
+int rths_api_frf_run(rths_api_command_config *c, const rths_api_frf_run_options *o,
+                     rths_api_frf_run_summary *r, rths_error *err);
 /* The overrides --strategy paper applies before the user's (*n of them; later ones still win). */
 const char *const *rths_api_frf_paper_overrides(int *n);
+
 /* `rths controller`: the real-time controller process (docs/protocol.md) as the command's
  * options give it. It prints what the command prints ("listening on ADDR:PORT" and with a page
  * "view at http://ADDR:PORT/" on stdout; notices and the loop's statistics on stderr unless
@@ -349,35 +398,6 @@ int rths_api_controller_serve(const rths_api_controller_options *o, rths_error *
  * its wake-up lateness printed on stdout. */
 int rths_api_controller_latency_test(const rths_api_controller_options *o, double seconds,
                                      rths_error *err);
-/* Writes r into the open run folder rep: its text files, each table as NAME.csv (the CSV writer of
- * every run folder, %.17g), its run.log lines, summary.json (when r has one), its figures. */
-int rths_api_result_write(const rths_result *r, struct rths_report *rep, rths_error *err);
-/* Its parts in order (the result's own text files such as tuned.yaml, then tables, run.log lines,
- * summary, figures), for a command that writes a file of its own between them. */
-int rths_api_result_write_tables(const rths_result *r, struct rths_report *rep, rths_error *err);
-int rths_api_result_write_log(const rths_result *r, struct rths_report *rep, rths_error *err);
-int rths_api_result_write_summary(const rths_result *r, struct rths_report *rep, rths_error *err);
-int rths_api_result_write_figures(const rths_result *r, struct rths_report *rep, rths_error *err);
-
-/* rths_api_fidelity's result from the configuration (its fidelity and controller sections read
- * and checked here) and the setup read from it. */
-int rths_api_fidelity_compute(struct rths_config *c, const struct rths_setup *setup,
-                              const char *config_path, const char *const *overrides,
-                              int n_overrides, rths_result **out, rths_error *err);
-
-/* rths_api_simulate in two steps, so the command creates its folder only once nothing can refuse
- * the input: _prepare checks o, creates and arms the rig (a virtual rig reads the rig and
- * controller sections, checked here) and refuses bad input with RTHS_EINPUT; _run runs the test
- * (logging into rep, may be NULL) and returns the result (the summary naming config_path and the
- * overrides). */
-typedef struct rths_api_simulation rths_api_simulation;
-int rths_api_simulate_prepare(struct rths_config *c, const struct rths_setup *setup,
-                              const rths_api_simulate_options *o, rths_api_simulation **out,
-                              rths_error *err);
-int rths_api_simulate_run(rths_api_simulation *s, struct rths_report *rep, const char *config_path,
-                          const char *const *overrides, int n_overrides, rths_result **out,
-                          rths_error *err);
-void rths_api_simulation_free(rths_api_simulation *s);
 
 #ifdef __cplusplus
 }

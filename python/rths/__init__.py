@@ -33,7 +33,9 @@ except OSError as e:
 import numpy as np  # noqa: E402
 
 __all__ = ["Config", "Table", "Result", "RthsError", "InputError", "RunError", "Cancelled",
-           "IncompleteRunWarning", "model", "chart", "tune", "fidelity", "simulate", "frf", "frf_available", "read_run", "View", "view", "library_release"]
+           "IncompleteRunWarning", "model", "chart", "tune", "fidelity", "simulate", "frf",
+           "frf_available", "read_run", "View", "view", "Controller", "controller",
+           "controller_latency", "library_release"]
 
 def _c():
     global _LIB
@@ -250,8 +252,8 @@ class Result:
 # on_point's rows, when every value is a finite integer (a NaN, "not measured", keeps the column
 # float). The rest are doubles, as in the CSV files.
 INTEGER_COLUMNS = frozenset({
-    "point", "period", "mode", "evaluations", "iterations", "converged", "fold", "segment", "se_honest",
-    "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
+    "point", "period", "mode", "evaluations", "iterations", "converged", "fold", "segment",
+    "se_honest", "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
 
 
 def _typed(name, column):
@@ -480,18 +482,115 @@ def view(dir, listen="127.0.0.1:0"):
     _check(c.rths_api_view_open(os.fsencode(_path("dir", dir)), listen.encode(),
                                 ctypes.byref(handle), ctypes.byref(err)), err)
     # the server's threads inherit this thread's mask: Ctrl-C stays with Python's main thread
-    masked = hasattr(signal, "pthread_sigmask")
-    if masked:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
-    try:
-        rc = c.rths_api_view_serve(handle, ctypes.byref(err))
-    finally:
-        if masked:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    rc = _threads_without_signals(lambda: c.rths_api_view_serve(handle, ctypes.byref(err)))
     if rc:
         c.rths_api_view_stop(handle)
         _check(rc, err)
     return View(handle)
+
+
+def _threads_without_signals(start):
+    """start() with SIGINT and SIGTERM blocked in this thread, so threads it creates (which inherit
+    the mask) leave Ctrl-C to Python's main thread; the mask is restored however start ends."""
+    masked = hasattr(signal, "pthread_sigmask")
+    if masked:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        return start()
+    finally:
+        if masked:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class Controller:
+    """A real-time controller serving in this process (rths controller, docs/protocol.md): its
+    paced loop and network thread run until stop(). .host, .port (the one chosen for port 0),
+    .rig ("tcp://HOST:PORT", what rths.frf and rths.simulate take as rig=), .view_url (its web
+    page, None without one). stop() disarms the actuator, closes the connection and returns the
+    loop's statistics (dict: samples, overruns, lateness_p50_s, lateness_p99_s, worst_lateness_s,
+    step_mean_s, step_max_s, ...); a with-block stops it however the block ends."""
+
+    def __init__(self, handle, host):
+        c = _c()
+        self._handle = handle
+        self.host = host
+        self.port = c.rths_api_controller_port(handle)
+        bracketed = f"[{host}]" if ":" in host else host
+        self.rig = f"tcp://{bracketed}:{self.port}"
+        view_port = c.rths_api_controller_view_port(handle)
+        self.view_url = f"http://{bracketed}:{view_port}/" if view_port >= 0 else None
+        self.stats = None
+
+    def stop(self):
+        """Stops the controller (once; later calls return the same statistics)."""
+        if self._handle:
+            c = _c()
+            handle, self._handle = self._handle, None
+            stats = ctypes.c_void_p()
+            err = c.Error()
+            _check(c.rths_api_controller_stop(handle, ctypes.byref(stats), ctypes.byref(err)), err)
+            self.stats = _take_result(stats).summary
+        return self.stats
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.stop()
+
+    def __del__(self):
+        if getattr(self, "_handle", None) and _LIB is not None:
+            _LIB.rths_api_controller_stop(self._handle, None, None)
+            self._handle = None
+
+    def __repr__(self):
+        state = "stopped" if self._handle is None else "serving"
+        return f"<rths.Controller {self.rig} ({state})>"
+
+
+def _listen_host(listen):
+    """The address part of "ADDR:PORT" or "[v6]:PORT"."""
+    if listen.startswith("[") and "]" in listen:
+        return listen[1:listen.index("]")]
+    return listen.rsplit(":", 1)[0]
+
+
+def controller(cfg, listen="127.0.0.1:0", site=None, view=None):
+    """Starts the real-time controller of the test cfg (rths controller: the numerical
+    substructure, the simulated plant or the io section's plug-in, the server section) serving
+    one host on listen ("ADDR:PORT", "[v6]:PORT"; port 0, the default: a free one) and returns a
+    Controller (its .rig for rths.frf/rths.simulate); it runs until .stop(). site: the 1-based
+    site of a multi-site test (rig.sites). view: "ADDR:PORT" of the process's web page. Bad input
+    raises InputError before anything runs."""
+    if not isinstance(listen, str):
+        raise InputError(2, f"listen={listen!r}: expected 'ADDR:PORT'")
+    if view is not None and not isinstance(view, str):
+        raise InputError(2, f"view={view!r}: expected 'ADDR:PORT'")
+    site = 0 if site is None else _integer("site", site, 1, 2**31 - 1)
+    cfg = _config(cfg)
+    c = _c()
+    handle = ctypes.c_void_p()
+    err = c.Error()
+    rc = _threads_without_signals(lambda: c.rths_api_controller_start(
+        cfg._handle, listen.encode(), site, None if view is None else view.encode(),
+        ctypes.byref(handle), ctypes.byref(err)))
+    _check(rc, err)
+    return Controller(handle, _listen_host(listen))
+
+
+def controller_latency(seconds, cfg=None):
+    """The machine's latency test (rths controller --latency-test): the controller's paced loop
+    alone for `seconds` at controller.sample_rate_hz (cfg: a test description, None: the
+    defaults). result.summary: samples, sample_rate_hz, overruns, lateness_p50_s ...
+    lateness_p999_s, worst_lateness_s (s), sched_fifo, memory_locked, pinned; result.text the line
+    the command prints. Blocks for the duration."""
+    try:
+        seconds = float(seconds)
+    except (TypeError, ValueError):
+        raise InputError(2, f"seconds={seconds!r}: expected a number") from None
+    c = _c()
+    handle = None if cfg is None else _config(cfg)._handle
+    return _run(c.rths_api_controller_latency, handle, seconds)
 
 
 def _path(name, value):
@@ -572,6 +671,15 @@ def _discard_earlier_run(out):
             os.close(fd)
 
 
+def _python_words(message):
+    """The run module's messages name the command's options (--resume, --out); a Python caller
+    passed frf's arguments."""
+    return (message.replace("continue it with --resume, or choose another --out",
+                            "continue it with resume=True, start a new run there with "
+                            "overwrite=True, or choose another out")
+            .replace("--resume: ", "resume=True: "))
+
+
 def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=None,
         on_point=None, force=False, overwrite=False):
     """The iterative hybrid test with continuation (rths frf) into the run folder out.
@@ -617,6 +725,8 @@ def frf(cfg, out, seed=None, strategy=None, harmonics=None, resume=False, rig=No
         previous = signal.signal(signal.SIGINT, interrupt)
     try:
         result = _run(c.rths_api_frf, cfg._handle, ctypes.byref(o))
+    except RthsError as e:
+        raise type(e)(e.code, _python_words(e.message)) from None
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)

@@ -1,5 +1,7 @@
 /* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
 #include "api/api_internal.h"
+#include "rths/controller.h"
+#include "rths/plant.h"
 
 #include <errno.h>
 #include <json-c/json.h>
@@ -136,13 +138,24 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
         return rths_error_set(err, RTHS_EFAIL, "out of memory");
     }
     /* read once now, so a bad file or key is reported by the load: the structural sections and
-     * their keys, and the top-level sections (a misspelt section or a key of structure, split,
-     * forcing or model fails here, as every operation would refuse it later) */
+     * their keys, the rig and controller sections as the virtual rig reads them (every operation
+     * that runs the hybrid loop does, and refuses there what it would refuse here), and the
+     * top-level sections (a misspelt section, or key of structure, split, forcing, model, rig or
+     * controller fails here, not in the operation that first reads it) */
     rths_config *c;
     rths_setup setup;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (!rc) {
-        rc = rths_config_check_sections(c, NULL, err);
+        static const char *const rig_sections[] = {"rig", "controller", NULL};
+        rths_controller_options copt;
+        rths_plant_options popt;
+        double pace;
+        rths_controller_defaults(&copt);
+        rths_plant_defaults(&popt);
+        rc = rths_sample_loop_config_read(c, &copt, &popt, err);
+        if (!rc) rc = rths_config_get_double(c, "rig.pace", 0, 0.0, 0.0, 1e6, &pace, err);
+        rths_config_mark_known(c, "rig.sites"); /* the host's list of sites, read by a run */
+        if (!rc) rc = rths_config_check_sections(c, rig_sections, err);
         if (rc) rths_api_unload(c, &setup);
     }
     if (rc) {
@@ -464,7 +477,7 @@ static int write_table_csv(rths_report *rep, const rths_table *t, rths_error *er
     return rc;
 }
 
-int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *err) {
+int rths_result_write_report(const rths_result *r, rths_report *rep, rths_error *err) {
     int rc = RTHS_OK;
     for (int i = 0; i < r->n_files && !rc; i++) {
         char *path = rths_report_path(rep, r->file_names[i]);
@@ -472,13 +485,13 @@ int rths_api_result_write(const rths_result *r, rths_report *rep, rths_error *er
                   : rths_error_set(err, RTHS_EFAIL, "out of memory");
         free(path);
     }
-    if (!rc) rc = rths_api_result_write_tables(r, rep, err);
-    if (!rc) rc = rths_api_result_write_log(r, rep, err);
-    if (!rc) rc = rths_api_result_write_summary(r, rep, err);
-    return rc ? rc : rths_api_result_write_figures(r, rep, err);
+    if (!rc) rc = rths_result_write_tables(r, rep, err);
+    if (!rc) rc = rths_result_write_log(r, rep, err);
+    if (!rc) rc = rths_result_write_summary(r, rep, err);
+    return rc ? rc : rths_result_write_figures(r, rep, err);
 }
 
-int rths_api_result_write_log(const rths_result *r, rths_report *rep, rths_error *err) {
+int rths_result_write_log(const rths_result *r, rths_report *rep, rths_error *err) {
     if (r->out_of_memory)
         return rths_error_set(err, RTHS_EFAIL, "out of memory (the result's text or log)");
     for (int i = 0; i < r->n_log; i++)
@@ -486,7 +499,7 @@ int rths_api_result_write_log(const rths_result *r, rths_report *rep, rths_error
     return RTHS_OK;
 }
 
-int rths_api_result_write_figures(const rths_result *r, rths_report *rep, rths_error *err) {
+int rths_result_write_figures(const rths_result *r, rths_report *rep, rths_error *err) {
     int rc = RTHS_OK;
     for (int i = 0; i < r->n_figures && !rc; i++)
         rc = rths_plot(rep, rths_report_dir(rep), r->figures[i].name, r->figures[i].width_px,
@@ -494,14 +507,14 @@ int rths_api_result_write_figures(const rths_result *r, rths_report *rep, rths_e
     return rc;
 }
 
-int rths_api_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err) {
+int rths_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err) {
     int rc = RTHS_OK;
     for (int t = 0; t < r->n_tables && !rc; t++)
         rc = write_table_csv(rep, &r->tables[t], err);
     return rc;
 }
 
-int rths_api_result_write_summary(const rths_result *r, rths_report *rep, rths_error *err) {
+int rths_result_write_summary(const rths_result *r, rths_report *rep, rths_error *err) {
     int rc = RTHS_OK;
     if (r->summary_json[0]) {
         /* as rths_json_write writes every summary: the text and a newline */
@@ -535,7 +548,7 @@ int rths_result_write_folder(rths_result *r, const rths_config *c, const char *d
     char *path = rths_report_path(rep, "config.yaml");
     rc = path ? rths_config_write(c, path, err) : rths_error_set(err, RTHS_EFAIL, "out of memory");
     free(path);
-    if (!rc) rc = rths_api_result_write(r, rep, err);
+    if (!rc) rc = rths_result_write_report(r, rep, err);
     if (!rc) rc = rths_report_write_mat(rep, err); /* a failure fails the call */
     rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err->msg : "");
     rths_report_close(rep);

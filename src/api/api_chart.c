@@ -298,11 +298,14 @@ static int plot(rths_result *res, const rths_chart *c, double p_ess, const rths_
     return rths_result_add_figure(res, "chart", 1300, 800, body, err);
 }
 
-int rths_api_chart_run(rths_config *cfg, const rths_setup *setup, int progress,
-                       const char *config_path, const char *const *overrides, int n_overrides,
-                       rths_result **out, rths_error *err) {
+int rths_api_chart_run(rths_api_command_config *cc, int progress, rths_result **out,
+                       rths_error *err) {
     static const char *const own_sections[] = {"stability", NULL};
     *out = NULL;
+    if (!cc || !cc->has_setup)
+        return rths_error_set(err, RTHS_EINPUT, "rths_api_chart_run needs the setup read");
+    rths_config *cfg = cc->config;
+    const rths_setup *setup = &cc->setup;
     rths_chart_options o;
     rths_chart chart;
     rths_api_chart_facts f;
@@ -312,8 +315,8 @@ int rths_api_chart_run(rths_config *cfg, const rths_setup *setup, int progress,
         (rc = rths_api_check_config(cfg, own_sections, err)))
         return rc;
     o.progress = progress;
-    if ((rc = rths_api_chart_compute(setup, &o, config_path, overrides, n_overrides, &res, &chart,
-                                     &f, err)))
+    if ((rc = rths_api_chart_compute(setup, &o, cc->path, (const char *const *)cc->overrides,
+                                     cc->n_overrides, &res, &chart, &f, err)))
         return rc;
     rths_result_printf(res,
                        "Stability chart: %d x %d (tau %g..%g s, p %g..%g), %d stable, %d "

@@ -9,6 +9,7 @@
 #include "rths/view.h"
 
 #include <errno.h>
+#include <json-c/json.h>
 #include <pthread.h>
 #include <signal.h>
 #include <stdio.h>
@@ -197,9 +198,11 @@ static const char *lateness_us(double s, char *buf, size_t cap) {
     return buf;
 }
 
-/* --latency-test: the configuration (optional) gives the server section and the rate. */
+/* --latency-test: the configuration (optional) gives the server section and the rate. The
+ * result's summary holds the numbers, its text the line the command prints. */
 static int latency_test(const rths_api_controller_options *args, double seconds,
-                        rths_server_options *opt, rths_error *err) {
+                        rths_server_options *opt, rths_result **out, rths_error *err) {
+    *out = NULL;
     rths_config *cfg = NULL;
     double rate_hz = 10000.0;
     int rc = rths_config_load(args->config_path, args->overrides, args->n_overrides, &cfg, err);
@@ -215,36 +218,117 @@ static int latency_test(const rths_api_controller_options *args, double seconds,
                 seconds, rate_hz);
     rths_server_stats st;
     if ((rc = rths_server_latency_test(opt, rate_hz, seconds, &st, err))) return rc;
+    rths_result *res;
+    if ((rc = rths_result_new(&res, err))) return rc;
     char p50[32], p90[32], p99[32], p999[32];
-    printf("samples %llu at %g Hz: wake-up lateness p50 %s, p90 %s, p99 %s, p99.9 %s, worst %.0f "
-           "us; %llu overruns (lateness of a whole sample period or more, %.3g %%); SCHED_FIFO "
-           "%s, memory locked %s, pinned %s\n",
-           (unsigned long long)st.samples, rate_hz, lateness_us(st.lateness_p50_s, p50, 32),
-           lateness_us(st.lateness_p90_s, p90, 32), lateness_us(st.lateness_p99_s, p99, 32),
-           lateness_us(st.lateness_p999_s, p999, 32), st.worst_lateness_s * 1e6,
-           (unsigned long long)st.overruns,
-           st.samples ? 100.0 * (double)st.overruns / (double)st.samples : 0.0,
-           st.rt_fifo ? "yes" : "no", st.rt_mlock ? "yes" : "no", st.rt_pinned ? "yes" : "no");
+    rths_result_printf(
+        res,
+        "samples %llu at %g Hz: wake-up lateness p50 %s, p90 %s, p99 %s, p99.9 %s, worst %.0f "
+        "us; %llu overruns (lateness of a whole sample period or more, %.3g %%); SCHED_FIFO "
+        "%s, memory locked %s, pinned %s\n",
+        (unsigned long long)st.samples, rate_hz, lateness_us(st.lateness_p50_s, p50, 32),
+        lateness_us(st.lateness_p90_s, p90, 32), lateness_us(st.lateness_p99_s, p99, 32),
+        lateness_us(st.lateness_p999_s, p999, 32), st.worst_lateness_s * 1e6,
+        (unsigned long long)st.overruns,
+        st.samples ? 100.0 * (double)st.overruns / (double)st.samples : 0.0,
+        st.rt_fifo ? "yes" : "no", st.rt_mlock ? "yes" : "no", st.rt_pinned ? "yes" : "no");
+    json_object *summary =
+        rths_api_summary_new("controller", args->config_path, args->overrides, args->n_overrides);
+    if (summary) {
+        json_object_object_add(summary, "latency_test_s", json_object_new_double(seconds));
+        json_object_object_add(summary, "sample_rate_hz", json_object_new_double(rate_hz));
+        json_object_object_add(summary, "samples", json_object_new_uint64(st.samples));
+        json_object_object_add(summary, "overruns", json_object_new_uint64(st.overruns));
+        json_object_object_add(summary, "lateness_p50_s",
+                               json_object_new_double(st.lateness_p50_s));
+        json_object_object_add(summary, "lateness_p90_s",
+                               json_object_new_double(st.lateness_p90_s));
+        json_object_object_add(summary, "lateness_p99_s",
+                               json_object_new_double(st.lateness_p99_s));
+        json_object_object_add(summary, "lateness_p999_s",
+                               json_object_new_double(st.lateness_p999_s));
+        json_object_object_add(summary, "worst_lateness_s",
+                               json_object_new_double(st.worst_lateness_s));
+        json_object_object_add(summary, "sched_fifo", json_object_new_boolean(st.rt_fifo));
+        json_object_object_add(summary, "memory_locked", json_object_new_boolean(st.rt_mlock));
+        json_object_object_add(summary, "pinned", json_object_new_boolean(st.rt_pinned));
+    }
+    rc = summary ? rths_result_set_summary(res, summary, err)
+                 : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    if (rc) {
+        rths_result_free(res);
+        return rc;
+    }
+    *out = res;
     return RTHS_OK;
 }
 
-static void print_stats(rths_server *srv) {
-    rths_server_stats st;
-    rths_server_get_stats(srv, &st);
+static void print_stats(const rths_server_stats *st) {
     char p50[32], p99[32], p999[32];
     fprintf(stderr,
             "rths controller: stopped after %llu samples; lateness p50 %s, p99 %s, p99.9 %s, "
             "worst %.0f us; %llu overruns; step mean %.2f us, max %.1f us\n",
-            (unsigned long long)st.samples, lateness_us(st.lateness_p50_s, p50, 32),
-            lateness_us(st.lateness_p99_s, p99, 32), lateness_us(st.lateness_p999_s, p999, 32),
-            st.worst_lateness_s * 1e6, (unsigned long long)st.overruns, st.step_mean_s * 1e6,
-            st.step_max_s * 1e6);
+            (unsigned long long)st->samples, lateness_us(st->lateness_p50_s, p50, 32),
+            lateness_us(st->lateness_p99_s, p99, 32), lateness_us(st->lateness_p999_s, p999, 32),
+            st->worst_lateness_s * 1e6, (unsigned long long)st->overruns, st->step_mean_s * 1e6,
+            st->step_max_s * 1e6);
+}
+
+/* A controller built and serving (rths.h): the one path of `rths controller` and of
+ * rths_api_controller_start. */
+struct rths_api_controller {
+    rths_config *cfg;
+    rths_server *srv;
+    rths_server_view *view;
+    rths_server_options opt;
+    int quiet;
+};
+
+static void controller_free(rths_api_controller *c) {
+    if (!c) return;
+    rths_server_destroy(c->srv);
+    rths_config_free(c->cfg);
+    free(c);
+}
+
+/* Starts the page (view_listen) and the server of c, built already. The threads both start
+ * inherit the calling thread's signal mask: the caller blocks what they must not take. */
+static int controller_run(rths_api_controller *c, const char *view_listen, rths_error *err) {
+    /* the page's threads inherit the blocked signals; a bad --view stops before the loop runs */
+    int rc;
+    if (view_listen && (rc = rths_server_view_start(c->srv, view_listen, &c->view, err))) return rc;
+    if (c->view && !c->quiet && !rths_view_host_is_loopback(rths_server_view_host(c->view)))
+        fprintf(stderr,
+                "rths controller: warning: the page on %s is reachable from other machines; it "
+                "has no authentication\n",
+                rths_server_view_host(c->view));
+    if ((rc = rths_server_start(c->srv, err))) {
+        rths_server_view_stop(c->view);
+        c->view = NULL;
+        return rc;
+    }
+    return RTHS_OK;
+}
+
+/* Stops the page and the loop (the server disarms first); st receives the loop's statistics.
+ * RTHS_EFAIL when the loop had stalled in the I/O device. */
+static int controller_halt(rths_api_controller *c, rths_server_stats *st, rths_error *err) {
+    rths_server_view_stop(c->view);
+    c->view = NULL;
+    rths_server_stop(c->srv);
+    rths_server_get_stats(c->srv, st);
+    double ran_s = 0;
+    if (rths_server_loop_stalled(c->srv, &ran_s))
+        return rths_error_set(err, RTHS_EFAIL,
+                              "the loop stalled in the I/O device (a sample ran %.3g s, beyond "
+                              "server.stall_margin_s = %g s); its safe state was driven and the "
+                              "device was left open (the stuck thread ends with the process)",
+                              ran_s, c->opt.stall_margin_s);
+    return RTHS_OK;
 }
 
 /* Starts the page (--view) and the server, prints where they listen, runs until stopped. */
-static int serve(const rths_api_controller_options *args, const rths_server_options *opt,
-                 rths_server *srv, rths_error *err) {
-    const int quiet = args->quiet;
+static int serve(const rths_api_controller_options *args, rths_api_controller *c, rths_error *err) {
     /* Signals are taken synchronously by this thread; the loop and network threads inherit the
      * blocked mask, so a signal never interrupts the loop. */
     sigset_t sigs;
@@ -252,41 +336,23 @@ static int serve(const rths_api_controller_options *args, const rths_server_opti
     sigaddset(&sigs, SIGINT);
     sigaddset(&sigs, SIGTERM);
     pthread_sigmask(SIG_BLOCK, &sigs, NULL);
-    /* the page's threads inherit the blocked signals; a bad --view stops before the loop runs */
-    rths_server_view *view = NULL;
-    int rc;
-    if (args->view_listen && (rc = rths_server_view_start(srv, args->view_listen, &view, err)))
-        return rc;
-    if (view && !quiet && !rths_view_host_is_loopback(rths_server_view_host(view)))
-        fprintf(stderr,
-                "rths controller: warning: the page on %s is reachable from other machines; it "
-                "has no authentication\n",
-                rths_server_view_host(view));
-    if ((rc = rths_server_start(srv, err))) {
-        rths_server_view_stop(view);
-        return rc;
-    }
+    int rc = controller_run(c, args->view_listen, err);
+    if (rc) return rc;
+    const rths_server_options *opt = &c->opt;
     printf("listening on %s%s%s:%d\n", strchr(opt->host, ':') ? "[" : "", opt->host,
-           strchr(opt->host, ':') ? "]" : "", rths_server_port(srv));
-    if (view) {
-        const char *vh = rths_server_view_host(view);
+           strchr(opt->host, ':') ? "]" : "", rths_server_port(c->srv));
+    if (c->view) {
+        const char *vh = rths_server_view_host(c->view);
         int v6 = strchr(vh, ':') != NULL;
         printf("view at http://%s%s%s:%d/\n", v6 ? "[" : "", vh, v6 ? "]" : "",
-               rths_server_view_port(view));
+               rths_server_view_port(c->view));
     }
     fflush(stdout);
     wait_for_stop(&sigs, args->duration_s);
-    rths_server_view_stop(view);
-    rths_server_stop(srv);
-    if (!quiet) print_stats(srv);
-    double ran_s = 0;
-    if (rths_server_loop_stalled(srv, &ran_s))
-        return rths_error_set(err, RTHS_EFAIL,
-                              "the loop stalled in the I/O device (a sample ran %.3g s, beyond "
-                              "server.stall_margin_s = %g s); its safe state was driven and the "
-                              "device was left open (the stuck thread ends with the process)",
-                              ran_s, opt->stall_margin_s);
-    return RTHS_OK;
+    rths_server_stats st;
+    rc = controller_halt(c, &st, err);
+    if (!args->quiet) print_stats(&st);
+    return rc;
 }
 
 /* The server options as the command line sets them: the defaults, quiet, --listen. */
@@ -309,18 +375,143 @@ int rths_api_controller_check_listen(const char *listen, rths_error *err) {
 int rths_api_controller_latency_test(const rths_api_controller_options *o, double seconds,
                                      rths_error *err) {
     rths_server_options opt;
+    rths_result *res = NULL;
     int rc = start_options(o, &opt, err);
-    return rc ? rc : latency_test(o, seconds, &opt, err);
+    if (!rc) rc = latency_test(o, seconds, &opt, &res, err);
+    if (!rc) fputs(rths_result_text(res), stdout);
+    rths_result_free(res);
+    return rc;
+}
+
+/* The server built from the configuration with the options: everything that can refuse input. */
+static int controller_create(const rths_api_controller_options *o, rths_api_controller **out,
+                             rths_error *err) {
+    *out = NULL;
+    rths_api_controller *c = calloc(1, sizeof *c);
+    if (!c) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    c->quiet = o->quiet;
+    int rc = start_options(o, &c->opt, err);
+    if (!rc) rc = create_server(o, &c->opt, &c->cfg, &c->srv, err);
+    if (rc) {
+        controller_free(c);
+        return rc;
+    }
+    *out = c;
+    return RTHS_OK;
 }
 
 int rths_api_controller_serve(const rths_api_controller_options *o, rths_error *err) {
-    rths_server_options opt;
-    rths_config *cfg = NULL;
-    rths_server *srv = NULL;
-    int rc = start_options(o, &opt, err);
-    if (!rc) rc = create_server(o, &opt, &cfg, &srv, err);
-    if (!rc) rc = serve(o, &opt, srv, err);
-    rths_server_destroy(srv);
-    rths_config_free(cfg);
+    rths_api_controller *c;
+    int rc = controller_create(o, &c, err);
+    if (!rc) rc = serve(o, c, err);
+    controller_free(c);
     return rc;
+}
+
+/* ---- the controller for a program (rths.h, "the controller process") ---- */
+
+/* The stable API's arguments as the command's options (quiet: a library prints nothing). */
+static int api_options(const rths_api_config *cfg, const char *listen, int site,
+                       const char *view_listen, rths_api_controller_options *o, rths_error *err) {
+    memset(o, 0, sizeof *o);
+    if (site < 0 || site > RTHS_API_MAX_INTERFACE_DOFS)
+        return rths_error_set(err, RTHS_EINPUT, "site %d: must be in [0, %d] (0: the whole test)",
+                              site, RTHS_API_MAX_INTERFACE_DOFS);
+    if (cfg) {
+        o->config_path = cfg->path;
+        o->overrides = (const char *const *)cfg->overrides;
+        o->n_overrides = cfg->n_overrides;
+    }
+    o->listen = listen;
+    o->site = site;
+    o->view_listen = view_listen;
+    o->quiet = 1;
+    return RTHS_OK;
+}
+
+int rths_api_controller_start(const rths_api_config *cfg, const char *listen, int site,
+                              const char *view_listen, rths_api_controller **out, rths_error *err) {
+    *out = NULL;
+    if (!cfg) return rths_error_set(err, RTHS_EINPUT, "no configuration given");
+    rths_server_options probe; /* the address named as this call's argument, not --listen */
+    int probe_port;
+    if (listen && parse_listen(listen, probe.host, sizeof probe.host, &probe_port))
+        return rths_error_set(err, RTHS_EINPUT, "listen '%s': expected ADDR:PORT (port 0..65535)",
+                              listen);
+    rths_api_controller_options o;
+    int rc = api_options(cfg, listen, site, view_listen, &o, err);
+    rths_api_controller *c = NULL;
+    if (!rc) rc = controller_create(&o, &c, err);
+    if (rc) return rc;
+    /* the loop, network and page threads never take the caller's signals (a Ctrl-C meant for
+     * the program): they start with SIGINT and SIGTERM blocked, the caller's mask restored */
+    sigset_t sigs, old;
+    sigemptyset(&sigs);
+    sigaddset(&sigs, SIGINT);
+    sigaddset(&sigs, SIGTERM);
+    pthread_sigmask(SIG_BLOCK, &sigs, &old);
+    rc = controller_run(c, view_listen, err);
+    pthread_sigmask(SIG_SETMASK, &old, NULL);
+    if (rc) {
+        controller_free(c);
+        return rc;
+    }
+    *out = c;
+    return RTHS_OK;
+}
+
+int rths_api_controller_port(const rths_api_controller *c) {
+    return c ? rths_server_port(c->srv) : -1;
+}
+
+int rths_api_controller_view_port(const rths_api_controller *c) {
+    return c && c->view ? rths_server_view_port(c->view) : -1;
+}
+
+int rths_api_controller_stop(rths_api_controller *c, rths_result **stats, rths_error *err) {
+    if (stats) *stats = NULL;
+    if (!c) return RTHS_OK;
+    rths_server_stats st;
+    int rc = controller_halt(c, &st, err);
+    json_object *summary = NULL;
+    rths_result *res = NULL;
+    if (!rc && stats && !(rc = rths_result_new(&res, err))) {
+        summary = rths_api_summary_new("controller", NULL, NULL, 0);
+        if (summary) {
+            json_object_object_add(summary, "samples", json_object_new_uint64(st.samples));
+            json_object_object_add(summary, "overruns", json_object_new_uint64(st.overruns));
+            json_object_object_add(summary, "lateness_p50_s",
+                                   json_object_new_double(st.lateness_p50_s));
+            json_object_object_add(summary, "lateness_p99_s",
+                                   json_object_new_double(st.lateness_p99_s));
+            json_object_object_add(summary, "lateness_p999_s",
+                                   json_object_new_double(st.lateness_p999_s));
+            json_object_object_add(summary, "worst_lateness_s",
+                                   json_object_new_double(st.worst_lateness_s));
+            json_object_object_add(summary, "step_mean_s", json_object_new_double(st.step_mean_s));
+            json_object_object_add(summary, "step_max_s", json_object_new_double(st.step_max_s));
+            json_object_object_add(summary, "fault", json_object_new_int(st.fault));
+        }
+        rc = summary ? rths_result_set_summary(res, summary, err)
+                     : rths_error_set(err, RTHS_EFAIL, "out of memory");
+    }
+    controller_free(c);
+    if (rc) {
+        rths_result_free(res);
+        return rc;
+    }
+    if (stats) *stats = res;
+    return RTHS_OK;
+}
+
+int rths_api_controller_latency(const rths_api_config *cfg, double seconds, rths_result **out,
+                                rths_error *err) {
+    *out = NULL;
+    if (!(seconds > 0 && seconds <= 3600))
+        return rths_error_set(err, RTHS_EINPUT, "seconds %g: must be in (0, 3600]", seconds);
+    rths_api_controller_options o;
+    rths_server_options opt;
+    int rc = api_options(cfg, NULL, 0, NULL, &o, err);
+    if (!rc) rc = start_options(&o, &opt, err);
+    return rc ? rc : latency_test(&o, seconds, &opt, out, err);
 }

@@ -1,7 +1,8 @@
 /* rths_api_fidelity: the hybrid test's steady-state FRF at a perfect interface match for every
  * integration scheme of the numerical substructure, against the true assembly (docs/method.md,
  * "Numerical substructure integration"). The one implementation of `rths fidelity`: the command
- * calls rths_api_fidelity_compute and writes its result with rths_api_result_write. */
+ * calls rths_api_fidelity_run (over rths_api_fidelity_compute) and writes its result with
+ * rths_api_result_write. */
 #include "api/api_fidelity_nonlinear.h"
 #include "api/api_internal.h"
 #include "rths/controller.h"

@@ -34,10 +34,9 @@ int rths_api_frf(const rths_api_config *cfg, const rths_api_frf_options *o, rths
                           "not built in)");
 }
 
-int rths_api_frf_run(struct rths_config *c, const struct rths_setup *setup,
-                     const rths_api_frf_run_options *o, rths_api_frf_run_summary *r,
-                     rths_error *err) {
-    (void)c, (void)setup, (void)o;
+int rths_api_frf_run(rths_api_command_config *c, const rths_api_frf_run_options *o,
+                     rths_api_frf_run_summary *r, rths_error *err) {
+    (void)c, (void)o;
     memset(r, 0, sizeof *r);
     return rths_error_set(err, RTHS_EFAIL,
                           "this librths has no FRF run (the run module, include/rths/run.h, is "
@@ -69,10 +68,13 @@ const char *const *rths_api_frf_paper_overrides(int *n) {
     return rths_run_paper_overrides;
 }
 
-int rths_api_frf_run(rths_config *c, const rths_setup *setup, const rths_api_frf_run_options *o,
+int rths_api_frf_run(rths_api_command_config *c, const rths_api_frf_run_options *o,
                      rths_api_frf_run_summary *r, rths_error *err) {
-    rths_run_frf_options ro = {.cfg = c,
-                               .setup = setup,
+    memset(r, 0, sizeof *r);
+    if (!c || !c->has_setup)
+        return rths_error_set(err, RTHS_EINPUT, "rths_api_frf_run needs the setup read");
+    rths_run_frf_options ro = {.cfg = c->config,
+                               .setup = &c->setup,
                                .out_dir = o->out_dir,
                                .strategy = o->strategy,
                                .harmonics = o->harmonics,
@@ -84,9 +86,9 @@ int rths_api_frf_run(rths_config *c, const rths_setup *setup, const rths_api_frf
                                .n_site_uris = o->n_site_uris,
                                .has_seed = o->has_seed,
                                .seed = o->seed,
-                               .config_path = o->config_path,
-                               .overrides = o->overrides,
-                               .n_overrides = o->n_overrides,
+                               .config_path = c->path,
+                               .overrides = (const char *const *)c->overrides,
+                               .n_overrides = c->n_overrides,
                                .argc = o->argc,
                                .argv = o->argv};
     rths_run_callbacks cb = {

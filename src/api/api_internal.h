@@ -16,6 +16,21 @@ struct rths_api_config {
     int dofs;
 };
 
+/* A configuration as a command holds it (rths.h): read once, the setup read from it when asked. */
+struct rths_api_command_config {
+    rths_config *config;
+    rths_setup setup; /* zero unless has_setup */
+    int has_setup;
+    char *path; /* NULL: defaults only */
+    char **overrides;
+    int n_overrides;
+};
+
+/* A command's run folder (rths.h): the report module's output folder. */
+struct rths_api_run_folder {
+    rths_report *report;
+};
+
 /* A gnuplot figure of a result: written after the tables and the summary (rths_plot). */
 typedef struct rths_api_figure {
     char *name; /* basename: NAME.gp, NAME.png, NAME.svg */
@@ -48,6 +63,65 @@ void rths_api_unload(rths_config *c, rths_setup *setup);
 /* Unknown keys refused in the setup's sections and in own (NULL-terminated), the other sections
  * of the rths configuration accepted whole (as the CLI's commands do). */
 int rths_api_check_config(rths_config *c, const char *const *own, rths_error *err);
+
+/* The commands' computations behind the entry points of rths.h, on the library's types: the
+ * stable operations (rths_api_model, rths_api_chart, ...) call them too, so a command and its
+ * operation share one implementation. */
+typedef struct rths_api_model_timing {
+    double modes_s, frf_prepare_s, frf_s; /* wall seconds of the stages */
+    char modes_method[32];                /* "banded, dsbgvd" or "dense, dsygvd" */
+    char frf_method[64];                  /* rths_frf_method_name */
+    int frf_points, frf_dofs;             /* true_frf's rows and DoFs */
+} rths_api_model_timing;
+/* rths_api_model's result (tables "modes", "true_frf", the summary naming config_path and the
+ * overrides) from the setup read from the configuration; timing may be NULL. */
+int rths_api_model_compute(const rths_setup *setup, const char *config_path,
+                           const char *const *overrides, int n_overrides, rths_result **out,
+                           rths_api_model_timing *timing, rths_error *err);
+struct rths_chart;
+struct rths_chart_options;
+typedef struct rths_api_chart_facts {
+    double seconds;                   /* the chart's computation, wall seconds */
+    double p_essential;               /* essential-spectrum limit of p (NaN: none in the range) */
+    int stable_points;                /* grid points labelled stable */
+    char essential_statement[512];    /* summary.json's essential_spectrum.statement */
+    double probe_p[4];                /* the configured p, then 0.6, 0.67, 0.8 */
+    double probe_critical_delay_s[4]; /* located stand-alone at probe_p (NaN: none found) */
+    double probe_crossing_omega_rad_s[4];
+} rths_api_chart_facts;
+/* rths_api_chart's result (tables "chart", "boundary", "critical", the summary naming config_path
+ * and the overrides) from the setup and the stability options read from the configuration. chart
+ * (may be NULL) receives the computed chart (free with rths_chart_free); facts may be NULL. */
+int rths_api_chart_compute(const rths_setup *setup, const struct rths_chart_options *o,
+                           const char *config_path, const char *const *overrides, int n_overrides,
+                           rths_result **out, struct rths_chart *chart, rths_api_chart_facts *facts,
+                           rths_error *err);
+/* rths_api_tune's result from the configuration (its rig and controller sections read and
+ * checked here) and the setup read from it. */
+int rths_api_tune_compute(rths_config *c, const rths_setup *setup, double delay_s,
+                          const char *config_path, const char *const *overrides, int n_overrides,
+                          rths_result **out, rths_error *err);
+/* rths_api_fidelity's result from the configuration (its fidelity and controller sections read
+ * and checked here) and the setup read from it. */
+int rths_api_fidelity_compute(rths_config *c, const rths_setup *setup, const char *config_path,
+                              const char *const *overrides, int n_overrides, rths_result **out,
+                              rths_error *err);
+/* rths_api_simulate_prepare on the library's types; config_path and the overrides (kept by
+ * pointer: they must outlive the simulation) are named in the result's summary. */
+int rths_api_simulation_prepare(rths_config *c, const rths_setup *setup,
+                                const rths_api_simulate_options *o, const char *config_path,
+                                const char *const *overrides, int n_overrides,
+                                rths_api_simulation **out, rths_error *err);
+/* rths_api_simulate_run logging into rep (may be NULL). */
+int rths_api_simulation_run(rths_api_simulation *s, rths_report *rep, rths_result **out,
+                            rths_error *err);
+/* rths_api_result_write into rep, and its parts in order (the result's own text files such as
+ * tuned.yaml, then tables, run.log lines, summary, figures). */
+int rths_result_write_report(const rths_result *r, rths_report *rep, rths_error *err);
+int rths_result_write_tables(const rths_result *r, rths_report *rep, rths_error *err);
+int rths_result_write_log(const rths_result *r, rths_report *rep, rths_error *err);
+int rths_result_write_summary(const rths_result *r, rths_report *rep, rths_error *err);
+int rths_result_write_figures(const rths_result *r, rths_report *rep, rths_error *err);
 
 int rths_result_new(rths_result **out, rths_error *err);
 /* Takes the table over (*t is emptied). */

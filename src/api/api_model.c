@@ -1,6 +1,6 @@
 /* rths_api_model: modes and analytic FRF of the true assembly as tables. The one implementation of
- * `rths model`'s tables and summary: the command calls rths_api_model_compute and writes its
- * result with rths_api_result_write, as rths_api_model does. */
+ * `rths model`'s tables and summary: the command's rths_api_model_run calls rths_api_model_compute
+ * and writes the result with rths_api_result_write, as rths_api_model does. */
 #include "api/api_internal.h"
 #include "api/api_model_sparse.h"
 

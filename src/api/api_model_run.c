@@ -238,9 +238,16 @@ static int model_sparse(rths_config *cfg, rths_model_choice *choice, double t0,
     return RTHS_OK;
 }
 
-int rths_api_model_run(rths_config *cfg, const char *config_path, const char *const *overrides,
-                       int n_overrides, const char *out_dir, rths_result **out, rths_error *err) {
+int rths_api_model_run(rths_api_command_config *cc, const char *out_dir, rths_result **out,
+                       rths_error *err) {
     *out = NULL;
+    if (!cc || cc->has_setup)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "rths_api_model_run needs the configuration without the setup");
+    rths_config *cfg = cc->config;
+    const char *config_path = cc->path;
+    const char *const *overrides = (const char *const *)cc->overrides;
+    int n_overrides = cc->n_overrides;
     rths_setup setup = {0};
     rths_result *result = NULL;
     rths_api_model_timing timing = {0};

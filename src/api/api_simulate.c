@@ -556,10 +556,13 @@ struct rths_api_simulation {
     sim_args a;
     int has_seed;
     uint64_t seed;
-    int pure_delay;       /* feedback through the seed's pure-delay model: no rig */
-    int remote;           /* a controller process */
-    rths_rig *rig;        /* NULL with pure_delay */
-    char reset_note[700]; /* the controller's answer to RESET_FAULT, logged */
+    int pure_delay;               /* feedback through the seed's pure-delay model: no rig */
+    int remote;                   /* a controller process */
+    rths_rig *rig;                /* NULL with pure_delay */
+    char reset_note[700];         /* the controller's answer to RESET_FAULT, logged */
+    const char *config_path;      /* named in the summary (the caller's) */
+    const char *const *overrides; /* the caller's */
+    int n_overrides;
 };
 
 void rths_api_simulate_options_default(rths_api_simulate_options *o) {
@@ -629,14 +632,16 @@ void rths_api_simulation_free(rths_api_simulation *s) {
     free(s);
 }
 
-int rths_api_simulate_prepare(rths_config *cfg, const rths_setup *setup,
-                              const rths_api_simulate_options *o, rths_api_simulation **out,
-                              rths_error *err) {
+int rths_api_simulation_prepare(rths_config *cfg, const rths_setup *setup,
+                                const rths_api_simulate_options *o, const char *config_path,
+                                const char *const *overrides, int n_overrides,
+                                rths_api_simulation **out, rths_error *err) {
     *out = NULL;
     if (rths_setup_require_dense(setup, "rths simulate", err)) return RTHS_EINPUT;
     rths_api_simulation *s = calloc(1, sizeof *s);
     if (!s) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     s->cfg = cfg, s->setup = setup;
+    s->config_path = config_path, s->overrides = overrides, s->n_overrides = n_overrides;
     s->has_seed = o->has_seed != 0, s->seed = o->seed;
     int rc = args_from_options(o, &s->a, err);
     if (rc) goto done;
@@ -685,9 +690,8 @@ done:
     return RTHS_OK;
 }
 
-int rths_api_simulate_run(rths_api_simulation *s, rths_report *rep, const char *config_path,
-                          const char *const *overrides, int n_overrides, rths_result **out,
-                          rths_error *err) {
+int rths_api_simulation_run(rths_api_simulation *s, rths_report *rep, rths_result **out,
+                            rths_error *err) {
     *out = NULL;
     const sim_args *a = &s->a;
     const rths_setup *setup = s->setup;
@@ -732,7 +736,7 @@ int rths_api_simulate_run(rths_api_simulation *s, rths_report *rep, const char *
         (rc = add_trace(res, shown, n_shown, err)))
         goto done;
 
-    summary = rths_api_summary_new("simulate", config_path, overrides, n_overrides);
+    summary = rths_api_summary_new("simulate", s->config_path, s->overrides, s->n_overrides);
     if (!summary) {
         rc = rths_error_set(err, RTHS_EFAIL, "out of memory");
         goto done;
@@ -799,9 +803,10 @@ int rths_api_simulate(const rths_api_config *cfg, const rths_api_simulate_option
     rths_result *r = NULL;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (rc) return rc;
-    if (!(rc = rths_api_simulate_prepare(c, &setup, o, &s, err)))
-        rc = rths_api_simulate_run(s, NULL, cfg->path, (const char *const *)cfg->overrides,
-                                   cfg->n_overrides, &r, err);
+    if (!(rc = rths_api_simulation_prepare(c, &setup, o, cfg->path,
+                                           (const char *const *)cfg->overrides, cfg->n_overrides,
+                                           &s, err)))
+        rc = rths_api_simulation_run(s, NULL, &r, err);
     rths_api_simulation_free(s); /* the rig stops before the folder is written */
     rc = rths_api_finish(r, rc, c, o->out_dir, "simulate", out, err);
     rths_api_unload(c, &setup);

@@ -1,7 +1,7 @@
 /* rths_api_tune: PD and grounding gains from the model (docs/method.md, "Tuning the gains") as a
  * table, a summary and the YAML fragment to paste. The one implementation of `rths tune`'s
- * outputs: the command calls rths_api_tune_compute and writes its result with
- * rths_api_result_write, as rths_api_tune does. */
+ * outputs: the command calls rths_api_tune_run (over rths_api_tune_compute) and writes its result
+ * with rths_api_result_write, as rths_api_tune does. */
 #include "api/api_internal.h"
 #include "rths/controller.h"
 #include "rths/tune.h"

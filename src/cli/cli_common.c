@@ -3,7 +3,6 @@
 
 #include <errno.h>
 #include <limits.h>
-#include <json-c/json.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
@@ -175,11 +174,11 @@ int rths_cli_double_ex(const char *opt, const char *text, double lo, double hi, 
     if (!isfinite(v) || errno == ERANGE)
         return rths_error_set(err, RTHS_EINPUT, "option %s: '%s' is not a finite number", opt,
                               text);
-    if (v < lo || v > hi || ((flags & RTHS_CONFIG_LO_OPEN) && v == lo) ||
-        ((flags & RTHS_CONFIG_HI_OPEN) && v == hi)) {
+    if (v < lo || v > hi || ((flags & RTHS_API_RANGE_LO_OPEN) && v == lo) ||
+        ((flags & RTHS_API_RANGE_HI_OPEN) && v == hi)) {
         char range[128];
         return rths_error_set(err, RTHS_EINPUT, "option %s: must be %s (got %s)", opt,
-                              rths_config_range_text(lo, hi, flags, range, sizeof range), text);
+                              rths_api_range_text(lo, hi, flags, range, sizeof range), text);
     }
     *out = v;
     return RTHS_OK;
@@ -232,77 +231,14 @@ int rths_cli_double_list(const char *opt, const char *text, double *out, int max
     return RTHS_OK;
 }
 
-int rths_cli_load(const rths_cli *cli, rths_config **cfg, rths_setup *setup, rths_error *err) {
-    *cfg = NULL;
-    memset(setup, 0, sizeof *setup);
-    int rc = rths_config_load(cli->config_path, cli->sets, cli->n_sets, cfg, err);
-    if (rc) {
-        *cfg = NULL;
-        return rc;
-    }
-    rc = rths_setup_read(*cfg, setup, err);
-    if (rc) {
-        rths_setup_free(setup);
-        memset(setup, 0, sizeof *setup);
-        rths_config_free(*cfg);
-        *cfg = NULL;
-    }
-    return rc;
+int rths_cli_load(const rths_cli *cli, unsigned flags, rths_api_command_config **cfg,
+                  rths_error *err) {
+    return rths_api_command_config_load(cli->config_path, cli->sets, cli->n_sets, flags, cfg, err);
 }
 
-void rths_cli_unload(rths_config *cfg, rths_setup *setup) {
-    if (setup) rths_setup_free(setup);
-    if (cfg) rths_config_free(cfg);
-}
-
-int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err) {
-    return rths_config_check_sections(cfg, own, err);
-}
-
-int rths_cli_check_config(rths_config *cfg, rths_error *err) {
-    return rths_cli_check_config_own(cfg, NULL, err);
-}
-
-int rths_cli_open_report(const rths_cli *cli, const rths_config *cfg, int argc, char **argv,
-                         rths_report **rep, rths_error *err) {
-    int rc = rths_report_open(cli->out_dir, cli->command, argc, argv, rep, err);
-    if (rc) return rc;
-    char *path = rths_report_path(*rep, "config.yaml");
-    if (!path) {
-        rths_report_close(*rep);
-        *rep = NULL;
-        return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    }
-    rc = rths_config_write(cfg, path, err);
-    free(path);
-    if (rc) {
-        rths_report_close(*rep);
-        *rep = NULL;
-    }
-    return rc;
-}
-
-struct json_object *rths_cli_summary_new(const rths_cli *cli) {
-    json_object *o = rths_json_summary_new(cli->command);
-    if (!o) return NULL;
-    if (cli->config_path)
-        json_object_object_add(o, "config_file", json_object_new_string(cli->config_path));
-    json_object *sets = json_object_new_array();
-    for (int i = 0; i < cli->n_sets; i++)
-        json_object_array_add(sets, json_object_new_string(cli->sets[i]));
-    json_object_object_add(o, "overrides", sets);
-    if (cli->has_seed) json_object_object_add(o, "seed", json_object_new_uint64(cli->seed));
-    return o;
-}
-
-int rths_cli_write_summary(rths_report *rep, const char *name, struct json_object *obj,
-                           rths_error *err) {
-    char *path = rths_report_path(rep, name);
-    if (!path) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    int rc = rths_json_write(path, obj, err);
-    if (!rc) rths_report_log(rep, "wrote %s", name);
-    free(path);
-    return rc;
+int rths_cli_open_folder(const rths_cli *cli, const rths_api_command_config *cfg, int argc,
+                         char **argv, rths_api_run_folder **folder, rths_error *err) {
+    return rths_api_run_folder_open(cli->out_dir, cli->command, argc, argv, cfg, folder, err);
 }
 
 int rths_cli_add_pace(rths_cli *cli, const char *value, int remote_rig, rths_error *err) {

@@ -1,4 +1,4 @@
-/* Shared plumbing of the rths commands: argument parsing, config + setup loading, the output
+/* Shared plumbing of the rths commands: argument parsing, loading the configuration, the output
  * folder, error reporting and exit status. A command looks like:
  *
  *   rths_cli_opt opts[] = {{"--frequency", "F", NULL}, {"--verbose", NULL, NULL}};
@@ -7,27 +7,25 @@
  *   if (rc || cli.help) return rc;               // message or usage already printed
  *   ... validate opts[i].value with rths_cli_double() etc.; on error
  *       return rths_cli_fail(&cli, rc, &err);    // exit 2, nothing written
- *   rths_config *cfg; rths_setup setup; rths_error err;
- *   if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
- *   ... read the command's own config sections with the getters ...
- *   rc = rths_cli_check_config(cfg, &err);       // unknown keys -> exit 2
- *   rths_report *rep;
- *   rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);   // creates DIR
- *   ... work, write files; rths_report_close(rep); rths_cli_unload(cfg, &setup) ...
+ *   rths_api_command_config *cfg; rths_error err;
+ *   if ((rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err)))
+ *       return rths_cli_fail(&cli, rc, &err);
+ *   rths_result *result;
+ *   rc = rths_api_COMMAND_run(cfg, ..., &result, &err);  // reads and checks its sections
+ *   rths_api_run_folder *folder;
+ *   if (!rc) rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err);  // creates DIR
+ *   ... print rths_result_text(result), rths_api_result_write(result, folder, &err),
+ *       rths_api_run_folder_close(folder), rths_api_command_config_free(cfg) ...
  *
- * Everything that can refuse input runs before rths_cli_open_report, so exit status 2 never
- * leaves files behind. Exit status: RTHS_OK 0, RTHS_EFAIL 1, RTHS_EINPUT 2 (the error codes). */
+ * Everything that can refuse input runs before rths_cli_open_folder, so exit status 2 never
+ * leaves files behind. Exit status: RTHS_OK 0, RTHS_EFAIL 1, RTHS_EINPUT 2 (the error codes).
+ * The commands reach the library through the C API alone (rths/rths.h; tests/cli/layering.sh). */
 #ifndef RTHS_CLI_COMMON_H
 #define RTHS_CLI_COMMON_H
 
-#include "rths/config.h"
-#include "rths/core.h"
-#include "rths/report.h"
-#include "rths/setup.h"
+#include "rths/rths.h"
 
 #include <stdint.h>
-
-struct json_object;
 
 /* What a command takes besides --set, --quiet and --help (always accepted). */
 enum {
@@ -82,7 +80,7 @@ void rths_cli_print(const rths_cli *cli, const char *fmt, ...)
  * RTHS_EINPUT with "option --name: ..." in err. */
 int rths_cli_double(const char *opt, const char *text, double lo, double hi, double *out,
                     rths_error *err);
-/* The same with open ends where flagged (RTHS_CONFIG_LO_OPEN: lo < x), worded as the
+/* The same with open ends where flagged (RTHS_API_RANGE_LO_OPEN: lo < x), worded as the
  * configuration's getters word a range ("must be in (0, 100000] (got 0)"). */
 int rths_cli_double_ex(const char *opt, const char *text, double lo, double hi, unsigned flags,
                        double *out, rths_error *err);
@@ -91,31 +89,15 @@ int rths_cli_int(const char *opt, const char *text, long lo, long hi, long *out,
 int rths_cli_double_list(const char *opt, const char *text, double *out, int max_count, int *count,
                          rths_error *err);
 
-/* Loads CONFIG with the --set overrides and reads the structural setup (structure, split,
- * forcing, model). On failure nothing is left allocated. Free with rths_cli_unload. */
-int rths_cli_load(const rths_cli *cli, rths_config **cfg, rths_setup *setup, rths_error *err);
-void rths_cli_unload(rths_config *cfg, rths_setup *setup);
+/* Loads CONFIG with the --set overrides (rths_api_command_config_load; flags
+ * RTHS_API_READ_SETUP also reads the structural setup: structure, split, forcing, model). On
+ * failure nothing is left allocated. Free with rths_api_command_config_free. */
+int rths_cli_load(const rths_cli *cli, unsigned flags, rths_api_command_config **cfg,
+                  rths_error *err);
 
-/* Refuses unknown keys (typos, unknown sections) after the command has read its sections with the
- * getters (which check types and ranges). The setup's sections (structure, split, forcing, model)
- * and every section a reader of this command asked a key of (e.g. rig and controller, read by the
- * virtual rig) are checked key by key; the other sections the rths configuration knows of (rig,
- * controller, iteration, continuation, stability, fidelity, output, server) are accepted whole,
- * so one config file serves every command. */
-int rths_cli_check_config(rths_config *cfg, rths_error *err);
-/* The same, but the command's own sections (own: NULL-terminated, e.g. {"fidelity", NULL}) are
- * also checked key by key, so a misspelt key there is refused instead of ignored. */
-int rths_cli_check_config_own(rths_config *cfg, const char *const *own, rths_error *err);
-
-/* Creates the output folder, opens run.log, writes config.yaml (as resolved). */
-int rths_cli_open_report(const rths_cli *cli, const rths_config *cfg, int argc, char **argv,
-                         rths_report **rep, rths_error *err);
-
-/* rths_json_summary_new(command) plus "config_file", "overrides" and "seed" (when given). */
-struct json_object *rths_cli_summary_new(const rths_cli *cli);
-
-/* dir/name written as JSON (atomic), the name logged. */
-int rths_cli_write_summary(rths_report *rep, const char *name, struct json_object *obj,
-                           rths_error *err);
+/* Creates the output folder --out, opens run.log (the command line as its first line), writes
+ * config.yaml (as resolved). */
+int rths_cli_open_folder(const rths_cli *cli, const rths_api_command_config *cfg, int argc,
+                         char **argv, rths_api_run_folder **folder, rths_error *err);
 
 #endif

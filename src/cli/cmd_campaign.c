@@ -439,10 +439,9 @@ static int check_overrides(const plan *p, char **sets, int n, rths_error *e) {
     for (int i = 0; i < n; i++)
         c.sets[i] = sets[i];
     c.n_sets = n;
-    rths_config *cfg = NULL;
-    rths_setup setup;
-    int rc = rths_cli_load(&c, &cfg, &setup, e);
-    if (!rc) rths_cli_unload(cfg, &setup);
+    rths_api_command_config *cfg = NULL;
+    int rc = rths_cli_load(&c, RTHS_API_READ_SETUP, &cfg, e);
+    rths_api_command_config_free(cfg);
     return rc;
 }
 

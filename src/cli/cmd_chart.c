@@ -52,22 +52,21 @@ int rths_cmd_chart(int argc, char **argv) {
     if (rc || cli.help) return rc;
     rths_error err;
     rths_error_clear(&err);
-    rths_config *cfg = NULL;
-    rths_setup setup;
-    rths_report *rep = NULL;
+    rths_api_command_config *cfg = NULL;
+    rths_api_run_folder *folder = NULL;
     rths_result *result = NULL;
-    if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    if (!(rc = rths_api_chart_run(cfg, &setup, rths_progress_enabled(cli.quiet), cli.config_path,
-                                  cli.sets, cli.n_sets, &result, &err)))
-        rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
-    if (!rc) rc = rths_api_result_write(result, rep, &err);
+    if ((rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err)))
+        return rths_cli_fail(&cli, rc, &err);
+    if (!(rc = rths_api_chart_run(cfg, rths_api_progress_enabled(cli.quiet), &result, &err)))
+        rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err);
+    if (!rc) rc = rths_api_result_write(result, folder, &err);
     if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
     /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
      * one line; the other files stay), rather than a warning at close */
-    if (!rc) rc = rths_report_write_mat(rep, &err);
+    if (!rc) rc = rths_api_run_folder_write_mat(folder, &err);
     rths_result_free(result);
-    if (rep) rths_report_close(rep);
-    rths_cli_unload(cfg, &setup);
+    rths_api_run_folder_close(folder);
+    rths_api_command_config_free(cfg);
     if (rc) return rths_cli_fail(&cli, rc, &err);
     return RTHS_OK;
 }

@@ -61,11 +61,11 @@ static int parse_args(int argc, char **argv, controller_args *args) {
         return rths_cli_fail(cli, rc, &err);
     if (opts[OPT_DURATION].value &&
         (rc = rths_cli_double_ex("--duration", opts[OPT_DURATION].value, 0.0, 1e7,
-                                 RTHS_CONFIG_LO_OPEN, &args->duration_s, &err)))
+                                 RTHS_API_RANGE_LO_OPEN, &args->duration_s, &err)))
         return rths_cli_fail(cli, rc, &err);
     if (opts[OPT_LATENCY].value &&
         (rc = rths_cli_double_ex("--latency-test", opts[OPT_LATENCY].value, 0.0, 3600.0,
-                                 RTHS_CONFIG_LO_OPEN, &args->latency_test_s, &err)))
+                                 RTHS_API_RANGE_LO_OPEN, &args->latency_test_s, &err)))
         return rths_cli_fail(cli, rc, &err);
     if (opts[OPT_SITE].value && (rc = rths_cli_int("--site", opts[OPT_SITE].value, 1,
                                                    RTHS_API_MAX_INTERFACE_DOFS, &args->site, &err)))
@@ -107,7 +107,7 @@ static int parse_args(int argc, char **argv, controller_args *args) {
 }
 
 int rths_cmd_controller(int argc, char **argv) {
-    controller_args args;
+    controller_args args = {0}; /* --site absent: 0, the whole test */
     int rc = parse_args(argc, argv, &args);
     if (rc || args.cli.help) return rc;
     rths_error err;

@@ -1,7 +1,7 @@
 /* rths fidelity: the hybrid test's steady-state FRF at a perfect interface match for every
  * integration scheme of the numerical substructure, against the true assembly (docs/method.md,
  * "Numerical substructure integration"). The tables, summary, printed report and figure come
- * from the library (rths_api_fidelity_compute, the code behind rths_api_fidelity); the command
+ * from the library (rths_api_fidelity_run, the code behind rths_api_fidelity); the command
  * parses, prints and writes the folder. */
 #include "cli/cli_common.h"
 #include "cli/commands.h"
@@ -53,22 +53,21 @@ int rths_cmd_fidelity(int argc, char **argv) {
     if (rc || cli.help) return rc;
     rths_error err;
     rths_error_clear(&err);
-    rths_config *cfg = NULL;
-    rths_setup setup;
-    rths_report *rep = NULL;
+    rths_api_command_config *cfg = NULL;
+    rths_api_run_folder *folder = NULL;
     rths_result *result = NULL;
-    if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    if (!(rc = rths_api_fidelity_compute(cfg, &setup, cli.config_path, cli.sets, cli.n_sets,
-                                         &result, &err)))
-        rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
+    if ((rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err)))
+        return rths_cli_fail(&cli, rc, &err);
+    if (!(rc = rths_api_fidelity_run(cfg, &result, &err)))
+        rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err);
     if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
-    if (!rc) rc = rths_api_result_write(result, rep, &err);
+    if (!rc) rc = rths_api_result_write(result, folder, &err);
     /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
      * one line; the other files stay), rather than a warning at close */
-    if (!rc) rc = rths_report_write_mat(rep, &err);
+    if (!rc) rc = rths_api_run_folder_write_mat(folder, &err);
     rths_result_free(result);
-    if (rep) rths_report_close(rep);
-    rths_cli_unload(cfg, &setup);
+    rths_api_run_folder_close(folder);
+    rths_api_command_config_free(cfg);
     if (rc) return rths_cli_fail(&cli, rc, &err);
     return RTHS_OK;
 }

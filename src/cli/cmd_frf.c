@@ -220,11 +220,11 @@ int rths_cmd_frf(int argc, char **argv) {
     a.n_site_rigs = n_sites;
     int rc = parse_args(&cli, argc, argv, &a);
     if (rc || cli.help) return rc;
-    rths_config *cfg = NULL;
-    rths_setup setup = {0};
+    rths_api_command_config *cfg = NULL;
     rths_error err = {0};
-    if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    int progress = rths_progress_enabled(cli.quiet);
+    if ((rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err)))
+        return rths_cli_fail(&cli, rc, &err);
+    int progress = rths_api_progress_enabled(cli.quiet);
     rths_api_frf_run_options opt = {.out_dir = cli.out_dir,
                                     .strategy = a.strategy,
                                     .harmonics = (int)a.harmonics,
@@ -236,9 +236,6 @@ int rths_cmd_frf(int argc, char **argv) {
                                     .n_site_uris = n_sites,
                                     .has_seed = cli.has_seed,
                                     .seed = cli.seed,
-                                    .config_path = cli.config_path,
-                                    .overrides = cli.sets,
-                                    .n_overrides = cli.n_sets,
                                     .argc = all_argc,
                                     .argv = all_argv,
                                     .on_progress = progress ? print_progress : NULL,
@@ -246,7 +243,7 @@ int rths_cmd_frf(int argc, char **argv) {
     signal(SIGINT, on_interrupt);
     signal(SIGTERM, on_interrupt);
     rths_api_frf_run_summary r;
-    rc = rths_api_frf_run(cfg, &setup, &opt, &r, &err);
+    rc = rths_api_frf_run(cfg, &opt, &r, &err);
     if (progress && r.outputs_written) fprintf(stderr, "\n");
     if (r.outputs_written && r.points > 0)
         rths_cli_print(&cli,
@@ -261,7 +258,7 @@ int rths_cmd_frf(int argc, char **argv) {
                 "rths frf: interrupted; everything accepted is in %s (--resume continues)\n",
                 cli.out_dir);
     if (rc) rths_cli_fail(&cli, rc, &err);
-    rths_cli_unload(cfg, &setup);
+    rths_api_command_config_free(cfg);
     if (!rc && r.cancelled) rc = 130; /* as the shell reports an interrupt */
     return rc;
 }

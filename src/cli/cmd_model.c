@@ -38,23 +38,25 @@ int rths_cmd_model(int argc, char **argv) {
     int rc = rths_cli_parse(&cli, argc, argv, RTHS_CLI_CONFIG | RTHS_CLI_OUT, usage, NULL, 0);
     if (rc || cli.help) return rc;
     rths_error err = {0};
-    rths_config *cfg = NULL;
-    rths_report *rep = NULL;
+    rths_api_command_config *cfg = NULL;
+    rths_api_run_folder *folder = NULL;
     rths_result *result = NULL;
-    rc = rths_config_load(cli.config_path, cli.sets, cli.n_sets, &cfg, &err);
+    /* the setup is not read here: the library chooses the solver path first */
+    rc = rths_cli_load(&cli, 0, &cfg, &err);
     if (rc) return rths_cli_fail(&cli, rc, &err);
-    rc = rths_api_model_run(cfg, cli.config_path, cli.sets, cli.n_sets, cli.out_dir, &result, &err);
-    if (!rc) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
+    rc = rths_api_model_run(cfg, cli.out_dir, &result, &err);
+    if (!rc) rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err);
     if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
-    if (!rc) rc = rths_api_result_write(result, rep, &err);
+    if (!rc) rc = rths_api_result_write(result, folder, &err);
     /* results.mat is part of the outputs: one that cannot be written fails the command (exit 1,
      * one line; the other files stay), rather than a warning at close */
-    if (!rc) rc = rths_report_write_mat(rep, &err);
-    if (rep)
-        rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
+    if (!rc) rc = rths_api_run_folder_write_mat(folder, &err);
+    if (folder)
+        rths_api_run_folder_log(folder, "finished with status %d%s%s", rc, rc ? ": " : "",
+                                rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);
     rths_result_free(result);
-    rths_config_free(cfg);
-    rths_report_close(rep);
+    rths_api_command_config_free(cfg);
+    rths_api_run_folder_close(folder);
     return rc;
 }

@@ -168,8 +168,8 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
     }
     if (!opts[OPT_FREQ].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --frequency F (forcing frequency, Hz)");
-    if ((rc = rths_cli_double_ex("--frequency", opts[OPT_FREQ].value, 0, 1e5, RTHS_CONFIG_LO_OPEN,
-                                 &a->frequency_hz, err)))
+    if ((rc = rths_cli_double_ex("--frequency", opts[OPT_FREQ].value, 0, 1e5,
+                                 RTHS_API_RANGE_LO_OPEN, &a->frequency_hz, err)))
         return rc;
     if (!opts[OPT_PERIODS].value)
         return rths_error_set(err, RTHS_EINPUT, "missing --periods N (forcing periods to run)");
@@ -185,7 +185,7 @@ static int parse_args(rths_cli_opt *opts, sim_args *a, rths_error *err) {
                                   "option --trace-periods: feedback mode traces the whole run");
         if (opts[OPT_DELAY].value) {
             if ((rc = rths_cli_double_ex("--delay", opts[OPT_DELAY].value, 0, 1.0,
-                                         RTHS_CONFIG_LO_OPEN, &a->delay_s, err)))
+                                         RTHS_API_RANGE_LO_OPEN, &a->delay_s, err)))
                 return rc;
             a->has_delay = 1;
         }
@@ -246,23 +246,23 @@ int rths_cmd_simulate(int argc, char **argv) {
     o.rig_uri = opts[OPT_RIG].value;
     o.reset_fault = opts[OPT_RESET_FAULT].value != NULL;
 
-    rths_config *cfg = NULL;
-    rths_setup setup;
+    rths_api_command_config *cfg = NULL;
     rths_api_simulation *sim = NULL;
-    rths_report *rep = NULL;
+    rths_api_run_folder *folder = NULL;
     rths_result *result = NULL;
-    if ((rc = rths_cli_load(&cli, &cfg, &setup, &err))) return rths_cli_fail(&cli, rc, &err);
-    if (!(rc = rths_api_simulate_prepare(cfg, &setup, &o, &sim, &err)) &&
-        !(rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err)))
-        rc = rths_api_simulate_run(sim, rep, cli.config_path, cli.sets, cli.n_sets, &result, &err);
+    if ((rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err)))
+        return rths_cli_fail(&cli, rc, &err);
+    if (!(rc = rths_api_simulate_prepare(cfg, &o, &sim, &err)) &&
+        !(rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err)))
+        rc = rths_api_simulate_run(sim, folder, &result, &err);
     if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
-    if (!rc) rc = rths_api_result_write(result, rep, &err);
+    if (!rc) rc = rths_api_result_write(result, folder, &err);
     /* results.mat last: a failed write fails the command with its reason (not a warning) */
-    if (!rc) rc = rths_report_write_mat(rep, &err);
+    if (!rc) rc = rths_api_run_folder_write_mat(folder, &err);
     rths_result_free(result);
     rths_api_simulation_free(sim);
-    if (rep) rths_report_close(rep);
-    rths_cli_unload(cfg, &setup);
+    rths_api_run_folder_close(folder);
+    rths_api_command_config_free(cfg);
     if (rc) return rths_cli_fail(&cli, rc, &err);
     return RTHS_OK;
 }

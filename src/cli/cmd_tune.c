@@ -45,7 +45,7 @@ static const char usage[] =
     "1 no gains meet the rule, 2 bad usage or input (nothing written).\n";
 
 /* The gains, the table, the summary, the keys to paste and the figure come from the library
- * (rths_api_tune_compute, the same code as rths_api_tune); the command prints the keys and writes
+ * (rths_api_tune_run, the same code as rths_api_tune); the command prints the keys and writes
  * the folder. */
 int rths_cmd_tune(int argc, char **argv) {
     rths_cli_opt opts[] = {{"--out", "DIR", NULL}, {"--delay", "S", NULL}};
@@ -57,22 +57,21 @@ int rths_cmd_tune(int argc, char **argv) {
     double delay_s = -1;
     if (opts[1].value && (rc = rths_cli_double("--delay", opts[1].value, 0, 0.1, &delay_s, &err)))
         return rths_cli_fail(&cli, rc, &err);
-    rths_config *cfg = NULL;
-    rths_setup setup = {0};
-    rths_report *rep = NULL;
+    rths_api_command_config *cfg = NULL;
+    rths_api_run_folder *folder = NULL;
     rths_result *result = NULL;
-    rc = rths_cli_load(&cli, &cfg, &setup, &err);
+    rc = rths_cli_load(&cli, RTHS_API_READ_SETUP, &cfg, &err);
     if (rc) return rths_cli_fail(&cli, rc, &err);
-    rc = rths_api_tune_compute(cfg, &setup, delay_s, cli.config_path, cli.sets, cli.n_sets, &result,
-                               &err);
-    if (!rc && cli.out_dir) rc = rths_cli_open_report(&cli, cfg, argc, argv, &rep, &err);
+    rc = rths_api_tune_run(cfg, delay_s, &result, &err);
+    if (!rc && cli.out_dir) rc = rths_cli_open_folder(&cli, cfg, argc, argv, &folder, &err);
     if (!rc) rths_cli_print(&cli, "%s", rths_result_text(result));
-    if (!rc && rep) rc = rths_api_result_write(result, rep, &err);
-    if (rep)
-        rths_report_log(rep, "finished with status %d%s%s", rc, rc ? ": " : "", rc ? err.msg : "");
+    if (!rc && folder) rc = rths_api_result_write(result, folder, &err);
+    if (folder)
+        rths_api_run_folder_log(folder, "finished with status %d%s%s", rc, rc ? ": " : "",
+                                rc ? err.msg : "");
     if (rc) rths_cli_fail(&cli, rc, &err);
     rths_result_free(result);
-    rths_cli_unload(cfg, &setup);
-    rths_report_close(rep);
+    rths_api_command_config_free(cfg);
+    rths_api_run_folder_close(folder);
     return rc;
 }

@@ -8,24 +8,28 @@
 # alone cannot see (rig.h may legally include plant.h; the host would then compile against it).
 #
 # One front door (issue 28): a command (src/cli/*.c) includes, of the project's headers, only
-# rths/rths.h (the C API) and the CLI's own headers (cli/*.h); the work lives behind the API.
-# CLI_PENDING below lists the commands not moved behind it yet, with the headers each still
-# includes: any other include fails, and so does an entry no longer needed (the list only shrinks).
+# rths/rths.h (the C API) and the CLI's own headers (cli/*.h); the work lives behind the API. The
+# CLI's headers (src/cli/*.h) likewise include only rths/rths.h and each other, so no command
+# reaches a module's header through them. CLI_PENDING below lists the files not moved behind it
+# yet, with the headers each still includes: any other include fails, and so does an entry no
+# longer needed (the list only shrinks).
 #
 # Usage: layering.sh RTHS_BIN SOURCE_DIR   (as ctest runs it: self-test, then the real tree)
 #        layering.sh --check TREE          (check one tree; exit 1 on a violation)
 set -u
 
-# "FILE HEADER" pairs: commands that still include a header other than rths/rths.h and cli/*.h.
-# Remove a pair when its command goes through the API.
+# "FILE HEADER" pairs: CLI files that still include a header other than rths/rths.h and cli/*.h.
+# Remove a pair when its file goes through the API.
 CLI_PENDING="
 "
 
-# check_cli TREE PENDING: the front-door rule for TREE/src/cli/*.c; prints every violation,
+# check_cli TREE PENDING: the front-door rule for TREE/src/cli/*.[ch]; prints every violation,
 # returns 1 if there was one.
 check_cli() {
-    local tree=$1 pending=$2 status=0 f line inc n used=""
-    for f in $(cd "$tree" && ls src/cli/*.c 2>/dev/null); do
+    local tree=$1 pending=$2 status=0 f line inc n used="" what
+    for f in $(cd "$tree" && ls src/cli/*.c src/cli/*.h 2>/dev/null); do
+        what="a command"
+        [[ $f == *.h ]] && what="a CLI header"
         n=0
         while IFS= read -r line; do
             n=$((n + 1))
@@ -36,7 +40,7 @@ check_cli() {
                 used+="$f $inc"$'\n'
                 continue
             fi
-            echo "$f:$n: includes $inc; a command includes only rths/rths.h and the CLI's headers (cli/*.h): move what it needs behind the C API"
+            echo "$f:$n: includes $inc; $what includes only rths/rths.h and the CLI's headers (cli/*.h): move what it needs behind the C API"
             status=1
         done <"$tree/$f"
     done
@@ -187,6 +191,15 @@ LAYERING_CLI_PENDING="src/cli/cmd_one.c rths/model.h" bash "$0" --check "$tmp/t"
     fail "self-test: a stale CLI_PENDING entry passed"
 grep -q "CLI_PENDING lists 'src/cli/cmd_one.c rths/model.h', which is no longer included" "$tmp/stale.out" ||
     fail "self-test: stale entry: $(cat "$tmp/stale.out")"
+
+make_tree # a CLI header handing the commands a module's header (the back door of cli_common.h)
+printf '#include "rths/rths.h"\n#include "rths/core.h"\n\n#include <stdint.h>\n' >"$tmp/t/src/cli/cli_common.h"
+bash "$0" --check "$tmp/t" >"$tmp/hdoor.out" 2>&1 && fail "self-test: a CLI header including rths/core.h passed"
+grep -q "^src/cli/cli_common.h:2: includes rths/core.h; a CLI header includes only rths/rths.h" "$tmp/hdoor.out" ||
+    fail "self-test: the CLI header's violation is not named at src/cli/cli_common.h:2: $(cat "$tmp/hdoor.out")"
+make_tree # a CLI header including rths/rths.h, a sibling and system headers passes
+printf '#include "cli/commands.h"\n#include "rths/rths.h"\n\n#include <stdint.h>\n' >"$tmp/t/src/cli/cli_common.h"
+bash "$0" --check "$tmp/t" >"$tmp/hok.out" 2>&1 || fail "self-test: a clean CLI header was refused: $(cat "$tmp/hok.out")"
 
 make_tree # a module including a header of a module above it
 printf '#include <stdio.h>\n#include "rths/model.h"\n#include "rths/rig.h"\nint z;\n' >"$tmp/t/src/model/model.c"

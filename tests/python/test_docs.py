@@ -69,6 +69,35 @@ class Docs(unittest.TestCase):
         finally:
             os.chdir(here)
 
+    def test_quoted_errors_are_the_real_ones(self):
+        # the page quotes a configuration error and an override's: the library must say exactly
+        # that (the file's is examples/x.yaml, the seed's file with the mass ratio at 1.5)
+        import rths
+        with open(PAGE) as f:
+            page = f.read()
+        in_file = re.search(r"A configuration error reads\s+`([^`]+)`", page)
+        in_override = re.search(r"\(an override:\s+`([^`]+)`", page)
+        self.assertTrue(in_file and in_override, "docs/python.md no longer quotes both errors")
+        work = tempfile.mkdtemp(prefix="docs_errors_", dir=SCRATCH)
+        os.mkdir(os.path.join(work, "examples"))
+        with open(os.path.join(SRC, "examples", "four_storey.yaml")) as f:
+            seed = f.read()
+        self.assertIn("\n  mass_ratio: 0.5\n", seed)
+        with open(os.path.join(work, "examples", "x.yaml"), "w") as f:
+            f.write(seed.replace("\n  mass_ratio: 0.5\n", "\n  mass_ratio: 1.5\n"))
+        here = os.getcwd()
+        os.chdir(work)
+        try:
+            with self.assertRaises(rths.InputError) as e:
+                rths.Config.load("examples/x.yaml")
+            self.assertEqual(str(e.exception), in_file.group(1))
+            with self.assertRaises(rths.InputError) as e:
+                rths.Config.load(os.path.join(SRC, "examples", "four_storey.yaml"),
+                                 set={"split.mass_ratio": 1.5})
+            self.assertEqual(str(e.exception), " ".join(in_override.group(1).split()))
+        finally:
+            os.chdir(here)
+
     def test_regression_a_wrong_output_is_caught(self):
         # the comparison itself: a block whose text block differs must fail
         page = blocks("```python\nprint(1 + 1)\n```\n```text\n3\n```\n")

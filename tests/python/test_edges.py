@@ -172,8 +172,15 @@ class Overwrite(unittest.TestCase):
         rths.frf(LINEAR_CFG, out=out, seed=3)
         with open(os.path.join(out, "notes.txt"), "w") as f:
             f.write("mine\n")
-        with self.assertRaisesRegex(rths.InputError, "already holds a run"):
+        with self.assertRaises(rths.InputError) as e:
             rths.frf(LINEAR_CFG, out=out, seed=4)
+        # named as frf's arguments, not the command's --resume and --out
+        self.assertEqual(str(e.exception),
+                         f"{out} already holds a run (journal.jsonl): continue it with "
+                         "resume=True, start a new run there with overwrite=True, or choose "
+                         "another out")
+        with self.assertRaisesRegex(rths.InputError, "^resume=True: "):
+            rths.frf(LINEAR_CFG, out=os.path.join(fresh("overwrite_none"), "run"), resume=True)
         with self.assertRaisesRegex(rths.InputError, "choose one"):
             rths.frf(LINEAR_CFG, out=out, seed=4, overwrite=True, resume=True)
         again = rths.frf(LINEAR_CFG, out=out, seed=4, overwrite=True)
@@ -196,6 +203,26 @@ class ConfigValues(unittest.TestCase):
             rths.Config.load(SEED_CFG, set={"structure.storeys.mass_kgg": [1, 2, 3, 4]})
         with self.assertRaisesRegex(rths.InputError, r"unknown key 'rigg'"):
             rths.Config.load(SEED_CFG, set={"rigg.noise": False})
+
+    def test_rig_and_controller_checked_at_load(self):
+        # the keys and values the virtual rig reads: refused by the load, not by the first
+        # operation that runs the hybrid loop (a model-only script never saw them)
+        cases = {
+            "rig.noize": (False, "--set rig.noize=false: unknown key 'rig.noize' (did you mean "
+                                 "'rig.noise'?)"),
+            "controller.kp_v_per_mm": (1, "--set controller.kp_v_per_mm=1: unknown key "
+                                          "'controller.kp_v_per_mm' (did you mean "
+                                          "'controller.kp_v_per_m'?)"),
+            "controller.sample_rate_hz": (-5, "--set controller.sample_rate_hz=-5: key "
+                                              "'controller.sample_rate_hz': must be in [100, "
+                                              "1e+06] (got -5)"),
+        }
+        for key, (value, message) in cases.items():
+            with self.assertRaises(rths.InputError, msg=key) as e:
+                rths.Config.load(SEED_CFG, set={key: value})
+            self.assertEqual(str(e.exception), message)
+        # what a run reads besides (its pace, a multi-site test's sites) is no typo
+        rths.Config.load(SEED_CFG, set={"rig.pace": 2, "rig.noise": False})
 
     def test_read_back(self):
         cfg = rths.Config.load(SEED_CFG, set={"split.mass_ratio": 0.33, "rig.noise": False})

@@ -272,10 +272,11 @@ class Frf(unittest.TestCase):
                                    [r["amplitude_m"] for r in rows], rtol=1e-12)
 
     def test_typo_in_a_read_section_refused(self):
-        # the virtual rig reads rig.*: a misspelt rig key would run with noise on, silently
+        # the virtual rig reads rig.*: a misspelt rig key would run with noise on, silently; the
+        # load refuses it (as it refuses the rig's other keys), before any run
         out = folder("frf_typo")
-        cfg = rths.Config.load(LINEAR_CFG, set={"rig.nosie": "false"})
         with self.assertRaisesRegex(rths.InputError, r"rig\.nosie.*did you mean 'rig\.noise'"):
+            cfg = rths.Config.load(LINEAR_CFG, set={"rig.nosie": "false"})
             rths.frf(cfg, out=out)
         self.assertFalse(os.path.exists(out))
 
