@@ -45,14 +45,20 @@ static void choose_curves(const rths_dof_role *roles, int forcing_dof, const int
 }
 
 /* roles: every DoF's side (the dense setup's or the sparse model's); forcing: in words;
- * forcing_dof: 0-based, -1 for a base excitation. */
+ * forcing_dof: 0-based, -1 for a base excitation; rotation: per output DoF, 1 for a rotation (rad,
+ * drawn on a right-hand axis of its own), or NULL (every DoF a translation). The figures'
+ * convention (report.h): the legend right of the plot, never over data; the modes' lines
+ * labelled. */
 static int plot_frf(rths_result *res, const rths_dof_role *roles, const char *forcing,
                     int forcing_dof, const double *mode_hz, int n_modes, const int *dofs, int n_out,
-                    double f_lo, double f_hi, rths_error *err) {
+                    const char *rotation, double f_lo, double f_hi, rths_error *err) {
     char *drawn = malloc((size_t)n_out + 1);
     if (!drawn) return rths_error_set(err, RTHS_EFAIL, "out of memory");
     choose_curves(roles, forcing_dof, dofs, n_out, drawn);
-    size_t cap = 4096 + (size_t)(n_out + MODES_SHOWN) * 256;
+    int any_rotation = 0;
+    for (int k = 0; k < n_out && rotation; k++)
+        any_rotation |= drawn[k] && rotation[k];
+    size_t cap = 4096 + (size_t)(n_out + 2 * MODES_SHOWN) * 256;
     char *body = malloc(cap);
     if (!body) {
         free(drawn);
@@ -66,15 +72,26 @@ static int plot_frf(rths_result *res, const rths_dof_role *roles, const char *fo
                                   "set logscale y\n"
                                   "set format y '10^{%%L}'\n"
                                   "set grid\n"
-                                  "set key top right\n",
-                                  forcing);
+                                  "set lmargin at screen 0.08\n"
+                                  "set rmargin at screen %.2f\n"
+                                  "set key at screen %.2f, graph 1 left top Left reverse "
+                                  "samplen 2\n",
+                                  forcing, any_rotation ? 0.70 : 0.76, any_rotation ? 0.78 : 0.77);
+    if (any_rotation && len < cap)
+        len += (size_t)snprintf(body + len, cap - len,
+                                "set y2label 'Rotation amplitude (rad)'\nset logscale y2\n"
+                                "set format y2 '10^{%%L}'\nset y2tics\nset ytics nomirror\n");
     for (int r = 0, shown = 0; r < n_modes && shown < MODES_SHOWN && len < cap; r++) {
         if (mode_hz[r] < f_lo || mode_hz[r] > f_hi) continue;
         shown++;
+        /* labelled at the foot of the line, where every curve is far from it (at a mode the
+         * responses peak); upright text, so that close modes do not overwrite each other */
         len += (size_t)snprintf(body + len, cap - len,
                                 "set arrow from %.6g, graph 0 to %.6g, graph 1 nohead dt 3 lc "
-                                "rgb 'gray50'\n",
-                                mode_hz[r], mode_hz[r]);
+                                "rgb 'gray50'\n"
+                                "set label 'mode %d: %.4f Hz' at first %.6g, graph 0.03 left "
+                                "rotate by 90 offset -0.5,0 font ',9' tc rgb 'gray30' front\n",
+                                mode_hz[r], mode_hz[r], r + 1, mode_hz[r], mode_hz[r]);
     }
     if (len < cap) len += (size_t)snprintf(body + len, cap - len, "plot ");
     for (int k = 0, first = 1; k < n_out && len < cap; k++) {
@@ -83,15 +100,17 @@ static int plot_frf(rths_result *res, const rths_dof_role *roles, const char *fo
         const char *role = roles[i] == RTHS_DOF_INTERFACE  ? "interface"
                            : roles[i] == RTHS_DOF_PHYSICAL ? "physical"
                                                            : "numerical";
+        int rot = rotation && rotation[k];
         len += (size_t)snprintf(body + len, cap - len,
-                                "%s'true_frf.csv' using 1:%d skip 1 with lines lw %d title "
-                                "'x_{%d} (%s)'",
-                                first ? "" : ", \\\n     ", 2 + 2 * k,
-                                roles[i] == RTHS_DOF_INTERFACE ? 3 : 1, i + 1, role);
+                                "%s'true_frf.csv' using 1:%d skip 1%s with lines lw %d title "
+                                "'%s_{%d} (%s%s)'",
+                                first ? "" : ", \\\n     ", 2 + 2 * k, rot ? " axes x1y2" : "",
+                                roles[i] == RTHS_DOF_INTERFACE ? 3 : 1, rot ? "θ" : "x", i + 1,
+                                role, rot ? ", rad, right" : "");
         first = 0;
     }
     if (len < cap) snprintf(body + len, cap - len, "\n");
-    int rc = rths_result_add_figure(res, "true_frf", 1200, 800, body, err);
+    int rc = rths_result_add_figure(res, "true_frf", 1400, 800, body, err);
     free(body);
     free(drawn);
     return rc;
@@ -165,7 +184,7 @@ static int model_sparse(rths_config *cfg, rths_model_choice *choice, double t0,
         rc =
             plot_frf(result, model.roles, forcing, model.base_excitation ? -1 : model.forcing_dof,
                      rths_result_column(result, modes, column_index(result, modes, "frequency_hz")),
-                     rths_result_rows(result, modes), dofs, n_out, f[0],
+                     rths_result_rows(result, modes), dofs, n_out, NULL, f[0],
                      f[rths_result_rows(result, frf) - 1], err);
     }
     if (!rc) {
@@ -295,11 +314,17 @@ int rths_api_model_run(rths_api_command_config *cc, const char *out_dir, rths_re
         int frf = rths_result_table_index(result, "true_frf");
         const double *f = rths_result_column(result, frf, 0);
         interface_peak(result, setup.split.int_dofs[0], &peak_amp, &peak_hz);
-        rc =
-            plot_frf(result, setup.roles, forcing, setup.base_excitation ? -1 : setup.forcing_dof,
-                     rths_result_column(result, modes, column_index(result, modes, "frequency_hz")),
-                     rths_result_rows(result, modes), dofs, n_out, f[0],
-                     f[rths_result_rows(result, frf) - 1], err);
+        char *rotation = malloc((size_t)n_out + 1);
+        for (int k = 0; rotation && k < n_out; k++)
+            rotation[k] = (char)rths_setup_dof_is_rotation(&setup, dofs[k]);
+        rc = rotation ? plot_frf(result, setup.roles, forcing,
+                                 setup.base_excitation ? -1 : setup.forcing_dof,
+                                 rths_result_column(result, modes,
+                                                    column_index(result, modes, "frequency_hz")),
+                                 rths_result_rows(result, modes), dofs, n_out, rotation, f[0],
+                                 f[rths_result_rows(result, frf) - 1], err)
+                      : rths_error_set(err, RTHS_EFAIL, "out of memory");
+        free(rotation);
     }
     if (!rc) {
         rths_result_printf(result,

@@ -24,6 +24,16 @@ awk -F, -v EI=0.459317 -v m=0.19939 -v L=0.53 '
     }
     END { exit bad }' "$work/m/modes.csv" || fail "beam modes differ from the closed form"
 
+# the figure: rotations on their own right-hand radian axis, never on the metres axis; each mode
+# line labelled with its frequency from modes.csv
+awk '/using/ && /θ_/ && !/axes x1y2/ { print; bad = 1 } END { exit bad }' "$work/m/true_frf.gp" ||
+    fail "true_frf.gp draws a rotation on the displacement axis"
+grep -q "set y2label 'Rotation amplitude (rad)'" "$work/m/true_frf.gp" ||
+    fail "true_frf.gp has no rotation axis"
+f2=$(awk -F, 'NR == 3 { printf "%.4f", $2 }' "$work/m/modes.csv")
+grep -q "set label 'mode 2: $f2 Hz'" "$work/m/true_frf.gp" ||
+    fail "true_frf.gp does not label mode 2 ($f2 Hz)"
+
 # the two-shaker example (3 + 6 elements; rig.actuators and rig.lasers are read by every command's
 # setup, the rest of rig only by frf): rths model runs, and the coarse mesh's first mode is the
 # closed form's to 1e-5 (measured 1.4e-6; mesh error (beta h)^4 / 1440 with h = 0.06 m)
