@@ -537,6 +537,10 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
      * degrees of freedom, below which transient_fit_series fits nothing */
     int min_periods = opt->fit_min_periods > 0 ? opt->fit_min_periods : RTHS_SETTLE_FIT_MIN_PERIODS;
     if (min_periods < 4) min_periods = 4;
+    /* the residual degrees of freedom each series keeps beyond its decaying terms
+     * (iteration.settle.fit_residual_margin; 0 in the options: the default 3) */
+    int margin =
+        opt->fit_residual_margin > 0 ? opt->fit_residual_margin : RTHS_SETTLE_FIT_RESIDUAL_MARGIN;
     if (cap < FIT_SKIP_PERIODS + min_periods + 1) cap = FIT_SKIP_PERIODS + min_periods + 1;
     rths_period *rec = malloc(sizeof(rths_period) * (size_t)cap);
     int m = 4 * harmonics * dofs, rc = RTHS_OK, have_prev = 0;
@@ -585,7 +589,8 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             prior_var = prior;
             prior_dof = noise->dof;
         }
-        if (transient_fit_series(m, K, y, FIT_MAX_ORDER, prior_var, prior_dof, &fit, a, se, var))
+        if (transient_fit_series_margin(m, K, y, FIT_MAX_ORDER, margin, prior_var, prior_dof, &fit,
+                                        a, se, var))
             continue;
         /* the window compared with: the fit of three quarters of the periods read (a misfit
          * moves the steady state as the record grows, by more than one period shows) */

@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # The fitted evaluation's least record (iteration.settle.fit_min_periods; docs/method.md, "The
 # fitted evaluation"): a value below 4 (the plain mean's n + 3 residual degrees of freedom) is
-# refused by key with exit 2 before anything is written; on the linear seed (p = 0.5, noise off,
+# refused by key with exit 2 before anything is written, and so is a residual margin
+# (iteration.settle.fit_residual_margin) outside 1..3; on the linear seed (p = 0.5, noise off,
 # 12.6-12.8 Hz) the default least record (8 after the skip) has every accepted evaluation read at
 # least 13 periods, while 4 leaves the length to the fit: some accepted evaluations read fewer, the
 # run takes less rig time, and every point stays within 0.1 % of the analytic FRF.
@@ -21,6 +22,13 @@ rc=$?
 [ "$rc" -eq 2 ] || fail "fit_min_periods=3: exit $rc, expected 2: $(cat "$work/bad.txt")"
 grep -q 'iteration.settle.fit_min_periods' "$work/bad.txt" || fail "the key is not named: $(cat "$work/bad.txt")"
 [ ! -e "$work/bad/journal.jsonl" ] || fail "a refused run wrote a journal"
+
+"$bin" frf "$cfg" --out "$work/bad_margin" "${opts[@]}" --set iteration.settle.fit_residual_margin=0 \
+    >"$work/bad_margin.txt" 2>&1
+rc=$?
+[ "$rc" -eq 2 ] || fail "fit_residual_margin=0: exit $rc, expected 2: $(cat "$work/bad_margin.txt")"
+grep -q 'iteration.settle.fit_residual_margin' "$work/bad_margin.txt" \
+    || fail "the key is not named: $(cat "$work/bad_margin.txt")"
 
 "$bin" frf "$cfg" --out "$work/eight" "${opts[@]}" >"$work/e.txt" 2>&1 || fail "default: $(cat "$work/e.txt")"
 "$bin" frf "$cfg" --out "$work/four" "${opts[@]}" --set iteration.settle.fit_min_periods=4 \
