@@ -48,6 +48,30 @@ static void test_fit_recovers_steady_state_noise_free(void **state) {
     assert_true(fabs(y[0 * K + K - 1] - a[0]) > 1e-3);
 }
 
+/* The residual margin (iteration.settle.fit_residual_margin): 8 noise-free periods of the three
+ * poles above. The default margin (3 residual degrees of freedom per series beyond the decaying
+ * terms) allows order 2 at most there, which misses the steady state; a margin of 1 allows the
+ * order 3 the record holds, and recovers it to rounding. */
+static void test_fit_residual_margin(void **state) {
+    (void)state;
+    const double a[SERIES] = {1.0, -0.5, 0.25, 2.0};
+    int K = 8;
+    double y[SERIES * 8], ainf[SERIES], se[SERIES];
+    transient_fit fit;
+    synthetic(K, 0, NULL, a, y);
+    assert_int_equal(transient_fit_series(SERIES, K, y, 8, NULL, 0, &fit, ainf, se, NULL), 0);
+    assert_true(fit.order <= 2);
+    double worst = 0;
+    for (int i = 0; i < SERIES; i++)
+        worst = fmax(worst, fabs(ainf[i] - a[i]));
+    assert_true(worst > 1e-4);
+    assert_int_equal(transient_fit_series_margin(SERIES, K, y, 8, 1, NULL, 0, &fit, ainf, se, NULL),
+                     0);
+    assert_int_equal(fit.order, 3);
+    for (int i = 0; i < SERIES; i++)
+        assert_close(ainf[i], a[i], 1e-7);
+}
+
 /* Noise on (sigma 2e-3 per period, the transient 0.4-0.7): over 400 seeds the errors of the
  * fitted steady state against the truth, in its own standard errors, fall within 1, 2 and 3 of
  * them in the Gaussian shares (68.3, 95.4, 99.7 %) within what 1600 draws scatter (+-2.3 % at
@@ -95,6 +119,7 @@ typedef struct mock {
     double complex xs, ns, x_from, n_from; /* steady states now and before the change */
     int algebraic, since_change;
     int one_mode; /* the transient a single complex mode (no fast real pole): two poles */
+    int fast;     /* the transient a single complex mode of 0.5 per period */
     double sigma_m, omega, time;
     rths_rng rng;
 } mock;
@@ -107,6 +132,7 @@ static int m_set_forcing(void *self, double f, double a, rths_error *err) {
 static double complex transient(const mock *mk, int q) {
     if (mk->algebraic) /* a mode whose frequency drifts (a time-varying rig): a chirp */
         return 0.7 * pow(0.97, q) * cexp(I * (2.0 * q + 0.02 * q * q));
+    if (mk->fast) return cpow(0.5 * cexp(2.0 * I), q);
     if (mk->one_mode) return cpow(0.9 * cexp(2.0 * I), q);
     return 0.7 * cpow(0.9 * cexp(2.0 * I), q) + 0.3 * cpow(0.3, q);
 }
@@ -414,6 +440,62 @@ static void test_fit_seeded_window(void **state) {
     assert_true(within >= 0.95 * cases);
 }
 
+/* The least record (iteration.settle.fit_min_periods) and the residual margin
+ * (iteration.settle.fit_residual_margin): on a mock whose transient is one complex
+ * mode of 0.5 per period (noise 2e-8 m, measured by one waiting evaluation first) a step of the
+ * target is fitted with the default least record (8 periods after the skip, so at least 13 read
+ * before the window check) and with 4, over 60 seeds. With 4 the record's length is left to the
+ * fit's standard error and window check: it reads fewer periods on average, every evaluation is
+ * still fitted, and the physical coefficients stay within 3 of their standard errors of the true
+ * steady state in at least 95 % of the cases. A residual margin of 1 as well (the pair's two
+ * poles fitted from 6 periods after the skip rather than 8) reads fewer still, as well covered. */
+static void test_fit_min_periods(void **state) {
+    (void)state;
+    enum { SEEDS = 60 };
+    int periods[3] = {0, 0, 0}, least[3] = {1000, 1000, 1000}, within[3] = {0, 0, 0}, cases = 0;
+    for (int s = 0; s < SEEDS; s++) {
+        for (int v = 0; v < 3; v++) {
+            mock *mk;
+            rths_rig *rig = mock_rig(0, 2e-8, 700 + s, &mk);
+            mk->fast = 1;
+            rths_settle_options st;
+            rths_settle_defaults(&st, 0);
+            rths_noise_model noise = {0};
+            rths_evaluation ev;
+            rths_error err;
+            double a = 1e-4, b = 0;
+            assert_int_equal(
+                rths_evaluate_noise(rig, &st, &noise, 1, 1, 10.0, 1.0, &a, &b, &ev, &err), RTHS_OK);
+            st.strategy = RTHS_SETTLE_FIT;
+            st.fit_min_periods = v ? 4 : 0;
+            st.fit_residual_margin = v == 2 ? 1 : 0;
+            a = 1.5e-4, b = 2e-5;
+            assert_int_equal(
+                rths_evaluate_noise(rig, &st, &noise, 1, 1, 10.0, 1.0, &a, &b, &ev, &err), RTHS_OK);
+            assert_int_equal(ev.fitted, 1);
+            int p = ev.wait_periods + ev.average_periods;
+            periods[v] += p;
+            if (p < least[v]) least[v] = p;
+            double ea = fabs(ev.phys.a[1] - creal(mk->xs)) / ev.phys_se.a[1];
+            double eb = fabs(ev.phys.b[1] + cimag(mk->xs)) / ev.phys_se.b[1];
+            within[v] += (ea <= 3) + (eb <= 3);
+            rths_rig_destroy(rig);
+        }
+        cases += 2;
+    }
+    printf("least record: default %.1f periods (least %d), 4: %.1f (least %d), 4 and residual "
+           "margin 1: %.1f (least %d); within 3 SE %d, %d and %d of %d\n",
+           (double)periods[0] / SEEDS, least[0], (double)periods[1] / SEEDS, least[1],
+           (double)periods[2] / SEEDS, least[2], within[0], within[1], within[2], cases);
+    assert_true(least[0] >= 13);
+    assert_true(periods[1] < periods[0]);
+    assert_true(least[1] < 13);
+    assert_true(within[1] >= 0.95 * cases);
+    /* the margin reaches the fit: the pair's two poles fit from 6 periods instead of 8 */
+    assert_true(periods[2] < periods[1]);
+    assert_true(within[2] >= 0.95 * cases);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_fit_recovers_steady_state_noise_free),
@@ -423,6 +505,8 @@ int main(void) {
         cmocka_unit_test(test_target_rel_se),
         cmocka_unit_test(test_point_budget),
         cmocka_unit_test(test_fit_seeded_window),
+        cmocka_unit_test(test_fit_min_periods),
+        cmocka_unit_test(test_fit_residual_margin),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -61,6 +61,14 @@ typedef struct rths_settle_options {
      * within its goal, falling back to waiting when the fit is not trustworthy. */
     int strategy;
     int fit_max_periods; /* fit: periods fitted at most before falling back to waiting */
+    /* fit: the least record fitted, in periods after the skipped first ones (0: 8); from 4 (the
+     * plain mean's n + 3 residual degrees of freedom) the record's length is left to the fit's
+     * standard error and its window check (iteration.settle.fit_min_periods) */
+    int fit_min_periods;
+    /* fit: the residual degrees of freedom each coefficient's series keeps beyond its decaying
+     * terms, which bounds the order a record can fit (iteration.settle.fit_residual_margin,
+     * 1..3; 0: the default 3) */
+    int fit_residual_margin;
     /* fit: 1 lets a record too short for the window check (under 13 periods read) be compared
      * instead with a fit of the same record with the last trusted fit's poles held
      * (rths_noise_model.fit_seed_*; iteration.settle.fit_seed_poles, off by default) */
@@ -88,6 +96,8 @@ enum { RTHS_SETTLE_WAIT = 0, RTHS_SETTLE_FIT = 1 };
  * waiting after 60 periods it cannot trust; accuracy on demand costs at most 120 rig s an
  * evaluation. */
 #define RTHS_SETTLE_FIT_MAX_PERIODS 60
+#define RTHS_SETTLE_FIT_MIN_PERIODS 8
+#define RTHS_SETTLE_FIT_RESIDUAL_MARGIN 3
 #define RTHS_SETTLE_MAX_RIG_S_PER_POINT 120.0
 
 /* The host's noise model (docs/method.md, "One evaluation"): the period-to-period scatter of

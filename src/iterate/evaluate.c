@@ -399,7 +399,7 @@ static double worst_amplitude_rel_se(const rths_evaluation *ev) {
 /* ---- the fitted evaluation (docs/method.md, "The fitted evaluation") ---- */
 
 /* Periods after the change left out of the fit: the change itself falls inside the first. */
-enum { FIT_SKIP_PERIODS = 1, FIT_MIN_PERIODS = 8, FIT_MAX_ORDER = 8 };
+enum { FIT_SKIP_PERIODS = 1, FIT_MAX_ORDER = 8 };
 /* A pole this close to 1 per period is a transient the record cannot separate from the steady
  * state (its term and the constant are nearly the same column): leave it to waiting. */
 static const double FIT_MAX_POLE = 0.99;
@@ -533,7 +533,15 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
                           size_t why_size, rths_error *err) {
     enum { NC = RTHS_NOISE_COEFFICIENTS };
     int cap = opt->fit_max_periods > 0 ? opt->fit_max_periods : RTHS_SETTLE_FIT_MAX_PERIODS;
-    if (cap < FIT_SKIP_PERIODS + FIT_MIN_PERIODS + 1) cap = FIT_SKIP_PERIODS + FIT_MIN_PERIODS + 1;
+    /* the least record (iteration.settle.fit_min_periods): 4 is the plain mean's n + 3 residual
+     * degrees of freedom, below which transient_fit_series fits nothing */
+    int min_periods = opt->fit_min_periods > 0 ? opt->fit_min_periods : RTHS_SETTLE_FIT_MIN_PERIODS;
+    if (min_periods < 4) min_periods = 4;
+    /* the residual degrees of freedom each series keeps beyond its decaying terms
+     * (iteration.settle.fit_residual_margin; 0 in the options: the default 3) */
+    int margin =
+        opt->fit_residual_margin > 0 ? opt->fit_residual_margin : RTHS_SETTLE_FIT_RESIDUAL_MARGIN;
+    if (cap < FIT_SKIP_PERIODS + min_periods + 1) cap = FIT_SKIP_PERIODS + min_periods + 1;
     rths_period *rec = malloc(sizeof(rths_period) * (size_t)cap);
     int m = 4 * harmonics * dofs, rc = RTHS_OK, have_prev = 0;
     double *y = malloc(sizeof(double) * (size_t)m * cap);
@@ -562,7 +570,7 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
          * are gone a few periods later, while the slow ones stay in the rest */
         int skip = count / 4 > FIT_SKIP_PERIODS ? count / 4 : FIT_SKIP_PERIODS;
         int K = count - skip;
-        if (K < FIT_MIN_PERIODS) continue;
+        if (K < min_periods) continue;
         const rths_period *first = &rec[skip];
         samples = 0;
         for (int q = 0; q < K; q++) {
@@ -581,7 +589,8 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
             prior_var = prior;
             prior_dof = noise->dof;
         }
-        if (transient_fit_series(m, K, y, FIT_MAX_ORDER, prior_var, prior_dof, &fit, a, se, var))
+        if (transient_fit_series_margin(m, K, y, FIT_MAX_ORDER, margin, prior_var, prior_dof, &fit,
+                                        a, se, var))
             continue;
         /* the window compared with: the fit of three quarters of the periods read (a misfit
          * moves the steady state as the record grows, by more than one period shows) */

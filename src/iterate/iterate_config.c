@@ -30,6 +30,20 @@ static int settle_strategy_read(rths_config *cfg, rths_settle_options *settle, r
                                   8, 100000, &v, err)))
         return rc;
     settle->fit_max_periods = (int)v;
+    /* docs/method.md, "The fitted evaluation": 4 leaves the record's length to the fit alone */
+    if ((rc = rths_config_get_int(cfg, "iteration.settle.fit_min_periods", 0,
+                                  settle->fit_min_periods > 0 ? settle->fit_min_periods
+                                                              : RTHS_SETTLE_FIT_MIN_PERIODS,
+                                  4, settle->fit_max_periods, &v, err)))
+        return rc;
+    settle->fit_min_periods = (int)v;
+    /* docs/method.md, "The fitted evaluation": fewer than 3 lets a short record fit more poles */
+    if ((rc = rths_config_get_int(cfg, "iteration.settle.fit_residual_margin", 0,
+                                  settle->fit_residual_margin > 0 ? settle->fit_residual_margin
+                                                                  : RTHS_SETTLE_FIT_RESIDUAL_MARGIN,
+                                  1, 3, &v, err)))
+        return rc;
+    settle->fit_residual_margin = (int)v;
     if ((rc = rths_config_get_bool(cfg, "iteration.settle.fit_seed_poles", 0,
                                    settle->fit_seed_poles, &settle->fit_seed_poles, err)))
         return rc;

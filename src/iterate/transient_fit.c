@@ -303,13 +303,21 @@ static double pole_variance(int n, const double *u, const double *shared_cov) {
 int transient_fit_series(int m, int K, const double *y, int max_order, const double *prior_var,
                          double prior_dof, transient_fit *fit, double *a_inf, double *se,
                          double *noise_var) {
+    return transient_fit_series_margin(m, K, y, max_order, TRANSIENT_FIT_RESIDUAL_MARGIN, prior_var,
+                                       prior_dof, fit, a_inf, se, noise_var);
+}
+
+int transient_fit_series_margin(int m, int K, const double *y, int max_order, int margin,
+                                const double *prior_var, double prior_dof, transient_fit *fit,
+                                double *a_inf, double *se, double *noise_var) {
     memset(fit, 0, sizeof *fit);
     if (m < 1 || K < 3) return -1;
     if (max_order > NMAX) max_order = NMAX;
+    if (margin < 0) margin = 0;
     /* every series keeps at least as many degrees of freedom of its own as the decaying terms
-     * take, and 3 more: a fit that nearly interpolates its record can follow a misfit exactly
-     * and report a small residual for it */
-    while (max_order > 0 && K - 1 - max_order < max_order + 3)
+     * take, and `margin` more (3 by default): a fit that nearly interpolates its record can
+     * follow a misfit exactly and report a small residual for it */
+    while (max_order > 0 && K - 1 - max_order < max_order + margin)
         max_order--;
     double *w = malloc(sizeof(double) * (size_t)m), *B = malloc(sizeof(double) * (size_t)K * NMAX),
            *r = malloc(sizeof(double) * (size_t)m * K);

@@ -10,7 +10,7 @@
 
 #include <complex.h>
 
-enum { TRANSIENT_FIT_MAX_ORDER = 8 };
+enum { TRANSIENT_FIT_MAX_ORDER = 8, TRANSIENT_FIT_RESIDUAL_MARGIN = 3 };
 
 typedef struct transient_fit {
     int order;   /* n, the decaying terms fitted (0: none, the series' mean) */
@@ -38,6 +38,13 @@ typedef struct transient_fit {
 int transient_fit_series(int m, int K, const double *y, int max_order, const double *prior_var,
                          double prior_dof, transient_fit *fit, double *a_inf, double *se,
                          double *noise_var);
+
+/* The same with the order limited so that every series keeps `margin` residual degrees of
+ * freedom beyond the decaying terms' (transient_fit_series: TRANSIENT_FIT_RESIDUAL_MARGIN,
+ * 3; iteration.settle.fit_residual_margin). */
+int transient_fit_series_margin(int m, int K, const double *y, int max_order, int margin,
+                                const double *prior_var, double prior_dof, transient_fit *fit,
+                                double *a_inf, double *se, double *noise_var);
 
 /* One more series with the poles of `fit` held (the other harmonics, output DoFs): its
  * steady-state value and standard error; the poles' uncertainty enters as in the fit. */
