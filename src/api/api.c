@@ -1,7 +1,11 @@
 /* The C API (rths.h): configuration handles, results as named tables, reading a run folder. */
 #include "api/api_internal.h"
+#include "rths/continuation.h"
 #include "rths/controller.h"
+#include "rths/iterate.h"
 #include "rths/plant.h"
+#include "rths/run.h"
+#include "rths/server.h"
 
 #include <errno.h>
 #include <json-c/json.h>
@@ -118,6 +122,29 @@ int rths_api_check_config(rths_config *c, const char *const *own, rths_error *er
     return rths_config_check_sections(c, own, err);
 }
 
+/* The sections a run reads (iteration, continuation, stability) and the controller process's
+ * server section, read over their defaults as rths frf and rths controller read them, so a value
+ * out of range or a misspelt key there is refused by the load rather than by the operation that
+ * first reads it (fidelity and output are read with the structure they need, by their commands). */
+static int read_run_sections(rths_config *c, rths_error *err) {
+    rths_settle_options settle;
+    rths_newton_options newton;
+    rths_continuation_options cont;
+    rths_floquet_measure_options floquet;
+    rths_server_options server;
+    int harmonics = 1;
+    rths_settle_defaults(&settle, 0);
+    rths_newton_defaults(&newton, 0);
+    rths_continuation_defaults(&cont);
+    rths_floquet_measure_defaults(&floquet);
+    rths_server_options_defaults(&server);
+    int rc = rths_iterate_config_read(c, &settle, &newton, &harmonics, err);
+    if (!rc) rc = rths_continuation_config_read(c, &cont, err);
+    if (!rc) rc = rths_floquet_measure_config_read(c, &floquet, err);
+    if (!rc) rc = rths_server_config_read(c, &server, err);
+    return rc;
+}
+
 int rths_api_config_load(const char *path, const char *const *overrides, int n_overrides,
                          rths_api_config **out, rths_error *err) {
     *out = NULL;
@@ -141,12 +168,14 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
      * their keys, the rig and controller sections as the virtual rig reads them (every operation
      * that runs the hybrid loop does, and refuses there what it would refuse here), and the
      * top-level sections (a misspelt section, or key of structure, split, forcing, model, rig or
-     * controller fails here, not in the operation that first reads it) */
+     * controller fails here, not in the operation that first reads it; read_run_sections for
+     * the run's own sections) */
     rths_config *c;
     rths_setup setup;
     int rc = rths_api_load(cfg, &c, &setup, err);
     if (!rc) {
-        static const char *const rig_sections[] = {"rig", "controller", NULL};
+        static const char *const rig_sections[] = {
+            "rig", "controller", "iteration", "continuation", "stability", "server", NULL};
         rths_controller_options copt;
         rths_plant_options popt;
         double pace;
@@ -155,6 +184,8 @@ int rths_api_config_load(const char *path, const char *const *overrides, int n_o
         rc = rths_sample_loop_config_read(c, &copt, &popt, err);
         if (!rc) rc = rths_config_get_double(c, "rig.pace", 0, 0.0, 0.0, 1e6, &pace, err);
         rths_config_mark_known(c, "rig.sites"); /* the host's list of sites, read by a run */
+        rths_config_mark_known(c, "output.trace_frequency_hz"); /* read by rths frf */
+        if (!rc) rc = read_run_sections(c, err);
         if (!rc) rc = rths_config_check_sections(c, rig_sections, err);
         if (rc) rths_api_unload(c, &setup);
     }

@@ -224,6 +224,25 @@ class ConfigValues(unittest.TestCase):
         # what a run reads besides (its pace, a multi-site test's sites) is no typo
         rths.Config.load(SEED_CFG, set={"rig.pace": 2, "rig.noise": False})
 
+    def test_run_sections_checked_at_load(self):
+        # iteration, continuation, stability and server, read over their defaults as rths frf
+        # and rths controller read them: a typo or a value out of range fails at the load
+        cases = {
+            "continuation.strat_hz": (13, "unknown key 'continuation.strat_hz' (did you mean "
+                                          "'continuation.start_hz'?)"),
+            "iteration.harmonics": (99, "key 'iteration.harmonics': must be in [1, 3] (got 99)"),
+            "stability.experimental_floquett": (True, "unknown key "
+                                                      "'stability.experimental_floquett'"),
+            "server.watchdog": (1, "unknown key 'server.watchdog'"),
+        }
+        for key, (value, message) in cases.items():
+            with self.assertRaises(rths.InputError, msg=key) as e:
+                rths.Config.load(SEED_CFG, set={key: value})
+            self.assertIn(message, str(e.exception))
+        # keys their commands read with the structure they need are left to those commands
+        rths.Config.load(SEED_CFG, set={"output.trace_frequency_hz": 13.5, "fidelity.points": 5,
+                                        "continuation.start_hz": 12.5, "server.realtime": False})
+
     def test_read_back(self):
         cfg = rths.Config.load(SEED_CFG, set={"split.mass_ratio": 0.33, "rig.noise": False})
         self.assertEqual(cfg["split.mass_ratio"], 0.33)
