@@ -27,6 +27,7 @@
 
 #include "rths/config.h"
 #include "rths/io.h"
+#include "rths/krylov_reduce.h"
 #include "rths/plant.h"
 #include "rths/reduce.h"
 #include "rths/setup.h"
@@ -85,6 +86,12 @@ typedef struct rths_controller_options {
     /* controller.reduction: a numerical substructure larger than RTHS_REDUCE_FULL_UP_TO DoFs is
        integrated as its Craig-Bampton reduction (reduce.h), at most RTHS_REALTIME_MAX_DOFS */
     rths_reduction_options reduction;
+    /* A sparse model's numerical substructure (setup->sparse) is integrated as its band-exact
+       Krylov reduction (krylov_reduce.h), never densely: controller.reduction.max_error,
+       check_points and fill, and the band: the sweep's (continuation.start_hz, end_hz, widened
+       by RTHS_CONTROLLER_KRYLOV_BAND_MARGIN of its width each side); end_hz 0: no sweep given,
+       and create refuses a sparse setup naming those keys. */
+    rths_krylov_options krylov;
     /* controller.max_overrun_share: the share of an evaluation's samples that may have missed
        their deadline (rths_period.late_samples over samples) before the host refuses the
        evaluation; 0 (default): none may. Read here so the key belongs to the controller's
@@ -138,6 +145,17 @@ typedef struct rths_controller rths_controller;
 int rths_controller_create(const rths_setup *setup, const rths_controller_options *opt,
                            rths_controller **out, rths_error *err);
 void rths_controller_destroy(rths_controller *c);
+/* The Krylov reduction's band is the sweep widened by this share of its width each side: the
+ * continuation accepts points up to continuation.range_margin (0.05 by default) beyond its
+ * range. */
+#define RTHS_CONTROLLER_KRYLOV_BAND_MARGIN 0.05
+/* 1 when the step integrates a sparse model's Krylov reduction (setup->sparse, real-time form),
+ * its report in *rep (the reduced size is n_boundary + rep->basis); 0 otherwise. */
+int rths_controller_krylov_report(const rths_controller *c, rths_krylov_report *rep);
+/* That report in one line for run.log, e.g. "numerical substructure: sparse, 480 DoFs, reduced
+ * in real time to 17 DoFs (Krylov, 3 shift(s)), interface FRF error 2.1e-09 (max 0.001) over 31
+ * check points of 0.94-1.18 Hz"; empty when no Krylov reduction is integrated. */
+void rths_controller_krylov_text(const rths_controller *c, char *buf, size_t size);
 /* DoFs of the numerical model the step integrates: the split's numerical substructure, its
  * reduction, or 0 when the host solves it (split.numerical_solver: frequency). In that mode the
  * step drives the physical interface to the target and its published `num` channel carries the

@@ -88,6 +88,27 @@ static int output_dofs_read(rths_config *cfg, rths_controller_options *opt, rths
     return rc;
 }
 
+/* The Krylov reduction of a sparse model's numerical side (krylov_reduce.h): its keys, and the
+ * band it must be exact over, the sweep's (continuation.start_hz, end_hz, either order) widened
+ * by RTHS_CONTROLLER_KRYLOV_BAND_MARGIN of its width each side. The continuation reads and checks
+ * those keys itself; without them the band stays unset and only a sparse setup needs it
+ * (rths_controller_create names the keys then). */
+static int krylov_read(rths_config *cfg, rths_krylov_options *opt, rths_error *err) {
+    int rc = rths_krylov_config_read(cfg, opt, err);
+    if (rc || !rths_config_has(cfg, "continuation.start_hz") ||
+        !rths_config_has(cfg, "continuation.end_hz"))
+        return rc;
+    double f[2];
+    rc = rths_config_get_double(cfg, "continuation.start_hz", 0, 0, 1e-3, 1e5, &f[0], err);
+    if (!rc) rc = rths_config_get_double(cfg, "continuation.end_hz", 0, 0, 1e-3, 1e5, &f[1], err);
+    if (rc) return rc;
+    double lo = fmin(f[0], f[1]), hi = fmax(f[0], f[1]);
+    double margin = RTHS_CONTROLLER_KRYLOV_BAND_MARGIN * (hi - lo);
+    opt->start_hz = fmax(lo - margin, 0.0);
+    opt->end_hz = hi + margin;
+    return RTHS_OK;
+}
+
 int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, rths_error *err) {
     static const char *const schemes[] = {"implicit_euler", "trapezoidal", "exact_zoh", "exact_foh",
                                           NULL};
@@ -131,7 +152,7 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
         (rc = gains_per_dof(cfg, "controller.grounding_kd_per_dof", opt->grounding_kd_dof, err)) ||
         (rc = gain_matrices(cfg, opt, err)) ||
         (rc = rths_reduction_config_read(cfg, &opt->reduction, err)) ||
-        (rc = output_dofs_read(cfg, opt, err)))
+        (rc = krylov_read(cfg, &opt->krylov, err)) || (rc = output_dofs_read(cfg, opt, err)))
         return rc;
     opt->scheme = (rths_scheme)scheme;
     /* the default cutoff (1 kHz, chosen at the seed's 10 kHz) is capped at a quarter of a lower

@@ -7,6 +7,7 @@
 
 #include <math.h>
 #include <stdatomic.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -95,6 +96,12 @@ struct rths_controller {
     double sg_prev[MAX_NL * MAX_NL], sg_curr[MAX_NL * MAX_NL];
     double static_step[MAX_STATE];
     int nl_newton_max; /* the most Newton steps one sample took (bench: worst-case cost) */
+    /* a sparse model's numerical side: integrated as its Krylov reduction (krylov 1), the
+     * reduction's report, the sparse side's order; the numerical interface masses (kg, or
+     * kg m^2), for the grounding check's message */
+    int krylov, krylov_full_dofs;
+    rths_krylov_report krylov_rep;
+    double m_num_iface[MAX_IFACE];
     /* commands */
     double omega, pending_omega, amplitude_n, pending_amplitude;
     int pending_forcing;
@@ -181,6 +188,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     memset(opt->kp_matrix, 0, sizeof opt->kp_matrix);
     memset(opt->kd_matrix, 0, sizeof opt->kd_matrix);
     rths_reduction_defaults(&opt->reduction);
+    rths_krylov_defaults(&opt->krylov);
     opt->output_dofs = 0;
     memset(opt->output_dof, 0, sizeof opt->output_dof);
 }
@@ -192,16 +200,76 @@ double rths_target_peak_bound_m(int harmonics, const double *a, const double *b)
     return bound;
 }
 
+/* The numerical substructure the step integrates must not be unstable on its own: a split whose
+ * interface block was divided by the coupling rule of a spring chain (model.h) can leave a beam's
+ * numerical stiffness indefinite (the follow-up's cantilever cut at 0.17 m: an eigenvalue of
+ * -2.9e4 N/m), and its integration diverges within samples. Refused at create, by name. k: the
+ * n x n stiffness integrated (the split's, or a sparse model's reduced one). */
+static int numerical_stiffness_definite(int n, const double *stiffness, rths_error *err) {
+    double complex *k = malloc(sizeof *k * (size_t)n * (size_t)n);
+    if (!k) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+    for (int i = 0; i < n * n; i++)
+        k[i] = stiffness[i];
+    double ratio = rths_cmat_hermitian_eigen_ratio(n, k);
+    free(k);
+    /* rounding leaves a singular (free-floating) part at |ratio| ~ 1e-16 */
+    if (ratio < -1e-9 && rths_mat_max_abs(stiffness, n, n) > 0)
+        return rths_error_set(err, RTHS_EINPUT,
+                              "the numerical substructure's stiffness is indefinite (smallest to "
+                              "largest eigenvalue %.3g): the split's interface block does not suit "
+                              "this structure, and the real-time integration would diverge",
+                              ratio);
+    return RTHS_OK;
+}
+
+/* A sparse model's numerical substructure (setup->sparse: no dense matrix of its order exists)
+ * as its band-exact Krylov reduction over the sweep (krylov_reduce.h; docs/architecture.md,
+ * "Sparse algebra"): the same Craig-Bampton shape (interface first and physical, inputs projected
+ * by T^T), refused by controller.reduction.max_error when worse than that in the band. */
+static int krylov_numerical(rths_controller *c, const rths_setup *setup, rths_reduced *red,
+                            rths_error *err) {
+    const rths_split *s = &setup->split;
+    const rths_krylov_options *ko = &c->opt.krylov;
+    if (!(ko->end_hz > ko->start_hz))
+        return rths_error_set(err, RTHS_EINPUT,
+                              "this model takes the sparse path (%d DoFs): its numerical "
+                              "substructure is integrated in real time as a reduction exact over "
+                              "the tested band, and no band is given: set continuation.start_hz "
+                              "and continuation.end_hz (or split.numerical_solver: frequency)",
+                              setup->assembly.n);
+    int *dofs = NULL;
+    int rc = rths_sparse_model_krylov_reduce(setup->sparse, ko, red, &dofs, &c->krylov_rep, err);
+    /* the reduction orders the side as the split does (interface, then numerical DoFs) */
+    for (int i = 0; !rc && i < s->nn; i++)
+        if (dofs[i] != (i < s->n_int ? s->int_dofs[i] : s->num_dofs[i - s->n_int]))
+            rc = rths_error_set(err, RTHS_EFAIL,
+                                "the sparse numerical substructure's DoF %d is assembly DoF %d, "
+                                "not the split's",
+                                i + 1, dofs[i] + 1);
+    free(dofs);
+    if (!rc) rc = numerical_stiffness_definite(red->nr, red->stiffness, err);
+    for (int d = 0; !rc && d < s->n_int; d++)
+        c->m_num_iface[d] = setup->sparse->mass_ratio *
+                            rths_sparse_get(&setup->sparse->mass, s->int_dofs[d], s->int_dofs[d]);
+    c->krylov = !rc;
+    c->krylov_full_dofs = s->nn;
+    return rc;
+}
+
 /* The numerical model the step integrates, x_{k+1} = ad x_k + b_prev u_k + b_curr u_{k+1} with
  * inputs (interface force, forcing): the split's numerical substructure as it is, or, when the
  * reduction applies, its Craig-Bampton reduction (reduce.h; the interface stays coordinate 0, the
- * inputs are projected by T^T). An auto cutoff is lowered to fit RTHS_REALTIME_MAX_DOFS. */
+ * inputs are projected by T^T). An auto cutoff is lowered to fit RTHS_REALTIME_MAX_DOFS. A sparse
+ * model's is always reduced, by krylov_numerical. */
 static int build_numerical(rths_controller *c, const rths_setup *setup, int forcing_physical,
                            int base, rths_error *err) {
     const rths_split *s = &setup->split;
     const rths_reduction_options *ro = &c->opt.reduction;
     rths_reduced red = {0};
-    int rc = RTHS_OK, reduce = rths_reduction_applies(ro, s->nn);
+    const int sparse = setup->sparse != NULL;
+    int rc = RTHS_OK, reduce = sparse || rths_reduction_applies(ro, s->nn);
+    for (int d = 0; !sparse && d < s->n_int; d++)
+        c->m_num_iface[d] = RTHS_AT(s->mass_num, s->nn, d, d);
     /* the DoFs a nonlinear element touches stay physical coordinates of the reduced model (its
      * deformation is then a coordinate difference, as unreduced): boundary coordinates after the
      * interface's, keep[m] becoming coordinate n_int + m (reduce.h) */
@@ -215,7 +283,9 @@ static int build_numerical(rths_controller *c, const rths_setup *setup, int forc
             if (!seen) keep[n_keep++] = dof;
         }
     }
-    if (reduce)
+    if (sparse)
+        rc = krylov_numerical(c, setup, &red, err);
+    else if (reduce)
         rc = rths_reduce_craig_bampton_keeping(
             s->nn, s->n_int, s->mass_num, s->damping_num, s->stiffness_num, n_keep, keep,
             rths_reduction_cutoff_hz(ro, c->opt.sample_rate_hz),
@@ -356,28 +426,6 @@ static int numerical_elements(rths_controller *c, const rths_setup *setup, rths_
     return rc;
 }
 
-/* The numerical substructure the step integrates must not be unstable on its own: a split whose
- * interface block was divided by the coupling rule of a spring chain (model.h) can leave a beam's
- * numerical stiffness indefinite (the follow-up's cantilever cut at 0.17 m: an eigenvalue of
- * -2.9e4 N/m), and its integration diverges within samples. Refused at create, by name. */
-static int numerical_stiffness_definite(const rths_split *s, rths_error *err) {
-    int n = s->nn;
-    double complex *k = malloc(sizeof *k * (size_t)n * (size_t)n);
-    if (!k) return rths_error_set(err, RTHS_EFAIL, "out of memory");
-    for (int i = 0; i < n * n; i++)
-        k[i] = s->stiffness_num[i];
-    double ratio = rths_cmat_hermitian_eigen_ratio(n, k);
-    free(k);
-    /* rounding leaves a singular (free-floating) part at |ratio| ~ 1e-16 */
-    if (ratio < -1e-9 && rths_mat_max_abs(s->stiffness_num, n, n) > 0)
-        return rths_error_set(err, RTHS_EINPUT,
-                              "the numerical substructure's stiffness is indefinite (smallest to "
-                              "largest eigenvalue %.3g): the split's interface block does not suit "
-                              "this structure, and the real-time integration would diverge",
-                              ratio);
-    return RTHS_OK;
-}
-
 /* The transforms' inverses and the gain matrices, formed here so that the step only multiplies:
  * interface displacements S^-1 y from the lasers y, accelerations T^-T a from the actuators'
  * accelerometers, efforts T f from their load cells; the demands G_p e + G_d e' of the errors e
@@ -438,10 +486,8 @@ static int grounding_stable(const rths_controller *c, const rths_split *s, rths_
     if (radius <= 1 + 1e-9) return RTHS_OK;
     int worst = 0;
     for (int d = 1; d < ni; d++)
-        if (c->gkd[d] / RTHS_AT(s->mass_num, s->nn, d, d) >
-            c->gkd[worst] / RTHS_AT(s->mass_num, s->nn, worst, worst))
-            worst = d;
-    double m = RTHS_AT(s->mass_num, s->nn, worst, worst);
+        if (c->gkd[d] / c->m_num_iface[d] > c->gkd[worst] / c->m_num_iface[worst]) worst = d;
+    double m = c->m_num_iface[worst];
     return rths_error_set(err, RTHS_EINPUT,
                           "the grounding control destabilises the numerical substructure "
                           "(spectral radius %.6g per sample): it acts one sample late, and "
@@ -459,6 +505,26 @@ int rths_controller_nonlinear_newton_steps(const rths_controller *c) {
 
 int rths_controller_numerical_dofs(const rths_controller *c) {
     return c->host_numerical ? 0 : c->nn;
+}
+
+int rths_controller_krylov_report(const rths_controller *c, rths_krylov_report *rep) {
+    if (!c->krylov) return 0;
+    *rep = c->krylov_rep;
+    return 1;
+}
+
+void rths_controller_krylov_text(const rths_controller *c, char *buf, size_t size) {
+    if (size == 0) return;
+    buf[0] = 0;
+    if (!c->krylov) return;
+    const rths_krylov_report *r = &c->krylov_rep;
+    snprintf(buf, size,
+             "numerical substructure: sparse, %d DoFs, reduced in real time to %d DoFs (Krylov, "
+             "%d shift(s)), interface FRF error %.3g at %g Hz (controller.reduction.max_error "
+             "%g) over %d check points of %g-%g Hz; %.3g s in the check's solves, %.3g s "
+             "building the basis",
+             c->krylov_full_dofs, c->nn, r->shifts, r->max_error, r->at_hz, c->opt.krylov.max_error,
+             r->check_points, c->opt.krylov.start_hz, c->opt.krylov.end_hz, r->truth_s, r->basis_s);
 }
 
 int rths_controller_check_sensed_dofs(const rths_split *s, rths_error *err) {
@@ -593,7 +659,9 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                             "forcing.type: base with split.numerical_solver: frequency is not "
                             "supported (the host's receptance takes a force on one DoF)");
     if (!rc && !c->host_numerical) rc = numerical_elements(c, setup, err);
-    if (!rc && !c->host_numerical) rc = numerical_stiffness_definite(s, err);
+    /* a sparse model's reduced stiffness is checked where it is built (krylov_numerical) */
+    if (!rc && !c->host_numerical && !setup->sparse)
+        rc = numerical_stiffness_definite(s->nn, s->stiffness_num, err);
     if (!rc && !c->host_numerical) rc = build_numerical(c, setup, forcing_physical, base, err);
     if (!rc && !c->host_numerical) rc = grounding_stable(c, s, err);
     if (rc) {

@@ -36,7 +36,9 @@ int rths_setup_read_matrices_or_sparse(rths_config *cfg, rths_setup *s, rths_err
 
 /* The rest of a sparse setup from its model: the split's DoF lists and dense physical side (the
  * rig's side is small), the forcing, the model.frf range; what the sparse path does not carry is
- * refused by its key. */
+ * refused by its key. The numerical side stays sparse in both forms: the host solves it per
+ * harmonic (frequency), or the controller integrates its band-exact Krylov reduction (realtime,
+ * rths_controller_create). */
 int rths_setup_read_sparse_rest(rths_config *cfg, rths_setup *s, rths_error *err) {
     const rths_sparse_model *m = s->sparse;
     int n = m->n;
@@ -50,17 +52,12 @@ int rths_setup_read_sparse_rest(rths_config *cfg, rths_setup *s, rths_error *err
                                         "sparse", n);
     int rc = rths_setup_read_numerical_solver(cfg, s, err);
     if (rc) return rc;
-    if (s->numerical_solver != RTHS_NUMERICAL_FREQUENCY)
-        return rths_config_error_at(cfg, "split.numerical_solver", err,
-                                    "realtime integrates the numerical substructure densely every "
-                                    "sample; this model takes the sparse path (%d DoFs): set "
-                                    "split.numerical_solver to frequency (the host solves it per "
-                                    "harmonic by sparse factorisations)",
-                                    n);
+    /* both forms take one interface DoF: the frequency form's sparse receptance is scalar, and
+     * the real-time form's reduction (the controller's, krylov_reduce.h) is tested with one */
     if (m->n_int != 1)
         return rths_config_error_at(cfg, "split.interface", err,
-                                    "lists %d interface DoFs; the frequency form on a sparse model "
-                                    "takes one",
+                                    "lists %d interface DoFs; a sparse model takes one (both "
+                                    "split.numerical_solver forms)",
                                     m->n_int);
     s->assembly.n = n;
     rths_split *sp = &s->split;

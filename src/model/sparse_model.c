@@ -566,6 +566,21 @@ done:
 
 /* ---- FRF ---- */
 
+/* Frequencies whose sparse direct solves are kept. A complex LDL^T of a 60 000-DoF model takes
+ * 16-25 s (docs/architecture.md, "Sparse algebra"), and the same frequencies come back: every
+ * period of every evaluation at one forcing frequency converts the numerical side at its
+ * RTHS_MAX_HARMONICS harmonics (the frequency form), and the truth is asked at each point by
+ * frf.csv, the summary and the figures in turn. Exact equality of omega is the key: the callers
+ * form the same product k * 2 pi f each time. */
+#define DIRECT_CACHE 32
+
+/* The slot holding omega in a cache of `count` frequencies, or -1. */
+static int cache_find(const double *omegas, int count, double omega) {
+    for (int i = 0; i < count; i++)
+        if (omegas[i] == omega) return i;
+    return -1;
+}
+
 struct rths_sparse_frf {
     const rths_sparse_model *model;
     int n_out, count;
@@ -578,6 +593,11 @@ struct rths_sparse_frf {
     const rths_sparse_sym *terms[3];
     double complex *rhs;
     double direct_s;
+    /* the direct solves of the last DIRECT_CACHE frequencies at out_dofs (cached_x: n_out each),
+     * replaced round robin: a frequency asked again costs no factorisation (sparse_cache) */
+    double cached_omega[DIRECT_CACHE];
+    double complex *cached_x;
+    int cached, cache_next;
 };
 
 void rths_sparse_frf_destroy(rths_sparse_frf *s) {
@@ -589,6 +609,7 @@ void rths_sparse_frf_destroy(rths_sparse_frf *s) {
     free(s->residual_out);
     free(s->residual2_out);
     free(s->rhs);
+    free(s->cached_x);
     rths_sparse_factor_destroy(s->complex_factor);
     free(s);
 }
@@ -665,6 +686,11 @@ int rths_sparse_frf_eval(rths_sparse_frf *s, double omega_rad_s, double complex 
 int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double complex *x_out,
                            rths_error *err) {
     const rths_sparse_model *m = s->model;
+    int hit = cache_find(s->cached_omega, s->cached, omega_rad_s);
+    if (hit >= 0) {
+        memcpy(x_out, s->cached_x + (size_t)hit * s->n_out, sizeof *x_out * (size_t)s->n_out);
+        return RTHS_OK;
+    }
     double t0 = rths_monotonic_s();
     int rc = RTHS_OK;
     if (!s->complex_factor) {
@@ -672,7 +698,9 @@ int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double comple
         s->terms[1] = &m->damping;
         s->terms[2] = &m->mass;
         s->rhs = malloc(sizeof(double complex) * (size_t)m->n);
-        if (!s->rhs) return rths_error_set(err, RTHS_EFAIL, "out of memory");
+        s->cached_x =
+            malloc(sizeof(double complex) * (size_t)(s->n_out > 0 ? s->n_out : 1) * DIRECT_CACHE);
+        if (!s->rhs || !s->cached_x) return rths_error_set(err, RTHS_EFAIL, "out of memory");
         rc =
             rths_sparse_factor_create(3, s->terms, RTHS_SPARSE_ORDER_AUTO, &s->complex_factor, err);
         if (rc) return rc;
@@ -685,6 +713,13 @@ int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double comple
     if (!rc) rc = rths_sparse_solve_complex(s->complex_factor, s->rhs, 1, err);
     for (int o = 0; o < s->n_out && !rc; o++)
         x_out[o] = s->rhs[s->out_dofs[o]];
+    if (!rc) {
+        int slot = s->cache_next;
+        s->cache_next = (s->cache_next + 1) % DIRECT_CACHE;
+        if (s->cached < DIRECT_CACHE) s->cached++;
+        s->cached_omega[slot] = omega_rad_s;
+        memcpy(s->cached_x + (size_t)slot * s->n_out, x_out, sizeof *x_out * (size_t)s->n_out);
+    }
     s->direct_s += rths_monotonic_s() - t0;
     return rc;
 }
@@ -786,6 +821,10 @@ struct rths_sparse_model_receptance {
     double *load;      /* nn: the numerical side's share of the forcing, per unit amplitude */
     double complex *x; /* nn */
     double solve_s;
+    /* the last DIRECT_CACHE frequencies' results, replaced round robin (sparse_frf's cache) */
+    double cached_omega[DIRECT_CACHE];
+    double complex cached_h[DIRECT_CACHE], cached_forced[DIRECT_CACHE];
+    int cached, cache_next;
 };
 
 void rths_sparse_model_receptance_destroy(rths_sparse_model_receptance *r) {
@@ -847,6 +886,12 @@ int rths_sparse_model_receptance_eval(void *ctx, double omega_rad_s,
                                       double complex *receptance_m_per_n,
                                       double complex *forced_m_per_n, rths_error *err) {
     rths_sparse_model_receptance *r = ctx;
+    int hit = cache_find(r->cached_omega, r->cached, omega_rad_s);
+    if (hit >= 0) {
+        *receptance_m_per_n = r->cached_h[hit];
+        *forced_m_per_n = r->cached_forced[hit];
+        return RTHS_OK;
+    }
     double t0 = rths_monotonic_s(), w = omega_rad_s;
     int nn = r->stiffness.n;
     double complex coef[3] = {1, I * w, -w * w};
@@ -862,6 +907,12 @@ int rths_sparse_model_receptance_eval(void *ctx, double omega_rad_s,
             forced += r->x[i] * r->load[i];
         *receptance_m_per_n = r->x[0];
         *forced_m_per_n = forced;
+        int slot = r->cache_next;
+        r->cache_next = (r->cache_next + 1) % DIRECT_CACHE;
+        if (r->cached < DIRECT_CACHE) r->cached++;
+        r->cached_omega[slot] = omega_rad_s;
+        r->cached_h[slot] = r->x[0];
+        r->cached_forced[slot] = forced;
     }
     r->solve_s += rths_monotonic_s() - t0;
     return rc;
