@@ -387,6 +387,12 @@ static int open_outputs(frf_state *st, rths_error *err) {
     int rc = rths_report_open(opt->out_dir, "frf", opt->argc, opt->argv, &st->rep, err);
     if (rc) return rc;
     if (st->reset_note[0]) rths_report_log(st->rep, "%s", st->reset_note);
+    if (st->virtual_rig) { /* a sparse model's real-time reduction (controller.h) */
+        char reduction[768];
+        rths_controller_krylov_text(rths_virtual_rig_controller(st->virtual_rig), reduction,
+                                    sizeof reduction);
+        if (reduction[0]) rths_report_log(st->rep, "%s", reduction);
+    }
     char *path = rths_report_path(st->rep, "config.yaml");
     rc = path ? rths_config_write(opt->cfg, path, err)
               : rths_error_set(err, RTHS_EFAIL, "out of memory");

@@ -75,6 +75,8 @@ print("ok   sparse frame, real-time form, noise off: %d points, at most %.2e fro
       % (len(rows), worst))
 assert worst < 5e-3, worst
 PY
+grep -q "numerical substructure: sparse, 480 DoFs, reduced in real time to [0-9]* DoFs" "$work/f/run.log" ||
+    fail "run.log does not report the real-time reduction: $(grep -m1 -i reduc "$work/f/run.log")"
 refused frf "a reduction worse than controller.reduction.max_error" \
     "controller.reduction.max_error 1e-14 %.*over 31 check points of 0.994-1.126 Hz" \
     "$work/m/rt.yaml" --set controller.reduction.max_error=1e-16
