@@ -96,10 +96,12 @@ int rths_config_check_unknown(const rths_config *cfg, rths_error *err) {
 }
 
 /* Sub-sections every command's setup reads (rths_setup_read: the actuator and sensor transforms,
- * docs/config/rig.md): reading them does not make a command the owner of their section, so
- * `rths model` still ignores the rest of `rig`. */
-static const char *const setup_subsections[] = {"rig.actuators.", "rig.lasers.",
-                                                "rig.interface_mass", NULL};
+ * docs/config/rig.md; rths_controller_config_read: the sweep, the band of a sparse model's
+ * real-time reduction): reading them does not make a command the owner of their section, so
+ * `rths model` still ignores the rest of `rig` and `rths fidelity` the rest of `continuation`. */
+static const char *const setup_subsections[] = {"rig.actuators.",      "rig.lasers.",
+                                                "rig.interface_mass",  "continuation.start_hz",
+                                                "continuation.end_hz", NULL};
 
 /* Whether a key of section was asked for, not counting the setup's sub-sections. */
 static int section_read_by_command(const rths_config *cfg, const char *section) {

@@ -88,5 +88,14 @@ bad missing_file "nonexistent" "$work/nonexistent.yaml"
 "$bin" chart --help >"$work/help" 2>&1 || fail "--help exit status"
 grep -q "stability.tau_min_s" "$work/help" || fail "--help does not list the keys"
 
+# a configuration written for rths frf runs as it is: its continuation section (method, steps)
+# is the run's; the controller's reading of the sweep (the band of a sparse model's real-time
+# reduction) does not make chart the owner of it (a merge once refused continuation.method here)
+"$bin" chart "$src/examples/four_storey_bilinear.yaml" --out "$work/frf_config" --quiet \
+    >"$work/out" 2>&1 || fail "chart refused an rths frf configuration: $(head -c 300 "$work/out")"
+"$bin" simulate "$src/examples/four_storey_bilinear.yaml" --frequency 13 --periods 2 --target 1e-4,0 \
+    --out "$work/frf_config_sim" --quiet >"$work/out" 2>&1 ||
+    fail "simulate refused an rths frf configuration: $(head -c 300 "$work/out")"
+
 [ "$failures" -eq 0 ] || { echo "$failures failure(s)"; exit 1; }
 echo "chart: all checks passed"
