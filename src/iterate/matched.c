@@ -266,7 +266,8 @@ static double matched_se(rths_corrector *c, const double *K, const double *xm, d
     if (d == 0 && lg->have) { /* the local secant's interpolation to zero mismatch (local_gain) */
         c->se_noise_m[d] = sqrt(noise_var * lg->weight_variance);
         c->se_step_m[d] = fabs(move) / FITTED_MIN_STEPS_SE;
-        return hypot(c->se_noise_m[d], c->se_step_m[d]);
+        return sqrt(noise_var * lg->weight_variance +
+                    move * move / (FITTED_MIN_STEPS_SE * FITTED_MIN_STEPS_SE));
     }
     if (d == 0) {
         lg->fitted = fitted;
