@@ -155,7 +155,10 @@ typedef struct rths_evaluation {
     double fit_max_pole;
     /* accuracy on demand: the largest relative standard error of an interface DoF's
      * fundamental amplitude (either side), and 1 when it stayed above target_rel_se within
-     * max_rig_s_per_point */
+     * max_rig_s_per_point. In a converged solution of a problem with settle options and a
+     * target (rths_zero_problem.settle), both are the REPORTED amplitude's instead: its largest
+     * relative standard error over the interface DoFs, and 1 when that stayed above the target
+     * within the point's budget (docs/method.md, "Accuracy on demand") */
     double amplitude_rel_se;
     int se_target_missed;
 } rths_evaluation;
