@@ -155,7 +155,10 @@ typedef struct rths_evaluation {
     double fit_max_pole;
     /* accuracy on demand: the largest relative standard error of an interface DoF's
      * fundamental amplitude (either side), and 1 when it stayed above target_rel_se within
-     * max_rig_s_per_point */
+     * max_rig_s_per_point. In a converged solution of a problem with settle options and a
+     * target (rths_zero_problem.settle), both are the REPORTED amplitude's instead: its largest
+     * relative standard error over the interface DoFs, and 1 when that stayed above the target
+     * within the point's budget (docs/method.md, "Accuracy on demand") */
     double amplitude_rel_se;
     int se_target_missed;
 } rths_evaluation;
@@ -266,6 +269,16 @@ typedef struct rths_zero_problem {
        target), which the LTI form and the residual-model predictor fit; the solution reports
        every DoF's amplitude and standard error. 0 or 1: one DoF */
     int interface_dofs;
+    /* Accuracy on demand (docs/method.md, "Accuracy on demand"): the settle options the
+     * evaluations use (rig-backed problems; NULL: none). With their target_rel_se > 0 a converged
+     * point whose REPORTED amplitude's relative standard error (any interface DoF) is above it
+     * takes further corrector steps (the mismatch's term) or longer records (the noise's) while
+     * the point's max_rig_s_per_point (their tally's rig time) lasts, and is flagged
+     * (rths_evaluation.se_target_missed of its solution) when it still is. */
+    const rths_settle_options *settle;
+    /* Where the corrector tightens the evaluations' own target_rel_se for the noise's term (the
+     * rig problem's override; NULL: it cannot, and only steps) */
+    double *evaluation_target_rel_se;
 } rths_zero_problem;
 
 /* The rig-backed zero problem of a hybrid test: set the forcing and the target, wait for steady
@@ -277,6 +290,9 @@ typedef struct rths_rig_problem {
     double amplitude_n;
     int interface_dofs;     /* 1, or several: 2 N unknowns per DoF, DoF by DoF */
     rths_noise_model noise; /* measured by its evaluations, carried across them */
+    /* > 0: the evaluations' target_rel_se instead of settle's (the corrector sets it while a
+     * point's reported amplitude needs a smaller noise; docs/method.md, "Accuracy on demand") */
+    double target_rel_se;
 } rths_rig_problem;
 
 /* Fills *problem to evaluate through *ctx (which must outlive it). */

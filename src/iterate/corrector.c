@@ -112,10 +112,12 @@ static int converged(const rths_corrector *c, const corrector_point *p) {
     return p->within && arc_satisfied(c, p);
 }
 
+static int newton_step(rths_corrector *c, double *du, double *fraction, double *trust_t);
+
 /* A point within tolerance: accepted (its report finished) unless its response lies below the
  * noise floor, which stops the correction (RTHS_CORRECTOR_BELOW_NOISE) or, when the options
  * accept such points, is flagged in the solution. */
-static int accept_converged(rths_corrector *c, rths_error *err) {
+static int accept_point(rths_corrector *c, rths_error *err) {
     if (corrector_below_noise_floor(c)) {
         if (!c->opt.accept_below_noise) {
             c->status = RTHS_CORRECTOR_BELOW_NOISE;
@@ -126,6 +128,131 @@ static int accept_converged(rths_corrector *c, rths_error *err) {
     c->cur.sol.converged = 1;
     int rc = corrector_finish(c, err);
     c->status = RTHS_CORRECTOR_CONVERGED;
+    return rc;
+}
+
+/* The reported amplitude's largest relative standard error over the interface DoFs, that DoF,
+ * and whether the step's term (the mismatch times the sensitivity's uncertainty) is the larger
+ * of its two terms there; *noise_rel: that DoF's noise term, relative. */
+static double reported_rel_se(const rths_corrector *c, int *step_dominates, double *noise_rel) {
+    const rths_solution *s = &c->cur.sol;
+    int dofs = s->interface_dofs > 1 ? s->interface_dofs : 1;
+    double worst = 0;
+    *step_dominates = 0;
+    *noise_rel = 0;
+    for (int d = 0; d < dofs; d++) {
+        double amp = dofs > 1 ? s->dof_amplitude_m[d] : s->amplitude_m;
+        double se = dofs > 1 ? s->dof_amplitude_se_m[d] : s->amplitude_se_m;
+        double rel = amp > 0 ? se / amp : INFINITY;
+        if (!(rel <= worst) || d == 0) {
+            worst = rel;
+            *step_dominates = c->se_step_m[d] > c->se_noise_m[d];
+            *noise_rel = amp > 0 ? c->se_noise_m[d] / amp : INFINITY;
+        }
+    }
+    return worst;
+}
+
+/* The point's rig time against iteration.max_rig_s_per_point: its tally's (every evaluation of
+ * the point), or without one this correction's. */
+static double point_rig_s(const rths_corrector *c) {
+    const rths_settle_options *st = c->problem.settle;
+    return st->tally ? st->tally->rig_time_s : c->rig_time_s;
+}
+
+static double point_budget_s(const rths_corrector *c) {
+    const rths_settle_options *st = c->problem.settle;
+    return st->max_rig_s_per_point > 0 ? st->max_rig_s_per_point : RTHS_SETTLE_MAX_RIG_S_PER_POINT;
+}
+
+/* Further steps at most per point (each one evaluation): the mismatch falls by the Newton
+ * step's contraction each time, so a few suffice unless the noise bounds it */
+enum { ACCURACY_MAX_STEPS = 6 };
+
+/* Accuracy on demand (docs/method.md, "Accuracy on demand"): iteration.target_rel_se bounds the
+ * REPORTED amplitude's relative standard error. While it is above the target and the point's
+ * rig budget lasts, one more Newton step from the accepted point (its mismatch, the step's term,
+ * shrinks with it), and when the noise's term is the larger the evaluation's own target tightened
+ * in proportion (a longer record); the step's evaluation is taken when within tolerance (and
+ * joins the model's history either way), and the report is made again. A point still above the
+ * target is flagged in its solution's evaluation (se_target_missed, amplitude_rel_se the reported
+ * one) and noted. */
+static int accuracy_on_demand(rths_corrector *c, rths_error *err) {
+    const rths_settle_options *st = c->problem.settle;
+    if (!st || !(st->target_rel_se > 0) || c->status != RTHS_CORRECTOR_CONVERGED ||
+        c->harmonics == 0)
+        return RTHS_OK;
+    double target = st->target_rel_se;
+    int step_dominates = 0, rc = RTHS_OK;
+    double noise_rel = 0, rel = reported_rel_se(c, &step_dominates, &noise_rel);
+    double *eval_target = c->problem.evaluation_target_rel_se;
+    for (int k = 0; k < ACCURACY_MAX_STEPS && rel > target && point_rig_s(c) < point_budget_s(c);
+         k++) {
+        double du[LD], fraction = 1.0, trust_t = 1.0;
+        if (newton_step(c, du, &fraction, &trust_t) != 0) break;
+        /* the noise's term: the next record's relative error at most half the last one's (its
+         * record four times as long, about; a step at a time, so one record does not spend the
+         * point's budget on a goal it cannot reach) */
+        double shrink = step_dominates || !eval_target ? 1.0 : fmax(0.5, target / noise_rel);
+        /* a step whose record would overrun the budget is not begun: a record is not cut short */
+        double cost = c->cur.rec.rig_time_s / (shrink * shrink);
+        if (point_rig_s(c) + cost > point_budget_s(c)) break;
+        if (shrink < 1.0) {
+            double now =
+                c->cur.rec.eval.amplitude_rel_se > 0 ? c->cur.rec.eval.amplitude_rel_se : target;
+            *eval_target = now * shrink;
+        }
+        corrector_point *trial = malloc(sizeof *trial);
+        if (!trial) return rths_error_set(err, RTHS_EFAIL, "out of memory in the corrector");
+        *trial = c->cur; /* what the evaluation does not set (as the line search's trials) */
+        double ut[LD];
+        for (int i = 0; i < LD; i++)
+            ut[i] = c->cur.u[i] + (i < c->m ? du[i] : 0.0);
+        rc = corrector_evaluate(c, ut, trial, err);
+        if (rc && c->refused) { /* a corrupted trial: the accepted point stands */
+            c->refused = 0;
+            rc = RTHS_OK;
+            free(trial);
+            break;
+        }
+        if (!rc && converged(c, trial)) {
+            corrector_secant_update(c, trial);
+            corrector_point previous = c->cur;
+            c->cur = *trial;
+            if (corrector_below_noise_floor(c) && !c->opt.accept_below_noise) {
+                c->cur = previous; /* the accepted point stands */
+            } else {
+                c->cur.sol.below_noise_floor = corrector_below_noise_floor(c);
+                c->cur.sol.converged = 1;
+            }
+        }
+        free(trial);
+        if (rc) break;
+        /* the step's evaluation joined the history and the pooled noise either way */
+        if ((rc = corrector_finish(c, err))) break;
+        rel = reported_rel_se(c, &step_dominates, &noise_rel);
+    }
+    if (eval_target) *eval_target = 0;
+    if (rc) return rc;
+    c->cur.sol.eval.amplitude_rel_se = rel;
+    c->cur.sol.eval.se_target_missed = rel > target;
+    if (rel > target && st->note) {
+        char line[512];
+        snprintf(line, sizeof line,
+                 "point at %.6g Hz: the reported amplitude's relative standard error %.3g is above "
+                 "iteration.target_rel_se %.3g after %.3g of the point's %.3g rig s "
+                 "(iteration.max_rig_s_per_point; %s the larger term): not met within the "
+                 "budget",
+                 c->cur.sol.frequency_hz, rel, target, point_rig_s(c), point_budget_s(c),
+                 step_dominates ? "the mismatch's step" : "the noise");
+        st->note(st->note_user, line);
+    }
+    return RTHS_OK;
+}
+
+static int accept_converged(rths_corrector *c, rths_error *err) {
+    int rc = accept_point(c, err);
+    if (!rc) rc = accuracy_on_demand(c, err);
     return rc;
 }
 

@@ -82,6 +82,11 @@ struct rths_corrector {
      * INFINITY without an anchor) and how often it acted */
     double trust_anchor_m, trust_radius;
     int trust_actions;
+    /* the reported amplitude's standard error of every interface DoF split in two (matched.c,
+     * corrector_finish): the noise, and the step to zero mismatch (the mismatch times the
+     * sensitivity's uncertainty, a frequency move's effect), m; iteration.target_rel_se acts on
+     * the larger (docs/method.md, "Accuracy on demand") */
+    double se_noise_m[DOF_MAX], se_step_m[DOF_MAX];
 };
 
 /* evaluate.c */

@@ -944,7 +944,14 @@ static int rig_problem_eval(void *ctx, const double *u, double omega_rad_s, rths
         b[j] = u[M + j];
     }
     rths_evaluation ev;
-    int rc = rths_evaluate_noise(rp->rig, rp->settle, &rp->noise, N, dofs, omega_rad_s / (2 * M_PI),
+    rths_settle_options tightened;
+    const rths_settle_options *settle = rp->settle;
+    if (rp->target_rel_se > 0 && settle) {
+        tightened = *settle;
+        tightened.target_rel_se = rp->target_rel_se;
+        settle = &tightened;
+    }
+    int rc = rths_evaluate_noise(rp->rig, settle, &rp->noise, N, dofs, omega_rad_s / (2 * M_PI),
                                  rp->amplitude_n, a, b, &ev, err);
     memset(out, 0, sizeof *out);
     if (rc) {
@@ -963,8 +970,12 @@ void rths_rig_problem_init(rths_zero_problem *problem, rths_rig_problem *ctx, rt
                               .harmonics = harmonics,
                               .amplitude_n = amplitude_n,
                               .interface_dofs = 1};
-    *problem = (rths_zero_problem){
-        .n = 2 * harmonics, .harmonics = harmonics, .eval = rig_problem_eval, .ctx = ctx};
+    *problem = (rths_zero_problem){.n = 2 * harmonics,
+                                   .harmonics = harmonics,
+                                   .eval = rig_problem_eval,
+                                   .ctx = ctx,
+                                   .settle = settle,
+                                   .evaluation_target_rel_se = &ctx->target_rel_se};
 }
 
 int rths_rig_problem_init_dofs(rths_zero_problem *problem, rths_rig_problem *ctx, rths_rig *rig,

@@ -247,7 +247,7 @@ typedef struct {
 
 /* The standard error of DoF d's matched amplitude am (see rths_solution): the noise, the
  * sensitivity's uncertainty times the mismatch, the frequency move. */
-static double matched_se(const rths_corrector *c, const double *K, const double *xm, double am,
+static double matched_se(rths_corrector *c, const double *K, const double *xm, double am,
                          double move, double wm, int p0, const lti_model *model, int d, int fitted,
                          const double *sp, const double *sn, local_gain *lg) {
     /* a fitted model's own scatter can understate a wrong model (on a 4-DoF structure with a
@@ -263,15 +263,20 @@ static double matched_se(const rths_corrector *c, const double *K, const double 
      * sweep the periods' scatter alone left 6 % of the points beyond three standard errors */
     double noise_var =
         fmax(matched_variance(c->n, c->harmonics, p0, xm, am, K, sp, sn), model->scatter_var[d]);
-    if (d == 0 && lg->have) /* the local secant's interpolation to zero mismatch (local_gain) */
+    if (d == 0 && lg->have) { /* the local secant's interpolation to zero mismatch (local_gain) */
+        c->se_noise_m[d] = sqrt(noise_var * lg->weight_variance);
+        c->se_step_m[d] = fabs(move) / FITTED_MIN_STEPS_SE;
         return sqrt(noise_var * lg->weight_variance +
                     move * move / (FITTED_MIN_STEPS_SE * FITTED_MIN_STEPS_SE));
+    }
     if (d == 0) {
         lg->fitted = fitted;
         lg->fit_gain_var = model->model_var[0];
         lg->fit_se_var = noise_var + jac_var;
     }
     double freq_var = frequency_move_variance(c, wm - c->cur.sol.omega_rad_s, p0);
+    c->se_noise_m[d] = sqrt(noise_var);
+    c->se_step_m[d] = sqrt(jac_var + freq_var);
     return sqrt(noise_var + jac_var + freq_var);
 }
 
@@ -326,7 +331,7 @@ static int matched_estimate(rths_corrector *c, const double *sp, const double *s
 
 /* The measured fundamental amplitude of pair p0 and its standard error: the noise and, when a
  * Jacobian gave it, the step to zero mismatch (move; NAN: none). *honest: whether it did. */
-static double measured_amplitude(const rths_corrector *c, int p0, const double *sp, double move,
+static double measured_amplitude(rths_corrector *c, int p0, const double *sp, double move,
                                  double *se, int *honest) {
     const double *x = c->cur.rec.response;
     int s0 = c->harmonics + p0;
@@ -338,6 +343,9 @@ static double measured_amplitude(const rths_corrector *c, int p0, const double *
      * bar longer); without any Jacobian nothing says how large it is */
     *honest = isfinite(move);
     *se = isfinite(move) ? sqrt(noise_se * noise_se + move * move) : noise_se;
+    int d = p0 / (c->harmonics / c->dofs);
+    c->se_noise_m[d] = noise_se;
+    c->se_step_m[d] = isfinite(move) ? fabs(move) : 0.0;
     return amp;
 }
 
@@ -390,6 +398,8 @@ int corrector_finish(rths_corrector *c, rths_error *err) {
     rths_solution *sol = &c->cur.sol;
     double sp[LD], sn[LD];
     matched_dofs m;
+    memset(c->se_noise_m, 0, sizeof c->se_noise_m);
+    memset(c->se_step_m, 0, sizeof c->se_step_m);
     entry_noise(c, sp, sn);
     sol->have_matched = matched_estimate(c, sp, sn, &lg, &m);
     if (needs_local_gain(c, sol->have_matched, &lg)) {
