@@ -15,7 +15,8 @@
 #    its shifts with their derivatives, and fills up to its bound);
 #  - summary.json's "reduction" (method krylov, 480 full DoFs, its size, the band) and run.log's
 #    reduction line; a continuation section with keys fidelity does not read (method,
-#    initial_step_hz) is accepted (the controller's reader asks for start_hz/end_hz only);
+#    initial_step_hz) is accepted (the controller's reader asks for start_hz/end_hz only), on a
+#    dense model (examples/four_storey_linear.yaml) too;
 #  - a reduction worse than controller.reduction.max_error is refused as rths frf refuses it,
 #    exit 2, nothing written; without a sweep (no band) it is refused naming the keys.
 set -u
@@ -99,5 +100,9 @@ refused fidelity "a reduction worse than controller.reduction.max_error" \
     "$work/m/rt.yaml" --set controller.reduction.max_error=1e-16
 refused fidelity "a sparse model without a sweep" \
     "no band is given: set continuation.start_hz and continuation.end_hz" "$work/m/base.yaml"
+# a dense model's fidelity accepts its sweep's continuation keys too (the same check)
+"$bin" fidelity "$src/examples/four_storey_linear.yaml" --set fidelity.points=101 \
+    --out "$work/dense" >"$work/dstdout" 2>&1 ||
+    fail "rths fidelity on a config with continuation keys: $(cat "$work/dstdout")"
 [ "$failures" -eq 0 ] || exit 1
 echo "fidelity_sparse: all passed"
