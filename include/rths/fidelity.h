@@ -77,6 +77,11 @@ typedef struct rths_fidelity_options {
 int rths_fidelity_config_read(rths_config *cfg, const rths_assembly *a, rths_fidelity_options *o,
                               rths_error *err);
 
+/* The same with the defaults given: start_hz..end_hz (end_hz raised to 1.1 start_hz when a
+ * given fidelity.start_hz passes it) and points (3..1000000) frequencies. */
+int rths_fidelity_config_read_band(rths_config *cfg, double start_hz, double end_hz, int points,
+                                   rths_fidelity_options *o, rths_error *err);
+
 /* The frequencies to tabulate: o's uniform grid merged with `extra` (e.g. every curve's exact
  * peak), sorted, duplicates removed. *freqs is malloc'ed. */
 int rths_fidelity_frequencies(const rths_fidelity_options *o, const double *extra, int n_extra,

@@ -1,9 +1,11 @@
 /* rths_api_fidelity: the hybrid test's steady-state FRF at a perfect interface match for every
  * integration scheme of the numerical substructure, against the true assembly (docs/method.md,
- * "Numerical substructure integration"). The one implementation of `rths fidelity`: the command
+ * "Numerical substructure integration"); on a sparse model the real-time reduction's error
+ * (api_fidelity_sparse.c). The one implementation of `rths fidelity`: the command
  * calls rths_api_fidelity_run (over rths_api_fidelity_compute) and writes its result with
  * rths_api_result_write. */
 #include "api/api_fidelity_nonlinear.h"
+#include "api/api_fidelity_sparse.h"
 #include "api/api_internal.h"
 #include "rths/controller.h"
 #include "rths/fidelity.h"
@@ -286,7 +288,9 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
                               rths_error *err) {
     static const char *const own_sections[] = {"fidelity", "controller", NULL};
     *out = NULL;
-    if (rths_setup_require_dense(setup, "rths fidelity", err)) return RTHS_EINPUT;
+    /* a sparse model: its real-time reduction's error (api_fidelity_sparse.h) */
+    if (setup->sparse)
+        return rths_api_fidelity_sparse(cfg, setup, config_path, overrides, n_overrides, out, err);
     rths_result *res = NULL;
     rths_fidelity *f = NULL;
     rths_reduced red = {0};
@@ -299,7 +303,7 @@ int rths_api_fidelity_compute(rths_config *cfg, const rths_setup *setup, const c
     fidelity_options o;
     int rc;
     if ((rc = read_options(cfg, setup, &o, err)) ||
-        (rc = rths_config_check_sections(cfg, own_sections, err)))
+        (rc = rths_api_fidelity_check_sections(cfg, own_sections, err)))
         goto done;
     double h = 1.0 / o.sample_rate_hz;
     if ((rc = build_reduction(setup, &o, &red, &reduced, err)) ||

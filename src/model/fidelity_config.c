@@ -14,22 +14,28 @@ int rths_fidelity_config_read(rths_config *cfg, const rths_assembly *a, rths_fid
      * substructure integration"); fall back to the first for a one-DoF structure */
     double f_mode = modes.frequency_hz[modes.n >= 2 ? 1 : 0];
     rths_modes_free(&modes);
-    long points;
-    if ((rc = rths_config_get_double(cfg, "fidelity.start_hz", 0, 0.9 * f_mode, 1e-6, 1e6,
-                                     &o->start_hz, err)) ||
-        (rc = rths_config_get_double(cfg, "fidelity.end_hz", 0,
-                                     fmax(1.1 * f_mode, 1.1 * o->start_hz), 1e-6, 1e6, &o->end_hz,
+    return rths_fidelity_config_read_band(cfg, 0.9 * f_mode, 1.1 * f_mode, 1001, o, err);
+}
+
+int rths_fidelity_config_read_band(rths_config *cfg, double start_hz, double end_hz, int points,
+                                   rths_fidelity_options *o, rths_error *err) {
+    long n_points;
+    int rc;
+    if ((rc = rths_config_get_double(cfg, "fidelity.start_hz", 0, start_hz, 1e-6, 1e6, &o->start_hz,
                                      err)) ||
-        (rc = rths_config_get_int(cfg, "fidelity.points", 0, 1001, 3, 1000000, &points, err)))
+        (rc = rths_config_get_double(cfg, "fidelity.end_hz", 0, fmax(end_hz, 1.1 * o->start_hz),
+                                     1e-6, 1e6, &o->end_hz, err)) ||
+        (rc = rths_config_get_int(cfg, "fidelity.points", 0, points, 3, 1000000, &n_points, err)))
         return rc;
     if (!(o->end_hz > o->start_hz))
         return rths_config_error_at(cfg, "fidelity.end_hz", err,
                                     "must be above fidelity.start_hz (%g Hz), got %g Hz",
                                     o->start_hz, o->end_hz);
-    o->points = (int)points;
+    o->points = (int)n_points;
     long nonlinear_points;
-    if ((rc = rths_config_get_int(cfg, "fidelity.nonlinear_points", 0, 11 < points ? 11 : points, 2,
-                                  points, &nonlinear_points, err)))
+    if ((rc =
+             rths_config_get_int(cfg, "fidelity.nonlinear_points", 0, 11 < n_points ? 11 : n_points,
+                                 2, n_points, &nonlinear_points, err)))
         return rc;
     o->nonlinear_points = (int)nonlinear_points;
     return RTHS_OK;

@@ -10,7 +10,9 @@
 #    dense complex solve of the assembly, (K - w^2 M + i w C) x = f, independent of rths, and
 #    frf.csv's true_amplitude_m (the sparse truth) within 1e-9 of the same solve;
 #  - two interface DoFs are refused by key, exit 2, nothing written (the real-time form is
-#    frf_sparse_realtime.sh's).
+#    frf_sparse_realtime.sh's); rths tune, chart and simulate refuse a sparse model by name,
+#    rths fidelity reports its real-time reduction (fidelity_sparse.sh) with the frequency form
+#    noted.
 # The interface shares of C and K are given (the specimen's spring and damper): the coupling rule
 # leaves a beam frame's rig side a negative K_II share (-5.3e7 N/m here), which no rig carries.
 set -u
@@ -80,8 +82,14 @@ refused frf "two interface DoFs on a sparse model" "split.interface.*takes one" 
     "$work/m/hy.yaml" --set "split.interface=[301, 283]" \
     --set "split.interface_stiffness_physical_n_per_m=[[2e3, 0], [0, 0]]" \
     --set "split.interface_damping_physical_n_s_per_m=[[0.2, 0], [0, 0]]"
+# rths fidelity reports the real-time reduction of a sparse model (fidelity_sparse.sh), noting
+# that the frequency form solves the numerical side exactly
+"$bin" fidelity "$work/m/hy.yaml" --out "$work/fid" >"$work/fstdout" 2>&1 ||
+    fail "rths fidelity on a sparse model: $(cat "$work/fstdout")"
+grep -q "numerical_solver is frequency" "$work/fstdout" ||
+    fail "rths fidelity does not note the frequency form: $(cat "$work/fstdout")"
 # the commands that need the dense matrices refuse a sparse model by name, never crash on it
-for cmd in fidelity tune chart; do
+for cmd in tune chart; do
     refused "$cmd" "rths $cmd on a sparse model" "model.solver.*rths $cmd" "$work/m/hy.yaml"
 done
 refused simulate "rths simulate on a sparse model" "model.solver.*rths simulate" "$work/m/hy.yaml" \
