@@ -142,8 +142,8 @@ double rths_setup_compensation_mass(const rths_setup *s, int d, int e);
 const char *rths_interface_mass_name(rths_interface_mass mode);
 
 /* RTHS_EINPUT naming model.solver when s is sparse (setup->sparse): for the commands that need
- * the dense assembly (simulate, chart, fidelity, tune: they read assembly's matrices, NULL on the
- * sparse path); RTHS_OK otherwise. */
+ * the dense assembly (simulate, chart, tune: they read assembly's matrices, NULL on the sparse
+ * path; fidelity takes a sparse model its own way, api_fidelity_sparse.c); RTHS_OK otherwise. */
 int rths_setup_require_dense(const rths_setup *s, const char *command, rths_error *err);
 
 /* Nonlinear elements on the numerical (numerical = 1) or physical (0) side. */

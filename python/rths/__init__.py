@@ -353,7 +353,8 @@ def tune(cfg, delay=None, out=None):
 def fidelity(cfg, out=None):
     """What the numerical substructure's integration scheme does to the hybrid test (rths
     fidelity): result.fidelity (frequency_hz, true_amplitude_m, <scheme>_amplitude_m, equal to the
-    CLI's fidelity.csv), result.summary["curves"][name] with each curve's peak_hz,
+    CLI's fidelity.csv; on a sparse model the real-time reduction's interface FRF error instead,
+    docs/config/fidelity.md), result.summary["curves"][name] with each curve's peak_hz,
     peak_amplitude_m and peak_error_percent, result.text the table the CLI prints. out: also write
     a run folder there."""
     cfg = _config(cfg)
