@@ -127,8 +127,8 @@ int rths_api_tune(const rths_api_config *cfg, double delay_s, const char *out_di
  * numerical substructure against the true assembly, with the fidelity.* keys (docs/method.md,
  * "Numerical substructure integration"). Table "fidelity" (frequency_hz, true_amplitude_m,
  * <scheme>_amplitude_m), equal to the CLI's fidelity.csv (on a sparse model the real-time
- * reduction's interface FRF error instead: docs/config/fidelity.md); the summary's "curves" give each
- * curve's peak_hz, peak_amplitude_m and peak_error_percent; rths_result_text the table the CLI
+ * reduction's interface FRF error instead: docs/config/fidelity.md); the summary's "curves" give
+ * each curve's peak_hz, peak_amplitude_m and peak_error_percent; rths_result_text the table the CLI
  * prints. out_dir as for rths_api_model (also fidelity.gp/.png/.svg there). */
 int rths_api_fidelity(const rths_api_config *cfg, const char *out_dir, rths_result **out,
                       rths_error *err);
