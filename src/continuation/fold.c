@@ -1,5 +1,6 @@
 /* Fold detection and location along the branch (sign change of the frequency component of the
- * secant), and the branch segments between folds. */
+ * secant, confirmed beyond the points' frequency scatter), and the branch segments between folds.
+ */
 #include "continuation/continuation_internal.h"
 
 #include <math.h>
@@ -67,6 +68,40 @@ static int mark_fold(cont_run *run, int e, int n, int notify) {
     return status;
 }
 
+/* The scatter of the points' frequencies (scaled) about the branch near a candidate fold, from
+ * the points first..n: each inner point's offset from the chord through its neighbours in
+ * arclength, r_i = w_i - (w_{i-1} (s_{i+1} - s_i) + w_{i+1} (s_i - s_{i-1})) / (s_{i+1} -
+ * s_{i-1}). For independent frequency errors of standard deviation sigma, var r_i = sigma^2 (1 +
+ * a^2 + b^2) >= 1.5 sigma^2 (a + b = 1); the branch's own curvature only adds to r, so the
+ * estimate errs large. Local, because the frequency's scatter is: the corrector accepts each
+ * point within a noisy mismatch, and where the branch stands vertical (at a fold) that mismatch
+ * is all frequency. Returns 0 with fewer than 3 inner points. */
+static double frequency_scatter(const cont_run *run, int first, int n) {
+    const double *s = run->folds.svals;
+    int count = 0;
+    double sum = 0.0;
+    for (int i = first > 1 ? first : 1; i < n; i++) {
+        double h = s[i + 1] - s[i - 1];
+        if (!(h > 0)) continue;
+        double a = (s[i + 1] - s[i]) / h, b = (s[i] - s[i - 1]) / h;
+        double w_prev = run->pts[i - 1].sol.omega_rad_s, w_next = run->pts[i + 1].sol.omega_rad_s;
+        double off =
+            (run->pts[i].sol.omega_rad_s - (a * w_prev + b * w_next)) / run->sc.omega_scale;
+        sum += off * off;
+        count++;
+    }
+    return count >= 3 ? sqrt(sum / count / 1.5) : 0.0;
+}
+
+/* Points before the extreme whose scatter joins the estimate (with those after it). */
+enum { FOLD_SCATTER_POINTS_BEFORE = 4 };
+
+/* A reversal of the frequency is a fold only when the branch has come back from its extreme by
+ * more than the points' frequency scatter can make: three standard deviations of the difference
+ * of two points' errors. Below that the extreme stays open, and a later point beyond it moves
+ * it on (noise near a vertical fold made the Duffing example report six folds for two). */
+static const double FOLD_REVERSAL_SIGMAS = 3.0;
+
 int cont_fold_track(cont_run *run, int n, int notify) {
     cont_fold_tracker *ft = &run->folds;
     rths_point *pt = &run->pts[n];
@@ -84,11 +119,18 @@ int cont_fold_track(cont_run *run, int n, int notify) {
     double w = pt->sol.omega_rad_s / run->sc.omega_scale;
     double w_ext = run->pts[ft->ext_idx].sol.omega_rad_s / run->sc.omega_scale;
     double margin = 0.05 * fmax(pt->step, run->opt->min_step);
+    if (ft->wdir * (w_ext - w) > margin)
+        margin =
+            fmax(margin, FOLD_REVERSAL_SIGMAS * sqrt(2.0) *
+                             frequency_scatter(run, ft->ext_idx - FOLD_SCATTER_POINTS_BEFORE, n));
     if (ft->wdir * (w - w_ext) > 0) {
         ft->ext_idx = n;
         return RTHS_OK;
     }
-    if (ft->wdir * (w_ext - w) > margin && ft->ext_idx >= 1 && ft->ext_idx < n)
+    /* the point before must be back beyond the margin too: one stray point is not a turn */
+    double w_prev = run->pts[n - 1].sol.omega_rad_s / run->sc.omega_scale;
+    if (ft->wdir * (w_ext - w) > margin && ft->wdir * (w_ext - w_prev) > margin &&
+        ft->ext_idx >= 1 && ft->ext_idx < n - 1)
         return mark_fold(run, ft->ext_idx, n, notify);
     return RTHS_OK;
 }
