@@ -16,9 +16,11 @@ typedef struct cont_scaling {
 int cont_pack(const cont_scaling *sc, const rths_solution *s, double *u);
 
 /* Fold tracker. Correction error makes the frequency jitter where the branch is vertical, so a
- * turn counts only once the frequency has moved back from its extreme by a margin (5 % of the
- * step); the fold is then located on the parabola through the extreme point and its
- * neighbours. The same tracker replays a resumed journal. */
+ * turn counts only once two consecutive points have moved back from its extreme by more than a
+ * margin: 5 % of the step, or 3 sqrt(2) times the points' local frequency scatter about their
+ * neighbours when larger (docs/method.md, "Continuation", Folds); the fold is then located on the
+ * parabola through the extreme point and its neighbours. The same tracker replays a resumed
+ * journal. */
 typedef struct cont_fold_tracker {
     int wdir;    /* direction the frequency currently moves along the branch (+-1, 0: unknown) */
     int ext_idx; /* point of the extreme frequency on the current segment */
