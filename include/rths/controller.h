@@ -146,8 +146,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
                            rths_controller **out, rths_error *err);
 void rths_controller_destroy(rths_controller *c);
 /* The Krylov reduction's band is the sweep widened by this share of its width each side: the
- * continuation accepts points up to continuation.range_margin (0.05 by default) beyond its
- * range. */
+ * continuation accepts points up to its range margin (rths_continuation_options.range_margin,
+ * 0.05 of the range) beyond it. */
 #define RTHS_CONTROLLER_KRYLOV_BAND_MARGIN 0.05
 /* 1 when the step integrates a sparse model's Krylov reduction (setup->sparse, real-time form),
  * its report in *rep (the reduced size is n_boundary + rep->basis); 0 otherwise. */

@@ -116,6 +116,6 @@ int rths_setup_require_dense(const rths_setup *s, const char *command, rths_erro
     return rths_error_set(err, RTHS_EINPUT,
                           "model.solver: this structure takes the sparse path (%d DoFs), and %s "
                           "needs its dense matrices: set model.solver: dense (a model of a few "
-                          "thousand DoFs at most), or use rths frf / rths model",
+                          "thousand DoFs at most), or use rths frf, rths model or rths fidelity",
                           s->assembly.n, command);
 }

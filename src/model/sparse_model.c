@@ -697,9 +697,11 @@ int rths_sparse_frf_direct(rths_sparse_frf *s, double omega_rad_s, double comple
         s->terms[0] = &m->stiffness;
         s->terms[1] = &m->damping;
         s->terms[2] = &m->mass;
-        s->rhs = malloc(sizeof(double complex) * (size_t)m->n);
-        s->cached_x =
-            malloc(sizeof(double complex) * (size_t)(s->n_out > 0 ? s->n_out : 1) * DIRECT_CACHE);
+        /* each only once: a retry after a failure here must not leak the first */
+        if (!s->rhs) s->rhs = malloc(sizeof(double complex) * (size_t)m->n);
+        if (!s->cached_x)
+            s->cached_x = malloc(sizeof(double complex) * (size_t)(s->n_out > 0 ? s->n_out : 1) *
+                                 DIRECT_CACHE);
         if (!s->rhs || !s->cached_x) return rths_error_set(err, RTHS_EFAIL, "out of memory");
         rc =
             rths_sparse_factor_create(3, s->terms, RTHS_SPARSE_ORDER_AUTO, &s->complex_factor, err);

@@ -636,7 +636,7 @@ enum { BRANCH_SCATTER_HALF_WINDOW = 4 };
  * independent errors; the branch's curvature only adds) over the points within the window give
  * sigma, relative; the larger of it and the point's own standard error is reported. */
 static void frf_branch_scatter_floor(frf_state *st) {
-    int n = st->n, dofs = st->setup->split.n_int;
+    int n = st->n, dofs = st->setup->split.n_int, raised = 0;
     double *a = malloc((size_t)(n > 0 ? n : 1) * sizeof *a);
     double *r = malloc((size_t)(n > 0 ? n : 1) * sizeof *r);
     int *ok = malloc((size_t)(n > 0 ? n : 1) * sizeof *ok);
@@ -657,12 +657,27 @@ static void frf_branch_scatter_floor(frf_state *st) {
             double floor_m = a[i] * sqrt(sum / count / 1.5);
             rths_solution *s = &st->pts[i].sol;
             double *se = d < 0 ? &s->amplitude_se_m : &s->dof_amplitude_se_m[d];
-            if (isfinite(*se) && floor_m > *se) *se = floor_m;
+            if (!(isfinite(*se) && floor_m > *se)) continue;
+            *se = floor_m;
+            raised++;
+            /* the accuracy-on-demand flag follows the standard error now reported */
+            double rel = a[i] > 0 ? floor_m / a[i] : INFINITY;
+            if (st->settle.target_rel_se > 0 && rel > st->settle.target_rel_se) {
+                s->eval.se_target_missed = 1;
+                if (!(s->eval.amplitude_rel_se >= rel)) s->eval.amplitude_rel_se = rel;
+            }
         }
     }
     free(a);
     free(r);
     free(ok);
+    /* the journal, the run.log point lines and the callbacks had the corrector's own */
+    if (raised)
+        rths_report_log(st->rep,
+                        "standard errors raised to the branch's local scatter after the run: %d "
+                        "(point, DoF) values in frf.csv and summary.json (docs/method.md, "
+                        "\"Nonlinear elements in the frequency form\")",
+                        raised);
 }
 
 /* split.numerical_solver: frequency with nonlinear elements on the numerical side: the zero
