@@ -143,11 +143,14 @@ static double reported_rel_se(const rths_corrector *c, int *step_dominates, doub
     for (int d = 0; d < dofs; d++) {
         double amp = dofs > 1 ? s->dof_amplitude_m[d] : s->amplitude_m;
         double se = dofs > 1 ? s->dof_amplitude_se_m[d] : s->amplitude_se_m;
-        double rel = amp > 0 ? se / amp : INFINITY;
-        if (!(rel <= worst) || d == 0) {
+        /* a DoF that does not move has no relative error to bound (and an infinite one would
+         * spend the point's budget and reach the journal as a non-number) */
+        if (!(amp > 0) || !isfinite(se)) continue;
+        double rel = se / amp;
+        if (!(rel <= worst)) {
             worst = rel;
             *step_dominates = c->se_step_m[d] > c->se_noise_m[d];
-            *noise_rel = amp > 0 ? c->se_noise_m[d] / amp : INFINITY;
+            *noise_rel = c->se_noise_m[d] / amp;
         }
     }
     return worst;
