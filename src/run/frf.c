@@ -500,11 +500,11 @@ static void log_point(frf_state *st, const rths_point *pt) {
     char how[RTHS_SETTLE_REASON_LEN + 200];
     settle_text(st, pt, how, sizeof how);
     rths_report_log(st->rep,
-                    "point %d accepted: %.6f Hz, amplitude %.6g m +- %.2g (SE), %d evaluations, "
+                    "point %d accepted: %.6f Hz, amplitude %.6g m +- %.2g (SE), %d evaluation%s, "
                     "%.2f s rig%s; %s%s",
                     pt->index, sol->frequency_hz, sol->amplitude_m, sol->amplitude_se_m,
-                    pt->evaluations, pt->rig_time_s, sol->converged ? "" : ", not converged", how,
-                    extra);
+                    pt->evaluations, pt->evaluations == 1 ? "" : "s", pt->rig_time_s,
+                    sol->converged ? "" : ", not converged", how, extra);
 }
 
 /* A multi-site test's sites as run.log and summary.json report them: URI, interface DoFs, rig

@@ -42,7 +42,7 @@ import csv, re, sys
 d = sys.argv[1]
 rows = list(csv.DictReader(open(f"{d}/frf.csv")))
 pat = re.compile(r"point (\d+) accepted: ([0-9.]+) Hz, amplitude ([0-9.e+-]+) m \+- ([0-9.e+-]+) "
-                 r"\(SE\), (\d+) evaluations, ([0-9.]+) s rig")
+                 r"\(SE\), (\d+) evaluations?, ([0-9.]+) s rig")
 lines = [pat.search(l) for l in open(f"{d}/run.log") if " accepted: " in l]
 ok = len(lines) == len(rows) >= 2 and all(lines)
 for m, r in zip(lines, rows) if ok else []:
