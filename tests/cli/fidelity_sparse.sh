@@ -45,22 +45,11 @@ EOF
 "$bin" fidelity "$work/m/rt.yaml" --out "$work/f" >"$work/stdout" 2>"$work/stderr"
 rc=$?
 [ "$rc" -eq 0 ] || { fail "fidelity on the sparse frame: exit $rc"; cat "$work/stderr"; }
-/usr/bin/python3 - "$work/m" "$work/f" <<'PY' || fail "fidelity.csv against numpy's dense solve"
+PYTHONPATH="$src/tests/cli/lib" /usr/bin/python3 - "$work/m" "$work/f" <<'PY' || fail "fidelity.csv against numpy's dense solve"
 import csv, json, sys
 import numpy as np
+from mtx import read_mtx
 m_dir, out = sys.argv[1], sys.argv[2]
-def read_mtx(path):
-    with open(path) as f:
-        line = f.readline()
-        while line.startswith("%"):
-            line = f.readline()
-        n, _, _ = map(int, line.split())
-        data = np.loadtxt(f, ndmin=2)
-    a = np.zeros((n, n))
-    i, j = data[:, 0].astype(int) - 1, data[:, 1].astype(int) - 1
-    np.add.at(a, (i, j), data[:, 2])
-    np.add.at(a, (j, i), np.where(i != j, data[:, 2], 0))
-    return a
 m, c, k = (read_mtx(m_dir + "/" + name + ".mtx")
            for name in ("mass_kg", "damping_n_s_per_m", "stiffness_n_per_m"))
 # the numerical side: every DoF but the specimen's (481, 482), the interface (301) sharing
