@@ -46,13 +46,35 @@ void free(void *p) {
 }
 #endif
 
-static rths_controller *make(rths_setup *s, rths_config **cfg, rths_controller_options *o) {
+static rths_controller *make_with(rths_setup *s, rths_config **cfg, rths_controller_options *o,
+                                  double transition_periods) {
     rths_fixture_seed_setup(NULL, 0, cfg, s);
     rths_controller_defaults(o);
+    o->transition_periods = transition_periods;
     rths_controller *c;
     rths_error err;
     if (rths_controller_create(s, o, &c, &err)) fail_msg("%s", err.msg);
     return c;
+}
+
+/* full amplitude at once (no arming ramp), with the given transition (0: changes at once) */
+static rths_controller *make_unramped(rths_setup *s, rths_config **cfg, rths_controller_options *o,
+                                      double transition_periods) {
+    rths_fixture_seed_setup(NULL, 0, cfg, s);
+    rths_controller_defaults(o);
+    o->ramp_time_s = 0;
+    o->transition_periods = transition_periods;
+    rths_controller *c;
+    rths_error err;
+    if (rths_controller_create(s, o, &c, &err)) fail_msg("%s", err.msg);
+    return c;
+}
+
+/* with the default smooth transitions (controller.transition_periods) */
+static rths_controller *make(rths_setup *s, rths_config **cfg, rths_controller_options *o) {
+    rths_controller_options defaults;
+    rths_controller_defaults(&defaults);
+    return make_with(s, cfg, o, defaults.transition_periods);
 }
 
 /* 100000 steps with forcing, target and period publication allocate nothing. */
@@ -278,7 +300,8 @@ static void test_fourier_sums_exact(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_controller_options o;
-    rths_controller *c = make(&s, &cfg, &o);
+    /* the boundary semantics: a frequency change at once at the next period's start */
+    rths_controller *c = make_with(&s, &cfg, &o, 0);
     const double f = 13.3, h = 1e-4, w = 2 * M_PI * f;
     rths_controller_set_forcing(c, f, 0.0);
     rths_sensor_sample in = {.n = 3};
@@ -345,12 +368,8 @@ static void test_forcing_changes_at_boundary(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_controller_options o;
-    rths_fixture_seed_setup(NULL, 0, &cfg, &s);
-    rths_controller_defaults(&o);
-    o.ramp_time_s = 0; /* full amplitude at once */
-    rths_controller *c;
-    rths_error err;
-    if (rths_controller_create(&s, &o, &c, &err)) fail_msg("%s", err.msg);
+    /* the boundary semantics; test_smooth_transitions has the glide */
+    rths_controller *c = make_unramped(&s, &cfg, &o, 0);
     rths_controller_arm(c, 1);
     rths_controller_set_forcing(c, 10.0, 1.0); /* at rest: starts now */
     rths_sensor_sample in = {.n = 3};
@@ -446,6 +465,7 @@ static void test_pending_forcing_waits_a_bounded_time(void **state) {
     rths_setup s;
     rths_config *cfg;
     rths_controller_options o;
+    /* with the default transitions: an overdue change starts at once all the same */
     rths_controller *c = make(&s, &cfg, &o);
     const double h = 1.0 / o.sample_rate_hz;
     rths_controller_arm(c, 1);
@@ -474,6 +494,104 @@ static void test_pending_forcing_waits_a_bounded_time(void **state) {
         }
     }
     assert_int_equal(n, 2);
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
+/* Largest sample-to-sample change of the target while a new target (2e-3 m cos, 1e-3 m sin,
+ * from 1e-3 m cos) is set mid-period at 10 Hz, over `samples` samples; *theta_after the phase
+ * and *target_after the target at the end. */
+static double largest_target_step(double transition_periods, int samples, double *target_after,
+                                  double *theta_after) {
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    rths_controller *c = make_unramped(&s, &cfg, &o, transition_periods);
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 10.0, 1.0);
+    const double a0[1] = {1e-3}, b0[1] = {0}, a1[1] = {2e-3}, b1[1] = {1e-3};
+    rths_controller_set_target(c, 1, a0, b0);
+    rths_sensor_sample in = {.n = 3};
+    rths_controller_output out;
+    for (int i = 0; i < 5250; i++) /* 5.25 periods: the first target's transition is over */
+        rths_controller_step(c, &in, &out);
+    double last = out.target_m, largest = 0, amp, omega;
+    rths_controller_set_target(c, 1, a1, b1);
+    for (int i = 0; i < samples; i++) {
+        rths_controller_step(c, &in, &out);
+        largest = fmax(largest, fabs(out.target_m - last));
+        last = out.target_m;
+    }
+    *target_after = out.target_m;
+    rths_controller_forcing(c, &amp, theta_after, &omega);
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+    return largest;
+}
+
+/* controller.transition_periods (docs/method.md, "Smooth transitions"). A new target set
+ * mid-period is reached along the smootherstep over the given periods: no sample-to-sample jump
+ * beyond what the sinusoids' own slopes give (2 pi 10 Hz x 2.3e-3 m x 1e-4 s = 1.4e-5 m, plus the
+ * blend's at most 1.875 x 2 x 1.4e-3 m / 0.2 s x 1e-4 s = 2.6e-6 m), where without a transition
+ * the target jumps by the coefficients' change at that phase (about 1e-3 m); once over, the
+ * target is the new one exactly. A forcing change set mid-period waits for the period's end,
+ * with the target set after it, and then both glide, the frequency and amplitude monotonically,
+ * the phase advancing by omega h each sample: the periods after the two of the glide are the new
+ * forcing's exactly (833 samples at 12 Hz), with the new target. */
+static void test_smooth_transitions(void **state) {
+    (void)state;
+    double target, theta;
+    double smooth = largest_target_step(2, 2100, &target, &theta);
+    assert_true(smooth < 1.7e-5);
+    assert_close(target, 2e-3 * cos(theta) + 1e-3 * sin(theta), 1e-15);
+    double abrupt = largest_target_step(0, 2100, &target, &theta);
+    assert_true(abrupt > 5e-4);
+    assert_close(target, 2e-3 * cos(theta) + 1e-3 * sin(theta), 1e-15);
+
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    rths_controller *c = make_unramped(&s, &cfg, &o, 2);
+    rths_controller_arm(c, 1);
+    rths_controller_set_forcing(c, 10.0, 1.0);
+    rths_sensor_sample in = {.n = 3};
+    for (int i = 0; i < 250; i++) /* no target yet: x* = 0 */
+        rths_controller_step(c, &in, NULL);
+    rths_controller_set_forcing(c, 12.0, 2.0);
+    const double a1[1] = {2e-3}, b1[1] = {0};
+    rths_controller_set_target(c, 1, a1, b1); /* waits for the forcing's glide */
+    double amp, omega, prev_omega = 2 * M_PI * 10.0, prev_amp = 1.0, prev_theta;
+    rths_controller_forcing(c, &amp, &prev_theta, &omega);
+    rths_controller_output out;
+    rths_period p;
+    int periods = 0, last_samples = 0;
+    double first_hz = 0;
+    while (periods < 4) {
+        rths_controller_step(c, &in, &out);
+        rths_controller_forcing(c, &amp, &theta, &omega);
+        assert_true(omega >= prev_omega && amp >= prev_amp);
+        /* the phase wraps at each period's end */
+        double advance = theta - prev_theta + (theta < prev_theta ? 2 * M_PI : 0);
+        assert_close(advance, omega * 1e-4, 1e-12);
+        if (periods == 0) { /* until the boundary: the old forcing and target */
+            assert_close(omega, 2 * M_PI * 10.0, 0);
+            assert_close(out.target_m, 0, 0);
+        }
+        while (rths_controller_pop_period(c, &p)) {
+            if (periods++ == 0) first_hz = p.frequency_hz;
+            last_samples = p.samples;
+        }
+        prev_omega = omega, prev_amp = amp, prev_theta = theta;
+    }
+    assert_close(first_hz, 10.0, 0);
+    /* two periods of glide by phase from the boundary, then the new forcing exactly */
+    assert_close(p.frequency_hz, 12.0, 0);
+    assert_true(abs(last_samples - 833) <= 1);
+    assert_close(omega, 2 * M_PI * 12.0, 0);
+    assert_close(out.target_m, 2e-3 * cos(theta), 1e-15);
+    assert_close(amp, 2.0, 0);
     rths_controller_destroy(c);
     rths_setup_free(&s);
     rths_config_free(cfg);
@@ -959,6 +1077,7 @@ int main(void) {
         cmocka_unit_test(test_forcing_changes_at_boundary),
         cmocka_unit_test(test_limits_latch),
         cmocka_unit_test(test_pending_forcing_waits_a_bounded_time),
+        cmocka_unit_test(test_smooth_transitions),
         cmocka_unit_test(test_target_bounded_by_the_limit),
         cmocka_unit_test(test_sample_loop_fault_disarms),
         cmocka_unit_test(test_other_sample_rates_match_truth),

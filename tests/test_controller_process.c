@@ -502,11 +502,13 @@ static void test_watchdog_ramps_to_zero(void **state) {
      * time plus the ramp; controller time, so a lagging loop cannot make this fail. */
     /* With the fault latched the demand is held at exactly zero. The target's oscillating part
      * is gone too; what remains is the step's tracked static offset (the mean of the last whole
-     * period), which may only change at period boundaries: so after zero, the target is
-     * piecewise constant with at most one change per forcing period. The trace is followed for
-     * 0.25 s of controller time past zero (2.5 periods at 10 Hz). */
+     * period), which changes only from one period's boundary to the next, along a smootherstep
+     * over the period (controller.transition_periods; a step without it): monotonic within each
+     * period, so after zero the target turns back at most once per forcing period, where an
+     * oscillation left over would turn twice. The trace is followed for 0.25 s of controller time
+     * past zero (2.5 periods at 10 Hz). */
     const double amp = m_target_a;
-    double t_on = -1, t_zero = -1, t_seen = -1, prev_target = 0;
+    double t_on = -1, t_zero = -1, t_seen = -1, prev_target = 0, last_move = 0;
     int changes = 0;
     double deadline = now_s() + WAIT_S;
     while (t_zero < 0 || t_seen < t_zero + 0.25) {
@@ -520,7 +522,11 @@ static void test_watchdog_ramps_to_zero(void **state) {
             if (t_on >= 0 && x->demand == 0.0 && t_zero < 0) t_zero = x->time_s;
             if (t_zero >= 0 && x->time_s > t_zero) {
                 assert_true(x->demand == 0.0);
-                changes += x->target_m != prev_target;
+                const double move = x->target_m - prev_target;
+                if (move != 0) {
+                    changes += last_move != 0 && (move > 0) != (last_move > 0);
+                    last_move = move;
+                }
             }
             prev_target = x->target_m;
         }

@@ -75,14 +75,21 @@ typedef struct rths_controller_options {
     double ramp_time_s;            /* demand, forcing and target ramp to zero in this time */
     int track_static;              /* target's static term = the measured mean of the last
                                       period (the actuator carries no static load) */
-    double min_frequency_hz;       /* forcing below this is refused by the rigs (a period must end
-                                      in bounded time); 0.1 Hz */
-    double max_pending_s;          /* a forcing change waits for the period boundary at most this
-                                      long; then the open period is dropped unpublished and the new
-                                      forcing starts at phase 0 at once; 1 s */
-    int plant_applies_forcing;     /* 1: forcing on an internal physical DoF is accepted and left
-                                      to the plant (rths_controller_forcing gives its phase);
-                                      0 (default): such a forcing DoF is refused at create */
+    /* controller.transition_periods: a new forcing (frequency and amplitude, gliding from the
+       period boundary where it takes effect) or target is reached along the smootherstep
+       s(u) = u^3 (10 - 15 u + 6 u^2) over this many forcing periods (u by phase), the tracked
+       static term over one period, instead of at once, so modes away from the forcing frequency
+       are hardly excited (docs/method.md, "Smooth transitions"). 0: at once, as the seed paper.
+       Default 3. */
+    double transition_periods;
+    double min_frequency_hz;   /* forcing below this is refused by the rigs (a period must end
+                                  in bounded time); 0.1 Hz */
+    double max_pending_s;      /* a forcing change waits for the period boundary at most this
+                                  long; then the open period is dropped unpublished and the new
+                                  forcing starts at phase 0 at once; 1 s */
+    int plant_applies_forcing; /* 1: forcing on an internal physical DoF is accepted and left
+                                  to the plant (rths_controller_forcing gives its phase);
+                                  0 (default): such a forcing DoF is refused at create */
     /* controller.reduction: a numerical substructure larger than RTHS_REDUCE_FULL_UP_TO DoFs is
        integrated as its Craig-Bampton reduction (reduce.h), at most RTHS_REALTIME_MAX_DOFS */
     rths_reduction_options reduction;
@@ -166,10 +173,13 @@ int rths_controller_numerical_dofs(const rths_controller *c);
  * real-time step"): the per-sample worst case rths_bench step_size reports. */
 int rths_controller_nonlinear_newton_steps(const rths_controller *c);
 
-/* Commands (step thread). Forcing changes (frequency and amplitude) take effect at the next
- * period boundary, so every published period has one forcing; the phase theta is continuous
- * across changes. The first forcing of a controller at rest starts at once. A change that has
- * waited max_pending_s without a boundary drops the open period and starts at phase 0. */
+/* Commands (step thread). Without a transition (transition_periods 0) forcing changes
+ * (frequency and amplitude) take effect at the next period boundary, so every published period
+ * has one forcing, and a change that has waited max_pending_s without a boundary drops the open
+ * period and starts at phase 0; with one, a forcing change glides from the present forcing at
+ * once and the periods it spans are transitional (published with the frequency at their end).
+ * The phase theta is continuous across changes. The first forcing of a controller at rest
+ * starts at once. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);

@@ -54,6 +54,11 @@ typedef struct rths_settle_options {
      * saturated converter sample, or late samples beyond this share, make the evaluation
      * re-measure once; if the re-measurement is corrupted too, the evaluation fails. */
     double max_late_share;
+    /* The periods a change of target or forcing spends in the controller's smooth transition
+     * (controller.transition_periods, rounded up; filled like max_late_share by the caller that
+     * reads the controller's configuration; 0: changes are at once). Those periods are no free
+     * decay: the fit skips them, and the wait does not judge steady state within them. */
+    int transition_periods;
     /* How an evaluation reaches the steady state (docs/method.md, "The fitted evaluation";
      * iteration.settle.strategy): RTHS_SETTLE_WAIT (0, the default) waits for the transient to
      * decay and averages; RTHS_SETTLE_FIT fits the periods since the change as steady state plus

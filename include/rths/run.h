@@ -24,7 +24,7 @@
 /* What the seed's flowchart ("paper" strategy) changes in the configuration besides the iteration
  * defaults: apply these overrides first when loading it (later overrides still win). */
 extern const char *const rths_run_paper_overrides[];
-enum { RTHS_RUN_PAPER_OVERRIDES = 2 };
+enum { RTHS_RUN_PAPER_OVERRIDES = 3 };
 
 typedef struct rths_run_frf_options {
     rths_config *cfg;        /* loaded (with overrides); the run reads its sections from it */

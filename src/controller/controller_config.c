@@ -144,6 +144,9 @@ int rths_controller_config_read(rths_config *cfg, rths_controller_options *opt, 
                                      1e-3, 1e3, &opt->min_frequency_hz, err)) ||
         (rc = rths_config_get_double(cfg, "controller.max_pending_s", 0, opt->max_pending_s, 0,
                                      3600, &opt->max_pending_s, err)) ||
+        (rc = rths_config_get_double(cfg, "controller.transition_periods", 0,
+                                     opt->transition_periods, 0, 100, &opt->transition_periods,
+                                     err)) ||
         (rc = rths_config_get_double(cfg, "controller.max_overrun_share", 0, opt->max_overrun_share,
                                      0, 1, &opt->max_overrun_share, err)) ||
         (rc = gains_per_dof(cfg, "controller.kp_per_dof", opt->kp_dof_v_per_m, err)) ||

@@ -108,6 +108,19 @@ struct rths_controller {
     double pending_since_s; /* controller time of the oldest pending change */
     int harmonics;
     double target_a[MAX_IFACE][RTHS_MAX_HARMONICS], target_b[MAX_IFACE][RTHS_MAX_HARMONICS];
+    /* Smooth transitions (controller.transition_periods > 0; docs/method.md, "Smooth
+     * transitions"): each change is reached along s(u) = smootherstep, u the phase advanced since
+     * it began over that of transition_periods periods (1: none under way). The forcing's
+     * frequency and amplitude glide from glide_*_from from a period boundary, so every site of a
+     * multi-site test glides alike; the target's coefficients move from from_* (what was applied
+     * when it changed, over from_harmonics harmonics) at the rate target_s_rate = ds/dt, from
+     * the glide's start when a forcing change is pending (target_waits), else at once; the static
+     * term moves over one period. */
+    double from_a[MAX_IFACE][RTHS_MAX_HARMONICS], from_b[MAX_IFACE][RTHS_MAX_HARMONICS];
+    double target_u, target_s, target_s_rate;
+    int from_harmonics, target_waits, gliding;
+    double glide_u, glide_omega_from, glide_omega_to, glide_amplitude_from, glide_amplitude_to;
+    double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -180,6 +193,7 @@ void rths_controller_defaults(rths_controller_options *opt) {
     opt->force_limit_n = 500.0;
     opt->ramp_time_s = 0.1;
     opt->track_static = 1;
+    opt->transition_periods = 3;
     opt->min_frequency_hz = 0.1;
     opt->max_pending_s = 1.0;
     opt->plant_applies_forcing = 0;
@@ -671,6 +685,7 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     c->velocity_alpha =
         opt->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * opt->velocity_cutoff_hz * c->h) : 0.0;
     c->harmonics = 1;
+    c->target_u = c->glide_u = c->static_u = 1; /* no transition under way */
     rths_spsc_init(&c->ring, c->ring_storage, RING_CAPACITY, sizeof(rths_period));
     atomic_init(&c->dropped, 0);
     *out = c;
@@ -681,9 +696,15 @@ void rths_controller_destroy(rths_controller *c) {
     free(c);
 }
 
+static void start_glide(rths_controller *c, double omega_to, double amplitude_to);
+
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
     double w = 2 * M_PI * frequency_hz;
-    if (c->omega == 0) {
+    if (c->omega > 0 && c->opt.transition_periods > 0 && c->at_boundary) {
+        /* the last sample closed a period: the glide starts from that boundary */
+        start_glide(c, w, amplitude_n);
+        c->pending_forcing = 0;
+    } else if (c->omega == 0) {
         /* nothing running yet: start now */
         c->omega = w;
         c->amplitude_n = amplitude_n;
@@ -707,6 +728,21 @@ void rths_controller_set_target_dofs(rths_controller *c, int dofs, int harmonics
                                      const double *b) {
     if (harmonics < 0) harmonics = 0;
     if (harmonics > RTHS_MAX_HARMONICS) harmonics = RTHS_MAX_HARMONICS;
+    if (c->opt.transition_periods > 0) {
+        /* from what is applied now (a transition under way included) */
+        const double s = c->target_u < 1 ? c->target_s : 1.0;
+        for (int d = 0; d < MAX_IFACE; d++)
+            for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
+                c->from_a[d][k] += s * (c->target_a[d][k] - c->from_a[d][k]);
+                c->from_b[d][k] += s * (c->target_b[d][k] - c->from_b[d][k]);
+            }
+        const int applied =
+            c->target_u < 1 && c->from_harmonics > c->harmonics ? c->from_harmonics : c->harmonics;
+        c->from_harmonics = applied > harmonics ? applied : harmonics;
+        c->target_u = 0;
+        c->target_s = c->target_s_rate = 0;
+        c->target_waits = c->pending_forcing; /* moves with the forcing's glide */
+    }
     c->harmonics = harmonics;
     for (int d = 0; d < MAX_IFACE; d++)
         for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
@@ -852,8 +888,68 @@ static void start_overdue_forcing(rths_controller *c) {
     c->omega = c->pending_omega;
     c->amplitude_n = c->pending_amplitude;
     c->pending_forcing = 0;
+    c->gliding = 0;
+    c->target_waits = 0; /* a target change waiting for the glide moves from now */
     set_phase(c, 0.0);
     clear_sums(c);
+}
+
+/* The smootherstep: s(0) = 0, s(1) = 1, its first and second derivatives zero at both ends, so
+ * a transition's envelope is smooth to the second derivative and its spectrum falls off as the
+ * fourth power of frequency times length (docs/method.md, "Smooth transitions"). */
+static double smootherstep(double u) {
+    return u * u * u * (10 + u * (-15 + 6 * u));
+}
+
+/* A glide to omega_to, amplitude_to from the present forcing, begun at the open period's start:
+ * its progress is the phase since then, so controllers that glide from the same boundary stay
+ * in step sample by sample. A target change waiting for it moves with it. */
+static void start_glide(rths_controller *c, double omega_to, double amplitude_to) {
+    c->glide_omega_from = c->omega;
+    c->glide_amplitude_from = c->amplitude_n;
+    c->glide_omega_to = omega_to;
+    c->glide_amplitude_to = amplitude_to;
+    c->glide_u = c->theta / (2 * M_PI * c->opt.transition_periods);
+    c->gliding = 1;
+    if (c->target_waits) {
+        c->target_waits = 0;
+        c->target_u = c->glide_u;
+    }
+}
+
+/* One sample of every transition under way (arithmetic only; the rotor follows the gliding
+ * omega in the step). Progress is by phase: the omega this sample advances theta by, over the
+ * phase of transition_periods periods (the static term's: one period). */
+static void advance_transitions(rths_controller *c) {
+    const double per_rad = 1 / (2 * M_PI * c->opt.transition_periods);
+    if (c->gliding) {
+        if (c->glide_u >= 1) { /* exactly the new forcing from here on */
+            c->omega = c->glide_omega_to;
+            c->amplitude_n = c->glide_amplitude_to;
+            c->gliding = 0;
+        } else {
+            const double s = smootherstep(c->glide_u);
+            c->omega = c->glide_omega_from + s * (c->glide_omega_to - c->glide_omega_from);
+            c->amplitude_n =
+                c->glide_amplitude_from + s * (c->glide_amplitude_to - c->glide_amplitude_from);
+            c->glide_u += c->omega * c->h * per_rad;
+        }
+    }
+    if (c->target_u < 1 && !c->target_waits) {
+        const double du = c->omega * c->h * per_rad, u = c->target_u;
+        c->target_s = smootherstep(u);
+        c->target_s_rate = 30 * u * u * (1 - u) * (1 - u) * du / c->h;
+        c->target_u = u + du;
+    }
+    if (c->static_u < 1) {
+        const double s = smootherstep(c->static_u);
+        for (int d = 0; d < c->ni; d++)
+            c->static_offset[d] = c->static_from[d] + s * (c->static_to[d] - c->static_from[d]);
+        c->static_u += c->omega * c->h / (2 * M_PI);
+        if (c->static_u >= 1)
+            for (int d = 0; d < c->ni; d++)
+                c->static_offset[d] = c->static_to[d];
+    }
 }
 
 /* x* stays within the displacement limit: a target beyond it (refused by the rigs) or a ramp
@@ -1174,10 +1270,22 @@ static void control_target(const rths_controller *c, int d, const harmonic_table
         return;
     }
     double t = 0, t_dot = 0; /* at theta1: cos/sin of k theta1 from the sample's ends */
-    for (int k = 1; k <= c->harmonics; k++) {
-        const double ck = he->cs[2 * k - 2], sk = he->cs[2 * k - 1];
-        t += c->target_a[d][k - 1] * ck + c->target_b[d][k - 1] * sk;
-        t_dot += k * c->omega * (-c->target_a[d][k - 1] * sk + c->target_b[d][k - 1] * ck);
+    if (c->target_u < 1) {
+        const double s = c->target_s, s_rate = c->target_s_rate;
+        for (int k = 1; k <= c->from_harmonics; k++) {
+            const double ck = he->cs[2 * k - 2], sk = he->cs[2 * k - 1];
+            const double da = c->target_a[d][k - 1] - c->from_a[d][k - 1],
+                         db = c->target_b[d][k - 1] - c->from_b[d][k - 1];
+            const double a = c->from_a[d][k - 1] + s * da, b = c->from_b[d][k - 1] + s * db;
+            t += a * ck + b * sk;
+            t_dot += k * c->omega * (-a * sk + b * ck) + s_rate * (da * ck + db * sk);
+        }
+    } else {
+        for (int k = 1; k <= c->harmonics; k++) {
+            const double ck = he->cs[2 * k - 2], sk = he->cs[2 * k - 1];
+            t += c->target_a[d][k - 1] * ck + c->target_b[d][k - 1] * sk;
+            t_dot += k * c->omega * (-c->target_a[d][k - 1] * sk + c->target_b[d][k - 1] * ck);
+        }
     }
     t *= c->ramp;
     t_dot *= c->ramp;
@@ -1270,10 +1378,19 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
                        c->y_out_prev);
     accumulate_signals(c, &at_zero, w_end, yb, yb_out);
     c->period_samples++;
-    for (int d = 0; d < c->ni; d++)
-        c->static_offset[d] = c->acc_phys[d].mean;
+    if (c->opt.transition_periods > 0) {
+        for (int d = 0; d < c->ni; d++) {
+            c->static_from[d] = c->static_offset[d];
+            c->static_to[d] = c->acc_phys[d].mean;
+        }
+        c->static_u = 0;
+    } else {
+        for (int d = 0; d < c->ni; d++)
+            c->static_offset[d] = c->acc_phys[d].mean;
+    }
     publish(c, c->time_s - (1 - alpha) * c->h);
-    if (c->pending_forcing) {
+    const int glide = c->pending_forcing && c->opt.transition_periods > 0;
+    if (c->pending_forcing && !glide) {
         c->omega = c->pending_omega;
         c->amplitude_n = c->pending_amplitude;
         c->pending_forcing = 0;
@@ -1282,6 +1399,10 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
     const double rest = theta1 - two_pi;
     accumulate_signals(c, &at_zero, rest / two_pi, yb, yb_out);
     set_phase(c, rest);
+    if (glide) {
+        start_glide(c, c->pending_omega, c->pending_amplitude);
+        c->pending_forcing = 0;
+    }
     c->left_weight = rest / two_pi;
     c->at_boundary = 1;
 }
@@ -1328,9 +1449,11 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     measured m;
     read_sensors(c, in, &m);
     start_overdue_forcing(c);
+    advance_transitions(c);
     /* phase of this sample: both ends of its interval, the end by one rotation */
     const double theta0 = c->theta, theta1 = theta0 + c->omega * c->h;
-    if (c->omega != c->rotor_omega) { /* a new frequency: once per change, not per sample */
+    if (c->omega !=
+        c->rotor_omega) { /* a new frequency: once per change (each sample of a glide) */
         c->rotor_omega = c->omega;
         c->cos_step = cos(c->omega * c->h), c->sin_step = sin(c->omega * c->h);
     }
@@ -1338,7 +1461,8 @@ double rths_controller_step(rths_controller *c, const rths_sensor_sample *in,
     const double cos1 = cos0 * c->cos_step - sin0 * c->sin_step,
                  sin1 = sin0 * c->cos_step + cos0 * c->sin_step;
     /* a sample past the period boundary belongs to the next period: its forcing amplitude */
-    if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI)
+    if (c->pending_forcing && c->omega > 0 && theta1 >= 2 * M_PI &&
+        !(c->opt.transition_periods > 0))
         c->amplitude_n = c->pending_amplitude;
     c->forcing_now = c->ramp * c->amplitude_n;
     double u[MAX_INPUTS], f_interface[MAX_IFACE];

@@ -104,9 +104,13 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, const rths
     }
     int window = opt->min_wait_periods < STATIONARY_MAX_WINDOW ? opt->min_wait_periods
                                                                : STATIONARY_MAX_WINDOW;
+    /* steady state is judged from two changes after the controller's transition at the least */
+    const int min_wait = opt->min_wait_periods > opt->transition_periods + 3
+                             ? opt->min_wait_periods
+                             : opt->transition_periods + 3;
     double change_sq[2 * STATIONARY_MAX_WINDOW];
     int changes = 0;
-    while (*waited < opt->max_wait_periods) {
+    while (*waited < opt->max_wait_periods + opt->transition_periods) {
         if ((rc = rths_rig_run_periods(rig, 1, &p, err))) return rc;
         count_period(cnt, &p);
         (*waited)++;
@@ -137,7 +141,7 @@ static int wait_steady(rths_rig *rig, const rths_settle_options *opt, const rths
             } else {
                 remaining = INFINITY;
             }
-            if (*waited >= opt->min_wait_periods && (remaining < threshold || floor_reached)) {
+            if (*waited >= min_wait && (remaining < threshold || floor_reached)) {
                 *steady = 1;
                 break;
             }
@@ -542,6 +546,9 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
     int margin =
         opt->fit_residual_margin > 0 ? opt->fit_residual_margin : RTHS_SETTLE_FIT_RESIDUAL_MARGIN;
     if (cap < FIT_SKIP_PERIODS + min_periods + 1) cap = FIT_SKIP_PERIODS + min_periods + 1;
+    /* the controller's transition is not a free decay: skipped, and not counted against the cap */
+    const int transition = opt->transition_periods > 0 ? opt->transition_periods : 0;
+    cap += transition;
     rths_period *rec = malloc(sizeof(rths_period) * (size_t)cap);
     int m = 4 * harmonics * dofs, rc = RTHS_OK, have_prev = 0;
     double *y = malloc(sizeof(double) * (size_t)m * cap);
@@ -569,6 +576,7 @@ static int fit_evaluation(rths_rig *rig, const rths_settle_options *opt, rths_no
          * terms right after the change (the numerical side's own ringing) need many poles and
          * are gone a few periods later, while the slow ones stay in the rest */
         int skip = count / 4 > FIT_SKIP_PERIODS ? count / 4 : FIT_SKIP_PERIODS;
+        if (skip < transition) skip = transition;
         int K = count - skip;
         if (K < min_periods) continue;
         const rths_period *first = &rec[skip];

@@ -23,6 +23,7 @@
 
 /* The seed's implicit Euler numerical substructure and its grounding damping (Table 2). */
 const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_euler",
+                                                "controller.transition_periods=0",
                                                 "controller.grounding_kd_n_s_per_m=200", NULL};
 
 /* A private status the point handler returns to end the continuation on cancellation. */

@@ -161,6 +161,7 @@ int frf_plan_within_limits(frf_state *st, rths_error *err) {
     /* the share of late samples an evaluation may hold: the controller's key, enforced by the
      * host's evaluations (the virtual rig runs on a simulated clock and has none) */
     st->settle.max_late_share = copt.max_overrun_share;
+    st->settle.transition_periods = (int)ceil(copt.transition_periods);
     /* the peak within the run's own range; every harmonic adds to the displacement */
     double f_lo = fmin(st->cont.start_hz, st->cont.end_hz),
            f_hi = fmax(st->cont.start_hz, st->cont.end_hz), peak = 0, peak_hz = 0;
