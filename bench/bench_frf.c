@@ -1,18 +1,20 @@
-/* `paper` vs `default` strategy, and `default` with the fitted evaluation
- * (iteration.settle.strategy: fit, docs/method.md "The fitted evaluation"), same rig and tolerance,
- * on the linear example (12-14 Hz, p = 0.5) and the bilinear example (3 N, through both folds),
- * each with the default sensor noise and with the laboratory preset (rig.noise: lab): evaluations
- * and rig seconds per point, wall seconds for the curve, the largest error against the truth (the
- * analytic FRF; the shooting solution in the demo's (10 ln f, ln A) measure) and the share of
- * points within 3 standard errors of the truth at their frequency on their branch (those farther
- * than 5 mHz from a fold). Goal: default needs at most a third of paper's rig time per point, at
- * equal or better accuracy; under lab noise at most 3 evaluations per point (median). The
+/* `paper` vs `default` strategy, `default` with the controller's changes at once
+ * (controller.transition_periods: 0, docs/method.md "Smooth transitions") and `default` with the
+ * fitted evaluation (iteration.settle.strategy: fit, "The fitted evaluation"), same rig and
+ * tolerance, on the linear example (12-14 Hz, p = 0.5) and the bilinear example (3 N, through both
+ * folds), each with the default sensor noise and with the laboratory preset (rig.noise: lab):
+ * evaluations and rig seconds per point, wall seconds for the curve, the largest error against the
+ * truth (the analytic FRF; the shooting solution in the demo's (10 ln f, ln A) measure) and the
+ * share of points within 3 standard errors of the truth at their frequency on their branch (those
+ * farther than 5 mHz from a fold). Goal: default needs at most a third of paper's rig time per
+ * point, at equal or better accuracy; under lab noise at most 3 evaluations per point (median). The
  * two-interface example (two shakers, 4 unknowns per point): default at most 2 evaluations per
  * point (median) with the default noise. */
 #include "rths/run.h"
 #include "rths/truth.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -70,8 +72,9 @@ static void summarise(const collected *c, const rths_run_frf_result *r, outcome 
 }
 
 /* One whole test of an example through rths_run_frf (as rths frf runs it) into a scratch folder;
- * strategy 0 paper, 1 default, 2 default with the fitted evaluation. */
-enum { STRATEGIES = 3 };
+ * strategy 0 paper, 1 default with changes at once, 2 default, 3 default with the fitted
+ * evaluation. */
+enum { STRATEGIES = 4 };
 static int run(const char *example, int strategy, int lab, outcome *o) {
     int paper = strategy == 0;
     const char *dir = getenv("RTHS_SOURCE_DIR");
@@ -82,7 +85,8 @@ static int run(const char *example, int strategy, int lab, outcome *o) {
     for (int i = 0; paper && i < RTHS_RUN_PAPER_OVERRIDES; i++)
         overrides[n_overrides++] = rths_run_paper_overrides[i];
     if (lab) overrides[n_overrides++] = "rig.noise=lab";
-    if (strategy == 2) overrides[n_overrides++] = "iteration.settle.strategy=fit";
+    if (strategy == 1) overrides[n_overrides++] = "controller.transition_periods=0";
+    if (strategy == 3) overrides[n_overrides++] = "iteration.settle.strategy=fit";
     rths_config *cfg;
     rths_setup s;
     rths_error err;
@@ -121,26 +125,43 @@ static int run(const char *example, int strategy, int lab, outcome *o) {
     return rc;
 }
 
+/* One row: the four strategies' values and the default's over changes at once ("def/once"). */
+static void print_row(const char *what, const char *fmt, const outcome *o, size_t offset,
+                      int ratio) {
+    char cell[32];
+    printf("%-34s", what);
+    for (int i = 0; i < STRATEGIES; i++) {
+        double v = *(const double *)((const char *)&o[i] + offset);
+        snprintf(cell, sizeof cell, fmt, v);
+        printf(" %12s", cell);
+    }
+    if (ratio) {
+        double a = *(const double *)((const char *)&o[1] + offset),
+               b = *(const double *)((const char *)&o[2] + offset);
+        printf(" %10.2f", b / a);
+    }
+    printf("\n");
+}
+
 static void print_table(const char *title, const outcome *o) {
     printf("\n%s\n", title);
-    printf("%-34s %12s %12s %12s %10s\n", "", "paper", "default", "fit", "fit/def");
-    printf("%-34s %12d %12d %12d\n", "points", o[0].points, o[1].points, o[2].points);
-    printf("%-34s %12.1f %12.1f %12.1f %10.2f\n", "evaluations per point, median",
-           o[0].median_evals, o[1].median_evals, o[2].median_evals,
-           o[2].median_evals / o[1].median_evals);
-    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "evaluations per point, mean", o[0].mean_evals,
-           o[1].mean_evals, o[2].mean_evals, o[2].mean_evals / o[1].mean_evals);
-    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "rig seconds per point", o[0].rig_per_point,
-           o[1].rig_per_point, o[2].rig_per_point, o[2].rig_per_point / o[1].rig_per_point);
-    printf("%-34s %12.1f %12.1f %12.1f %10.2f\n", "forcing periods per point",
-           o[0].periods_per_point, o[1].periods_per_point, o[2].periods_per_point,
-           o[2].periods_per_point / o[1].periods_per_point);
-    printf("%-34s %12.2f %12.2f %12.2f %10.2f\n", "wall seconds, continuation", o[0].wall,
-           o[1].wall, o[2].wall, o[2].wall / o[1].wall);
-    printf("%-34s %11.3f%% %11.3f%% %11.3f%%\n", "max error vs truth", 100 * o[0].max_error,
-           100 * o[1].max_error, 100 * o[2].max_error);
-    printf("%-34s %11.1f%% %11.1f%% %11.1f%%\n", "within 3 SE (> 5 mHz from folds)",
-           100 * o[0].within_3se, 100 * o[1].within_3se, 100 * o[2].within_3se);
+    printf("%-34s %12s %12s %12s %12s %10s\n", "", "paper", "at once", "default", "fit",
+           "def/once");
+    printf("%-34s %12d %12d %12d %12d\n", "points", o[0].points, o[1].points, o[2].points,
+           o[3].points);
+    print_row("evaluations per point, median", "%.1f", o, offsetof(outcome, median_evals), 1);
+    print_row("evaluations per point, mean", "%.2f", o, offsetof(outcome, mean_evals), 1);
+    print_row("rig seconds per point", "%.2f", o, offsetof(outcome, rig_per_point), 1);
+    print_row("forcing periods per point", "%.1f", o, offsetof(outcome, periods_per_point), 1);
+    print_row("wall seconds, continuation", "%.2f", o, offsetof(outcome, wall), 1);
+    outcome pct[STRATEGIES];
+    for (int i = 0; i < STRATEGIES; i++) {
+        pct[i] = o[i];
+        pct[i].max_error *= 100;
+        pct[i].within_3se *= 100;
+    }
+    print_row("max error vs truth", "%.3f%%", pct, offsetof(outcome, max_error), 0);
+    print_row("within 3 SE (> 5 mHz from folds)", "%.1f%%", pct, offsetof(outcome, within_3se), 0);
 }
 
 void rths_bench_frf(void) {
