@@ -38,6 +38,10 @@ typedef struct rths_continuation_options {
     /* 1: the branch has no folds (a linear structure): a correction that moves the frequency
      * back is a failure (retried with a shorter step), not a turn of the branch */
     int monotonic;
+    /* Optional: one line per failed correction (where, how many in a row, why, and what the run
+     * does next), for the caller's log (rths frf: run.log) */
+    void (*note)(void *user, const char *line);
+    void *note_user;
 } rths_continuation_options;
 
 typedef struct rths_point {

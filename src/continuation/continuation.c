@@ -207,6 +207,15 @@ static void append_cause(cont_run *run) {
              "; the cause (%d of the last %d failed corrections): %s", best_count, m, msg);
 }
 
+/* The caller's line on a failed correction: where, how many in a row, why, what follows. */
+static void note_failure(const cont_run *run, double omega, const char *why, const char *next) {
+    if (!run->opt->note) return;
+    char line[1024];
+    snprintf(line, sizeof line, "correction failed near %.6g Hz (%d in a row): %s; %s",
+             omega / (2 * M_PI), run->consecutive, why, next);
+    run->opt->note(run->opt->note_user, line);
+}
+
 /* A failed correction: charged to the next point, retried with a smaller step (the first point
  * from the corrector's last iterate). Returns 1 when the run must stop. */
 static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error *err) {
@@ -226,11 +235,15 @@ static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error
                  sol->omega_rad_s / (2 * M_PI));
         append_cause(run);
         res->stopped_short = 1;
+        note_failure(run, sol->omega_rad_s, err->msg, "the run stops");
         return 1;
     }
     /* a carried Jacobian that misled the corrector is dropped, so the retry starts fresh */
     rths_corrector_forget_jacobian(run->corr);
     if (run->n == 0) {
+        note_failure(run, sol->omega_rad_s, err->msg,
+                     "the first point is tried again from the corrector's last iterate, with a "
+                     "fresh Jacobian");
         int N = run->harmonics;
         for (int k = 0; k < N; k++)
             if (isfinite(sol->target_a[k]) && isfinite(sol->target_b[k])) {
@@ -245,8 +258,12 @@ static int on_failure(cont_run *run, const cont_prediction *pr, const rths_error
                  sol->omega_rad_s / (2 * M_PI));
         append_cause(run);
         res->stopped_short = 1;
+        note_failure(run, sol->omega_rad_s, err->msg,
+                     "the step fell below its minimum and the run stops");
         return 1;
     }
+    note_failure(run, sol->omega_rad_s, err->msg,
+                 "retried with a shorter step and a fresh Jacobian");
     return 0;
 }
 

@@ -57,8 +57,9 @@ static int check_sweep_range(frf_state *st, rths_error *err) {
 
 /* Strategy defaults, then the iteration, continuation and output sections over them. */
 /* The evaluation's notes (a fitted steady state falling back to waiting, a standard-error target
- * missed: docs/method.md, "The fitted evaluation") go to run.log once it is open. */
-static void settle_note(void *user, const char *line) {
+ * missed: docs/method.md, "The fitted evaluation") and the continuation's (a failed correction)
+ * go to run.log once it is open. */
+static void run_log_note(void *user, const char *line) {
     frf_state *st = user;
     if (st->rep) rths_report_log(st->rep, "%s", line);
 }
@@ -84,12 +85,14 @@ static int read_options(frf_state *st, rths_error *err) {
     rths_continuation_defaults(&st->cont);
     st->cont.model_predictor = !st->paper;
     int rc = rths_iterate_config_read(opt->cfg, &st->settle, &st->newton, &st->harmonics, err);
-    st->settle.note = settle_note;
+    st->settle.note = run_log_note;
     st->settle.note_user = st;
     /* --force also accepts a point below the measured noise floor, flagged in frf.csv */
     st->newton.accept_below_noise = opt->force;
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
+    st->cont.note = run_log_note;
+    st->cont.note_user = st;
     if (!rc) rc = check_sweep_range(st, err);
     /* the virtual rig of a linear structure has a branch without folds (a real rig's physical
      * part may be nonlinear whatever the model says) */

@@ -7,6 +7,7 @@
 #    run exits 130 and run.log ends with "stopped by the user (exit 130)".
 # 2. Each line's numbers are those of frf.csv's row (frequency to 1e-6 Hz, amplitude and SE to
 #    the 6 and 2 digits printed, evaluations and rig time to the 0.01 s printed).
+# 3. Each failed correction has a line (below).
 set -u
 bin=$1
 src=$2
@@ -55,5 +56,18 @@ for m, r in zip(lines, rows) if ok else []:
 print(f"{len(lines)} point lines for {len(rows)} rows")
 sys.exit(0 if ok else 1)
 PY
-[ "$failures" -eq 0 ] && echo "ok   run.log: a line per accepted point as it is accepted; Ctrl-C says exit 130"
+# 3. A failed correction says where, why and what follows: with one iteration allowed
+#    (noise off, natural sweep) the first point fails once (retried from the corrector's last
+#    iterate) and the second once (retried with a shorter step), as many lines as summary.json's
+#    failed_corrections.
+"$bin" frf "$cfg" --out "$work/f" --quiet "${run[@]}" --set iteration.max_iterations=1 \
+    --set continuation.method=natural 2>"$work/f.err" || fail "one iteration: $(cat "$work/f.err")"
+grep -q "correction failed near 12.6 Hz (1 in a row): corrector did not converge at 12.6 Hz: .*; the first point is tried again" "$work/f/run.log" ||
+    fail "run.log lacks the first point's failed correction: $(grep -i fail "$work/f/run.log")"
+grep -q "correction failed near 12.65 Hz (1 in a row): .*; retried with a shorter step" "$work/f/run.log" ||
+    fail "run.log lacks the second point's failed correction: $(grep -i fail "$work/f/run.log")"
+failed=$(sed -n 's/^ *"failed_corrections": *\([0-9]*\),*$/\1/p' "$work/f/summary.json")
+[ "$(grep -c "correction failed near" "$work/f/run.log")" = "$failed" ] ||
+    fail "$(grep -c "correction failed near" "$work/f/run.log") lines for $failed failed corrections"
+[ "$failures" -eq 0 ] && echo "ok   run.log: a line per accepted point as it is accepted; Ctrl-C says exit 130; a line per failed correction"
 exit $((failures > 0))
