@@ -176,8 +176,9 @@ int rths_controller_nonlinear_newton_steps(const rths_controller *c);
 /* Commands (step thread). Without a transition (transition_periods 0) forcing changes
  * (frequency and amplitude) take effect at the next period boundary, so every published period
  * has one forcing, and a change that has waited max_pending_s without a boundary drops the open
- * period and starts at phase 0; with one, a forcing change glides from the present forcing at
- * once and the periods it spans are transitional (published with the frequency at their end).
+ * period and starts at phase 0; with one, a forcing change glides from the present forcing,
+ * from the next period boundary (at once when the last sample closed a period), and the periods
+ * it spans are transitional (published with the frequency at their end).
  * The phase theta is continuous across changes. The first forcing of a controller at rest
  * starts at once. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);

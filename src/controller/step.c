@@ -121,6 +121,7 @@ struct rths_controller {
     int from_harmonics, target_waits, gliding;
     double glide_u, glide_omega_from, glide_omega_to, glide_amplitude_from, glide_amplitude_to;
     double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
+    double transition_per_rad; /* 1 / (2 pi transition_periods), set at create; 0 without */
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -686,6 +687,8 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
         opt->velocity_cutoff_hz > 0 ? exp(-2 * M_PI * opt->velocity_cutoff_hz * c->h) : 0.0;
     c->harmonics = 1;
     c->target_u = c->glide_u = c->static_u = 1; /* no transition under way */
+    c->transition_per_rad =
+        opt->transition_periods > 0 ? 1 / (2 * M_PI * opt->transition_periods) : 0;
     rths_spsc_init(&c->ring, c->ring_storage, RING_CAPACITY, sizeof(rths_period));
     atomic_init(&c->dropped, 0);
     *out = c;
@@ -921,7 +924,7 @@ static void start_glide(rths_controller *c, double omega_to, double amplitude_to
  * omega in the step). Progress is by phase: the omega this sample advances theta by, over the
  * phase of transition_periods periods (the static term's: one period). */
 static void advance_transitions(rths_controller *c) {
-    const double per_rad = 1 / (2 * M_PI * c->opt.transition_periods);
+    const double per_rad = c->transition_per_rad;
     if (c->gliding) {
         if (c->glide_u >= 1) { /* exactly the new forcing from here on */
             c->omega = c->glide_omega_to;

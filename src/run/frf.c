@@ -25,6 +25,11 @@
 const char *const rths_run_paper_overrides[] = {"controller.scheme=implicit_euler",
                                                 "controller.transition_periods=0",
                                                 "controller.grounding_kd_n_s_per_m=200", NULL};
+/* the count run.h gives its users (array sizes, loops) is this list's: a third override once went
+ * unapplied while the count still said 2 */
+_Static_assert(sizeof rths_run_paper_overrides / sizeof rths_run_paper_overrides[0] ==
+                   RTHS_RUN_PAPER_OVERRIDES + 1,
+               "RTHS_RUN_PAPER_OVERRIDES must count rths_run_paper_overrides");
 
 /* A private status the point handler returns to end the continuation on cancellation. */
 enum { FRF_CANCELLED = 100 };

@@ -34,14 +34,10 @@ grep -q 'iteration.settle.fit_residual_margin' "$work/bad_margin.txt" \
 "$bin" frf "$cfg" --out "$work/four" "${opts[@]}" --set iteration.settle.fit_min_periods=4 \
     >"$work/f.txt" 2>&1 || fail "fit_min_periods=4: $(cat "$work/f.txt")"
 
-python3 - "$work" <<'PY' || fail "least record (above)"
+PYTHONPATH="$src/tests/cli/lib" python3 - "$work" <<'PY' || fail "least record (above)"
 import csv, json, sys
+from checks import check, exit_status
 w = sys.argv[1]
-ok = True
-def check(cond, what):
-    global ok
-    print(("ok:    " if cond else "WRONG: ") + what)
-    ok = ok and cond
 least, rig = {}, {}
 for run in ("eight", "four"):
     points = [json.loads(l) for l in open(f"{w}/{run}/journal.jsonl")][1:]
@@ -55,5 +51,5 @@ for run in ("eight", "four"):
 check(least["eight"] >= 13, "default: every accepted evaluation read at least 13 periods")
 check(least["four"] < 13, "fit_min_periods=4: an accepted evaluation read fewer than 13")
 check(rig["four"] < rig["eight"], "fit_min_periods=4: less rig time")
-sys.exit(0 if ok else 1)
+sys.exit(exit_status())
 PY

@@ -10,18 +10,12 @@
 set -u
 bin=$1
 src=$2
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
-fail() { echo "FAIL: $*"; exit 1; }
+. "$src/tests/cli/lib/common.sh"
 cfg="$src/examples/cantilever_two_shakers.yaml"
 opts=(--quiet --set rig.noise=off --set continuation.start_hz=2.96 --set continuation.end_hz=3.04)
 
-"$bin" frf "$cfg" --out "$work/bad" "${opts[@]}" --set controller.transition_periods=-1 \
-    >"$work/bad.txt" 2>&1
-rc=$?
-[ "$rc" -eq 2 ] || fail "transition_periods=-1: exit $rc, expected 2: $(cat "$work/bad.txt")"
-grep -q 'controller.transition_periods' "$work/bad.txt" || fail "the key is not named: $(cat "$work/bad.txt")"
-[ ! -e "$work/bad/journal.jsonl" ] || fail "a refused run wrote a journal"
+refused frf "transition_periods=-1" 'controller\.transition_periods' "$cfg" "${opts[@]}" \
+    --set controller.transition_periods=-1
 
 "$bin" frf "$cfg" --out "$work/paper" "${opts[@]}" --strategy paper --set continuation.max_points=2 \
     >"$work/paper.txt" 2>&1 || fail "paper: $(cat "$work/paper.txt")"
@@ -35,14 +29,10 @@ grep -q '"controller.grounding_kd_n_s_per_m=200"' "$work/paper/summary.json" \
 "$bin" frf "$cfg" --out "$work/smooth" "${opts[@]}" >"$work/s.txt" 2>&1 \
     || fail "default: $(cat "$work/s.txt")"
 
-python3 - "$work" <<'PY' || fail "transitions (above)"
-import csv, json, statistics, sys
+PYTHONPATH="$src/tests/cli/lib" python3 - "$work" <<'PY' || fail "transitions (above)"
+import json, statistics, sys
+from checks import check, exit_status
 w = sys.argv[1]
-ok = True
-def check(cond, what):
-    global ok
-    print(("ok:    " if cond else "WRONG: ") + what)
-    ok = ok and cond
 rig, waits = {}, {}
 for run in ("abrupt", "smooth"):
     s = json.load(open(f"{w}/{run}/summary.json"))
@@ -56,5 +46,6 @@ for run in ("abrupt", "smooth"):
     print(run, "rig s", round(rig[run], 1), "median wait after the first point", waits[run])
 check(rig["smooth"] < 0.75 * rig["abrupt"], "smooth transitions: under 0.75 of the rig time")
 check(waits["smooth"] < 0.6 * waits["abrupt"], "smooth transitions: the wait under 0.6 of it")
-sys.exit(0 if ok else 1)
+sys.exit(exit_status())
 PY
+exit $((failures > 0))
