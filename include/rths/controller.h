@@ -182,6 +182,10 @@ int rths_controller_nonlinear_newton_steps(const rths_controller *c);
  * The phase theta is continuous across changes. The first forcing of a controller at rest
  * starts at once. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
+/* on: a forcing change set just after a period boundary glides from that boundary (the in-process
+ * virtual rig, which sets it there); off (default): from the next boundary, as a controller
+ * process must, so every site of a multi-site test glides from the same boundary */
+void rths_controller_glide_from_closed_boundary(rths_controller *c, int on);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);
 /* Targets of `dofs` interface DoFs: DoF d's coefficients a[d * harmonics + k - 1], b[...] of

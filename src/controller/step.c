@@ -122,6 +122,11 @@ struct rths_controller {
     double glide_u, glide_omega_from, glide_omega_to, glide_amplitude_from, glide_amplitude_to;
     double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
     double transition_per_rad; /* 1 / (2 pi transition_periods), set at create; 0 without */
+    /* 1 (the in-process virtual rig, whose host sets the forcing just after a boundary): a glide
+     * may start from the boundary the last sample closed. 0 (a controller process, whose commands
+     * arrive at any moment): from the next boundary, so sites a command reaches on either side of
+     * a boundary still glide from the same one */
+    int glide_from_closed_boundary;
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -695,6 +700,10 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     return RTHS_OK;
 }
 
+void rths_controller_glide_from_closed_boundary(rths_controller *c, int on) {
+    c->glide_from_closed_boundary = on;
+}
+
 void rths_controller_destroy(rths_controller *c) {
     free(c);
 }
@@ -703,7 +712,8 @@ static void start_glide(rths_controller *c, double omega_to, double amplitude_to
 
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
     double w = 2 * M_PI * frequency_hz;
-    if (c->omega > 0 && c->opt.transition_periods > 0 && c->at_boundary) {
+    if (c->omega > 0 && c->opt.transition_periods > 0 && c->at_boundary &&
+        c->glide_from_closed_boundary) {
         /* the last sample closed a period: the glide starts from that boundary */
         start_glide(c, w, amplitude_n);
         c->pending_forcing = 0;
