@@ -597,6 +597,77 @@ static void test_smooth_transitions(void **state) {
     rths_config_free(cfg);
 }
 
+/* What a controller process's ACK to SET_FORCING says (rths_controller_forcing_valid_from_s)
+ * splits the periods exactly as the host's rule reads it (src/rig/rig_remote.c: a period starting
+ * before valid - h/2 ran the old forcing): every period kept ran or glided under the new forcing,
+ * every one dropped ran the old one, whichever sample after a boundary the change arrived in and
+ * wherever between two samples that boundary fell. The bug it guards: a change arriving in the
+ * sample after a boundary was acked with that sample's time, and the period begun up to h/2
+ * earlier was kept though it ran the old forcing; two sites then kept periods of different
+ * forcings. With a transition, a change in that sample glides from the boundary just closed. */
+static void test_forcing_ack_splits_periods(void **state) {
+    (void)state;
+    for (int transition = 0; transition <= 2; transition += 2) {
+        rths_setup s;
+        rths_config *cfg;
+        rths_controller_options o;
+        rths_controller *c = make_unramped(&s, &cfg, &o, transition);
+        const double h = 1 / o.sample_rate_hz;
+        rths_controller_arm(c, 1);
+        double f_old = 10.3;
+        rths_controller_set_forcing(c, f_old, 1.0);
+        rths_sensor_sample in = {.n = 3};
+        rths_period p;
+        double last_end = 0;
+        int kept_half_sample_case = 0, taken_over = 0;
+        for (int trial = 0; trial < 60; trial++) {
+            /* to a boundary, then k samples on: k = 0 is the sample that closed it */
+            const int k = trial % 4;
+            do {
+                rths_controller_step(c, &in, NULL);
+                while (rths_controller_pop_period(c, &p))
+                    last_end = p.end_time_s;
+            } while (!rths_controller_at_period_boundary(c));
+            for (int i = 0; i < k; i++)
+                rths_controller_step(c, &in, NULL);
+            const double open_start = last_end, now = rths_controller_time_s(c);
+            const double f_new = 10.3 + 0.0137 * ((trial * 7) % 11);
+            rths_controller_set_forcing(c, f_new, 1.0);
+            const double valid = rths_controller_forcing_valid_from_s(c);
+            if (k == 0 && now - open_start <= 0.5 * h) kept_half_sample_case++;
+            /* every period from the open one on, until the change has fully taken over */
+            int dropped = 0, kept = 0;
+            while (kept < transition + 2) {
+                rths_controller_step(c, &in, NULL);
+                while (rths_controller_pop_period(c, &p)) {
+                    const double start = last_end;
+                    last_end = p.end_time_s;
+                    if (start < valid - 0.5 * h) {
+                        dropped++;
+                        assert_close(p.frequency_hz, f_old, 1e-12); /* the old forcing only */
+                    } else {
+                        kept++;
+                        if (f_new != f_old) assert_true(fabs(p.frequency_hz - f_old) > 1e-4);
+                    }
+                }
+            }
+            assert_close(p.frequency_hz, f_new, 1e-12); /* the new forcing at the end */
+            /* only the open period is ever dropped, and only when the change waited for the
+             * next boundary: with a transition, a change in the sample after one takes over */
+            const int takes_over = transition > 0 && k == 0;
+            assert_int_equal(dropped, takes_over ? 0 : 1);
+            taken_over += takes_over;
+            f_old = f_new;
+        }
+        /* the case the bug lived in came up (boundaries fall anywhere between samples) */
+        assert_true(kept_half_sample_case >= 3);
+        assert_int_equal(taken_over, transition > 0 ? 15 : 0);
+        rths_controller_destroy(c);
+        rths_setup_free(&s);
+        rths_config_free(cfg);
+    }
+}
+
 /* The target's peak bound is exact for one harmonic (3-4-5) and the triangle inequality beyond;
  * the step clamps x* to the displacement limit, so a huge target ramping in never asks for more
  * than the limit. */
@@ -1078,6 +1149,7 @@ int main(void) {
         cmocka_unit_test(test_limits_latch),
         cmocka_unit_test(test_pending_forcing_waits_a_bounded_time),
         cmocka_unit_test(test_smooth_transitions),
+        cmocka_unit_test(test_forcing_ack_splits_periods),
         cmocka_unit_test(test_target_bounded_by_the_limit),
         cmocka_unit_test(test_sample_loop_fault_disarms),
         cmocka_unit_test(test_other_sample_rates_match_truth),

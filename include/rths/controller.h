@@ -182,10 +182,11 @@ int rths_controller_nonlinear_newton_steps(const rths_controller *c);
  * The phase theta is continuous across changes. The first forcing of a controller at rest
  * starts at once. */
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n);
-/* on: a forcing change set just after a period boundary glides from that boundary (the in-process
- * virtual rig, which sets it there); off (default): from the next boundary, as a controller
- * process must, so every site of a multi-site test glides from the same boundary */
-void rths_controller_glide_from_closed_boundary(rths_controller *c, int on);
+/* After set_forcing: a controller time t such that every period whose start time is at or after
+ * t - h/2 runs (or glides) under that forcing and every earlier one ran under the one before:
+ * the start of the open period when the change took it over, else one sample past that start.
+ * A controller process answers SET_FORCING's ACK with it (docs/protocol.md). */
+double rths_controller_forcing_valid_from_s(const rths_controller *c);
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b);
 /* Targets of `dofs` interface DoFs: DoF d's coefficients a[d * harmonics + k - 1], b[...] of

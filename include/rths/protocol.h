@@ -96,7 +96,9 @@
     F(text, hello_reply.name, "text controller description")
 #define RTHS_PROTO_PAYLOAD_ACK(F)                                                                  \
     F(u8, ack.acked_type, "u8 acknowledged type")                                                  \
-    F(f64, ack.time_s, "f64 controller time (s) at which the command took effect")
+    F(f64, ack.time_s,                                                                             \
+      "f64 controller time (s) at which the command took effect (SET_FORCING: from which "         \
+      "periods run it, below)")
 #define RTHS_PROTO_PAYLOAD_STATUS(F)                                                               \
     F(f64, status.time_s, "f64 time (s)")                                                          \
     F(u8, status.flags, "u8 flags")                                                                \
@@ -293,8 +295,10 @@ typedef struct rths_msg {
             uint8_t flags;
             uint32_t trace_decimation;
         } subscribe;
-        /* time_s: controller time at which the command took effect (set forcing/target: later
-         * periods with start_time_s >= time_s ran entirely under it). */
+        /* time_s: controller time at which the command took effect; set target: later periods
+         * with start_time_s >= time_s ran entirely under it; set forcing: those with
+         * start_time_s >= time_s - h/2 run it, the earlier ones ran the one before
+         * (rths_controller_forcing_valid_from_s, docs/protocol.md). */
         struct {
             uint8_t acked_type;
             double time_s;

@@ -143,6 +143,10 @@ void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitu
     rths_controller_set_forcing(e->ctl, frequency_hz, amplitude_n);
 }
 
+double rths_engine_forcing_valid_from_s(const rths_engine *e) {
+    return rths_controller_forcing_valid_from_s(e->ctl);
+}
+
 void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,
                             const double *b) {
     rths_controller_set_target_dofs(e->ctl, dofs, harmonics, a, b);

@@ -47,6 +47,9 @@ void rths_engine_safe_state(rths_engine *e);
  * none or refused, err says which */
 int rths_engine_watchdog_arm(rths_engine *e, double timeout_s, rths_error *err);
 void rths_engine_set_forcing(rths_engine *e, double frequency_hz, double amplitude_n); /* loop */
+/* the time from which the host keeps periods after that change
+ * (rths_controller_forcing_valid_from_s) */
+double rths_engine_forcing_valid_from_s(const rths_engine *e);
 /* loop: targets of every interface DoF, DoF d's coefficients at a[d * harmonics + k - 1] */
 void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,
                             const double *b);

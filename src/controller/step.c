@@ -122,11 +122,10 @@ struct rths_controller {
     double glide_u, glide_omega_from, glide_omega_to, glide_amplitude_from, glide_amplitude_to;
     double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
     double transition_per_rad; /* 1 / (2 pi transition_periods), set at create; 0 without */
-    /* 1 (the in-process virtual rig, whose host sets the forcing just after a boundary): a glide
-     * may start from the boundary the last sample closed. 0 (a controller process, whose commands
-     * arrive at any moment): from the next boundary, so sites a command reaches on either side of
-     * a boundary still glide from the same one */
-    int glide_from_closed_boundary;
+    /* controller time at which the open period began (its predecessor's interpolated end, as
+     * published), and what set_forcing last answered: the time from which periods run (or
+     * glide) under its forcing (rths_controller_forcing_valid_from_s) */
+    double open_period_start_s, forcing_valid_from_s;
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -700,10 +699,6 @@ int rths_controller_create(const rths_setup *setup, const rths_controller_option
     return RTHS_OK;
 }
 
-void rths_controller_glide_from_closed_boundary(rths_controller *c, int on) {
-    c->glide_from_closed_boundary = on;
-}
-
 void rths_controller_destroy(rths_controller *c) {
     free(c);
 }
@@ -712,24 +707,34 @@ static void start_glide(rths_controller *c, double omega_to, double amplitude_to
 
 void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double amplitude_n) {
     double w = 2 * M_PI * frequency_hz;
-    if (c->omega > 0 && c->opt.transition_periods > 0 && c->at_boundary &&
-        c->glide_from_closed_boundary) {
-        /* the last sample closed a period: the glide starts from that boundary */
+    if (c->omega > 0 && c->opt.transition_periods > 0 && c->at_boundary) {
+        /* the last sample closed a period: the glide starts from that boundary, and the period
+         * it opened is the glide's first */
         start_glide(c, w, amplitude_n);
         c->pending_forcing = 0;
+        c->forcing_valid_from_s = c->open_period_start_s;
     } else if (c->omega == 0) {
         /* nothing running yet: start now */
         c->omega = w;
         c->amplitude_n = amplitude_n;
         c->pending_forcing = 0;
+        c->open_period_start_s = c->forcing_valid_from_s = c->time_s;
     } else {
         /* frequency and amplitude change together at the next period boundary, so every
-         * published period has one forcing; a later call before then replaces this one */
+         * published period has one forcing; a later call before then replaces this one. The
+         * open period ran under the old forcing: periods from one sample past its start on
+         * (host's slack h/2, docs/protocol.md) run the new one, and none begins sooner, as a
+         * period is at least 4 samples long. */
         if (!c->pending_forcing) c->pending_since_s = c->time_s;
         c->pending_omega = w;
         c->pending_amplitude = amplitude_n;
         c->pending_forcing = 1;
+        c->forcing_valid_from_s = c->open_period_start_s + c->h;
     }
+}
+
+double rths_controller_forcing_valid_from_s(const rths_controller *c) {
+    return c->forcing_valid_from_s;
 }
 
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
@@ -905,6 +910,7 @@ static void start_overdue_forcing(rths_controller *c) {
     c->target_waits = 0; /* a target change waiting for the glide moves from now */
     set_phase(c, 0.0);
     clear_sums(c);
+    c->open_period_start_s = c->time_s;
 }
 
 /* The smootherstep: s(0) = 0, s(1) = 1, its first and second derivatives zero at both ends, so
@@ -1401,7 +1407,8 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
         for (int d = 0; d < c->ni; d++)
             c->static_offset[d] = c->acc_phys[d].mean;
     }
-    publish(c, c->time_s - (1 - alpha) * c->h);
+    c->open_period_start_s = c->time_s - (1 - alpha) * c->h;
+    publish(c, c->open_period_start_s);
     const int glide = c->pending_forcing && c->opt.transition_periods > 0;
     if (c->pending_forcing && !glide) {
         c->omega = c->pending_omega;

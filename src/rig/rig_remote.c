@@ -406,7 +406,9 @@ static int send_forcing(remote *r, rths_error *err) {
     m.u.forcing.amplitude_n = r->amplitude_n;
     int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
     if (rc) return rc;
-    r->valid_from_s = reply.u.ack.time_s;
+    /* the ACK says from when periods run the new forcing (docs/protocol.md); a target set
+     * since cannot make an earlier one valid */
+    if (reply.u.ack.time_s > r->valid_from_s) r->valid_from_s = reply.u.ack.time_s;
     r->q_len = 0; /* everything queued ran under the old setting */
     return RTHS_OK;
 }
@@ -422,7 +424,7 @@ static int send_target(remote *r, rths_error *err) {
     }
     int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
     if (rc) return rc;
-    r->valid_from_s = reply.u.ack.time_s;
+    if (reply.u.ack.time_s > r->valid_from_s) r->valid_from_s = reply.u.ack.time_s;
     r->q_len = 0;
     return RTHS_OK;
 }

@@ -284,7 +284,6 @@ int rths_virtual_rig_create_with(const rths_setup *setup, const rths_controller_
     v->displacement_limit_m = copt->displacement_limit_m;
     int rc = rths_sample_loop_create(setup, copt, popt, &v->loop, err);
     if (!rc) v->ctrl = rths_sample_loop_controller(v->loop);
-    if (!rc) rths_controller_glide_from_closed_boundary(v->ctrl, 1);
     char description[200];
     snprintf(description, sizeof description,
              "virtual rig: %s integrator, %g Hz, %s actuator, delay %g s, noise %s",
