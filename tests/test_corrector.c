@@ -464,11 +464,63 @@ static void test_two_dof_lti_model(void **state) {
     }
 }
 
+/* One DoF, straight in everything: Phi = g z - f, x = r z + e (metres). */
+static const double complex line_g = 0.8 + 0.3 * I, line_f = -1e-4 + 3e-4 * I,
+                            line_r = 1.1 + 0.2 * I, line_e = 1e-5;
+static int line_eval(void *ctx, const double *u, double w, rths_residual *out, rths_error *err) {
+    (void)ctx, (void)w, (void)err;
+    double complex z = u[0] + I * u[1], phi = line_g * z - line_f, x = line_r * z + line_e;
+    memset(out, 0, sizeof *out);
+    out->n = 2;
+    out->phi[0] = creal(phi), out->phi[1] = cimag(phi);
+    out->response[0] = creal(x), out->response[1] = cimag(x);
+    out->reference[0] = creal(x - phi), out->reference[1] = cimag(x - phi);
+    out->rig_time_s = 1;
+    return RTHS_OK;
+}
+
+/* A point accepted at its first evaluation with no Jacobian at all (as after a failed correction
+ * drops the carried one) measures the gain it needs with one more evaluation, so the reported
+ * amplitude is the response at zero mismatch and its standard error covers the step there
+ * (se_honest 1). The start is 1e-4 of the root off, within the tolerance: the measurement alone
+ * is off by 1e-4 relative; on this straight map the secant gain is exact, so the matched
+ * amplitude is |r f / g + e| to rounding (1e-9 relative asked). */
+static void test_gain_without_jacobian(void **state) {
+    (void)state;
+    rths_zero_problem problem = {.n = 2, .harmonics = 1, .interface_dofs = 1, .eval = line_eval};
+    rths_newton_options opt;
+    rths_newton_defaults(&opt, 0);
+    opt.abs_tolerance_m = 1e-7;
+    opt.rel_tolerance = 0;
+    rths_corrector *c;
+    rths_error err;
+    assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
+    double complex root = line_f / line_g, start = root * (1 + 1e-4);
+    double u[2] = {creal(start), cimag(start)};
+    assert_int_equal(rths_corrector_solve(c, u, 80, NULL, &err), RTHS_OK);
+    const rths_solution *s = rths_corrector_solution(c);
+    int evaluations;
+    rths_corrector_counters(c, &evaluations, NULL, NULL);
+    double truth = cabs(line_r * root + line_e), measured = cabs(line_r * start + line_e);
+    print_message("%d evaluations; measured %.2e off, reported %.2e off, honest %d\n", evaluations,
+                  fabs(measured / truth - 1), fabs(s->amplitude_m / truth - 1),
+                  s->amplitude_se_honest);
+    assert_int_equal(evaluations, 2); /* the point, and the gain's probe */
+    assert_int_equal(s->amplitude_se_honest, 1);
+    assert_true(fabs(s->amplitude_m / truth - 1) < 1e-9);
+    assert_true(s->amplitude_se_m > 0 && s->amplitude_se_m < 1e-3 * truth);
+    rths_corrector_destroy(c);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
-        cmocka_unit_test(test_noise_free),         cmocka_unit_test(test_with_noise),
-        cmocka_unit_test(test_roth_local_minimum), cmocka_unit_test(test_life_cycle),
-        cmocka_unit_test(test_refuses_bad_size),   cmocka_unit_test(test_two_dof_lti_model),
+        cmocka_unit_test(test_noise_free),
+        cmocka_unit_test(test_with_noise),
+        cmocka_unit_test(test_roth_local_minimum),
+        cmocka_unit_test(test_life_cycle),
+        cmocka_unit_test(test_refuses_bad_size),
+        cmocka_unit_test(test_two_dof_lti_model),
+        cmocka_unit_test(test_gain_without_jacobian),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }
