@@ -54,6 +54,7 @@ void rths_server_options_defaults(rths_server_options *opt) {
 static void apply_cmd(rths_server *s, const loop_cmd *c) {
     int result = 0;
     rths_engine *e = s->engine;
+    double applied_time_s = -1; /* the ACK's time: when it took effect, unless said otherwise */
     switch (c->type) {
     case CMD_ARM:
         result = rths_engine_arm(e);
@@ -64,6 +65,9 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         break;
     case CMD_FORCING:
         rths_engine_set_forcing(e, c->frequency_hz, c->amplitude_n);
+        /* from when the host may keep periods: a change may take over the period the last
+         * sample opened, or wait for the next boundary (docs/protocol.md) */
+        applied_time_s = rths_engine_forcing_valid_from_s(e);
         atomic_store_explicit(&s->freq_bits, dbits(c->frequency_hz), memory_order_relaxed);
         atomic_store_explicit(&s->amp_bits, dbits(c->amplitude_n), memory_order_relaxed);
         break;
@@ -76,11 +80,7 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         break;
     }
     atomic_store_explicit(&s->applied_result, result, memory_order_relaxed);
-    /* the ACK's time: when the command took effect; a forcing change's says from which periods
-     * the host may keep (it may take over the period the last sample opened, or wait for the
-     * next boundary: docs/protocol.md) */
-    const double applied_time_s =
-        c->type == CMD_FORCING ? rths_engine_forcing_valid_from_s(e) : rths_engine_time_s(e);
+    if (applied_time_s < 0) applied_time_s = rths_engine_time_s(e);
     atomic_store_explicit(&s->applied_time_bits, dbits(applied_time_s), memory_order_relaxed);
     atomic_store_explicit(&s->applied_id, c->id, memory_order_release);
 }

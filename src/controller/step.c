@@ -123,8 +123,9 @@ struct rths_controller {
     double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
     double transition_per_rad; /* 1 / (2 pi transition_periods), set at create; 0 without */
     /* controller time at which the open period began (its predecessor's interpolated end, as
-     * published; rths_controller_forcing_valid_from_s) */
-    double open_period_start_s;
+     * published), and what set_forcing last answered: the time from which periods run (or
+     * glide) under its forcing (rths_controller_forcing_valid_from_s) */
+    double open_period_start_s, forcing_valid_from_s;
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -711,12 +712,13 @@ void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double
          * it opened is the glide's first */
         start_glide(c, w, amplitude_n);
         c->pending_forcing = 0;
+        c->forcing_valid_from_s = c->open_period_start_s;
     } else if (c->omega == 0) {
         /* nothing running yet: start now */
         c->omega = w;
         c->amplitude_n = amplitude_n;
         c->pending_forcing = 0;
-        c->open_period_start_s = c->time_s;
+        c->open_period_start_s = c->forcing_valid_from_s = c->time_s;
     } else {
         /* frequency and amplitude change together at the next period boundary, so every
          * published period has one forcing; a later call before then replaces this one. The
@@ -727,13 +729,12 @@ void rths_controller_set_forcing(rths_controller *c, double frequency_hz, double
         c->pending_omega = w;
         c->pending_amplitude = amplitude_n;
         c->pending_forcing = 1;
+        c->forcing_valid_from_s = c->open_period_start_s + c->h;
     }
 }
 
-/* The open period is the new forcing's (a glide from the boundary just closed, a start from
- * rest) unless the change waits for the next boundary. */
 double rths_controller_forcing_valid_from_s(const rths_controller *c) {
-    return c->open_period_start_s + (c->pending_forcing ? c->h : 0.0);
+    return c->forcing_valid_from_s;
 }
 
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,

@@ -218,16 +218,12 @@ static int measure_local_gain(rths_corrector *c, local_gain *lg, rths_error *err
     return rc;
 }
 
-/* Where the point's own gain may be measured: a reported matched estimate on a natural sweep
- * with one interface DoF (with several the n x n fit's own uncertainty, the jackknife, holds). */
-static int local_gain_applies(const rths_corrector *c) {
-    return c->opt.report_matched && c->harmonics > 0 && c->dofs == 1 && c->m == c->n;
-}
-
 /* Whether the point needs its own gain: a natural sweep of an LTI rig whose fitted model does
  * not vouch for the step to zero mismatch (see FIT_GAIN_PESSIMISM). */
 static int needs_local_gain(const rths_corrector *c, int have_matched, const local_gain *lg) {
-    if (!(local_gain_applies(c) && c->mem.lti)) return 0;
+    /* one interface DoF: with several the n x n fit's own uncertainty (the jackknife) holds */
+    if (!(c->opt.report_matched && c->harmonics > 0 && c->dofs == 1 && c->m == c->n && c->mem.lti))
+        return 0;
     double pessimistic = FIT_GAIN_PESSIMISM * FIT_GAIN_PESSIMISM * lg->fit_gain_var;
     return have_matched && lg->fitted && 9.0 * pessimistic > lg->fit_se_var;
 }
@@ -238,7 +234,7 @@ static int needs_local_gain(const rths_corrector *c, int have_matched, const loc
  * p = 0.67 sweep had such a point 29 standard errors, 0.16 %, from the truth, its standard error
  * the noise's alone). */
 static int needs_gain_without_jacobian(const rths_corrector *c, double move) {
-    return local_gain_applies(c) && isnan(move);
+    return c->opt.report_matched && c->harmonics > 0 && c->dofs == 1 && c->m == c->n && isnan(move);
 }
 
 /* K's fundamental block set to the local gain (no coupling to other harmonics: an LTI rig). */
