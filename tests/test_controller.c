@@ -668,6 +668,101 @@ static void test_forcing_ack_splits_periods(void **state) {
     }
 }
 
+/* Steps one sample; every period it closes goes to starts / freqs (its start: the one before's
+ * end, *last_end), *n of them so far. */
+static void step_recording(rths_controller *c, double *last_end, double *starts, double *freqs,
+                           int *n) {
+    rths_sensor_sample in = {.n = 3};
+    rths_period p;
+    rths_controller_step(c, &in, NULL);
+    while (rths_controller_pop_period(c, &p)) {
+        if (*n < 16) {
+            starts[*n] = *last_end;
+            freqs[*n] = p.frequency_hz;
+        }
+        (*n)++;
+        *last_end = p.end_time_s;
+    }
+}
+
+/* A target that follows a forcing change keeps that change's periods (docs/protocol.md, "Which
+ * periods follow a change"): the host keeps periods from the later of the two ACK times, and
+ * with transitions the first period it keeps must be the glide's first, at every site, however
+ * many samples behind the forcing the target arrives (a site's command gap), as long as it
+ * arrives before that period closes. The forcing arrives in the sample after a boundary (the
+ * glide takes the open period over) or up to 3 samples before the next one (it waits for it),
+ * the target 0 to 3 samples later (across that boundary, too). The bug it guards: the target's
+ * ACK carried the time it was set, so a site whose target came a sample after the glide's
+ * first boundary dropped that period while another kept it, and the joined periods ran
+ * different forcings. A target set once the glide's first period has closed is a change of its
+ * own: its ACK is its time. */
+static void test_target_after_forcing_keeps_its_periods(void **state) {
+    (void)state;
+    rths_setup s;
+    rths_config *cfg;
+    rths_controller_options o;
+    rths_controller *c = make_unramped(&s, &cfg, &o, 2);
+    const double h = 1 / o.sample_rate_hz, a[1] = {1e-4}, b[1] = {0};
+    rths_controller_arm(c, 1);
+    double f_old = 10.3, last_end = 0;
+    rths_controller_set_forcing(c, f_old, 1.0);
+    double starts[16], freqs[16];
+    int cases[2] = {0, 0}, late_targets = 0;
+    for (int trial = 0; trial < 48; trial++) {
+        const int before_next = trial % 2, shift = (trial / 2) % 3, gap = (trial / 6) % 4;
+        /* to a boundary, measuring the period's length in samples */
+        int n = 0, closed = 0;
+        while (!closed) {
+            step_recording(c, &last_end, starts, freqs, &closed);
+            n++;
+        }
+        /* in the sample after it (shift 0: the glide takes the open period over), a few samples
+         * on, or 2 to 4 samples before the next boundary (the change waits for it) */
+        const int wait = before_next ? n - 2 - shift : shift;
+        for (int i = 0; i < wait; i++)
+            step_recording(c, &last_end, starts, freqs, &closed);
+        assert_int_equal(closed, 1);
+        const double f_new = f_old + (trial % 3 == 2 ? -0.021 : 0.0137);
+        const int takes_over = rths_controller_at_period_boundary(c);
+        rths_controller_set_forcing(c, f_new, 1.0);
+        const double forcing_valid = rths_controller_forcing_valid_from_s(c);
+        cases[takes_over]++;
+        /* every period from the open one on */
+        closed = 0;
+        for (int i = 0; i < gap; i++)
+            step_recording(c, &last_end, starts, freqs, &closed);
+        late_targets += closed > 0;
+        rths_controller_set_target(c, 1, a, b);
+        const double valid = fmax(forcing_valid, rths_controller_target_valid_from_s(c));
+        while (closed < 4)
+            step_recording(c, &last_end, starts, freqs, &closed);
+        /* the host's rule: a period starting at or after valid - h/2 is kept */
+        int dropped = 0;
+        while (starts[dropped] < valid - 0.5 * h) {
+            assert_close(freqs[dropped], f_old, 1e-12); /* only periods of the old forcing */
+            dropped++;
+        }
+        /* the first kept one glides already: no glide period is lost */
+        assert_true(fabs(freqs[dropped] - f_old) > 1e-4);
+        assert_int_equal(dropped, takes_over ? 0 : 1);
+        assert_close(freqs[3], f_new, 1e-12); /* the glide (2 periods) has ended */
+        f_old = f_new;
+    }
+    assert_true(cases[0] >= 8 && cases[1] >= 8); /* both kinds of change came up */
+    assert_true(late_targets >= 4); /* targets that came after the glide's first boundary */
+    /* a target set after the glide's first period is its own change: its ACK is its time */
+    rths_controller_set_forcing(c, f_old + 0.01, 1.0);
+    int closed = 0;
+    while (closed < 2)
+        step_recording(c, &last_end, starts, freqs, &closed);
+    step_recording(c, &last_end, starts, freqs, &closed);
+    rths_controller_set_target(c, 1, a, b);
+    assert_close(rths_controller_target_valid_from_s(c), rths_controller_time_s(c), 0);
+    rths_controller_destroy(c);
+    rths_setup_free(&s);
+    rths_config_free(cfg);
+}
+
 /* The target's peak bound is exact for one harmonic (3-4-5) and the triangle inequality beyond;
  * the step clamps x* to the displacement limit, so a huge target ramping in never asks for more
  * than the limit. */
@@ -1150,6 +1245,7 @@ int main(void) {
         cmocka_unit_test(test_pending_forcing_waits_a_bounded_time),
         cmocka_unit_test(test_smooth_transitions),
         cmocka_unit_test(test_forcing_ack_splits_periods),
+        cmocka_unit_test(test_target_after_forcing_keeps_its_periods),
         cmocka_unit_test(test_target_bounded_by_the_limit),
         cmocka_unit_test(test_sample_loop_fault_disarms),
         cmocka_unit_test(test_other_sample_rates_match_truth),

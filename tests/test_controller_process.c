@@ -618,6 +618,66 @@ static rths_rig *remote_rig(int port) {
     return rig;
 }
 
+/* A forcing change and the target after it keep the change's periods over a link
+ * (docs/protocol.md, "Which periods follow a change"): the remote rig sends SET_TARGET right
+ * behind SET_FORCING, and the controller names the glide's first period in both ACKs, so the
+ * first period the host gets after each change is that glide's first (its frequency a fifth of
+ * the way, s(1/3) = 0.21 of the step with 3 transition periods; the second is at 0.79), whatever
+ * the phase at which the change arrived. At 1 kHz and 20 to 30 Hz a period is 33 to 50 samples
+ * (wall ms: a loaded test machine's scheduling gaps between the two commands stay well inside
+ * one). Whether a change lands in the sample after a boundary or just before one is chance here
+ * (the host sends the first right after a period arrived, so often); test_controller's
+ * test_target_after_forcing_keeps_its_periods covers every case deterministically. A refused
+ * SET_FORCING comes back at the next set_target and run_periods, naming it, and the forcing
+ * before it stands. */
+static void test_remote_change_keeps_the_glide(void **state) {
+    (void)state;
+    const char *sets[] = {"controller.sample_rate_hz=1000"};
+    rths_server *s = start_server_with(0, 30.0, sets, 1);
+    rths_rig *rig = remote_rig(rths_server_port(s));
+    rths_error err;
+    rths_period p[4];
+    const double a[1] = {1e-5}, b[1] = {0};
+    double f_old = 25.0;
+    assert_int_equal(rths_rig_set_forcing(rig, f_old, 1.0, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target(rig, 1, a, b, &err), RTHS_OK);
+    assert_int_equal(rths_rig_run_periods(rig, 4, p, &err), RTHS_OK);
+    for (int trial = 0; trial < 40; trial++) {
+        sleep_s(1e-3 * (double)((trial * 7) % 37)); /* a different phase each time */
+        const double f_new = 20.0 + (double)((trial * 7) % 11);
+        const double ta[1] = {1e-5 * (1 + trial % 3)};
+        assert_int_equal(rths_rig_set_forcing(rig, f_new, 1.0, &err), RTHS_OK);
+        assert_int_equal(rths_rig_set_target(rig, 1, ta, b, &err), RTHS_OK);
+        int rc = rths_rig_run_periods(rig, 4, p, &err);
+        if (rc) fail_msg("trial %d: %s", trial, err.msg);
+        if (f_new != f_old) {
+            const double first = (p[0].frequency_hz - f_old) / (f_new - f_old);
+            if (!(first > 0.1 && first < 0.4))
+                fail_msg("trial %d: %g -> %g Hz, the first period kept at %.6g Hz (%.3g of the "
+                         "step): not the glide's first",
+                         trial, f_old, f_new, p[0].frequency_hz, first);
+        }
+        assert_close(p[3].frequency_hz, f_new, 1e-9);
+        f_old = f_new;
+    }
+    /* beyond server.max_frequency_hz: refused when its answer is read, here by a reset that
+     * replays the forcing before it; reported until the next set_forcing */
+    assert_int_equal(rths_rig_set_forcing(rig, 150.0, 1.0, &err), RTHS_OK);
+    assert_int_equal(rths_rig_reset_fault(rig, &err), RTHS_OK);
+    assert_int_equal(rths_rig_run_periods(rig, 1, p, &err), RTHS_EFAIL);
+    assert_non_null(strstr(err.msg, "refused SET_FORCING"));
+    assert_int_equal(rths_rig_set_target(rig, 1, a, b, &err), RTHS_EFAIL);
+    assert_non_null(strstr(err.msg, "refused SET_FORCING"));
+    /* the forcing before it stood: the next change glides from it */
+    assert_int_equal(rths_rig_set_forcing(rig, f_old + 1, 1.0, &err), RTHS_OK);
+    assert_int_equal(rths_rig_set_target(rig, 1, a, b, &err), RTHS_OK);
+    assert_int_equal(rths_rig_run_periods(rig, 4, p, &err), RTHS_OK);
+    const double first = p[0].frequency_hz - f_old;
+    if (!(first > 0.1 && first < 0.4)) fail_msg("after the refusal: %.6g Hz", p[0].frequency_hz);
+    rths_rig_destroy(rig);
+    rths_server_destroy(s);
+}
+
 static void test_remote_rig_unreachable(void **state) {
     (void)state;
     /* A port nobody listens on: bind one, note it, close it. */
@@ -1182,6 +1242,7 @@ int main(void) {
         cmocka_unit_test(test_version_one_host_refused),
         cmocka_unit_test(test_version_one_controller_refused),
         cmocka_unit_test(test_remote_two_interface_dofs_match_in_process),
+        cmocka_unit_test(test_remote_change_keeps_the_glide),
         cmocka_unit_test(test_two_interface_dofs_raw),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

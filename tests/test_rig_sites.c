@@ -21,11 +21,20 @@ typedef struct scripted {
     int harmonics;
     double a[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
     double frequency_hz;
+    /* a glide of glide_periods periods after each forcing change (period g of it at from +
+     * (f - from) (g + 1) / (glide_periods + 1)); the site's first period after a change is the
+     * glide's period first_kept (1: its target came late, the glide's first was dropped) */
+    int glide_periods, first_kept, next_glide;
+    double from_hz;
+    int runs; /* run_periods calls */
 } scripted;
 
 static int sc_forcing(void *self, double f, double amp, rths_error *err) {
     (void)amp, (void)err;
-    ((scripted *)self)->frequency_hz = f;
+    scripted *s = self;
+    s->from_hz = s->frequency_hz;
+    s->next_glide = s->first_kept;
+    s->frequency_hz = f;
     return RTHS_OK;
 }
 static int sc_target_dofs(void *self, int dofs, int harmonics, const double *a, const double *b,
@@ -46,11 +55,16 @@ static int sc_run(void *self, int count, rths_period *out, rths_error *err) {
         s->fault = s->fault_after_periods;
         return rths_error_set(err, RTHS_EFAIL, "scripted fault");
     }
+    s->runs++;
     for (int i = 0; i < count; i++) {
         rths_period *p = &out[i];
         memset(p, 0, sizeof *p);
         s->time_s += 1.0 / s->frequency_hz;
         p->frequency_hz = s->frequency_hz;
+        if (s->next_glide < s->glide_periods)
+            p->frequency_hz = s->from_hz + (s->frequency_hz - s->from_hz) * (s->next_glide + 1) /
+                                               (s->glide_periods + 1);
+        s->next_glide++;
         p->end_time_s = s->time_s;
         p->samples = s->samples;
         p->late_samples = s->late;
@@ -159,6 +173,52 @@ static void a_site_fault_disarms_every_site(void **state) {
     rths_rig_destroy(rig);
 }
 
+/* After a forcing change a site whose target came late keeps its periods from the glide's second
+ * (docs/protocol.md, "Which periods follow a change"): the other site's glide period before it is
+ * dropped and its next one fetched, so every joined period has one forcing, whichever site is
+ * behind and however many periods the host asks for at once. A site whose forcing is another
+ * is still reported out of step. */
+static void sites_line_up_after_a_change(void **state) {
+    (void)state;
+    for (int late = 0; late < 2; late++)
+        for (int count = 1; count <= 4; count += 3) {
+            scripted one = {.dofs = 1, .samples = 10, .glide_periods = 3};
+            scripted two = {.dofs = 2, .samples = 10, .glide_periods = 3};
+            (late ? &two : &one)->first_kept = 1;
+            rths_error err;
+            int rc;
+            rths_rig *rig = join(&one, &two, &err, &rc);
+            assert_int_equal(rc, RTHS_OK);
+            rths_period p[4];
+            assert_int_equal(rths_rig_set_forcing(rig, 10.0, 1.0, &err), RTHS_OK);
+            assert_int_equal(rths_rig_run_periods(rig, count, p, &err), RTHS_OK);
+            one.first_kept = two.first_kept = 0;
+            (late ? &one : &two)->first_kept = 1;
+            assert_int_equal(rths_rig_set_forcing(rig, 14.0, 1.0, &err), RTHS_OK);
+            for (int i = 0; i < 4; i += count) {
+                rc = rths_rig_run_periods(rig, count, p + i, &err);
+                if (rc) fail_msg("late %d, count %d: %s", late, count, err.msg);
+            }
+            /* the joined periods are the glide's second and third, then the new forcing */
+            assert_close(p[0].frequency_hz, 12.0, 1e-12);
+            assert_close(p[1].frequency_hz, 13.0, 1e-12);
+            assert_close(p[2].frequency_hz, 14.0, 1e-12);
+            assert_close(p[3].frequency_hz, 14.0, 1e-12);
+            rths_rig_destroy(rig);
+        }
+    /* another forcing at one site: no dropping lines it up */
+    scripted one = {.dofs = 1, .samples = 10}, two = {.dofs = 2, .samples = 10};
+    rths_error err;
+    int rc;
+    rths_rig *rig = join(&one, &two, &err, &rc);
+    assert_int_equal(rths_rig_set_forcing(rig, 10.0, 1.0, &err), RTHS_OK);
+    two.frequency_hz = 10.5;
+    rths_period p[2];
+    assert_int_equal(rths_rig_run_periods(rig, 2, p, &err), RTHS_EFAIL);
+    assert_non_null(strstr(err.msg, "out of step"));
+    rths_rig_destroy(rig);
+}
+
 static void a_dof_in_two_sites_or_none_is_refused(void **state) {
     (void)state;
     scripted one = {.dofs = 1}, two = {.dofs = 2};
@@ -185,6 +245,7 @@ int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(targets_and_periods_follow_the_map),
         cmocka_unit_test(a_site_fault_disarms_every_site),
+        cmocka_unit_test(sites_line_up_after_a_change),
         cmocka_unit_test(a_dof_in_two_sites_or_none_is_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

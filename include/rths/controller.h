@@ -194,6 +194,13 @@ void rths_controller_set_target(rths_controller *c, int harmonics, const double 
  */
 void rths_controller_set_target_dofs(rths_controller *c, int dofs, int harmonics, const double *a,
                                      const double *b);
+/* After set_target: a controller time t such that every period whose start time is at or after
+ * t - h/2 runs under that target or its transition. A target that follows a forcing change
+ * still waiting for its boundary, or that reaches the first period of that change's glide
+ * (transitions on), belongs to the change: t is the forcing's (that glide period's start, where
+ * the target's transition began up to a few samples in); otherwise the time it was set. A
+ * controller process answers SET_TARGET's ACK with it (docs/protocol.md). */
+double rths_controller_target_valid_from_s(const rths_controller *c);
 int rths_controller_interface_dofs(const rths_controller *c);
 /* The last step's demand of every actuator (rths_controller_interface_dofs of them), V. */
 void rths_controller_demands(const rths_controller *c, double *demand_v);

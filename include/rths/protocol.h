@@ -97,8 +97,8 @@
 #define RTHS_PROTO_PAYLOAD_ACK(F)                                                                  \
     F(u8, ack.acked_type, "u8 acknowledged type")                                                  \
     F(f64, ack.time_s,                                                                             \
-      "f64 controller time (s) at which the command took effect (SET_FORCING: from which "         \
-      "periods run it, below)")
+      "f64 controller time (s) at which the command took effect (SET_FORCING, SET_TARGET: from "   \
+      "which periods run it, below)")
 #define RTHS_PROTO_PAYLOAD_STATUS(F)                                                               \
     F(f64, status.time_s, "f64 time (s)")                                                          \
     F(u8, status.flags, "u8 flags")                                                                \

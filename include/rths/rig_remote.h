@@ -11,7 +11,15 @@
  * controller announces in HELLO_REPLY (rths_rig_interface_dofs), sends every DoF's target
  * (rths_rig_set_target_dofs; rths_rig_set_target is its one-DoF case) and returns periods
  * carrying every DoF (rths_period.interface_dofs, phys_dof...). Traces carry the first interface
- * DoF. A controller of another protocol version is refused naming both versions. */
+ * DoF. A controller of another protocol version is refused naming both versions.
+ *
+ * rths_rig_set_forcing sends SET_FORCING without waiting for its ACK, so the target set next
+ * follows it on the wire with no round trip between them and both keep the change's periods
+ * (docs/protocol.md, "Which periods follow a change"). A controller's refusal of that forcing
+ * (e.g. beyond server.max_frequency_hz) is therefore returned by the next rths_rig_set_target,
+ * rths_rig_run_periods or rths_rig_record_trace, naming SET_FORCING, and again by each of them
+ * until the next set_forcing (rths_rig_reset_fault does not clear it); the forcing before it
+ * stays in force. */
 #ifndef RTHS_RIG_REMOTE_H
 #define RTHS_RIG_REMOTE_H
 
@@ -23,7 +31,8 @@ typedef struct rths_remote_options {
     double stall_timeout_s;   /* no period for this long (beyond one period) = link fault; 10 s */
     const char *client_name;  /* sent in HELLO; default "rths host" */
     /* Test hook (docs/protocol.md, "Injected link delay"): every frame to the controller is sent
-     * this long after it is ready, and every frame from it is read this long after it arrived,
+     * this long after it is ready (one sent right behind another travels with it), and every
+     * frame from it is read this long after it arrived,
      * as over a link of that one-way latency; 0 (default): none. When 0, the environment variable
      * RTHS_TEST_LINK_DELAY_S (seconds, 0..60) sets it; only tests use either. */
     double link_delay_s;
@@ -56,7 +65,10 @@ int rths_remote_rig_known_fault(rths_rig *rig, rths_rig_fault *out);
  * substructure, actuators, sample rate and clock) driving a subset of the host's interface DoFs.
  * Targets are split by site, every operation goes to all sites at once (one thread per further
  * site), and the i-th period each site delivers after the last setting is joined into the
- * host's i-th record, every DoF from its site (samples and integrity counts summed). A fault or
+ * host's i-th record, every DoF from its site (samples and integrity counts summed); after a
+ * forcing change a site that starts later in the glide than the others (its target came late)
+ * has them drop their leading glide periods to line up (docs/protocol.md, "Which periods follow
+ * a change"), and sites whose periods' frequencies still differ are an error. A fault or
  * lost link at any site disarms every other site (excitation and target ramped to zero) and is
  * the joined rig's fault. Its time is the longest any site ran since the join. */
 typedef struct rths_site_info {

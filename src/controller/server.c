@@ -73,6 +73,8 @@ static void apply_cmd(rths_server *s, const loop_cmd *c) {
         break;
     case CMD_TARGET:
         rths_engine_set_target(e, c->dofs, c->harmonics, c->a, c->b);
+        /* a target that follows a forcing change keeps that change's periods */
+        applied_time_s = rths_engine_target_valid_from_s(e);
         break;
     case CMD_RESET:
         /* a stalled loop's device is in its safe state for good: only a restart clears it */

@@ -152,6 +152,10 @@ void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const doubl
     rths_controller_set_target_dofs(e->ctl, dofs, harmonics, a, b);
 }
 
+double rths_engine_target_valid_from_s(const rths_engine *e) {
+    return rths_controller_target_valid_from_s(e->ctl);
+}
+
 void rths_engine_demands(const rths_engine *e, double *demand_v) {
     rths_controller_demands(e->ctl, demand_v);
 }

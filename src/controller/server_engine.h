@@ -53,6 +53,9 @@ double rths_engine_forcing_valid_from_s(const rths_engine *e);
 /* loop: targets of every interface DoF, DoF d's coefficients at a[d * harmonics + k - 1] */
 void rths_engine_set_target(rths_engine *e, int dofs, int harmonics, const double *a,
                             const double *b);
+/* the time from which the host keeps periods after that target
+ * (rths_controller_target_valid_from_s) */
+double rths_engine_target_valid_from_s(const rths_engine *e);
 /* loop: every actuator's demand after the last sample, V (info.interface_dofs of them) */
 void rths_engine_demands(const rths_engine *e, double *demand_v);
 void rths_engine_reset_fault(rths_engine *e);           /* loop */

@@ -123,9 +123,12 @@ struct rths_controller {
     double static_u, static_from[MAX_IFACE], static_to[MAX_IFACE];
     double transition_per_rad; /* 1 / (2 pi transition_periods), set at create; 0 without */
     /* controller time at which the open period began (its predecessor's interpolated end, as
-     * published), and what set_forcing last answered: the time from which periods run (or
-     * glide) under its forcing (rths_controller_forcing_valid_from_s) */
-    double open_period_start_s, forcing_valid_from_s;
+     * published), and what set_forcing and set_target last answered: the time from which
+     * periods run (or glide) under the new setting (rths_controller_forcing_valid_from_s,
+     * rths_controller_target_valid_from_s); glide_first_period: the open period is a glide's
+     * first (a target set in it joins that forcing change) */
+    double open_period_start_s, forcing_valid_from_s, target_valid_from_s;
+    int glide_first_period;
     int feedback, armed;
     rths_rig_fault fault;
     rths_fault_detail fault_detail;       /* what latched it: channel, value, limit */
@@ -737,6 +740,10 @@ double rths_controller_forcing_valid_from_s(const rths_controller *c) {
     return c->forcing_valid_from_s;
 }
 
+double rths_controller_target_valid_from_s(const rths_controller *c) {
+    return c->target_valid_from_s;
+}
+
 void rths_controller_set_target(rths_controller *c, int harmonics, const double *a,
                                 const double *b) {
     rths_controller_set_target_dofs(c, 1, harmonics, a, b);
@@ -761,6 +768,18 @@ void rths_controller_set_target_dofs(rths_controller *c, int dofs, int harmonics
         c->target_s = c->target_s_rate = 0;
         c->target_waits = c->pending_forcing; /* moves with the forcing's glide */
     }
+    /* A target that follows a forcing change still waiting for its boundary, or one that reaches
+     * the glide's first period, belongs to that change: its periods are the forcing's, so every
+     * site of a multi-site test keeps the same ones (docs/protocol.md, "Which periods follow a
+     * change"). In the glide's first period its own transition starts now, the samples it comes
+     * late being the host's command gap (a sample or two: the host sends it right behind the
+     * forcing). */
+    if (c->opt.transition_periods > 0 && c->pending_forcing)
+        c->target_valid_from_s = c->forcing_valid_from_s;
+    else if (c->glide_first_period) /* the glide may have ended in it (transition_periods < 1) */
+        c->target_valid_from_s = c->open_period_start_s;
+    else
+        c->target_valid_from_s = c->time_s;
     c->harmonics = harmonics;
     for (int d = 0; d < MAX_IFACE; d++)
         for (int k = 0; k < RTHS_MAX_HARMONICS; k++) {
@@ -906,7 +925,7 @@ static void start_overdue_forcing(rths_controller *c) {
     c->omega = c->pending_omega;
     c->amplitude_n = c->pending_amplitude;
     c->pending_forcing = 0;
-    c->gliding = 0;
+    c->gliding = c->glide_first_period = 0;
     c->target_waits = 0; /* a target change waiting for the glide moves from now */
     set_phase(c, 0.0);
     clear_sums(c);
@@ -930,6 +949,7 @@ static void start_glide(rths_controller *c, double omega_to, double amplitude_to
     c->glide_amplitude_to = amplitude_to;
     c->glide_u = c->theta / (2 * M_PI * c->opt.transition_periods);
     c->gliding = 1;
+    c->glide_first_period = 1;
     if (c->target_waits) {
         c->target_waits = 0;
         c->target_u = c->glide_u;
@@ -1409,6 +1429,7 @@ static void update_fourier(rths_controller *c, double theta0, double theta1, con
     }
     c->open_period_start_s = c->time_s - (1 - alpha) * c->h;
     publish(c, c->open_period_start_s);
+    c->glide_first_period = 0;
     const int glide = c->pending_forcing && c->opt.transition_periods > 0;
     if (c->pending_forcing && !glide) {
         c->omega = c->pending_omega;

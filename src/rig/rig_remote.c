@@ -45,6 +45,7 @@ typedef struct remote {
     /* the test hook's one-way delay (rths_remote_options.link_delay_s): the time each received
      * chunk of rx arrived, chunk i ending at rx offset mark_end[i] */
     double delay_s;
+    int sent_last; /* the last thing done on the link was a send: the next one travels with it */
     size_t mark_end[RX_MARKS];
     double mark_time[RX_MARKS];
     int marks;
@@ -64,6 +65,15 @@ typedef struct remote {
     /* the last settings, replayed after a reconnect */
     int have_forcing;
     double frequency_hz, amplitude_n;
+    /* SET_FORCING goes out without waiting for its ACK, so the target set next follows it on the
+     * wire with no round trip between them (docs/protocol.md, "Which periods follow a change"):
+     * forcing_seq is its outstanding request (0: none), prev_* what to restore if it is refused;
+     * a refusal (forcing_rc, forcing_err) is returned by every operation that runs the forcing
+     * until the next set_forcing */
+    uint16_t forcing_seq;
+    int prev_have_forcing, forcing_rc;
+    double prev_frequency_hz, prev_amplitude_n;
+    rths_error forcing_err;
     int harmonics; /* DoF d's coefficients at ta[d * harmonics + k - 1] */
     double ta[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
     double tb[RTHS_MAX_INTERFACE_DOFS * RTHS_MAX_HARMONICS];
@@ -172,6 +182,7 @@ static int link_fail(remote *r, rths_error *err, const char *fmt, ...) {
     r->rx_len = 0;
     r->marks = 0;
     r->armed = 0;
+    r->forcing_seq = 0; /* the lost link answers nothing more */
     r->fault = RTHS_RIG_FAULT_LINK;
     return rths_error_set(err, RTHS_EFAIL, "controller %s: link lost: %s", r->uri, r->fault_msg);
 }
@@ -182,8 +193,11 @@ static int send_msg(remote *r, rths_msg *m, rths_error *err) {
     if (!n)
         return rths_error_set(err, RTHS_EINPUT, "cannot encode %s (values not finite?)",
                               rths_msg_type_name(m->type));
-    /* the test hook: the frame reaches the controller delay_s later, as over a long link */
-    if (r->delay_s > 0) wait_receiving(r, rths_monotonic_s() + r->delay_s);
+    /* the test hook: the frame reaches the controller delay_s later, as over a long link; one
+     * sent right behind another (nothing read between: SET_TARGET behind SET_FORCING) was ready
+     * with it and travels with it, its delay spent in the wait for the first */
+    if (r->delay_s > 0 && !r->sent_last) wait_receiving(r, rths_monotonic_s() + r->delay_s);
+    r->sent_last = 1;
     size_t off = 0;
     while (off < n) {
         ssize_t k = send(r->fd, buf + off, n - off, MSG_NOSIGNAL);
@@ -302,6 +316,7 @@ static void consume_marks(remote *r, size_t used) {
 static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_error *err) {
     double deadline = rths_monotonic_s() + timeout_s;
     *got = 0;
+    r->sent_last = 0;
     for (;;) {
         size_t used = 0;
         int st = rths_proto_decode(r->rx, r->rx_len, m, &used);
@@ -341,8 +356,32 @@ static int read_frame(remote *r, double timeout_s, rths_msg *m, int *got, rths_e
     }
 }
 
-/* Sends a request and waits for its reply (frames pushed meanwhile are absorbed). An ERROR reply
- * returns RTHS_EFAIL with the controller's message (the link stays up). */
+/* The outstanding SET_FORCING's reply: an ACK says from when periods run the new forcing (a
+ * target set since cannot make an earlier one valid), and everything queued ran the old; an
+ * ERROR restores the forcing before it and is kept for the operations that would run it. */
+static void forcing_reply(remote *r, const rths_msg *reply) {
+    r->forcing_seq = 0;
+    if (reply->type == RTHS_MSG_ACK) {
+        if (reply->u.ack.time_s > r->valid_from_s) r->valid_from_s = reply->u.ack.time_s;
+        r->q_len = 0;
+        return;
+    }
+    r->frequency_hz = r->prev_frequency_hz;
+    r->amplitude_n = r->prev_amplitude_n;
+    r->have_forcing = r->prev_have_forcing;
+    r->forcing_rc =
+        rths_error_set(&r->forcing_err, RTHS_EFAIL, "controller %s refused SET_FORCING: %s (%s)",
+                       r->uri, reply->u.error.message, rths_proto_status_name(reply->u.error.code));
+}
+
+static int is_forcing_reply(const remote *r, const rths_msg *m) {
+    return r->forcing_seq && m->seq == r->forcing_seq &&
+           (m->type == RTHS_MSG_ACK || m->type == RTHS_MSG_ERROR);
+}
+
+/* Sends a request and waits for its reply (frames pushed meanwhile are absorbed, an outstanding
+ * SET_FORCING's reply taken on the way). An ERROR reply returns RTHS_EFAIL with the
+ * controller's message (the link stays up). */
 static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rths_error *err) {
     if (r->fd < 0)
         return rths_error_set(err, RTHS_EFAIL, "controller %s: not connected (%s)", r->uri,
@@ -360,6 +399,10 @@ static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rth
                              r->opt.reply_timeout_s);
         if ((rc = read_frame(r, left, reply, &got, err))) return rc;
         if (!got) continue;
+        if (is_forcing_reply(r, reply)) {
+            forcing_reply(r, reply);
+            continue;
+        }
         if (reply->seq != req->seq || (reply->type != want_type && reply->type != RTHS_MSG_ERROR)) {
             if (reply->seq == 0 && reply->type == RTHS_MSG_ERROR)
                 /* unsolicited: the controller refuses the connection (busy) or closes it */
@@ -373,6 +416,9 @@ static int request(remote *r, rths_msg *req, int want_type, rths_msg *reply, rth
                              rths_msg_type_name(reply->type), reply->seq,
                              rths_msg_type_name(req->type));
         }
+        if (r->forcing_seq) /* replies come in the order sent: SET_FORCING's was lost */
+            return link_fail(r, err, "no reply to SET_FORCING (seq %u) before the reply to %s",
+                             r->forcing_seq, rths_msg_type_name(req->type));
         if (reply->type == RTHS_MSG_ERROR)
             return rths_error_set(err, RTHS_EFAIL, "controller %s refused %s: %s (%s)", r->uri,
                                   rths_msg_type_name(req->type), reply->u.error.message,
@@ -399,17 +445,38 @@ static int subscribe(remote *r, unsigned flags, uint32_t decimation, rths_msg *r
     return request(r, &m, RTHS_MSG_ACK, reply, err);
 }
 
-static int send_forcing(remote *r, rths_error *err) {
-    rths_msg m, reply;
+/* Waits for the outstanding SET_FORCING's reply (a PING behind it: its reply comes after), then
+ * says whether the forcing stands. */
+static int forcing_outcome(remote *r, rths_error *err) {
+    if (r->forcing_seq) {
+        rths_msg reply;
+        int rc = simple(r, RTHS_MSG_PING, &reply, err);
+        if (rc) return rc;
+    }
+    if (r->forcing_rc && err) *err = r->forcing_err;
+    return r->forcing_rc;
+}
+
+/* Sends SET_FORCING of r's forcing, its reply left outstanding (forcing_reply takes it; none may
+ * be outstanding already); prev_* are restored if it is refused. */
+static int send_forcing(remote *r, double prev_frequency_hz, double prev_amplitude_n,
+                        int prev_have_forcing, rths_error *err) {
+    if (r->fd < 0)
+        return rths_error_set(err, RTHS_EFAIL, "controller %s: not connected (%s)", r->uri,
+                              r->fault_msg);
+    int rc;
+    r->forcing_rc = 0;
+    rths_msg m;
     rths_msg_init(&m, RTHS_MSG_SET_FORCING, 0);
     m.u.forcing.frequency_hz = r->frequency_hz;
     m.u.forcing.amplitude_n = r->amplitude_n;
-    int rc = request(r, &m, RTHS_MSG_ACK, &reply, err);
-    if (rc) return rc;
-    /* the ACK says from when periods run the new forcing (docs/protocol.md); a target set
-     * since cannot make an earlier one valid */
-    if (reply.u.ack.time_s > r->valid_from_s) r->valid_from_s = reply.u.ack.time_s;
-    r->q_len = 0; /* everything queued ran under the old setting */
+    if (++r->seq == 0) r->seq = 1;
+    m.seq = r->seq;
+    if ((rc = send_msg(r, &m, err))) return rc;
+    r->forcing_seq = m.seq;
+    r->prev_frequency_hz = prev_frequency_hz;
+    r->prev_amplitude_n = prev_amplitude_n;
+    r->prev_have_forcing = prev_have_forcing;
     return RTHS_OK;
 }
 
@@ -477,6 +544,7 @@ static int connect_and_hello(remote *r, rths_error *err) {
     r->armed = 0;
     r->valid_from_s = 0.0;
     r->last_time_s = 0.0;
+    r->forcing_seq = 0;
 
     rths_msg m, reply;
     rths_msg_init(&m, RTHS_MSG_HELLO, 0);
@@ -553,7 +621,9 @@ static int pump(remote *r, double wait, rths_error *err) {
         if ((rc = simple(r, RTHS_MSG_PING, &reply, err))) return rc;
     }
     if ((rc = read_frame(r, wait, &m, &got, err))) return rc;
-    if (got) {
+    if (got && is_forcing_reply(r, &m)) {
+        forcing_reply(r, &m);
+    } else if (got) {
         if (m.seq != 0)
             return link_fail(r, err, "unexpected %s (seq %u) with no request outstanding",
                              rths_msg_type_name(m.type), m.seq);
@@ -576,12 +646,15 @@ static int r_set_forcing(void *self, double frequency_hz, double amplitude_n, rt
     if (!(frequency_hz > 0) || !isfinite(frequency_hz) || !isfinite(amplitude_n))
         return rths_error_set(err, RTHS_EINPUT, "forcing %g Hz, %g N: frequency must be > 0",
                               frequency_hz, amplitude_n);
+    /* one SET_FORCING outstanding at a time: the last one's outcome first (a refusal restores
+     * the forcing before it, which this one then replaces) */
+    if (r->forcing_seq && (rc = forcing_outcome(r, err)) && r->fd < 0) return rc;
     double of = r->frequency_hz, oa = r->amplitude_n;
     int oh = r->have_forcing;
     r->frequency_hz = frequency_hz;
     r->amplitude_n = amplitude_n;
     r->have_forcing = 1;
-    if ((rc = send_forcing(r, err))) {
+    if ((rc = send_forcing(r, of, oa, oh, err))) {
         r->frequency_hz = of;
         r->amplitude_n = oa;
         r->have_forcing = oh;
@@ -616,8 +689,11 @@ static int r_set_target_dofs(void *self, int dofs, int harmonics, const double *
         r->harmonics = old_harmonics;
         memcpy(r->ta, old_a, sizeof old_a);
         memcpy(r->tb, old_b, sizeof old_b);
+        return rc;
     }
-    return rc;
+    /* the forcing sent just before was answered on the way: if it was refused, this target
+     * runs under the one before, and the caller must know */
+    return forcing_outcome(r, err);
 }
 
 static int r_set_target(void *self, int harmonics, const double *a, const double *b,
@@ -659,6 +735,7 @@ static int r_run_periods(void *self, int count, rths_period *out, rths_error *er
     remote *r = self;
     int rc = check_usable(r, err);
     if (rc) return rc;
+    if ((rc = forcing_outcome(r, err))) return rc;
     if (!r->have_forcing) return rths_error_set(err, RTHS_EINPUT, "run_periods before set_forcing");
     if ((rc = ensure_armed(r, err))) return rc;
     double last_progress = rths_monotonic_s();
@@ -688,6 +765,7 @@ static int r_record_trace(void *self, double duration_s, int max_samples, rths_t
     if (!(duration_s > 0) || max_samples < 1)
         return rths_error_set(err, RTHS_EINPUT, "trace of %g s with %d samples", duration_s,
                               max_samples);
+    if ((rc = forcing_outcome(r, err))) return rc;
     if ((rc = ensure_armed(r, err))) return rc;
     double dec = ceil(duration_s / r->h / max_samples);
     if (dec < 1) dec = 1;
@@ -753,8 +831,20 @@ static int r_reset_fault(void *self, rths_error *err) {
     r->fault = RTHS_RIG_OK;
     r->fault_msg[0] = '\0';
     r->armed = 0;
-    if (r->have_forcing && (rc = send_forcing(r, err))) return rc;
-    return send_target(r, err);
+    /* the last forcing and target again; a refusal of a later forcing stays reported until the
+     * next set_forcing (rig_remote.h) */
+    const int refused_rc = r->forcing_rc;
+    const rths_error refused = r->forcing_err;
+    if (r->have_forcing) {
+        if ((rc = send_forcing(r, r->frequency_hz, r->amplitude_n, r->have_forcing, err)))
+            return rc;
+        if ((rc = send_target(r, err)) || (rc = forcing_outcome(r, err))) return rc;
+    } else if ((rc = send_target(r, err))) {
+        return rc;
+    }
+    r->forcing_rc = refused_rc;
+    r->forcing_err = refused;
+    return RTHS_OK;
 }
 
 static double r_noise_level_m(void *self) {

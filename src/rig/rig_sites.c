@@ -22,8 +22,9 @@ typedef struct site {
     int dofs;                         /* interface DoFs this site drives */
     int map[RTHS_MAX_INTERFACE_DOFS]; /* host interface index of the site's DoF j */
     double time0_s;                   /* the site's rig time when the joined rig was made */
-    double last_time_s;               /* its rig time when last read */
-    rths_period *buf;                 /* its periods of the current run_periods */
+    int behind;         /* OP_ALIGN: its first period is dropped and its next one fetched */
+    double last_time_s; /* its rig time when last read */
+    rths_period *buf;   /* its periods of the current run_periods */
     int buf_cap;
     /* the operation's arguments and outcome (one thread per site) */
     int rc;
@@ -35,7 +36,7 @@ typedef struct sites_rig {
     site s[RTHS_MAX_INTERFACE_DOFS];
     int dofs; /* host interface DoFs, every one driven by exactly one site */
     /* the current operation */
-    enum { OP_FORCING, OP_TARGET, OP_PERIODS, OP_TRACE, OP_RESET, OP_DISARM } op;
+    enum { OP_FORCING, OP_TARGET, OP_PERIODS, OP_ALIGN, OP_TRACE, OP_RESET, OP_DISARM } op;
     double frequency_hz, amplitude_n;
     int harmonics;
     const double *a, *b; /* host-order targets */
@@ -46,6 +47,7 @@ typedef struct sites_rig {
     int trace_n[RTHS_MAX_INTERFACE_DOFS];
     rths_rig_fault fault;
     int fault_site;
+    int changed; /* a forcing was set since the last run_periods: the sites' periods to line up */
 } sites_rig;
 
 typedef struct job {
@@ -76,6 +78,12 @@ static void run_site(sites_rig *r, int i) {
     case OP_PERIODS:
         s->rc = rths_rig_run_periods(s->rig, r->count, s->buf, &s->err);
         if (!s->rc && r->count > 0) s->last_time_s = s->buf[r->count - 1].end_time_s;
+        break;
+    case OP_ALIGN:
+        if (!s->behind) break;
+        memmove(s->buf, s->buf + 1, sizeof *s->buf * (size_t)(r->count - 1));
+        s->rc = rths_rig_run_periods(s->rig, 1, &s->buf[r->count - 1], &s->err);
+        if (!s->rc) s->last_time_s = s->buf[r->count - 1].end_time_s;
         break;
     case OP_TRACE:
         s->rc = rths_rig_record_trace(s->rig, r->trace_s, r->trace_max, r->trace[i], &r->trace_n[i],
@@ -145,6 +153,7 @@ static int s_set_forcing(void *self, double frequency_hz, double amplitude_n, rt
     r->op = OP_FORCING;
     r->frequency_hz = frequency_hz;
     r->amplitude_n = amplitude_n;
+    r->changed = 1;
     return all_sites(r, err);
 }
 
@@ -196,6 +205,40 @@ static void join_period(const sites_rig *r, int i, rths_period *out) {
     out->force = out->force_dof[0];
 }
 
+static int same_frequency(double f, double g) {
+    return fabs(f - g) <= 1e-9 * fabs(g);
+}
+
+/* After a forcing change every site keeps its periods from its glide's first (docs/protocol.md,
+ * "Which periods follow a change"), but a site whose target reached it only after that period
+ * had closed (the host or the link stalled a whole period between the two commands) keeps them
+ * from the glide's second. The glide runs period by period alike at every site, so the sites
+ * are lined up again: the site furthest into the glide (its first period nearest the new
+ * frequency) sets the first period, and every other site drops its leading periods until its
+ * first has that frequency (at most MAX_ALIGN_DROP, each replaced by the site's next). Sites
+ * that still disagree are reported out of step by the caller. */
+#define MAX_ALIGN_DROP 8
+static int align_after_change(sites_rig *r, rths_error *err) {
+    int lead = 0;
+    for (int k = 1; k < r->n; k++)
+        if (fabs(r->s[k].buf[0].frequency_hz - r->frequency_hz) <
+            fabs(r->s[lead].buf[0].frequency_hz - r->frequency_hz))
+            lead = k;
+    const double first = r->s[lead].buf[0].frequency_hz;
+    r->op = OP_ALIGN;
+    for (int round = 0; round < MAX_ALIGN_DROP; round++) {
+        int any = 0;
+        for (int k = 0; k < r->n; k++) {
+            r->s[k].behind = !same_frequency(r->s[k].buf[0].frequency_hz, first);
+            any |= r->s[k].behind;
+        }
+        if (!any) return RTHS_OK;
+        int rc = all_sites(r, err);
+        if (rc) return rc;
+    }
+    return RTHS_OK;
+}
+
 static int s_run_periods(void *self, int count, rths_period *out, rths_error *err) {
     sites_rig *r = self;
     for (int k = 0; k < r->n; k++) {
@@ -210,6 +253,10 @@ static int s_run_periods(void *self, int count, rths_period *out, rths_error *er
     r->op = OP_PERIODS;
     r->count = count;
     int rc = all_sites(r, err);
+    if (!rc && count > 0 && r->changed) {
+        r->changed = 0;
+        rc = align_after_change(r, err);
+    }
     for (int i = 0; i < count && !rc; i++) {
         join_period(r, i, &out[i]);
         for (int k = 1; k < r->n; k++)
