@@ -22,6 +22,20 @@
 
 static const double G = 1.0, C = 2000.0, F = 1e-3, R = 2.0, NOISE_M = 1e-9;
 
+/* One Fourier pair's residual: mismatch phi, physical response x, numerical x - phi, every
+ * coefficient's standard error se. */
+static void fill_residual(rths_residual *out, double complex phi, double complex x, double se) {
+    memset(out, 0, sizeof *out);
+    out->n = 2;
+    out->phi[0] = creal(phi), out->phi[1] = cimag(phi);
+    out->response[0] = creal(x), out->response[1] = cimag(x);
+    out->reference[0] = creal(x - phi), out->reference[1] = cimag(x - phi);
+    for (int i = 0; i < 2; i++) {
+        out->response_se[i] = out->reference_se[i] = se;
+        out->phi_se[i] = sqrt(2.0) * se;
+    }
+}
+
 static int cubic_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
                       rths_error *err) {
     (void)ctx;
@@ -29,15 +43,7 @@ static int cubic_eval(void *ctx, const double *u, double omega_rad_s, rths_resid
     (void)err;
     double complex z = u[0] + I * u[1];
     double complex phi = G * z + C * z * cabs(z) * cabs(z) - F, x = R * z;
-    memset(out, 0, sizeof *out);
-    out->n = 2;
-    out->phi[0] = creal(phi), out->phi[1] = cimag(phi);
-    out->response[0] = creal(x), out->response[1] = cimag(x);
-    out->reference[0] = creal(x - phi), out->reference[1] = cimag(x - phi);
-    for (int i = 0; i < 2; i++) {
-        out->response_se[i] = out->reference_se[i] = NOISE_M;
-        out->phi_se[i] = sqrt(2.0) * NOISE_M;
-    }
+    fill_residual(out, phi, x, NOISE_M);
     out->samples = 4;
     out->rig_time_s = 1.0;
     return RTHS_OK;
@@ -63,15 +69,16 @@ static void count_note(void *user, const char *line) {
     notes++;
 }
 
-/* Solves from a zero target with the given target and budget; returns the solution. */
-static rths_solution solve(double target_rel_se, double budget_s, int *evaluations) {
+/* Solves `problem` (its settle options set here) from a zero target with the given target and
+ * budget; returns the solution. */
+static rths_solution solve_problem(rths_zero_problem problem, double target_rel_se, double budget_s,
+                                   int *evaluations) {
     rths_settle_options settle;
     rths_settle_defaults(&settle, 0);
     settle.target_rel_se = target_rel_se;
     settle.max_rig_s_per_point = budget_s;
     settle.note = count_note;
-    rths_zero_problem problem = {
-        .n = 2, .harmonics = 1, .eval = cubic_eval, .coupled = 1, .settle = &settle};
+    problem.settle = &settle;
     rths_newton_options opt;
     rths_newton_defaults(&opt, 0);
     opt.rel_tolerance = 1e-2;
@@ -87,6 +94,11 @@ static rths_solution solve(double target_rel_se, double budget_s, int *evaluatio
     rths_corrector_counters(c, evaluations, NULL, NULL);
     rths_corrector_destroy(c);
     return sol;
+}
+
+static rths_solution solve(double target_rel_se, double budget_s, int *evaluations) {
+    rths_zero_problem problem = {.n = 2, .harmonics = 1, .eval = cubic_eval, .coupled = 1};
+    return solve_problem(problem, target_rel_se, budget_s, evaluations);
 }
 
 /* Without a target the point is accepted after the first Newton step, its reported relative
@@ -130,9 +142,89 @@ static void test_reported_se_meets_target(void **state) {
     assert_true(fabs(spent.amplitude_m - truth) <= 3 * spent.amplitude_se_m);
 }
 
+/* A waiting rig's record whose noise falls with its averaging: the straight map Phi = g z - f,
+ * x = r z, noise-free in value, each evaluation claiming the standard error S0 per coefficient
+ * after AVG0 periods of averaging and S0 sqrt(AVG0 / n) after n (the evaluation's own
+ * target_rel_se, set through the problem, picks n), behind a wait of WAIT periods of 1 s. */
+enum { WAIT = 8, AVG0 = 8 };
+static const double S0 = 1e-7;
+typedef struct {
+    double target_rel_se; /* the problem's evaluation_target_rel_se */
+    double rig_time_s;    /* every evaluation's */
+} averaging_rig;
+
+static int averaging_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
+                          rths_error *err) {
+    (void)omega_rad_s;
+    (void)err;
+    averaging_rig *rig = ctx;
+    double complex z = u[0] + I * u[1];
+    double complex phi = G * z - F, x = R * z;
+    double amp = cabs(x), n = AVG0;
+    if (rig->target_rel_se > 0 && amp > 0 && S0 / amp > rig->target_rel_se)
+        n = ceil(AVG0 * pow(S0 / amp / rig->target_rel_se, 2));
+    double se = S0 * sqrt(AVG0 / n);
+    fill_residual(out, phi, x, se);
+    out->samples = (int)n;
+    out->rig_time_s = WAIT + n;
+    out->eval.frequency_hz = 1.0;
+    out->eval.wait_periods = WAIT;
+    out->eval.average_periods = (int)n;
+    out->eval.amplitude_rel_se = amp > 0 ? se / amp : INFINITY;
+    rig->rig_time_s += out->rig_time_s;
+    return RTHS_OK;
+}
+
+static rths_solution solve_averaging(double target_rel_se, double budget_s, int *evaluations,
+                                     double *rig_s) {
+    averaging_rig rig = {0};
+    rths_zero_problem problem = {.n = 2,
+                                 .harmonics = 1,
+                                 .eval = averaging_eval,
+                                 .ctx = &rig,
+                                 .coupled = 1,
+                                 .evaluation_target_rel_se = &rig.target_rel_se};
+    rths_solution sol = solve_problem(problem, target_rel_se, budget_s, evaluations);
+    *rig_s = rig.rig_time_s;
+    return sol;
+}
+
+/* When the noise's term dominates and the budget left cannot hold the record four times as long
+ * (the whole evaluation's 16 s times 4) but can hold a longer averaging behind the same wait, the
+ * further step takes the tightening the budget affords: one more evaluation, its averaging
+ * lengthened to fill what is left (the reported relative error falls by about the square root of
+ * the averaging's growth), within the budget, and flagged since the target (1e-6) is out of
+ * reach. Before, no step was begun (the whole record's cost, 64 s, overran what was left). */
+static void test_budget_buys_averaging(void **state) {
+    (void)state;
+    int ev_free, ev_target;
+    double rig_free, rig_target;
+    rths_solution free_run = solve_averaging(0.0, 1000.0, &ev_free, &rig_free);
+    double rel_free = free_run.amplitude_se_m / free_run.amplitude_m;
+    double left = 28.0; /* a wait of 8 s and an averaging of 20 s instead of 8 */
+    rths_solution met = solve_averaging(1e-6, rig_free + left, &ev_target, &rig_target);
+    double rel_met = met.amplitude_se_m / met.amplitude_m;
+    if (getenv("RTHS_TEST_VERBOSE"))
+        fprintf(stderr,
+                "no target: rel se %.3g (%d evaluations, %.0f s); budget %.0f s: %.3g (%d, %.0f "
+                "s, flagged %d)\n",
+                rel_free, ev_free, rig_free, rig_free + left, rel_met, ev_target, rig_target,
+                met.eval.se_target_missed);
+    assert_int_equal(ev_target, ev_free + 1);
+    assert_true(rig_target <= rig_free + left + 1e-9);
+    assert_true(rig_target >= rig_free + left - 1.0); /* the averaging filled what was left */
+    /* the noise's term alone: sqrt(8 / 20) = 0.63 of the free run's */
+    assert_true(rel_met <= 0.75 * rel_free);
+    assert_int_equal(met.eval.se_target_missed, 1);
+    assert_int_equal(notes, 1);
+    double truth = R * F / G;
+    assert_true(fabs(met.amplitude_m - truth) <= 3 * met.amplitude_se_m);
+}
+
 int main(void) {
     const struct CMUnitTest tests[] = {
         cmocka_unit_test(test_reported_se_meets_target),
+        cmocka_unit_test(test_budget_buys_averaging),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);
 }

@@ -365,6 +365,23 @@ static double rig_s_spent(const rths_settle_options *opt, rths_rig *rig, double 
     return (opt->tally ? opt->tally->rig_time_s : 0.0) + rths_rig_time_s(rig) - t0;
 }
 
+/* Whether iteration.target_rel_se is out of the budget's reach for a waiting evaluation: the
+ * standard error of an average of steady periods falls as the square root of their number, so
+ * meeting the target from rel_se after `periods` periods takes periods ((rel_se / target)^2 - 1)
+ * more of period_s each; when those overrun what is left of max_rig_s_per_point the averaging is
+ * not extended at all (a zero-target evaluation, whose amplitude is the noise's, would otherwise
+ * spend the whole point's budget on a goal it cannot reach, starving the point's other
+ * evaluations). Not for a fit: its standard error, the poles' uncertainty in it, falls faster
+ * than that while the record is short (measured, the rule cut a cantilever point's fit short). */
+static int target_out_of_reach(const rths_settle_options *opt, rths_rig *rig, double t0,
+                               double rel_se, int periods, double period_s) {
+    if (!(rel_se > opt->target_rel_se)) return 0;
+    if (!isfinite(rel_se) || periods < 1) return 1;
+    double ratio = rel_se / opt->target_rel_se;
+    double more_s = (double)periods * (ratio * ratio - 1.0) * period_s;
+    return rig_s_spent(opt, rig, t0) + more_s > max_rig_s(opt);
+}
+
 /* The note of a target the budget could not meet. */
 static void note_target_missed(const rths_settle_options *opt, double frequency_hz, double rel_se,
                                double spent_s) {
@@ -742,6 +759,9 @@ static int extend_average(rths_rig *rig, const rths_settle_options *opt, double 
     int block = opt->average_periods > 0 ? opt->average_periods : 1;
     while (worst_amplitude_rel_se(out) > opt->target_rel_se) {
         if (rig_s_spent(opt, rig, t0) >= max_rig_s(opt)) return RTHS_OK;
+        if (target_out_of_reach(opt, rig, t0, worst_amplitude_rel_se(out), out->average_periods,
+                                1.0 / out->frequency_hz))
+            return RTHS_OK;
         rths_evaluation more;
         average_scatter sc2;
         memset(&more, 0, sizeof more);
