@@ -176,20 +176,12 @@ static int averaging_known(const rths_residual *rec) {
 
 /* The rig time of a record like rec's with its noise's relative error times `shrink`: a waiting
  * evaluation keeps its wait and lengthens its averaging by 1/shrink^2; a fitted one (whose standard
- * error carries its poles' uncertainty as well: measured, the budget's tightening made the
- * cantilever's fitted points worse) or one that does not say how it averaged lengthens as a
- * whole. */
+ * error carries its poles' uncertainty as well) or one that does not say how it averaged lengthens
+ * as a whole. */
 static double record_cost_s(const rths_residual *rec, double shrink) {
     if (!averaging_known(rec)) return rec->rig_time_s / (shrink * shrink);
     double averaging_s = rec->eval.average_periods / rec->eval.frequency_hz;
     return rec->rig_time_s - averaging_s + averaging_s / (shrink * shrink);
-}
-
-/* The smallest shrink a waiting record affords within left_s (1: none). */
-static double affordable_shrink(const rths_residual *rec, double left_s) {
-    if (!averaging_known(rec) || !(left_s > rec->rig_time_s)) return 1.0;
-    double averaging_s = rec->eval.average_periods / rec->eval.frequency_hz;
-    return sqrt(averaging_s / (left_s - (rec->rig_time_s - averaging_s)));
 }
 
 /* Further steps at most per point (each one evaluation): the mismatch falls by the Newton
@@ -221,18 +213,10 @@ static int accuracy_on_demand(rths_corrector *c, rths_error *err) {
          * record four times as long, about; a step at a time, so one record does not spend the
          * point's budget on a goal it cannot reach) */
         double shrink = step_dominates || !eval_target ? 1.0 : fmax(0.5, target / noise_rel);
-        /* a step whose record would overrun the budget is not begun: a record is not cut short;
-         * a waiting record's noise falls with its averaging alone, so there the budget left
-         * buys the tightening it affords when the full one does not fit */
+        /* a step whose record would overrun the budget is not begun: a record is not cut short
+         * (a waiting record's noise falls with its averaging alone, so only that lengthens) */
         double left_s = point_budget_s(c) - point_rig_s(c);
         double cost = record_cost_s(&c->cur.rec, shrink);
-        if (cost > left_s && shrink < 1.0) {
-            double affordable = affordable_shrink(&c->cur.rec, left_s);
-            if (affordable < 1.0) {
-                shrink = affordable;
-                cost = record_cost_s(&c->cur.rec, shrink);
-            }
-        }
         if (cost > left_s) break;
         if (shrink < 1.0) {
             double now =
