@@ -215,9 +215,7 @@ static int accuracy_on_demand(rths_corrector *c, rths_error *err) {
         double shrink = step_dominates || !eval_target ? 1.0 : fmax(0.5, target / noise_rel);
         /* a step whose record would overrun the budget is not begun: a record is not cut short
          * (a waiting record's noise falls with its averaging alone, so only that lengthens) */
-        double left_s = point_budget_s(c) - point_rig_s(c);
-        double cost = record_cost_s(&c->cur.rec, shrink);
-        if (cost > left_s) break;
+        if (point_rig_s(c) + record_cost_s(&c->cur.rec, shrink) > point_budget_s(c)) break;
         if (shrink < 1.0) {
             double now =
                 c->cur.rec.eval.amplitude_rel_se > 0 ? c->cur.rec.eval.amplitude_rel_se : target;

@@ -757,10 +757,9 @@ static int extend_average(rths_rig *rig, const rths_settle_options *opt, double 
                           rths_evaluation *out, integrity_counts *cnt, average_scatter *scatter,
                           rths_error *err) {
     int block = opt->average_periods > 0 ? opt->average_periods : 1;
-    while (worst_amplitude_rel_se(out) > opt->target_rel_se) {
-        if (rig_s_spent(opt, rig, t0) >= max_rig_s(opt)) return RTHS_OK;
-        if (target_out_of_reach(opt, rig, t0, worst_amplitude_rel_se(out), out->average_periods,
-                                1.0 / out->frequency_hz))
+    for (double rel; (rel = worst_amplitude_rel_se(out)) > opt->target_rel_se;) {
+        /* a spent budget is out of reach too */
+        if (target_out_of_reach(opt, rig, t0, rel, out->average_periods, 1.0 / out->frequency_hz))
             return RTHS_OK;
         rths_evaluation more;
         average_scatter sc2;
