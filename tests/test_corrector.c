@@ -14,6 +14,7 @@
  * singular) are bounded through their squared terms instead (see there). */
 #include "testlib.h"
 
+#include "rths/config.h"
 #include "rths/iterate.h"
 
 #include <complex.h>
@@ -343,6 +344,102 @@ static void test_life_cycle(void **state) {
     rths_corrector_destroy(c);
 }
 
+/* ---- a failed full step repairs the carried Jacobian (rths_newton_options.secant_repair) ----
+ * A linear rig Phi(u) = A (u - u*) whose slope along u_0 reverses between two corrections (as
+ * past a fold): the second starts from the first's Jacobian, A's old value, so its full Newton
+ * step doubles the residual, and every shorter step along it is worse too (|Phi| = 1 + lambda
+ * for a start one unit off). The failed trial is an exact secant of a linear rig: Broyden's
+ * update along the step gives J = A (the error lies along the step), and the next step lands on
+ * the root: 3 evaluations. Halving instead tries lambda = 1 .. 1/16 (5), then measures a fresh
+ * Jacobian (2) and steps (1): 9. */
+typedef struct reversing_rig {
+    double slope0; /* A = diag(slope0, 1) */
+    double root[2];
+} reversing_rig;
+
+static int reversing_eval(void *ctx, const double *u, double omega_rad_s, rths_residual *out,
+                          rths_error *err) {
+    (void)omega_rad_s;
+    (void)err;
+    const reversing_rig *r = ctx;
+    memset(out, 0, sizeof *out);
+    out->n = 2;
+    out->phi[0] = r->slope0 * (u[0] - r->root[0]);
+    out->phi[1] = u[1] - r->root[1];
+    memcpy(out->response, out->phi, sizeof out->phi);
+    out->samples = 1;
+    return RTHS_OK;
+}
+
+/* Evaluations of the second correction, started `offset` along u_0 from the root, with a
+ * tolerance of 0.1 (so the start lies offset / 0.1 tolerances off); the root must be reached. */
+static int evaluations_after_reversal(int repair, double offset) {
+    reversing_rig rig = {.slope0 = 1.0, .root = {0.3, -0.2}};
+    rths_zero_problem problem = {.n = 2, .eval = reversing_eval, .ctx = &rig};
+    rths_newton_options opt;
+    rths_newton_defaults(&opt, 0);
+    assert_int_equal(opt.secant_repair, 0); /* off by default */
+    opt.secant_repair = repair;
+    opt.rel_tolerance = 0;
+    opt.abs_tolerance_m = 0.1;
+    opt.fd_step_rel = 1e-3; /* a linear rig: any step is exact */
+    opt.fd_step_min_m = 0;
+    opt.step_limit = 0;
+    opt.report_matched = 0;
+    rths_corrector *c;
+    rths_error err;
+    assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
+    rths_corrector_set_scales(c, 1.0, 1.0);
+    double start[2] = {rig.root[0] + 0.5, rig.root[1] + 0.5};
+    assert_int_equal(rths_corrector_solve(c, start, 1.0, NULL, &err), RTHS_OK);
+    assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_CONVERGED);
+    rig.slope0 = -1.0;
+    start[0] = rig.root[0] + offset;
+    start[1] = rig.root[1];
+    assert_int_equal(rths_corrector_solve(c, start, 1.0, NULL, &err), RTHS_OK);
+    assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_CONVERGED);
+    double u[2];
+    rths_corrector_unknowns(c, u);
+    assert_true(fabs(u[0] - rig.root[0]) < 1e-9 && fabs(u[1] - rig.root[1]) < 1e-9);
+    int evaluations;
+    rths_corrector_counters(c, &evaluations, NULL, NULL);
+    rths_corrector_destroy(c);
+    return evaluations;
+}
+
+static void test_failed_step_repairs_the_jacobian(void **state) {
+    (void)state;
+    /* 10 tolerances off: repaired */
+    assert_int_equal(evaluations_after_reversal(1, 1.0), 3);
+    assert_int_equal(evaluations_after_reversal(0, 1.0), 9);
+    /* 100 tolerances off (beyond the 50 of SECANT_REPAIR_MAX_TOLERANCES) a long step's secant
+     * is no local slope: halved, then measured, as without the repair */
+    assert_int_equal(evaluations_after_reversal(1, 10.0), 9);
+    assert_int_equal(evaluations_after_reversal(0, 10.0), 9);
+}
+
+/* iteration.secant_repair: off with either strategy unless the key sets it. */
+static void test_secant_repair_config(void **state) {
+    (void)state;
+    static const char *const sets[] = {NULL, "iteration.secant_repair=false",
+                                       "iteration.secant_repair=true"};
+    for (int paper = 0; paper < 2; paper++)
+        for (int k = 0; k < 3; k++) {
+            rths_config *cfg = NULL;
+            rths_error err;
+            if (rths_config_load(NULL, &sets[k], sets[k] ? 1 : 0, &cfg, &err))
+                fail_msg("%s", err.msg);
+            rths_settle_options st;
+            rths_newton_options nw;
+            rths_settle_defaults(&st, paper);
+            rths_newton_defaults(&nw, paper);
+            int harmonics = 1;
+            if (rths_iterate_config_read(cfg, &st, &nw, &harmonics, &err)) fail_msg("%s", err.msg);
+            assert_int_equal(nw.secant_repair, k == 2);
+            rths_config_free(cfg);
+        }
+}
+
 /* A problem size the corrector cannot hold is refused at create. */
 static void test_refuses_bad_size(void **state) {
     (void)state;
@@ -519,6 +616,8 @@ int main(void) {
         cmocka_unit_test(test_roth_local_minimum),
         cmocka_unit_test(test_life_cycle),
         cmocka_unit_test(test_refuses_bad_size),
+        cmocka_unit_test(test_failed_step_repairs_the_jacobian),
+        cmocka_unit_test(test_secant_repair_config),
         cmocka_unit_test(test_two_dof_lti_model),
         cmocka_unit_test(test_gain_without_jacobian),
     };

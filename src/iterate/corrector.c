@@ -293,6 +293,7 @@ static void begin(rths_corrector *c, const rths_arclength *arc) {
     c->rig_time_s = 0;
     c->jacobian_here = 0;
     c->fresh = 0;
+    c->repaired = 0;
     c->status = RTHS_CORRECTOR_CONTINUE;
     c->trust_actions = 0;
     c->refused = 0;
@@ -449,10 +450,12 @@ static int newton_step(rths_corrector *c, double *du, double *fraction, double *
 }
 
 /* Backtracking line search on the extended residual norm (erratum 5): halves the step down to
- * min_damping. Returns 1 with *trial when the residual fell, else 0; a problem error comes back
- * in *rc. */
+ * min_damping, or with full_only stops after a full step that was measured and did not reduce
+ * the residual (*lambda_out 1, its evaluation in *trial; a refused full step is halved as
+ * before). Returns 1 with *trial when the residual fell, else 0; a problem error comes back in
+ * *rc. */
 static int line_search(rths_corrector *c, const double *du, corrector_point *trial,
-                       double *lambda_out, int *rc, rths_error *err) {
+                       double *lambda_out, int full_only, int *rc, rths_error *err) {
     *trial = c->cur;
     for (double lambda = 1.0; lambda >= c->opt.min_damping; lambda *= 0.5) {
         *lambda_out = lambda;
@@ -471,8 +474,24 @@ static int line_search(rths_corrector *c, const double *du, corrector_point *tri
             continue;
         }
         if (trial->ext < c->cur.ext) return 1;
+        if (full_only && lambda == 1.0) return 0;
     }
     return 0;
+}
+
+/* docs/method.md, "The corrector": measured on the bilinear example, every one of 29 such
+ * repairs from within 40 tolerances was followed by a full step that reduced the residual; on the
+ * two-interface Duffing example's cold start, 160 tolerances off, the secant of so long a step
+ * misled the steps after it and the first point no longer converged in its 12 iterations */
+static const double SECANT_REPAIR_MAX_TOLERANCES = 50.0;
+
+/* Whether a failed full step from the current iterate should repair the carried Jacobian with
+ * its own trial instead of being halved: the model is not fresh (a fresh one that fails is
+ * halved, then the point is stuck), not yet repaired in this correction, and the iterate is
+ * close enough to the solution that the step's secant is the rig's local slope along it. */
+static int repair_on_failure(const rths_corrector *c) {
+    return c->opt.secant_repair && !c->fresh && !c->repaired &&
+           c->cur.sol.residual_to_tolerance <= SECANT_REPAIR_MAX_TOLERANCES;
 }
 
 /* The Newton step points out of the trust region from its boundary. A carried or updated model
@@ -505,7 +524,8 @@ static int corrector_iterate(rths_corrector *c, rths_error *err) {
     double promised = fraction * c->cur.ext; /* the linear model's fall of the residual norm */
     corrector_point *trial = malloc(sizeof *trial);
     if (!trial) return rths_error_set(err, RTHS_EFAIL, "out of memory in the corrector");
-    int rc = RTHS_OK, accepted = line_search(c, du, trial, &lambda, &rc, err);
+    int repair = repair_on_failure(c);
+    int rc = RTHS_OK, accepted = line_search(c, du, trial, &lambda, repair, &rc, err);
     /* a step the trust region cut short, taken whole, that reduced the residual as its model
      * promised: the model is borne out up to the boundary, so the solution may lie beyond it */
     if (!rc && accepted && trust_t < 1.0 && lambda == 1.0 &&
@@ -517,6 +537,13 @@ static int corrector_iterate(rths_corrector *c, rths_error *err) {
         c->jacobian_here = 1;
         c->cur = *trial;
         if (converged(c, &c->cur)) rc = accept_converged(c, err);
+    } else if (!rc && repair && lambda == 1.0) {
+        /* the failed trial is a measured secant along the step: the carried model was wrong
+         * along it (near a fold, or a Broyden update that went stale), and one evaluation now
+         * corrects it where halving and a fresh finite-difference Jacobian cost up to 5 + n + 1 */
+        c->repaired = 1;
+        corrector_secant_update(c, trial);
+        c->jacobian_here = 1;
     } else if (!rc && c->fresh) {
         c->status = RTHS_CORRECTOR_STUCK; /* a fresh Jacobian could not reduce the residual */
     } else if (!rc) {

@@ -71,6 +71,7 @@ struct rths_corrector {
     double rig_time_s;
     int jacobian_here; /* the Jacobians were measured or secant-updated at this point */
     int fresh;         /* the Jacobians were just measured */
+    int repaired;      /* a failed full step's secant updated the Jacobians (secant_repair) */
     rths_corrector_outcome status;
     int refused;        /* the last evaluation failed as refused (rths_evaluation.refused) */
     int refused_trials; /* line-search trials set aside this correction for being refused */
