@@ -20,6 +20,9 @@ s="$work/run/summary.json"
 # the two interface storeys and storey 4 kept (the spring's DoFs), nothing condensed
 grep -q "25 harmonics, 512 time samples per period (AFT), 3 DoF(s) kept" "$work/run/run.log" ||
     fail "run.log does not describe the harmonic balance"
+# no modes for a nonlinear structure, and the log names its element (not "a bilinear leg")
+grep -q "no modal.csv: a cubic element's response depends on its amplitude" "$work/run/run.log" ||
+    fail "run.log does not say why there is no modal.csv: $(grep 'modal' "$work/run/run.log")"
 # the truth curve of both interface DoFs (the figure draws each)
 head -n 1 "$work/run/truth.csv" | grep -q "dof2_amplitude_m" ||
     fail "truth.csv has no dof2_amplitude_m: $(head -n 1 "$work/run/truth.csv")"
