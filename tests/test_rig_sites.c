@@ -216,7 +216,44 @@ static void sites_line_up_after_a_change(void **state) {
     rths_period p[2];
     assert_int_equal(rths_rig_run_periods(rig, 2, p, &err), RTHS_EFAIL);
     assert_non_null(strstr(err.msg, "out of step"));
+    /* with what the host set and every site's periods of the call, for the lab to tell which
+     * site missed the change */
+    assert_non_null(strstr(err.msg, "forcing set 10 Hz"));
+    assert_non_null(strstr(err.msg, "site 1: 10 Hz to "));
+    assert_non_null(strstr(err.msg, "site 2: 10.5 Hz to "));
     rths_rig_destroy(rig);
+}
+
+/* A site still gliding from an earlier change when the next one comes (a correction that failed
+ * at its first periods, retried at once) glides from another frequency: site 1 from 11 Hz, site 2
+ * from 10 Hz, both to 14 Hz over three periods (11.75, 12.5, 13.25 against 11, 12, 13). No
+ * dropping matches site 1's glide; once site 2 reaches 14 Hz itself, site 1 drops its glide too
+ * and every joined period runs 14 Hz (before, site 2 dropped 8 periods past its glide and the
+ * call failed out of step, and so did every retry). */
+static void sites_line_up_after_glides_from_different_forcings(void **state) {
+    (void)state;
+    for (int count = 1; count <= 4; count += 3) {
+        scripted one = {.dofs = 1, .samples = 10, .glide_periods = 3};
+        scripted two = {.dofs = 2, .samples = 10, .glide_periods = 3};
+        rths_error err;
+        int rc;
+        rths_rig *rig = join(&one, &two, &err, &rc);
+        assert_int_equal(rc, RTHS_OK);
+        rths_period p[8];
+        assert_int_equal(rths_rig_set_forcing(rig, 10.0, 1.0, &err), RTHS_OK);
+        assert_int_equal(rths_rig_run_periods(rig, 4, p, &err), RTHS_OK);
+        one.frequency_hz = 11.0; /* site 1 still on its way from an earlier change */
+        assert_int_equal(rths_rig_set_forcing(rig, 14.0, 1.0, &err), RTHS_OK);
+        for (int i = 0; i < 4; i += count) {
+            rc = rths_rig_run_periods(rig, count, p + i, &err);
+            if (rc) fail_msg("count %d: %s", count, err.msg);
+        }
+        for (int i = 0; i < 4; i++)
+            assert_close(p[i].frequency_hz, 14.0, 1e-12);
+        /* each site dropped only its own glide: site 2 its three, site 1 its three */
+        assert_close(one.time_s - two.time_s, 0.0, 1e-12);
+        rths_rig_destroy(rig);
+    }
 }
 
 static void a_dof_in_two_sites_or_none_is_refused(void **state) {
@@ -246,6 +283,7 @@ int main(void) {
         cmocka_unit_test(targets_and_periods_follow_the_map),
         cmocka_unit_test(a_site_fault_disarms_every_site),
         cmocka_unit_test(sites_line_up_after_a_change),
+        cmocka_unit_test(sites_line_up_after_glides_from_different_forcings),
         cmocka_unit_test(a_dof_in_two_sites_or_none_is_refused),
     };
     return cmocka_run_group_tests(tests, NULL, NULL);

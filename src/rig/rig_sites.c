@@ -215,8 +215,12 @@ static int same_frequency(double f, double g) {
  * from the glide's second. The glide runs period by period alike at every site, so the sites
  * are lined up again: the site furthest into the glide (its first period nearest the new
  * frequency) sets the first period, and every other site drops its leading periods until its
- * first has that frequency (at most MAX_ALIGN_DROP, each replaced by the site's next). Sites
- * that still disagree are reported out of step by the caller. */
+ * first has that frequency (at most MAX_ALIGN_DROP, each replaced by the site's next). A site
+ * that was still gliding from an earlier change when this one came (a correction that failed at
+ * its first periods is retried at once) glides from another frequency, and no dropping matches
+ * the lead's glide: once a site that did not match reaches the new forcing itself, every site
+ * drops its glide periods and they line up on the new forcing's first. Sites that still disagree
+ * are reported out of step by the caller. */
 #define MAX_ALIGN_DROP 8
 static int align_after_change(sites_rig *r, rths_error *err) {
     int lead = 0;
@@ -224,19 +228,46 @@ static int align_after_change(sites_rig *r, rths_error *err) {
         if (fabs(r->s[k].buf[0].frequency_hz - r->frequency_hz) <
             fabs(r->s[lead].buf[0].frequency_hz - r->frequency_hz))
             lead = k;
-    const double first = r->s[lead].buf[0].frequency_hz;
+    double first = r->s[lead].buf[0].frequency_hz;
     r->op = OP_ALIGN;
     for (int round = 0; round < MAX_ALIGN_DROP; round++) {
-        int any = 0;
+        int any = 0, glide_ended = 0;
         for (int k = 0; k < r->n; k++) {
-            r->s[k].behind = !same_frequency(r->s[k].buf[0].frequency_hz, first);
+            const double f = r->s[k].buf[0].frequency_hz;
+            r->s[k].behind = !same_frequency(f, first);
             any |= r->s[k].behind;
+            glide_ended |= r->s[k].behind && same_frequency(f, r->frequency_hz);
         }
         if (!any) return RTHS_OK;
+        if (glide_ended) { /* the glides differ: line up on the new forcing */
+            first = r->frequency_hz;
+            for (int k = 0; k < r->n; k++)
+                r->s[k].behind = !same_frequency(r->s[k].buf[0].frequency_hz, first);
+        }
         int rc = all_sites(r, err);
         if (rc) return rc;
     }
     return RTHS_OK;
+}
+
+/* The sites' periods disagree at index i: the error names the site and, so that a lab (or a
+ * test log) can tell a site that fell behind from one that missed a change, every site's
+ * periods of this call (frequency and end time on its own clock, the first few) and the
+ * forcing the host set. */
+static int out_of_step(const sites_rig *r, int k, int i, int count, rths_error *err) {
+    char seq[640];
+    size_t at = 0;
+    for (int j = 0; j < r->n && at < sizeof seq; j++) {
+        at += (size_t)snprintf(seq + at, sizeof seq - at, "%ssite %d:", j ? "; " : "", j + 1);
+        for (int q = 0; q < count && q < 4 && at < sizeof seq; q++)
+            at += (size_t)snprintf(seq + at, sizeof seq - at, " %.9g Hz to %.6f s",
+                                   r->s[j].buf[q].frequency_hz, r->s[j].buf[q].end_time_s);
+    }
+    return rths_error_set(err, RTHS_EFAIL,
+                          "site %d (%s) ran a period at %.9g Hz while site 1 ran it at %.9g Hz: "
+                          "the sites' forcing is out of step (forcing set %.9g Hz; %s)",
+                          k + 1, r->s[k].uri, r->s[k].buf[i].frequency_hz,
+                          r->s[0].buf[i].frequency_hz, r->frequency_hz, seq);
 }
 
 static int s_run_periods(void *self, int count, rths_period *out, rths_error *err) {
@@ -259,14 +290,10 @@ static int s_run_periods(void *self, int count, rths_period *out, rths_error *er
     }
     for (int i = 0; i < count && !rc; i++) {
         join_period(r, i, &out[i]);
-        for (int k = 1; k < r->n; k++)
+        for (int k = 1; k < r->n && !rc; k++)
             if (fabs(r->s[k].buf[i].frequency_hz - out[i].frequency_hz) >
                 1e-9 * out[i].frequency_hz)
-                rc = rths_error_set(err, RTHS_EFAIL,
-                                    "site %d (%s) ran a period at %.9g Hz while site 1 ran it at "
-                                    "%.9g Hz: the sites' forcing is out of step",
-                                    k + 1, r->s[k].uri, r->s[k].buf[i].frequency_hz,
-                                    out[i].frequency_hz);
+                rc = out_of_step(r, k, i, count, err);
     }
     return rc;
 }

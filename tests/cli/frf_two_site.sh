@@ -124,7 +124,7 @@ PY
 hpid=$!
 servers+=($hpid)
 for _ in $(seq 1 1200); do
-    [ "$(wc -l <"$work/lost/journal.jsonl" 2>/dev/null || echo 0)" -ge 2 ] && break
+    [ "$(wc -l 2>/dev/null <"$work/lost/journal.jsonl" || echo 0)" -ge 2 ] && break
     kill -0 "$hpid" 2>/dev/null || break
     sleep 0.05
 done
