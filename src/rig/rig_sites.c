@@ -231,19 +231,17 @@ static int align_after_change(sites_rig *r, rths_error *err) {
     double first = r->s[lead].buf[0].frequency_hz;
     r->op = OP_ALIGN;
     for (int round = 0; round < MAX_ALIGN_DROP; round++) {
-        int any = 0, glide_ended = 0;
+        /* a site at the new forcing itself: its glide has ended, so every site lines up on it
+         * (where the glides match, the lead's first is that frequency by then anyway) */
+        for (int k = 0; k < r->n; k++)
+            if (same_frequency(r->s[k].buf[0].frequency_hz, r->frequency_hz))
+                first = r->frequency_hz;
+        int any = 0;
         for (int k = 0; k < r->n; k++) {
-            const double f = r->s[k].buf[0].frequency_hz;
-            r->s[k].behind = !same_frequency(f, first);
+            r->s[k].behind = !same_frequency(r->s[k].buf[0].frequency_hz, first);
             any |= r->s[k].behind;
-            glide_ended |= r->s[k].behind && same_frequency(f, r->frequency_hz);
         }
         if (!any) return RTHS_OK;
-        if (glide_ended) { /* the glides differ: line up on the new forcing */
-            first = r->frequency_hz;
-            for (int k = 0; k < r->n; k++)
-                r->s[k].behind = !same_frequency(r->s[k].buf[0].frequency_hz, first);
-        }
         int rc = all_sites(r, err);
         if (rc) return rc;
     }

@@ -253,8 +253,8 @@ int frf_write_modal_outputs(rths_report *rep, const frf_state *run, rths_error *
     if (rc) return rc;
     rths_report_log(rep, "wrote frf.uff (universal file format 58, the measured receptance)");
     if (s->has_bilinear) {
-        /* has_bilinear is set by any nonlinear element (the bilinear leg, structure.nonlinear's),
-         * so the message names the element */
+        /* has_bilinear is set by any nonlinear element (the bilinear leg, structure.nonlinear's;
+         * there is at least one then), so the message names the element */
         if (s->n_nonlinear > 1)
             rths_report_log(rep,
                             "no modal.csv: %d nonlinear elements make the response depend on its "
@@ -264,8 +264,7 @@ int frf_write_modal_outputs(rths_report *rep, const frf_state *run, rths_error *
             rths_report_log(rep,
                             "no modal.csv: a %s element's response depends on its amplitude, the "
                             "structure has no modes to identify",
-                            s->n_nonlinear == 1 ? rths_nl_type_name(s->nonlinear[0].type)
-                                                : "nonlinear");
+                            rths_nl_type_name(s->nonlinear[0].type));
         return 0;
     }
     rths_modes modes;
