@@ -371,9 +371,31 @@ static int reversing_eval(void *ctx, const double *u, double omega_rad_s, rths_r
     return RTHS_OK;
 }
 
+/* What rths_newton_options.on_evaluation reported: each evaluation's role as a letter
+ * (P prediction, J Jacobian column, S step, D damped step), its damping, mismatch and tolerance. */
+typedef struct evaluation_log {
+    char roles[64];
+    int n;
+    double damping[64], mismatch[64], ratio[64];
+    int within[64];
+} evaluation_log;
+
+static void log_evaluation(void *user, const rths_evaluation_event *e) {
+    evaluation_log *log = user;
+    static const char letter[] = "PJSDGA";
+    if (log->n >= 63) return;
+    log->roles[log->n] = letter[e->role];
+    log->damping[log->n] = e->damping;
+    log->mismatch[log->n] = e->mismatch_m;
+    log->ratio[log->n] = e->mismatch_to_tolerance;
+    log->within[log->n] = e->within_tolerance;
+    log->roles[++log->n] = '\0';
+}
+
 /* Evaluations of the second correction, started `offset` along u_0 from the root, with a
- * tolerance of 0.1 (so the start lies offset / 0.1 tolerances off); the root must be reached. */
-static int evaluations_after_reversal(int repair, double offset) {
+ * tolerance of 0.1 (so the start lies offset / 0.1 tolerances off); the root must be reached.
+ * With log, what the hook reported of the second correction. */
+static int evaluations_logged_after_reversal(int repair, double offset, evaluation_log *log) {
     reversing_rig rig = {.slope0 = 1.0, .root = {0.3, -0.2}};
     rths_zero_problem problem = {.n = 2, .eval = reversing_eval, .ctx = &rig};
     rths_newton_options opt;
@@ -386,6 +408,9 @@ static int evaluations_after_reversal(int repair, double offset) {
     opt.fd_step_min_m = 0;
     opt.step_limit = 0;
     opt.report_matched = 0;
+    evaluation_log unused;
+    opt.on_evaluation = log_evaluation;
+    opt.on_evaluation_user = log ? log : &unused;
     rths_corrector *c;
     rths_error err;
     assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
@@ -393,6 +418,7 @@ static int evaluations_after_reversal(int repair, double offset) {
     double start[2] = {rig.root[0] + 0.5, rig.root[1] + 0.5};
     assert_int_equal(rths_corrector_solve(c, start, 1.0, NULL, &err), RTHS_OK);
     assert_int_equal(rths_corrector_status(c), RTHS_CORRECTOR_CONVERGED);
+    memset(opt.on_evaluation_user, 0, sizeof(evaluation_log)); /* the second correction's */
     rig.slope0 = -1.0;
     start[0] = rig.root[0] + offset;
     start[1] = rig.root[1];
@@ -405,6 +431,40 @@ static int evaluations_after_reversal(int repair, double offset) {
     rths_corrector_counters(c, &evaluations, NULL, NULL);
     rths_corrector_destroy(c);
     return evaluations;
+}
+
+static int evaluations_after_reversal(int repair, double offset) {
+    return evaluations_logged_after_reversal(repair, offset, NULL);
+}
+
+/* rths_newton_options.on_evaluation reports every evaluation with its role, in order: the
+ * reversing rig's two corrections of test_failed_step_repairs_the_jacobian, whose sequences and
+ * mismatches are known in closed form (|Phi| = 1 + lambda along the step after the reversal, for
+ * a start one unit off; the tolerance 0.1). */
+static void test_evaluation_hook(void **state) {
+    (void)state;
+    evaluation_log log;
+    /* halved: the full step and four shorter ones, a 2-column Jacobian, the step to the root */
+    assert_int_equal(evaluations_logged_after_reversal(0, 1.0, &log), 9);
+    assert_int_equal(log.n, 9);
+    assert_string_equal(log.roles, "PSDDDDJJS");
+    assert_true(fabs(log.mismatch[0] - 1.0) < 1e-12);
+    assert_true(fabs(log.ratio[0] - 10.0) < 1e-9);
+    assert_false(log.within[0]);
+    static const double lambda[5] = {1.0, 0.5, 0.25, 0.125, 0.0625};
+    for (int k = 0; k < 5; k++) {
+        assert_true(fabs(log.damping[1 + k] - lambda[k]) < 1e-15);
+        assert_true(fabs(log.mismatch[1 + k] - (1.0 + lambda[k])) < 1e-9);
+    }
+    assert_true(log.damping[0] == 0.0 && log.damping[6] == 0.0); /* not steps */
+    assert_true(log.within[8] && log.mismatch[8] < 1e-9);
+    /* repaired: the failed full step, then the step from the repaired Jacobian */
+    assert_int_equal(evaluations_logged_after_reversal(1, 1.0, &log), 3);
+    assert_string_equal(log.roles, "PSS");
+    assert_true(fabs(log.mismatch[1] - 2.0) < 1e-9);
+    assert_true(log.within[2]);
+    assert_string_equal(rths_evaluation_role_name(RTHS_EVALUATION_DAMPED_STEP), "damped_step");
+    assert_string_equal(rths_evaluation_role_name(RTHS_EVALUATION_ACCURACY_STEP), "accuracy_step");
 }
 
 static void test_failed_step_repairs_the_jacobian(void **state) {
@@ -617,6 +677,7 @@ int main(void) {
         cmocka_unit_test(test_life_cycle),
         cmocka_unit_test(test_refuses_bad_size),
         cmocka_unit_test(test_failed_step_repairs_the_jacobian),
+        cmocka_unit_test(test_evaluation_hook),
         cmocka_unit_test(test_secant_repair_config),
         cmocka_unit_test(test_two_dof_lti_model),
         cmocka_unit_test(test_gain_without_jacobian),

@@ -192,6 +192,8 @@ int rths_evaluate_noise(rths_rig *rig, const rths_settle_options *opt, rths_nois
  * several interface DoFs, one such block of 2N per DoF in the interface order. */
 void rths_evaluation_residual(const rths_evaluation *ev, double *phi, double *phi_se);
 
+struct rths_evaluation_event; /* below */
+
 typedef struct rths_newton_options {
     int max_iterations;   /* corrector iterations (each: one evaluation + line search) */
     double rel_tolerance; /* ||Phi|| < max(rel * ||numerical coefficients||, abs, noise floor) */
@@ -240,7 +242,44 @@ typedef struct rths_newton_options {
      * Jacobian the reported amplitudes are extrapolated through is no longer refreshed), so
      * iteration.secant_repair is off by default */
     int secant_repair;
+    /* Optional: called after every evaluation the corrector makes (failed corrections, line-search
+     * trials and finite-difference columns included) with what it was for and what it measured;
+     * rths frf writes each to evaluations.csv (docs/method.md, "Outputs"). NULL: none. */
+    void (*on_evaluation)(void *user, const struct rths_evaluation_event *event);
+    void *on_evaluation_user;
 } rths_newton_options;
+
+/* What an evaluation was for, in the corrector's order of business. */
+typedef enum rths_evaluation_role {
+    RTHS_EVALUATION_PREDICTION = 0,   /* a correction's first evaluation: the predicted point */
+    RTHS_EVALUATION_JACOBIAN = 1,     /* a finite-difference column of the Jacobian */
+    RTHS_EVALUATION_STEP = 2,         /* a full Newton step */
+    RTHS_EVALUATION_DAMPED_STEP = 3,  /* a line search's shortened step */
+    RTHS_EVALUATION_GAIN_PROBE = 4,   /* the matched estimate's measurement of the local gain */
+    RTHS_EVALUATION_ACCURACY_STEP = 5 /* a further step for iteration.target_rel_se */
+} rths_evaluation_role;
+
+/* "prediction", "jacobian", "step", "damped_step", "gain_probe", "accuracy_step" */
+const char *rths_evaluation_role_name(rths_evaluation_role role);
+
+/* One evaluation as rths_newton_options.on_evaluation reports it. */
+typedef struct rths_evaluation_event {
+    rths_evaluation_role role;
+    int iteration;  /* the correction's Newton iterations so far */
+    double damping; /* the line search's step fraction (1: the full step); 0 for other roles */
+    double frequency_hz;
+    /* 1: the rig's measurement was corrupted twice and refused (rths_evaluation.refused): the
+     * mismatch fields are NaN */
+    int refused;
+    double mismatch_m;            /* ||Phi|| over every entry, m (rad for a rotation) */
+    double tolerance_m;           /* the corrector's tolerance of it, m */
+    double mismatch_to_tolerance; /* the largest ratio over the interface DoFs */
+    int within_tolerance;         /* every interface DoF's mismatch below its tolerance */
+    double rig_time_s;            /* the rig time it used, as the corrector counts it */
+    /* how the evaluation reached steady state: its rig time, periods waited and averaged, the
+     * steady-state test passed, a fitted steady state, a fit that fell back to waiting */
+    const rths_evaluation *evaluation;
+} rths_evaluation_event;
 
 /* ---- the zero problem: Phi(u; omega) = 0 ----
  *

@@ -253,7 +253,11 @@ class Result:
 # float). The rest are doubles, as in the CSV files.
 INTEGER_COLUMNS = frozenset({
     "point", "period", "mode", "evaluations", "iterations", "converged", "fold", "segment",
-    "se_honest", "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched"})
+    "se_honest", "stable", "stable_experimental", "floquet_trustworthy", "harmonics_matched",
+    # evaluations.csv
+    "correction", "prediction", "jacobian", "step", "damped_step", "gain_probe", "accuracy_step",
+    "iteration", "within_tolerance", "wait_periods", "average_periods", "steady", "fitted",
+    "fit_fallback", "refused"})
 
 
 def _typed(name, column):

@@ -612,8 +612,9 @@ static int compare_names(const void *a, const void *b) {
  * without .rths-files (a run killed before it closed its folder) is read for. A new output table
  * belongs here too. */
 static const char *const rths_csv_files[] = {
-    "absolute.csv", "boundary.csv", "chart.csv", "coefficients.csv", "critical.csv", "fidelity.csv",
-    "frf.csv",      "modes.csv",    "trace.csv", "true_frf.csv",     "truth.csv",
+    "absolute.csv", "boundary.csv",    "chart.csv",    "coefficients.csv",
+    "critical.csv", "evaluations.csv", "fidelity.csv", "frf.csv",
+    "modes.csv",    "trace.csv",       "true_frf.csv", "truth.csv",
 };
 
 static int is_regular_file(const char *dir, const char *name) {

@@ -51,6 +51,7 @@ static const char usage[] =
     "  --help               this text\n"
     "\n"
     "Writes into DIR: journal.jsonl (one line per accepted point, flushed; --resume reads it),\n"
+    "evaluations.csv (a row per evaluation: role, mismatch, rig time; flushed),\n"
     "frf.csv (one row per accepted point), truth.csv (the true assembly's response computed\n"
     "without the hybrid loop), frf.png, bode.png, nyquist.png, modal.csv (modes identified\n"
     "from the hybrid FRF), frf.uff (UFF58), iterations.png, trace.csv + lissajous.png (one\n"

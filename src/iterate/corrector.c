@@ -227,6 +227,7 @@ static int accuracy_on_demand(rths_corrector *c, rths_error *err) {
         double ut[LD];
         for (int i = 0; i < LD; i++)
             ut[i] = c->cur.u[i] + (i < c->m ? du[i] : 0.0);
+        c->role = RTHS_EVALUATION_ACCURACY_STEP;
         rc = corrector_evaluate(c, ut, trial, err);
         if (rc && c->refused) { /* a corrupted trial: the accepted point stands */
             c->refused = 0;
@@ -330,6 +331,24 @@ int rths_corrector_trust_allows(const rths_corrector *c, const double *u_m) {
     return target_norm(c, u_m) <= c->opt.trust_growth * c->trust_anchor_m;
 }
 
+const char *rths_evaluation_role_name(rths_evaluation_role role) {
+    switch (role) {
+    case RTHS_EVALUATION_PREDICTION:
+        return "prediction";
+    case RTHS_EVALUATION_JACOBIAN:
+        return "jacobian";
+    case RTHS_EVALUATION_STEP:
+        return "step";
+    case RTHS_EVALUATION_DAMPED_STEP:
+        return "damped_step";
+    case RTHS_EVALUATION_GAIN_PROBE:
+        return "gain_probe";
+    case RTHS_EVALUATION_ACCURACY_STEP:
+        return "accuracy_step";
+    }
+    return "unknown";
+}
+
 int rths_corrector_quadratic_predictor(const rths_corrector *c) {
     return c->opt.quadratic_predictor;
 }
@@ -361,6 +380,7 @@ static int corrector_set(rths_corrector *c, const double *u0, double omega_rad_s
             u[i] *= c->trust_radius / size;
         c->trust_actions++;
     }
+    c->role = RTHS_EVALUATION_PREDICTION;
     int rc = corrector_evaluate(c, u, &c->cur, err);
     if (rc) return rc;
     if (converged(c, &c->cur)) return accept_converged(c, err);
@@ -464,6 +484,8 @@ static int line_search(rths_corrector *c, const double *du, corrector_point *tri
             ut[i] = c->cur.u[i] + lambda * du[i];
         for (int i = c->m; i < LD; i++)
             ut[i] = c->cur.u[i];
+        c->role = lambda == 1.0 ? RTHS_EVALUATION_STEP : RTHS_EVALUATION_DAMPED_STEP;
+        c->role_damping = lambda;
         if ((*rc = corrector_evaluate(c, ut, trial, err))) {
             /* a trial whose measurement was corrupted (clipped, saturated) is a step too far:
              * a shorter one is tried, as for a residual that grew */

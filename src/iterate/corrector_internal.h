@@ -72,6 +72,10 @@ struct rths_corrector {
     int jacobian_here; /* the Jacobians were measured or secant-updated at this point */
     int fresh;         /* the Jacobians were just measured */
     int repaired;      /* a failed full step's secant updated the Jacobians (secant_repair) */
+    /* what the next evaluation is for, and a line-search trial's step fraction
+     * (rths_newton_options.on_evaluation): set by each caller of corrector_evaluate */
+    rths_evaluation_role role;
+    double role_damping;
     rths_corrector_outcome status;
     int refused;        /* the last evaluation failed as refused (rths_evaluation.refused) */
     int refused_trials; /* line-search trials set aside this correction for being refused */

@@ -1099,6 +1099,27 @@ static double describe(const rths_corrector *c, corrector_point *p) {
     return sq;
 }
 
+/* rths_newton_options.on_evaluation: what the evaluation into *p was for (c->role) and what it
+ * measured; a refused one (its record holds no residual) with NaN mismatches. */
+static void report_evaluation(const rths_corrector *c, const corrector_point *p, int refused) {
+    if (!c->opt.on_evaluation) return;
+    int stepping = c->role == RTHS_EVALUATION_STEP || c->role == RTHS_EVALUATION_DAMPED_STEP;
+    rths_evaluation_event e = {
+        .role = c->role,
+        .iteration = c->iterations,
+        .damping = stepping ? c->role_damping : 0.0,
+        .frequency_hz = p->sol.omega_rad_s / (2 * M_PI),
+        .refused = refused,
+        .mismatch_m = refused ? NAN : p->sol.residual_norm_m,
+        .tolerance_m = refused ? NAN : p->sol.tolerance_m,
+        .mismatch_to_tolerance = refused ? NAN : p->sol.residual_to_tolerance,
+        .within_tolerance = !refused && p->within,
+        .rig_time_s = p->rec.rig_time_s,
+        .evaluation = &p->rec.eval,
+    };
+    c->opt.on_evaluation(c->opt.on_evaluation_user, &e);
+}
+
 /* Evaluates at scaled u into *p: the record, then the scaled residual and response, the
  * arclength row and the extended residual norm. */
 int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, rths_error *err) {
@@ -1124,7 +1145,10 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
         p->sol.target_a[k] = target[k];
         p->sol.target_b[k] = target[c->harmonics + k];
     }
-    if (rc) return rc;
+    if (rc) {
+        if (c->refused) report_evaluation(c, p, 1);
+        return rc;
+    }
     pool_noise(&c->mem, &p->rec, n);
     if ((c->m == n || c->opt.rig_lti) && c->harmonics > 0)
         remember_evaluation(&c->mem, target, p->sol.omega_rad_s, &p->rec, n);
@@ -1141,5 +1165,6 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
         ext += g * g;
     }
     p->ext = sqrt(ext);
+    report_evaluation(c, p, 0);
     return RTHS_OK;
 }

@@ -94,6 +94,8 @@ static int read_options(frf_state *st, rths_error *err) {
     st->settle.note_user = st;
     /* --force also accepts a point below the measured noise floor, flagged in frf.csv */
     st->newton.accept_below_noise = opt->force;
+    st->newton.on_evaluation = frf_on_evaluation;
+    st->newton.on_evaluation_user = st;
     if (!rc && opt->harmonics) st->harmonics = opt->harmonics;
     if (!rc) rc = rths_continuation_config_read(opt->cfg, &st->cont, err);
     st->cont.note = run_log_note;
@@ -410,6 +412,7 @@ static int open_outputs(frf_state *st, rths_error *err) {
     if (!rc)
         rc = rths_journal_open_run(st->journal_path, st->strategy, st->seed_text, frf_rig_text(st),
                                    &st->journal, err);
+    if (!rc) rc = frf_evaluations_open(st, err);
     /* the observing rig reports every evaluation to live.json; it forwards every call unchanged
      * (tests/test_live.c: a watched run equals an unwatched one bit for bit) */
     if (!rc) rc = rths_live_open(opt->out_dir, &st->live, err);
@@ -916,6 +919,7 @@ static void release(frf_state *st) {
     free(st->resume_pts);
     free(st->journal_path);
     if (st->rig) rths_rig_destroy(st->rig);
+    frf_evaluations_close(st);
     rths_report_close(st->rep);
     release_folder(st);
 }

@@ -2,6 +2,8 @@
 #ifndef RTHS_RUN_FRF_INTERNAL_H
 #define RTHS_RUN_FRF_INTERNAL_H
 
+#include <stdio.h>
+
 #include "rths/live.h"
 #include "rths/report.h"
 #include "rths/run.h"
@@ -68,6 +70,10 @@ typedef struct frf_state {
     double floquet_rig_time_s;       /* rig time spent on the perturbed records */
     frf_floquet_truth floquet_truth; /* computed when the option is on */
     frf_dof_columns dof_cols;        /* output.dofs' columns (count 0 without it) */
+    /* evaluations.csv: every evaluation of the corrector, a row each, flushed per row */
+    FILE *evaluations;
+    int evaluation_corrections; /* correction attempts begun (each begins with a prediction) */
+    int evaluations_failed;     /* a write failed: logged once, the file left as it was */
 } frf_state;
 
 enum { FRF_MAX_CHANGES = 8 };
@@ -93,6 +99,12 @@ int frf_check_resume_config(frf_state *st, rths_error *err);
  * at a point (f_hz, amp_m) on its branch (NaN when the curve has no piece there). */
 int frf_floquet_truth_compute(const rths_setup *s, frf_floquet_truth *t, rths_error *err);
 double frf_floquet_truth_at(const frf_state *run, double f_hz, double amp_m);
+
+/* frf_evaluations.c: evaluations.csv, opened with the outputs (appended to on --resume) and
+ * fed by rths_newton_options.on_evaluation (user: the frf_state) */
+int frf_evaluations_open(frf_state *st, rths_error *err);
+void frf_on_evaluation(void *user, const rths_evaluation_event *e);
+void frf_evaluations_close(frf_state *st);
 
 /* frf_outputs.c */
 double frf_harmonic_error(const rths_point *pt, int k);
