@@ -255,6 +255,16 @@ class Frf(unittest.TestCase):
         self.assertEqual(len(rows), len(want["point"]))
         np.testing.assert_allclose([r["amplitude_m"] for r in rows], want["amplitude_m"],
                                    rtol=1e-12)
+        # evaluations.csv: a row per evaluation, equal to the command's, its role flags integers
+        ev, want_ev = run.evaluations, read_csv(os.path.join(out_cli, "evaluations.csv"))
+        self.assertEqual(ev.columns, list(want_ev))
+        for name, column in want_ev.items():
+            np.testing.assert_allclose(ev[name], column, rtol=1e-12, atol=0, err_msg=name)
+        self.assertEqual(ev.rows, run.summary["evaluations_total"])
+        self.assertEqual(ev["prediction"].dtype, np.int64)
+        self.assertEqual(int(ev["prediction"].sum() + ev["jacobian"].sum() + ev["step"].sum()
+                             + ev["damped_step"].sum() + ev["gain_probe"].sum()
+                             + ev["accuracy_step"].sum()), ev.rows)
 
     def test_two_interface_dofs_rows(self):
         # two interface storeys: the callback's rows carry frf.csv's dof<d>_* columns, and the
