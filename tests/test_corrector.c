@@ -411,6 +411,7 @@ static int evaluations_logged_after_reversal(int repair, double offset, evaluati
     evaluation_log unused;
     opt.on_evaluation = log_evaluation;
     opt.on_evaluation_user = log ? log : &unused;
+    memset(opt.on_evaluation_user, 0, sizeof(evaluation_log));
     rths_corrector *c;
     rths_error err;
     assert_int_equal(rths_corrector_create(&problem, &opt, &c, &err), RTHS_OK);
