@@ -276,8 +276,8 @@ typedef struct rths_evaluation_event {
     double mismatch_to_tolerance; /* the largest ratio over the interface DoFs */
     int within_tolerance;         /* every interface DoF's mismatch below its tolerance */
     double rig_time_s;            /* the rig time it used, as the corrector counts it */
-    /* how the evaluation reached steady state: its rig time, periods waited and averaged, the
-     * steady-state test passed, a fitted steady state, a fit that fell back to waiting */
+    /* how the evaluation reached steady state: periods waited and averaged, the steady-state
+     * test passed, a fitted steady state, a fit that fell back to waiting */
     const rths_evaluation *evaluation;
 } rths_evaluation_event;
 

@@ -227,8 +227,7 @@ static int accuracy_on_demand(rths_corrector *c, rths_error *err) {
         double ut[LD];
         for (int i = 0; i < LD; i++)
             ut[i] = c->cur.u[i] + (i < c->m ? du[i] : 0.0);
-        c->role = RTHS_EVALUATION_ACCURACY_STEP;
-        rc = corrector_evaluate(c, ut, trial, err);
+        rc = corrector_evaluate(c, ut, trial, RTHS_EVALUATION_ACCURACY_STEP, 0.0, err);
         if (rc && c->refused) { /* a corrupted trial: the accepted point stands */
             c->refused = 0;
             rc = RTHS_OK;
@@ -380,8 +379,7 @@ static int corrector_set(rths_corrector *c, const double *u0, double omega_rad_s
             u[i] *= c->trust_radius / size;
         c->trust_actions++;
     }
-    c->role = RTHS_EVALUATION_PREDICTION;
-    int rc = corrector_evaluate(c, u, &c->cur, err);
+    int rc = corrector_evaluate(c, u, &c->cur, RTHS_EVALUATION_PREDICTION, 0.0, err);
     if (rc) return rc;
     if (converged(c, &c->cur)) return accept_converged(c, err);
     /* no carried Jacobian, the seed's flowchart, or a carried one without the frequency column
@@ -484,9 +482,9 @@ static int line_search(rths_corrector *c, const double *du, corrector_point *tri
             ut[i] = c->cur.u[i] + lambda * du[i];
         for (int i = c->m; i < LD; i++)
             ut[i] = c->cur.u[i];
-        c->role = lambda == 1.0 ? RTHS_EVALUATION_STEP : RTHS_EVALUATION_DAMPED_STEP;
-        c->role_damping = lambda;
-        if ((*rc = corrector_evaluate(c, ut, trial, err))) {
+        rths_evaluation_role role =
+            lambda == 1.0 ? RTHS_EVALUATION_STEP : RTHS_EVALUATION_DAMPED_STEP;
+        if ((*rc = corrector_evaluate(c, ut, trial, role, lambda, err))) {
             /* a trial whose measurement was corrupted (clipped, saturated) is a step too far:
              * a shorter one is tried, as for a residual that grew */
             if (!c->refused) return 0;

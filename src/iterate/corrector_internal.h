@@ -72,10 +72,6 @@ struct rths_corrector {
     int jacobian_here; /* the Jacobians were measured or secant-updated at this point */
     int fresh;         /* the Jacobians were just measured */
     int repaired;      /* a failed full step's secant updated the Jacobians (secant_repair) */
-    /* what the next evaluation is for, and a line-search trial's step fraction
-     * (rths_newton_options.on_evaluation): set by each caller of corrector_evaluate */
-    rths_evaluation_role role;
-    double role_damping;
     rths_corrector_outcome status;
     int refused;        /* the last evaluation failed as refused (rths_evaluation.refused) */
     int refused_trials; /* line-search trials set aside this correction for being refused */
@@ -95,7 +91,10 @@ struct rths_corrector {
 };
 
 /* evaluate.c */
-int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, rths_error *err);
+/* role and damping (a step's fraction of the Newton step, 0 for the other roles) say what the
+ * evaluation was for, as rths_newton_options.on_evaluation reports it */
+int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p,
+                       rths_evaluation_role role, double damping, rths_error *err);
 
 /* lti.c: the LTI rig's complex-gain form and its local model (one interface DoF: P = N pairs) */
 void lti_pair_block(double *J, int P, int p, int q, double complex g);

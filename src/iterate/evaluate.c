@@ -1099,15 +1099,15 @@ static double describe(const rths_corrector *c, corrector_point *p) {
     return sq;
 }
 
-/* rths_newton_options.on_evaluation: what the evaluation into *p was for (c->role) and what it
- * measured; a refused one (its record holds no residual) with NaN mismatches. */
-static void report_evaluation(const rths_corrector *c, const corrector_point *p, int refused) {
+/* rths_newton_options.on_evaluation: what the evaluation into *p was for and what it measured;
+ * a refused one (its record holds no residual) with NaN mismatches. */
+static void report_evaluation(const rths_corrector *c, const corrector_point *p,
+                              rths_evaluation_role role, double damping, int refused) {
     if (!c->opt.on_evaluation) return;
-    int stepping = c->role == RTHS_EVALUATION_STEP || c->role == RTHS_EVALUATION_DAMPED_STEP;
     rths_evaluation_event e = {
-        .role = c->role,
+        .role = role,
         .iteration = c->iterations,
-        .damping = stepping ? c->role_damping : 0.0,
+        .damping = damping,
         .frequency_hz = p->sol.omega_rad_s / (2 * M_PI),
         .refused = refused,
         .mismatch_m = refused ? NAN : p->sol.residual_norm_m,
@@ -1122,7 +1122,8 @@ static void report_evaluation(const rths_corrector *c, const corrector_point *p,
 
 /* Evaluates at scaled u into *p: the record, then the scaled residual and response, the
  * arclength row and the extended residual norm. */
-int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, rths_error *err) {
+int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p,
+                       rths_evaluation_role role, double damping, rths_error *err) {
     int n = c->n;
     double target[LD];
     for (int i = 0; i < n; i++)
@@ -1146,7 +1147,7 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
         p->sol.target_b[k] = target[c->harmonics + k];
     }
     if (rc) {
-        if (c->refused) report_evaluation(c, p, 1);
+        if (c->refused) report_evaluation(c, p, role, damping, 1);
         return rc;
     }
     pool_noise(&c->mem, &p->rec, n);
@@ -1165,6 +1166,6 @@ int corrector_evaluate(rths_corrector *c, const double *u, corrector_point *p, r
         ext += g * g;
     }
     p->ext = sqrt(ext);
-    report_evaluation(c, p, 0);
+    report_evaluation(c, p, role, damping, 0);
     return RTHS_OK;
 }

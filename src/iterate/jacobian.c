@@ -42,8 +42,7 @@ int corrector_fd_jacobian(rths_corrector *c, rths_error *err) {
         else
             h = c->opt.fd_step_omega_rel * fabs(up[j]);
         up[j] += h;
-        c->role = RTHS_EVALUATION_JACOBIAN;
-        int rc = corrector_evaluate(c, up, &tmp, err);
+        int rc = corrector_evaluate(c, up, &tmp, RTHS_EVALUATION_JACOBIAN, 0.0, err);
         if (rc) return rc;
         column_noise(c, &tmp.rec, h, &noise_j, &noise_r);
         for (int i = 0; i < n; i++) {

@@ -212,8 +212,7 @@ static int measure_local_gain(rths_corrector *c, local_gain *lg, rths_error *err
     memcpy(u, c->cur.u, sizeof u);
     u[0] *= PROBE_TARGET_FACTOR;
     u[N] *= PROBE_TARGET_FACTOR;
-    c->role = RTHS_EVALUATION_GAIN_PROBE;
-    int rc = corrector_evaluate(c, u, probe, err);
+    int rc = corrector_evaluate(c, u, probe, RTHS_EVALUATION_GAIN_PROBE, 0.0, err);
     if (!rc) secant_gain(c, probe->rec.phi, probe->rec.response, probe->rec.phi_se, lg);
     free(probe);
     return rc;

@@ -9,13 +9,21 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* The role is one 0/1 column per role (rths_evaluation_role's order), so that the file stays a
- * numeric table (results.mat holds every CSV of the run as one) and a column's sum counts them. */
-static const char EVALUATIONS_HEADER[] =
-    "point,correction,prediction,jacobian,step,damped_step,gain_probe,accuracy_step,iteration,"
-    "frequency_hz,mismatch_m,tolerance_m,mismatch_to_tolerance,within_tolerance,damping,rig_time_s,"
-    "wait_periods,average_periods,steady,fitted,fit_fallback,refused,resumed\n";
+/* The role is one 0/1 column per role, named by rths_evaluation_role_name in the enum's order,
+ * so that the file stays a numeric table (results.mat holds every CSV of the run as one) and a
+ * column's sum counts them. */
 enum { ROLES = RTHS_EVALUATION_ACCURACY_STEP + 1 };
+static const char HEADER_AFTER_ROLES[] =
+    "iteration,frequency_hz,mismatch_m,tolerance_m,mismatch_to_tolerance,within_tolerance,damping,"
+    "rig_time_s,wait_periods,average_periods,steady,fitted,fit_fallback,refused,resumed\n";
+
+static int write_header(FILE *f) {
+    if (fputs("point,correction,", f) == EOF) return EOF;
+    for (int r = 0; r < ROLES; r++)
+        if (fprintf(f, "%s,", rths_evaluation_role_name((rths_evaluation_role)r)) < 0) return EOF;
+    if (fputs(HEADER_AFTER_ROLES, f) == EOF) return EOF;
+    return fflush(f);
+}
 
 /* A write that failed (disk full, a file size limit) ends the file where it was: run.log says
  * so once; the run goes on, since the rig's test matters more than its diagnostics. */
@@ -39,8 +47,7 @@ int frf_evaluations_open(frf_state *st, rths_error *err) {
         return rc;
     }
     free(path);
-    if (ftell(st->evaluations) == 0 &&
-        (fputs(EVALUATIONS_HEADER, st->evaluations) == EOF || fflush(st->evaluations) == EOF))
+    if (ftell(st->evaluations) == 0 && write_header(st->evaluations) == EOF)
         write_failed(st, "writing the header");
     return RTHS_OK;
 }
